@@ -1,0 +1,13 @@
+"""The ECU and operator side of the EMA ball-screw HUMS bench.
+
+`bench` holds the position/speed controller, the in-process harness, the HUMS monitor,
+the sim-to-real gap diagnosis, log tools and the `bench` command. It reaches the live
+plant only through the CAN bus (see `bench.bus`); offline studies use the public
+model API of `plant_rt`.
+"""
+
+__version__ = "0.1.0"
+
+
+class BenchError(Exception):
+    """An error the user can fix: printed as one line ``error: ...`` by the CLI."""

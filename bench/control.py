@@ -1,0 +1,134 @@
+"""The ECU controller: position P and speed PI at the SYNC rate (thesis section 5.2).
+
+The current loop lives in the drive (plant_rt), so the ECU sends a current demand; see
+design.md "Control partition". The same compiled `controller_step` runs in the live ECU
+(bench.ecu, one call per SYNC) and in the in-process harness (bench.harness, inside the
+compiled run loop), so both give the same demand for the same measurements.
+
+Gains are designed here, since the thesis does not print them:
+- position P: 6 Hz position bandwidth, K = 2 pi 6 / (tau p / 2 pi) (rad/s)/m, i.e. the
+  thesis' requirement of section 5.2.2 (in thesis units, K / 285.7 V/m);
+- speed PI: 30 Hz crossover on the motor-side inertia with the integral zero a decade
+  below... (see docs/model.md for the loop-shape numbers): the thesis' 60 Hz / 67 deg /
+  14 dB is not reachable through a 1 kHz bus with one period of delay.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numba import njit
+
+from bench import BenchError
+from bench.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
+
+# controller state vector: [speed PI integrator (A), last demand (A)]
+C_INT, C_LAST = 0, 1
+NC = 2
+# controller parameter vector
+(K_POS_KP, K_SPD_KP, K_SPD_KI, K_SPD_LIM, K_CUR_LIM, K_TS) = range(6)
+NK = 6
+
+THESIS_SET_GAIN_V_PER_M = 285.7   # K_SET of table 5.1: thesis position units are volts
+
+
+def position_gain_for_bandwidth(bandwidth_hz: float, ratio: float = 0.25,
+                                lead_m: float = 5e-3) -> float:
+    """Position P gain (motor rad/s per m) giving `bandwidth_hz` with a rigid screw."""
+    return 2 * math.pi * bandwidth_hz / (ratio * lead_m / (2 * math.pi))
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """ECU gains and limits (SI; thesis units are volts for position)."""
+    position_kp_rad_s_per_m: float = position_gain_for_bandwidth(6.0)
+    speed_kp_a_s_per_rad: float = 0.5
+    speed_ki_a_per_rad: float = 12.0
+    speed_limit_rad_s: float = 251.0     # motor speed saturation (section 5.7.1)
+    current_limit_a: float = 25.0        # i_max (table 5.2)
+    sample_period_s: float = 1e-3        # SYNC period
+
+    def __post_init__(self) -> None:
+        for k, v in asdict(self).items():
+            if not (isinstance(v, (int, float)) and math.isfinite(v)) or v < 0:
+                raise BenchError(f"controller parameter {k} must be a finite number >= 0, "
+                                 f"got {v!r}")
+        if self.sample_period_s <= 0:
+            raise BenchError("controller sample_period_s must be > 0")
+
+    @property
+    def position_kp_thesis_units(self) -> float:
+        """The position gain in the thesis' units ((rad/s)/V, with K_SET = 285.7 V/m)."""
+        return self.position_kp_rad_s_per_m / THESIS_SET_GAIN_V_PER_M
+
+    def vector(self) -> np.ndarray:
+        k = np.zeros(NK)
+        k[K_POS_KP] = self.position_kp_rad_s_per_m
+        k[K_SPD_KP] = self.speed_kp_a_s_per_rad
+        k[K_SPD_KI] = self.speed_ki_a_per_rad
+        k[K_SPD_LIM] = self.speed_limit_rad_s
+        k[K_CUR_LIM] = self.current_limit_a
+        k[K_TS] = self.sample_period_s
+        return k
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def controller_step(c: np.ndarray, k: np.ndarray, sp_pos: float, sp_speed: float, mode: float,
+                    pos: float, speed: float) -> float:
+    """One ECU sample: the current demand (A) from set-points and measurements.
+
+    mode 1 (position): speed demand = P(position error) saturated at the speed limit;
+    mode 2 (speed, the thesis' open-loop tests): speed demand = sp_speed;
+    mode 0 (idle): demand 0, integrator reset.
+    Speed PI with clamping anti-windup, output saturated at the current limit (sec. 5.2).
+    """
+    if mode == 0.0 or not (math.isfinite(pos) and math.isfinite(speed)):
+        c[C_INT] = 0.0
+        c[C_LAST] = 0.0
+        return 0.0
+    if mode == 1.0:
+        w_dem = k[K_POS_KP] * (sp_pos - pos)
+    else:
+        w_dem = sp_speed
+    lim = k[K_SPD_LIM]
+    if w_dem > lim:
+        w_dem = lim
+    elif w_dem < -lim:
+        w_dem = -lim
+    e = w_dem - speed
+    i_un = k[K_SPD_KP] * e + c[C_INT]
+    ilim = k[K_CUR_LIM]
+    i_dem = i_un
+    if i_dem > ilim:
+        i_dem = ilim
+    elif i_dem < -ilim:
+        i_dem = -ilim
+    # clamping: stop integrating while saturated and the error pushes further out
+    if not (i_dem != i_un and e * i_un > 0.0):
+        c[C_INT] += k[K_SPD_KI] * e * k[K_TS]
+    c[C_LAST] = i_dem
+    return i_dem
+
+
+class Controller:
+    """The ECU controller as an object (what the live ECU holds)."""
+
+    def __init__(self, params: ControllerParams | None = None) -> None:
+        self.params = params or ControllerParams()
+        self._k = self.params.vector()
+        self._c = np.zeros(NC)
+
+    def reset(self) -> None:
+        self._c[:] = 0.0
+
+    def step(self, setpoint_position_m: float, setpoint_speed_rad_s: float, mode: int,
+             position_m: float, motor_speed_rad_s: float) -> float:
+        return float(controller_step(self._c, self._k, setpoint_position_m,
+                                     setpoint_speed_rad_s, float(mode), position_m,
+                                     motor_speed_rad_s))
+
+
+__all__ = ["ControllerParams", "Controller", "controller_step", "MODE_IDLE", "MODE_POSITION",
+           "MODE_SPEED", "position_gain_for_bandwidth"]

@@ -1,0 +1,177 @@
+"""The bench's signal table: one row per SYNC period, one column per signal.
+
+A `Trace` is what every source produces (in-process run, live bus run, decoded candump
+log, imported table) and what every consumer reads (HUMS indexes, gap diagnosis,
+reports, figures). Columns are 1-D float64 numpy arrays of equal length; names carry
+units. Only `t_s` is mandatory; a consumer that needs a column asks `require()` and gets
+a clear error naming what is missing.
+
+Measured columns (what crosses the bus, what a real actuator gives):
+    t_s, setpoint_position_m, setpoint_speed_rad_s, mode, current_demand_a, current_a,
+    motor_speed_rad_s, motor_angle_rad, position_m
+Truth columns (only from a simulated plant; never used by the HUMS or the diagnosis):
+    true_position_m, true_current_a, true_motor_speed_rad_s, motor_torque_nm,
+    friction_torque_nm, friction_force_n, reaction_torque_nm, temperature_k,
+    ext_force_n, backlash_m, friction_scale, preload_n, voltage_v
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+
+MEASURED = ("t_s", "setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
+            "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")
+TRUTH = ("true_position_m", "true_current_a", "true_motor_speed_rad_s", "motor_torque_nm",
+         "friction_torque_nm", "friction_force_n", "reaction_torque_nm", "temperature_k",
+         "ext_force_n", "backlash_m", "friction_scale", "preload_n", "voltage_v")
+
+# ECU modes published on the bus (also a DBC value table)
+MODE_IDLE, MODE_POSITION, MODE_SPEED = 0, 1, 2
+
+
+@dataclass
+class Trace:
+    """Columns of equal length, plus free-form metadata (scenario, parameters, source)."""
+    columns: dict[str, np.ndarray]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if "t_s" not in self.columns:
+            raise BenchError("a trace needs a time column t_s")
+        n = len(self.columns["t_s"])
+        for k, v in list(self.columns.items()):
+            arr = np.asarray(v, dtype=float)
+            if arr.ndim != 1 or len(arr) != n:
+                raise BenchError(f"trace column {k!r} has length {len(arr)}, expected {n}")
+            self.columns[k] = arr
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.columns[name]
+        except KeyError:
+            raise BenchError(f"the trace has no column {name!r} "
+                             f"(it has: {', '.join(sorted(self.columns))})") from None
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.columns
+
+    def __len__(self) -> int:
+        return len(self.columns["t_s"])
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.columns["t_s"]
+
+    @property
+    def dt(self) -> float:
+        """Median sample period (s)."""
+        return float(np.median(np.diff(self.t))) if len(self) > 1 else float("nan")
+
+    def require(self, names: Iterable[str], purpose: str) -> None:
+        """Raise a BenchError naming every column `purpose` needs and the trace lacks."""
+        missing = [n for n in names if n not in self.columns
+                   or not np.isfinite(self.columns[n]).any()]
+        if missing:
+            raise BenchError(f"{purpose} needs the signal(s) {', '.join(missing)}, "
+                             f"which this log/trace does not have")
+
+    def window(self, t0: float, t1: float) -> Trace:
+        m = (self.t >= t0) & (self.t < t1)
+        return Trace({k: v[m] for k, v in self.columns.items()}, dict(self.meta))
+
+    def measured(self) -> Trace:
+        """Only the columns a real actuator's bus carries (drop simulation truth)."""
+        return Trace({k: v for k, v in self.columns.items() if k not in TRUTH}, dict(self.meta))
+
+    # -- files -----------------------------------------------------------------------
+    def save(self, path: str | Path) -> Path:
+        """Write CSV (``.csv``), Parquet (``.parquet``) or compressed numpy (``.npz``)."""
+        path = Path(path)
+        suffix = path.suffix.lower()
+        if suffix == ".npz":
+            np.savez_compressed(path, __meta__=json.dumps(self.meta, default=str),
+                                **self.columns)
+        elif suffix == ".csv":
+            names = list(self.columns)
+            with path.open("w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(names)
+                data = np.column_stack([self.columns[n] for n in names])
+                for row in data:
+                    w.writerow([repr(float(x)) for x in row])
+        elif suffix == ".parquet":
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+            table = pa.table(self.columns)
+            table = table.replace_schema_metadata(
+                {"bench_meta": json.dumps(self.meta, default=str)})
+            pq.write_table(table, path)
+        else:
+            raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Trace:
+        path = Path(path)
+        if not path.exists():
+            raise BenchError(f"no such file: {path}")
+        suffix = path.suffix.lower()
+        if suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["__meta__"])) if "__meta__" in z else {}
+                cols = {k: z[k] for k in z.files if k != "__meta__"}
+            return cls(cols, meta)
+        if suffix == ".csv":
+            return cls(read_csv_columns(path.read_text()), {"source": str(path)})
+        if suffix == ".parquet":
+            import pyarrow.parquet as pq
+            table = pq.read_table(path)
+            md = table.schema.metadata or {}
+            meta = json.loads(md.get(b"bench_meta", b"{}"))
+            return cls({n: table.column(n).to_numpy().astype(float)
+                        for n in table.column_names}, meta)
+        raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
+
+
+def read_csv_columns(text: str) -> dict[str, np.ndarray]:
+    """Numeric columns of a CSV text with a header row; clear errors on bad rows."""
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise BenchError("empty CSV table")
+    header = [h.strip() for h in rows[0]]
+    data: list[list[float]] = []
+    for lineno, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        if len(row) != len(header):
+            raise BenchError(f"CSV line {lineno}: {len(row)} fields, header has {len(header)}")
+        try:
+            data.append([float(x) if x.strip() else float("nan") for x in row])
+        except ValueError:
+            raise BenchError(f"CSV line {lineno}: non-numeric value in {row!r}") from None
+    arr = np.array(data, dtype=float).reshape(-1, len(header))
+    return {h: arr[:, i].copy() for i, h in enumerate(header)}
+
+
+def concat(traces: list[Trace]) -> Trace:
+    names = set(traces[0].columns)
+    for tr in traces[1:]:
+        names &= set(tr.columns)
+    return Trace({n: np.concatenate([tr.columns[n] for tr in traces]) for n in sorted(names)},
+                 dict(traces[0].meta))
+
+
+def from_rows(rows: list[Mapping[str, float]], meta: dict[str, Any] | None = None) -> Trace:
+    names = list(rows[0]) if rows else ["t_s"]
+    return Trace({n: np.array([r.get(n, np.nan) for r in rows], dtype=float) for n in names},
+                 meta or {})

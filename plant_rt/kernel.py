@@ -1,0 +1,393 @@
+"""The compiled fixed-step core of the EMA plant (thesis chapter 5).
+
+`advance(x, p, u, out)` integrates the state vector `x` over one SYNC period with
+fixed sub-steps, holding the inputs `u`, and writes period diagnostics into `out`.
+Everything is plain float64 arrays so numba compiles one specialisation, cached on disk.
+
+Layout of `x`, `p`, `u` and `out` is given by the index constants below; `plant_rt.model`
+builds `p` from a `PlantParams` and names the states for users. What changes during a
+run (current demand, preload, backlash, friction scale, held noise) is input, not a
+parameter; the external force profile is evaluated per sub-step from `p`.
+
+Sign conventions: x (nut position), Omega (screw angle) and z (contact normal) grow in
+the direction a positive motor current drives the nut. F_ext > 0 opposes positive motion
+(eq. 5.30).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# --- state vector x -------------------------------------------------------------------
+(I, CI, IM, TQ, TEMP, TH, OM, X1, V1, X2, V2, ZB1, VB1, ZB2, VB2,
+ LY, LYD, EY, EYD, STS, STN1, STN2, T,
+ E_IN, E_R, E_FRS, E_FRN, E_EXT, E_EMF, E_MIS, E_ETA, E_PR, E_CLAMP, E_MOT) = range(34)
+NX = 34
+STATE_NAMES = (
+    "current_a", "current_pi_integrator_v", "current_sensor_a", "motor_torque_nm",
+    "temperature_k", "screw_angle_rad", "screw_speed_rad_s", "nut1_position_m",
+    "nut1_speed_m_s", "nut2_position_m", "nut2_speed_m_s", "ball1_z_m", "ball1_speed_m_s",
+    "ball2_z_m", "ball2_speed_m_s", "lvdt_y_m", "lvdt_ydot_m_s", "encoder_y_rad_s",
+    "encoder_ydot_rad_s2", "screw_stuck", "nut1_stuck", "nut2_stuck", "t_s",
+    "e_electrical_in_j", "e_joule_j", "e_screw_friction_j", "e_nut_friction_j",
+    "e_external_j", "e_back_emf_j", "e_lever_mismatch_j", "e_reducer_loss_j",
+    "e_preload_j", "e_current_clamp_j", "e_motor_torque_j")
+
+# --- parameter vector p ---------------------------------------------------------------
+(P_R, P_L, P_KE, P_KT, P_IMAX, P_VDC, P_RTH, P_TAMB, P_TAUW, P_TAUH, P_ALPHA_R,
+ P_JEQ, P_TAU, P_ETA, P_CS, P_STRA, P_STRV, P_CVISC, P_Z, P_LEAD, P_G, P_LEVER_V,
+ P_LEVER_R, P_FV, P_FS, P_CN, P_MN, P_MB, P_KSTAR, P_MSLOPE, P_CDAMP,
+ P_LZETA, P_LSIG, P_EZETA, P_ESIG, P_TAUC, P_KPI, P_KII, P_FPWM, P_PWM_SW, P_BALL_DYN,
+ P_DT, P_NBALL, P_NSUB, P_LOAD_KIND, P_LOAD_AMP, P_LOAD_T0, P_LOAD_RATE, P_LOAD_FREQ,
+ P_TRAVEL) = range(50)
+NP = 50
+
+# --- inputs u (held over one SYNC period) -----------------------------------------------
+U_IDEM, U_PRELOAD, U_BACKLASH, U_FSCALE, U_VSCALE, U_INOISE, U_IGAIN, U_IOFF = range(8)
+NU = 8
+
+# --- period diagnostics out -------------------------------------------------------------
+(O_FRIC_T, O_FRIC_F, O_REACT_T, O_VOLT, O_FEXT, O_ILIM, O_PMAX1, O_PMAX2) = range(8)
+NO = 8
+DIAG_NAMES = ("friction_torque_nm", "friction_force_n", "reaction_torque_nm", "voltage_v",
+              "ext_force_n", "current_limited", "contact_force1_max_n", "contact_force2_max_n")
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def _sign(v: float) -> float:
+    return 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
+
+
+@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def contact_force(d: float, dd: float, k: float, c: float, half_band: float) -> float:
+    """Contact force of one spring-damper with a dead zone (eq. 5.17-5.24).
+
+    d: relative approach along z (m), dd its rate; half_band: b_max/4 for one contact
+    (eq. 5.19-5.20), so the dead zone |d| <= half_band gives zero force (eq. 5.23-5.24).
+    The damping force is limited to |c dd| <= |k delta| (eq. 5.22: the force-continuity
+    function f of eq. 5.17-5.18), so the force never changes sign through damping.
+    """
+    if d > half_band:
+        delta = d - half_band
+    elif d < -half_band:
+        delta = d + half_band
+    else:
+        return 0.0
+    fs = k * delta
+    fd = c * dd
+    if fs > 0.0:
+        if fd > fs:
+            fd = fs
+        elif fd < -fs:
+            fd = -fs
+    else:
+        if fd > -fs:
+            fd = -fs
+        elif fd < fs:
+            fd = fs
+    return fs + fd
+
+
+@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def _on_time(t: float, a: float, period: float) -> float:
+    """Integral from 0 to t of [carrier(s) < a] for a 0..1..0 triangular carrier (sec. 5.3)."""
+    n = math.floor(t / period)
+    ph = t - n * period
+    on = n * a * period + min(ph, 0.5 * a * period)
+    th = period * (1.0 - 0.5 * a)
+    if ph > th:
+        on += ph - th
+    return on
+
+
+@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def _ext_force(p: np.ndarray, t: float) -> float:
+    kind = p[P_LOAD_KIND]
+    if kind == 0.0:
+        return 0.0
+    t0 = p[P_LOAD_T0]
+    if t < t0:
+        return 0.0
+    amp = p[P_LOAD_AMP]
+    if kind == 3.0:  # sine
+        return amp * math.sin(TWO_PI * p[P_LOAD_FREQ] * (t - t0))
+    rate = p[P_LOAD_RATE] if kind == 2.0 else abs(amp) / 0.01  # step: 0.01 s rise (5.7.3)
+    ramp = rate * (t - t0)
+    if ramp >= abs(amp):
+        return amp
+    return ramp if amp > 0.0 else -ramp
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
+    """Integrate one SYNC period (p[P_NSUB] sub-steps of p[P_DT]) holding inputs u."""
+    dt = p[P_DT]
+    nsub = int(p[P_NSUB])
+    R0, L, KE, KT = p[P_R], p[P_L], p[P_KE], p[P_KT]
+    IMAX, VDC = p[P_IMAX], p[P_VDC]
+    tau, eta, jeq = p[P_TAU], p[P_ETA], p[P_JEQ]
+    fscale, vscale = u[U_FSCALE], u[U_VSCALE]
+    CS = p[P_CS] * fscale
+    STRA, STRV = p[P_STRA], p[P_STRV]
+    CVISC = p[P_CVISC] * vscale
+    Z, lead, g = p[P_Z], p[P_LEAD], p[P_G]
+    lever_v, lever_r, fv = p[P_LEVER_V], p[P_LEVER_R], p[P_FV]
+    FS = p[P_FS] * fscale
+    CN = p[P_CN] * vscale
+    mhalf = 0.5 * p[P_MN]
+    mb = p[P_MB]
+    fpr = u[U_PRELOAD]
+    k = p[P_KSTAR] + p[P_MSLOPE] * fpr          # eq. 5.21
+    c = p[P_CDAMP]
+    hb = 0.25 * u[U_BACKLASH]                    # b_max/4 per contact (eq. 5.19-5.20)
+    kin = lead / TWO_PI * g                      # dz_s/dOmega (eq. 5.26)
+    lever_kin = lead / TWO_PI * g                # work-consistent lever of C_V
+    a_c = 1.0 - math.exp(-dt / p[P_TAUC])
+    a_h = 1.0 - math.exp(-dt / p[P_TAUH])
+    a_w = 1.0 - math.exp(-dt / p[P_TAUW])
+    kpi, kii = p[P_KPI], p[P_KII]
+    period = 1.0 / p[P_FPWM]
+    switching = p[P_PWM_SW] != 0.0
+    dynamic = p[P_BALL_DYN] != 0.0
+    nball = int(p[P_NBALL])
+    dtb = dt / nball
+    lz, ls = p[P_LZETA], p[P_LSIG]
+    ez, es = p[P_EZETA], p[P_ESIG]
+    idem = u[U_IDEM]
+    if idem > IMAX:
+        idem = IMAX
+    elif idem < -IMAX:
+        idem = -IMAX
+
+    acc_cf = 0.0
+    acc_ff = 0.0
+    acc_cv = 0.0
+    acc_v = 0.0
+    acc_fe = 0.0
+    ilim = 0.0
+    pmax1 = 0.0
+    pmax2 = 0.0
+
+    for _ in range(nsub):
+        t = x[T]
+        i = x[I]
+        om = x[OM]
+        w_m = om / tau                             # motor speed (eq. 5.8)
+        # ---- drive: current PI with clamping anti-windup, measured current ----------
+        i_fb = u[U_IGAIN] * x[IM] + u[U_IOFF] + u[U_INOISE]
+        e = idem - i_fb
+        v_un = kpi * e + x[CI]
+        vset = v_un
+        if vset > VDC:
+            vset = VDC
+        elif vset < -VDC:
+            vset = -VDC
+        if not (vset != v_un and e * v_un > 0.0):
+            x[CI] += kii * e * dt
+        # ---- PWM and inverter (section 5.3) --------------------------------------------
+        if switching:
+            m = vset / VDC
+            am = abs(m)
+            duty = (_on_time(t + dt, am, period) - _on_time(t, am, period)) / dt
+            va = _sign(m) * VDC * duty
+        else:
+            va = vset
+        # ---- motor (eq. 5.3-5.6), semi-implicit in R -----------------------------------
+        rt = R0 * (1.0 + p[P_ALPHA_R] * (x[TEMP] - p[P_TAMB]))
+        i_new = (i + dt * (va - KE * w_m) / L) / (1.0 + dt * rt / L)
+        if i_new > IMAX:
+            x[E_CLAMP] += 0.5 * L * (i_new * i_new - IMAX * IMAX)
+            i_new = IMAX
+            ilim = 1.0
+        elif i_new < -IMAX:
+            x[E_CLAMP] += 0.5 * L * (i_new * i_new - IMAX * IMAX)
+            i_new = -IMAX
+            ilim = 1.0
+        x[E_IN] += va * i_new * dt
+        x[E_R] += rt * i_new * i_new * dt
+        x[E_EMF] += KE * w_m * i_new * dt
+        x[I] = i_new
+        x[IM] += (i_new - x[IM]) * a_c                                   # eq. 5.2
+        x[TQ] += (KT * i_new - x[TQ]) * a_h                              # eq. 5.4 + demod
+        x[TEMP] += (p[P_TAMB] + rt * i_new * i_new * p[P_RTH] - x[TEMP]) * a_w  # eq. 5.5
+        # ---- ball contacts (eq. 5.16-5.24) ---------------------------------------------
+        zs = kin * x[TH]
+        vzs = kin * om
+        zn1 = g * x[X1]
+        zn2 = g * x[X2]
+        vzn1 = g * x[V1]
+        vzn2 = g * x[V2]
+        if dynamic:
+            ps1 = 0.0
+            pn1 = 0.0
+            ps2 = 0.0
+            pn2 = 0.0
+            for kb in range(nball):
+                tb = kb * dtb
+                zs_b = zs + vzs * tb
+                f_s1 = -contact_force(x[ZB1] - zs_b, x[VB1] - vzs, k, c, hb)   # P'_1 eq. 5.17
+                f_n1 = contact_force(zn1 + vzn1 * tb - x[ZB1], vzn1 - x[VB1], k, c, hb)  # P_1
+                f_s2 = -contact_force(x[ZB2] - zs_b, x[VB2] - vzs, k, c, hb)
+                f_n2 = contact_force(zn2 + vzn2 * tb - x[ZB2], vzn2 - x[VB2], k, c, hb)
+                x[VB1] += dtb * (f_s1 + f_n1) / mb                                # eq. 5.16
+                x[VB2] += dtb * (f_s2 + f_n2) / mb
+                x[ZB1] += dtb * x[VB1]
+                x[ZB2] += dtb * x[VB2]
+                ps1 += f_s1
+                pn1 += f_n1
+                ps2 += f_s2
+                pn2 += f_n2
+            ps1 /= nball
+            pn1 /= nball
+            ps2 /= nball
+            pn2 /= nball
+        else:
+            # massless balls: the two contacts in series, k/2, c/2, dead zone b/2
+            pn1 = contact_force(zn1 - zs, vzn1 - vzs, 0.5 * k, 0.5 * c, 2.0 * hb)
+            pn2 = contact_force(zn2 - zs, vzn2 - vzs, 0.5 * k, 0.5 * c, 2.0 * hb)
+            ps1 = -pn1
+            ps2 = -pn2
+            x[ZB1] = 0.5 * (zn1 + zs)
+            x[ZB2] = 0.5 * (zn2 + zs)
+        if abs(pn1) > pmax1:
+            pmax1 = abs(pn1)
+        if abs(pn2) > pmax2:
+            pmax2 = abs(pn2)
+        # ---- screw shaft (eq. 5.9-5.15) with the stiction logic of fig. 5.17 ------------
+        cm = eta * x[TQ] / tau                                          # eq. 5.7
+        cv = Z * (ps1 + ps2) * lever_v                                  # eq. 5.10, 5.15
+        roll = Z * fv * (abs(ps1) + abs(ps2)) * lever_r                 # eq. 5.13, 3rd term
+        c_stat = CS * (1.0 + STRA) + roll
+        tt = cm - cv
+        if x[STS] != 0.0 or om == 0.0:
+            if abs(tt) <= c_stat:
+                cf = tt
+                om_new = 0.0
+                x[STS] = 1.0
+            else:
+                cf = c_stat * _sign(tt)
+                om_new = om + dt * (tt - cf) / jeq
+                x[STS] = 0.0
+        else:
+            cf = (CS * (1.0 + STRA * math.exp(-abs(om) / STRV)) + CVISC * abs(om) / tau
+                  + roll) * _sign(om)                                   # eq. 5.13-5.14
+            om_new = om + dt * (tt - cf) / jeq
+            if om_new * om < 0.0:                                       # zero crossing
+                om_new = 0.0
+                x[STS] = 1.0 if abs(tt) <= c_stat else 0.0
+        # ---- double nut (eq. 5.27-5.32) -----------------------------------------------
+        fext = _ext_force(p, t)
+        fz1 = -pn1 * g                                                 # eq. 5.28
+        fz2 = -pn2 * g
+        ffr_tot = 0.0
+        for j in range(2):
+            if j == 0:
+                v = x[V1]
+                fdrive = Z * fz1 - fpr - 0.5 * fext                     # eq. 5.29, j = 1
+                pj = pn1
+                st = STN1
+            else:
+                v = x[V2]
+                fdrive = Z * fz2 + fpr - 0.5 * fext                     # eq. 5.29, j = 2
+                pj = pn2
+                st = STN2
+            f_stat = 0.5 * FS + fv * Z * abs(pj)
+            if x[st] != 0.0 or v == 0.0:
+                if abs(fdrive) <= f_stat:
+                    ffr = fdrive
+                    v_new = 0.0
+                    x[st] = 1.0
+                else:
+                    ffr = f_stat * _sign(fdrive)
+                    v_new = v + dt * (fdrive - ffr) / mhalf
+                    x[st] = 0.0
+            else:
+                ffr = (f_stat + CN * TWO_PI / lead * abs(v)) * _sign(v)  # eq. 5.31-5.32
+                v_new = v + dt * (fdrive - ffr) / mhalf
+                if v_new * v < 0.0:
+                    v_new = 0.0
+                    x[st] = 1.0 if abs(fdrive) <= f_stat else 0.0
+            if j == 0:
+                x[V1] = v_new
+            else:
+                x[V2] = v_new
+            vm = 0.5 * (v + v_new)
+            x[E_FRN] += ffr * vm * dt
+            x[E_EXT] += 0.5 * fext * vm * dt
+            x[E_PR] += (-fpr if j == 0 else fpr) * vm * dt
+            ffr_tot += ffr
+        # ---- energy bookkeeping of the screw (midpoint speeds) -------------------------
+        omm = 0.5 * (om + om_new)
+        x[E_FRS] += cf * omm * dt
+        x[E_MOT] += x[TQ] / tau * omm * dt
+        x[E_ETA] += (x[TQ] / tau - cm) * omm * dt
+        # C_V of eq. 5.10 vs the work-consistent lever: power the transmission creates
+        x[E_MIS] += Z * (ps1 + ps2) * (lever_kin - lever_v) * omm * dt
+        x[OM] = om_new
+        x[TH] += dt * om_new
+        x[X1] += dt * x[V1]
+        x[X2] += dt * x[V2]
+        # ---- sensors (eq. 5.1): LVDT on nut position, encoder on motor speed ------------
+        xn = 0.5 * (x[X1] + x[X2])
+        x[LYD] += dt * (ls * ls * (xn - x[LY]) - 2.0 * lz * ls * x[LYD])
+        x[LY] += dt * x[LYD]
+        x[EYD] += dt * (es * es * (om_new / tau - x[EY]) - 2.0 * ez * es * x[EYD])
+        x[EY] += dt * x[EYD]
+        x[T] = t + dt
+        acc_cf += cf
+        acc_ff += ffr_tot
+        acc_cv += cv
+        acc_v += va
+        acc_fe += fext
+
+    inv = 1.0 / nsub
+    out[O_FRIC_T] = acc_cf * inv
+    out[O_FRIC_F] = acc_ff * inv
+    out[O_REACT_T] = acc_cv * inv
+    out[O_VOLT] = acc_v * inv
+    out[O_FEXT] = acc_fe * inv
+    out[O_ILIM] = ilim
+    out[O_PMAX1] = pmax1
+    out[O_PMAX2] = pmax2
+
+
+# --- sensor vector for measure() ---------------------------------------------------------
+S_IGAIN, S_IOFF, S_LGAIN, S_LOFF, S_EGAIN, S_RATIO, S_COUNTS = range(7)
+NS = 7
+# --- measurement vector ------------------------------------------------------------------
+M_CUR, M_SPEED, M_ANGLE, M_POS, M_TEMP = range(5)
+NM = 5
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def measure(x: np.ndarray, s: np.ndarray, noise: np.ndarray, m: np.ndarray) -> None:
+    """Sensor readings of state x: current (eq. 5.2), encoder speed and angle, LVDT (eq. 5.1).
+
+    noise = (current A, position m, speed rad/s) white-noise samples for this SYNC.
+    """
+    m[M_CUR] = s[S_IGAIN] * x[IM] + s[S_IOFF] + noise[0]
+    m[M_SPEED] = s[S_EGAIN] * x[EY] + noise[2]
+    counts = s[S_COUNTS]
+    ang = x[TH] / s[S_RATIO]
+    m[M_ANGLE] = math.floor(ang / TWO_PI * counts) * TWO_PI / counts
+    m[M_POS] = s[S_LGAIN] * x[LY] + s[S_LOFF] + noise[1]
+    m[M_TEMP] = x[TEMP]
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def run_open(x: np.ndarray, p: np.ndarray, u_seq: np.ndarray, out_seq: np.ndarray,
+             x_seq: np.ndarray) -> None:
+    """Advance len(u_seq) periods with a precomputed input sequence (no controller).
+
+    Used by offline studies that do not need feedback (stiffness calibration, open-loop
+    current-demand tests, frequency responses of the drive). x_seq[k] holds the state at
+    the end of period k.
+    """
+    for kk in range(u_seq.shape[0]):
+        advance(x, p, u_seq[kk], out_seq[kk])
+        x_seq[kk, :] = x

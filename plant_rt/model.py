@@ -1,0 +1,264 @@
+"""The plant's public model API: parameters -> compiled step -> measurements.
+
+`Plant` is what the live CANopen node (`plant_rt.node`) and offline studies (the bench's
+in-process harness) both hold. One call to `step(current_demand_a)` advances exactly one
+SYNC period with that demand held by the drive, as the RPDO applied at a SYNC would be.
+
+    plant = Plant(PlantParams())
+    m = plant.measure()            # sensors at the current time
+    plant.step(2.0)                # 1 ms with a 2 A current demand
+    plant.truth()                  # simulation-only signals (never on the bus)
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from enum import IntFlag
+from typing import NamedTuple
+
+import numpy as np
+
+from plant_rt import kernel as K
+from plant_rt.params import PlantParams
+
+
+class Status(IntFlag):
+    """Plant status bits (published in the status word)."""
+    NONE = 0
+    OVERCURRENT = 1       # the drive held the current at its limit in the last period
+    END_OF_STROKE = 2     # |nut position| beyond screw.travel_limit_m
+    OVERTEMPERATURE = 4   # winding temperature above OVERTEMPERATURE_K
+    FAULT = 8             # non-finite state: the plant stopped integrating
+
+
+OVERTEMPERATURE_K = 428.0  # class H insulation, 155 degC
+
+
+class Measurement(NamedTuple):
+    """What the actuator's sensors give at one SYNC (SI units)."""
+    current_a: float          # current sensor (eq. 5.2) + noise
+    motor_speed_rad_s: float  # encoder speed (eq. 5.1) + noise
+    motor_angle_rad: float    # encoder angle, quantised to counts
+    position_m: float         # LVDT nut position (eq. 5.1) + noise
+    temperature_k: float      # winding temperature (eq. 5.5)
+    status: int
+
+
+def param_vector(params: PlantParams) -> np.ndarray:
+    """The kernel's parameter vector for `params` (derived quantities computed here)."""
+    m, r, s, se, d, ld, sim = (params.motor, params.reducer, params.screw, params.sensors,
+                               params.drive, params.load, params.sim)
+    p = np.zeros(K.NP)
+    p[K.P_R], p[K.P_L], p[K.P_KE], p[K.P_KT] = (m.resistance_ohm, m.inductance_h,
+                                                m.ke_v_s_per_rad, m.kt_nm_per_a)
+    p[K.P_IMAX], p[K.P_VDC] = m.current_max_a, m.supply_voltage_v
+    p[K.P_RTH], p[K.P_TAMB] = m.thermal_resistance_k_per_w, m.ambient_temperature_k
+    p[K.P_TAUW], p[K.P_TAUH] = m.thermal_time_constant_s, m.demod_time_constant_s
+    p[K.P_ALPHA_R] = m.resistance_tempco_per_k
+    tau = r.ratio
+    p[K.P_TAU], p[K.P_ETA] = tau, r.efficiency
+    p[K.P_JEQ] = (m.inertia_kg_m2 + r.inertia_kg_m2) / tau**2 + s.screw_inertia_kg_m2  # eq. 5.12
+    p[K.P_CS] = (m.static_friction_nm + r.static_friction_nm) / tau \
+        + s.support_static_friction_nm                                                # eq. 5.14
+    p[K.P_STRA], p[K.P_STRV] = s.stribeck_amplitude, s.stribeck_velocity_rad_s
+    p[K.P_CVISC] = m.viscous_friction_nm_s + r.viscous_friction_nm_s                  # eq. 5.13
+    alpha = math.radians(s.helix_angle_deg)
+    beta = math.radians(s.contact_angle_deg)
+    p[K.P_Z], p[K.P_LEAD] = s.balls_active, s.lead_m
+    p[K.P_G] = math.cos(alpha) * math.sin(beta)                                       # eq. 5.26
+    p[K.P_LEVER_V] = math.sin(alpha) * math.sin(beta) * s.lever_m                     # eq. 5.10/15
+    p[K.P_LEVER_R] = math.cos(alpha) * s.lever_m                                      # eq. 5.13
+    p[K.P_FV], p[K.P_FS] = s.rolling_friction, s.nut_static_friction_n
+    p[K.P_CN] = (m.viscous_friction_nm_s + r.viscous_friction_nm_s) / tau             # eq. 5.32
+    p[K.P_MN], p[K.P_MB] = s.nut_mass_kg, s.ball_mass_kg
+    p[K.P_KSTAR], p[K.P_MSLOPE] = s.contact_stiffness_n_per_m, s.stiffness_preload_slope_per_m
+    p[K.P_CDAMP] = s.contact_damping_n_s_per_m
+    p[K.P_LZETA], p[K.P_LSIG] = se.lvdt_damping, se.lvdt_natural_rad_s
+    p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
+    p[K.P_TAUC] = se.current_time_constant_s
+    p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, d.current_ki_v_per_as
+    p[K.P_FPWM] = d.pwm_carrier_hz
+    p[K.P_PWM_SW] = 1.0 if d.pwm_mode == "switching" else 0.0
+    p[K.P_BALL_DYN] = 1.0 if sim.ball_model == "dynamic" else 0.0
+    dt = sim.substep_s or (5e-6 if d.pwm_mode == "switching" else 20e-6)
+    nsub = max(1, round(sim.sync_period_s / dt))
+    p[K.P_DT] = sim.sync_period_s / nsub
+    p[K.P_NSUB] = nsub
+    # ball sub-cycling: keep the ball micro-step at or below 0.5 us (eq. 5.16 with k = 1e8
+    # N/m on two contacts and c = 150 N s/m is stable below about 1.25 us)
+    p[K.P_NBALL] = max(1, math.ceil(p[K.P_DT] / 0.5e-6 - 1e-9))
+    p[K.P_LOAD_KIND] = ("none", "step", "ramp", "sine").index(ld.kind)
+    p[K.P_LOAD_AMP], p[K.P_LOAD_T0] = ld.amplitude_n, ld.start_s
+    p[K.P_LOAD_RATE], p[K.P_LOAD_FREQ] = ld.rate_n_per_s, ld.frequency_hz
+    p[K.P_TRAVEL] = s.travel_limit_m
+    return p
+
+
+def sensor_vector(params: PlantParams) -> np.ndarray:
+    """The kernel's sensor vector (gains, offsets, encoder resolution)."""
+    se = params.sensors
+    s = np.zeros(K.NS)
+    s[K.S_IGAIN], s[K.S_IOFF] = se.current_gain, se.current_offset_a
+    s[K.S_LGAIN], s[K.S_LOFF] = se.lvdt_gain, se.lvdt_offset_m
+    s[K.S_EGAIN], s[K.S_RATIO] = se.encoder_gain, params.reducer.ratio
+    s[K.S_COUNTS] = se.encoder_counts_per_rev
+    return s
+
+
+def schedule_at(params: PlantParams, t: float) -> tuple[float, float, float]:
+    """(preload N, backlash m, friction scale) at time t (section 6.5 run-to-failure)."""
+    e, sc = params.effects, params.schedule
+    if sc.kind == "none":
+        return e.preload_n, e.backlash_m, e.friction_scale
+    frac = min(max(t / sc.duration_s, 0.0), 1.0)
+    preload = sc.preload_start_n * max(0.0, 1.0 - frac / sc.preload_zero_frac)
+
+    def grow(rate: float) -> float:
+        return math.expm1(rate * frac) / math.expm1(rate)
+
+    backlash = e.backlash_m + (sc.backlash_end_m - e.backlash_m) * grow(sc.backlash_growth)
+    fscale = e.friction_scale + (sc.friction_end_scale - e.friction_scale) * grow(
+        sc.friction_growth)
+    return preload, backlash, fscale
+
+
+class Plant:
+    """The EMA plant of thesis chapter 5 behind a one-SYNC-period step."""
+
+    def __init__(self, params: PlantParams | None = None) -> None:
+        self.params = params or PlantParams()
+        self._p = param_vector(self.params)
+        self.x = np.zeros(K.NX)
+        self.u = np.zeros(K.NU)
+        self.out = np.zeros(K.NO)
+        self.reset()
+
+    # -- set-up --------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to rest at t = 0, nut at 0, preload seated, temperature at ambient."""
+        self.x[:] = 0.0
+        self.x[K.TEMP] = self.params.motor.ambient_temperature_k
+        self.x[K.STS] = self.x[K.STN1] = self.x[K.STN2] = 1.0
+        self.out[:] = 0.0
+        self._rng = np.random.default_rng(self.params.sensors.noise_seed)
+        self._noise = np.zeros(3)
+        delay = round(self.params.effects.sensor_delay_s / self.params.sim.sync_period_s)
+        self._hist: deque[np.ndarray] = deque(maxlen=max(delay, 1))
+        self._ndelay = delay
+        self._s = sensor_vector(self.params)
+        self._m = np.zeros(K.NM)
+        self._seat_preload()
+        self._draw_noise()
+        self._limited = False
+
+    def _seat_preload(self) -> None:
+        """Place the nuts where preload and contacts balance, so t = 0 is at rest."""
+        preload, backlash, _ = schedule_at(self.params, 0.0)
+        if preload <= 0.0:
+            return
+        s = self.params.screw
+        k = s.contact_stiffness_n_per_m + s.stiffness_preload_slope_per_m * preload
+        g = self._p[K.P_G]
+        z = s.balls_active
+        # each nut: Z * (k/2) * g * dz = F_pr along x, dz = g dx  (series contacts)
+        dz = preload / (z * 0.5 * k * g)             # compression along z
+        dx = (dz + backlash / 2.0) / g
+        self.x[K.X1], self.x[K.X2] = -dx, dx
+        self.x[K.ZB1], self.x[K.ZB2] = -dx * g / 2.0, dx * g / 2.0
+
+    def set_params(self, params: PlantParams) -> None:
+        """Change parameters between steps (state kept)."""
+        self.params = params
+        self._p = param_vector(params)
+        self._s = sensor_vector(params)
+
+    @property
+    def t(self) -> float:
+        return float(self.x[K.T])
+
+    @property
+    def param_vector(self) -> np.ndarray:
+        return self._p
+
+    # -- stepping ------------------------------------------------------------------
+    def inputs(self, current_demand_a: float) -> np.ndarray:
+        """The kernel input vector for the next period (schedules evaluated at its start)."""
+        preload, backlash, fscale = schedule_at(self.params, self.t)
+        u = self.u
+        u[K.U_IDEM] = current_demand_a if math.isfinite(current_demand_a) else 0.0
+        u[K.U_PRELOAD], u[K.U_BACKLASH], u[K.U_FSCALE] = preload, backlash, fscale
+        u[K.U_VSCALE] = self.params.effects.viscous_scale
+        u[K.U_INOISE] = self._noise[0]
+        u[K.U_IGAIN] = self.params.sensors.current_gain
+        u[K.U_IOFF] = self.params.sensors.current_offset_a
+        return u
+
+    def step(self, current_demand_a: float) -> None:
+        """Advance one SYNC period holding `current_demand_a` (A) in the drive."""
+        if not np.isfinite(self.x).all():
+            return  # FAULT: state lost; measure() reports it
+        if self._ndelay:
+            K.measure(self.x, self._s, self._noise, self._m)
+            self._hist.append(self._m.copy())
+        K.advance(self.x, self._p, self.inputs(current_demand_a), self.out)
+        self._limited = bool(self.out[K.O_ILIM])
+        self._draw_noise()
+
+    def _draw_noise(self) -> None:
+        se = self.params.sensors
+        if se.noise:
+            z = self._rng.standard_normal(3)
+            self._noise[:] = (z[0] * se.current_noise_a, z[1] * se.position_noise_m,
+                              z[2] * se.speed_noise_rad_s)
+
+    # -- outputs -------------------------------------------------------------------
+    @property
+    def nut_position_m(self) -> float:
+        return float(0.5 * (self.x[K.X1] + self.x[K.X2]))
+
+    def status(self) -> Status:
+        st = Status.NONE
+        if not np.isfinite(self.x).all():
+            return Status.FAULT
+        if self._limited:
+            st |= Status.OVERCURRENT
+        if abs(self.nut_position_m) > self.params.screw.travel_limit_m:
+            st |= Status.END_OF_STROKE
+        if self.x[K.TEMP] > OVERTEMPERATURE_K:
+            st |= Status.OVERTEMPERATURE
+        return st
+
+    def measure(self) -> Measurement:
+        """Sensor readings at the current time (what the TPDOs carry); no side effects."""
+        m = self._m
+        K.measure(self.x, self._s, self._noise, m)
+        cur, temp = m[K.M_CUR], m[K.M_TEMP]
+        if self._ndelay and self._hist:  # LVDT and encoder samples sensor_delay_s old
+            m = self._hist[0]   # (the first sample repeats until the history is full)
+        return Measurement(float(cur), float(m[K.M_SPEED]), float(m[K.M_ANGLE]),
+                           float(m[K.M_POS]), float(temp), int(self.status()))
+
+    def truth(self) -> dict[str, float]:
+        """Simulation-only signals at the current time / over the last period."""
+        x, o = self.x, self.out
+        preload, backlash, fscale = schedule_at(self.params, self.t)
+        return {
+            "true_position_m": self.nut_position_m,
+            "true_current_a": float(x[K.I]),
+            "true_motor_speed_rad_s": float(x[K.OM] / self.params.reducer.ratio),
+            "motor_torque_nm": float(x[K.TQ]),
+            "friction_torque_nm": float(o[K.O_FRIC_T]),
+            "friction_force_n": float(o[K.O_FRIC_F]),
+            "reaction_torque_nm": float(o[K.O_REACT_T]),
+            "temperature_k": float(x[K.TEMP]),
+            "ext_force_n": float(o[K.O_FEXT]),
+            "backlash_m": backlash,
+            "friction_scale": fscale,
+            "preload_n": preload,
+            "voltage_v": float(o[K.O_VOLT]),
+        }
+
+    def state(self) -> dict[str, float]:
+        """The whole state vector by name."""
+        return dict(zip(K.STATE_NAMES, map(float, self.x), strict=True))
