@@ -8,9 +8,9 @@ compiled run loop), so both give the same demand for the same measurements.
 Gains are designed here, since the thesis does not print them:
 - position P: 6 Hz position bandwidth, K = 2 pi 6 / (tau p / 2 pi) (rad/s)/m, i.e. the
   thesis' requirement of section 5.2.2 (in thesis units, K / 285.7 V/m);
-- speed PI: 30 Hz crossover on the motor-side inertia with the integral zero a decade
-  below... (see docs/model.md for the loop-shape numbers): the thesis' 60 Hz / 67 deg /
-  14 dB is not reachable through a 1 kHz bus with one period of delay.
+- speed PI: 30 Hz crossover on the motor-side inertia (Kp = 2 pi 30 J / k_t) with the
+  integral zero at 1/8 of it: the thesis' 60 Hz / 67 deg / 14 dB is not reachable
+  through a 1 kHz bus with one period of delay (docs/model.md gives the loop shapes).
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ class ControllerParams:
         return k
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def controller_step(c: np.ndarray, k: np.ndarray, sp_pos: float, sp_speed: float, mode: float,
                     pos: float, speed: float) -> float:
     """One ECU sample: the current demand (A) from set-points and measurements.

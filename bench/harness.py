@@ -159,7 +159,7 @@ def _run_chunk(x, p, s, ri: RunInputs, sl: slice, kvec, cstate, ndelay, meas, de
     return got
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _closed_loop_from(x, p, s, u_seq, noise, sp_pos, sp_spd, mode, kvec, cstate, ndelay,
                       meas_out, dem_out, diag_out, state_out, applied, k0):  # pragma: no cover
     n = sp_pos.shape[0]

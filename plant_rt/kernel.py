@@ -24,8 +24,8 @@ from numba import njit
 # --- state vector x -------------------------------------------------------------------
 (I, CI, IM, TQ, TEMP, TH, OM, X1, V1, X2, V2, ZB1, VB1, ZB2, VB2,
  LY, LYD, EY, EYD, STS, STN1, STN2, T,
- E_IN, E_R, E_FRS, E_FRN, E_EXT, E_EMF, E_MIS, E_ETA, E_PR, E_CLAMP, E_MOT) = range(34)
-NX = 34
+ E_IN, E_R, E_FRS, E_FRN, E_EXT, E_EMF, E_MIS, E_ETA, E_PR, E_CLAMP, E_MOT, E_DAMP) = range(35)
+NX = 35
 STATE_NAMES = (
     "current_a", "current_pi_integrator_v", "current_sensor_a", "motor_torque_nm",
     "temperature_k", "screw_angle_rad", "screw_speed_rad_s", "nut1_position_m",
@@ -34,7 +34,7 @@ STATE_NAMES = (
     "encoder_ydot_rad_s2", "screw_stuck", "nut1_stuck", "nut2_stuck", "t_s",
     "e_electrical_in_j", "e_joule_j", "e_screw_friction_j", "e_nut_friction_j",
     "e_external_j", "e_back_emf_j", "e_lever_mismatch_j", "e_reducer_loss_j",
-    "e_preload_j", "e_current_clamp_j", "e_motor_torque_j")
+    "e_preload_j", "e_current_clamp_j", "e_motor_torque_j", "e_contact_damping_j")
 
 # --- parameter vector p ---------------------------------------------------------------
 (P_R, P_L, P_KE, P_KT, P_IMAX, P_VDC, P_RTH, P_TAMB, P_TAUW, P_TAUH, P_ALPHA_R,
@@ -56,16 +56,20 @@ DIAG_NAMES = ("friction_torque_nm", "friction_force_n", "reaction_torque_nm", "v
               "ext_force_n", "current_limited", "contact_force1_max_n", "contact_force2_max_n")
 
 TWO_PI = 2.0 * math.pi
+# Only the fast-math flags that cannot change the rounding of finite values: the same
+# step must give bit-identical results called alone (live node) or inlined in the
+# compiled closed loop (harness), or a stiction decision can flip one sub-step apart.
+FM = {"nnan", "ninf", "nsz"}
 
 
-@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
 def _sign(v: float) -> float:
     return 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
 
 
-@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
-def contact_force(d: float, dd: float, k: float, c: float, half_band: float) -> float:
-    """Contact force of one spring-damper with a dead zone (eq. 5.17-5.24).
+@njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def contact(d: float, dd: float, k: float, c: float, half_band: float) -> tuple[float, float]:
+    """Contact force of one spring-damper with a dead zone (eq. 5.17-5.24): (F, F_damping).
 
     d: relative approach along z (m), dd its rate; half_band: b_max/4 for one contact
     (eq. 5.19-5.20), so the dead zone |d| <= half_band gives zero force (eq. 5.23-5.24).
@@ -77,7 +81,7 @@ def contact_force(d: float, dd: float, k: float, c: float, half_band: float) -> 
     elif d < -half_band:
         delta = d + half_band
     else:
-        return 0.0
+        return 0.0, 0.0
     fs = k * delta
     fd = c * dd
     if fs > 0.0:
@@ -90,10 +94,16 @@ def contact_force(d: float, dd: float, k: float, c: float, half_band: float) -> 
             fd = -fs
         elif fd < fs:
             fd = fs
-    return fs + fd
+    return fs + fd, fd
 
 
-@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def contact_force(d: float, dd: float, k: float, c: float, half_band: float) -> float:
+    """The force of `contact` alone."""
+    return contact(d, dd, k, c, half_band)[0]
+
+
+@njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
 def _on_time(t: float, a: float, period: float) -> float:
     """Integral from 0 to t of [carrier(s) < a] for a 0..1..0 triangular carrier (sec. 5.3)."""
     n = math.floor(t / period)
@@ -105,7 +115,7 @@ def _on_time(t: float, a: float, period: float) -> float:
     return on
 
 
-@njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
 def _ext_force(p: np.ndarray, t: float) -> float:
     kind = p[P_LOAD_KIND]
     if kind == 0.0:
@@ -123,7 +133,7 @@ def _ext_force(p: np.ndarray, t: float) -> float:
     return ramp if amp > 0.0 else -ramp
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FM)
 def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
     """Integrate one SYNC period (p[P_NSUB] sub-steps of p[P_DT]) holding inputs u."""
     dt = p[P_DT]
@@ -159,17 +169,19 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     lz, ls = p[P_LZETA], p[P_LSIG]
     ez, es = p[P_EZETA], p[P_ESIG]
     idem = u[U_IDEM]
-    if idem > IMAX:
+    ilim = 0.0
+    if idem >= IMAX:            # the drive limits the demand to i_max (table 5.2)
         idem = IMAX
-    elif idem < -IMAX:
+        ilim = 1.0
+    elif idem <= -IMAX:
         idem = -IMAX
+        ilim = 1.0
 
     acc_cf = 0.0
     acc_ff = 0.0
     acc_cv = 0.0
     acc_v = 0.0
     acc_fe = 0.0
-    ilim = 0.0
     pmax1 = 0.0
     pmax2 = 0.0
 
@@ -197,10 +209,15 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
             va = _sign(m) * VDC * duty
         else:
             va = vset
-        # ---- motor (eq. 5.3-5.6), semi-implicit in R -----------------------------------
+        # ---- motor (eq. 5.3-5.6): Crank-Nicolson, so the energy books close exactly -----
         rt = R0 * (1.0 + p[P_ALPHA_R] * (x[TEMP] - p[P_TAMB]))
-        i_new = (i + dt * (va - KE * w_m) / L) / (1.0 + dt * rt / L)
-        if i_new > IMAX:
+        hr = 0.5 * dt * rt / L
+        i_new = (i * (1.0 - hr) + dt * (va - KE * w_m) / L) / (1.0 + hr)
+        i_avg = 0.5 * (i + i_new)
+        x[E_IN] += va * i_avg * dt
+        x[E_R] += rt * i_avg * i_avg * dt
+        x[E_EMF] += KE * w_m * i_avg * dt
+        if i_new > IMAX:                        # current limit of the motor (sec. 5.4)
             x[E_CLAMP] += 0.5 * L * (i_new * i_new - IMAX * IMAX)
             i_new = IMAX
             ilim = 1.0
@@ -208,9 +225,6 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
             x[E_CLAMP] += 0.5 * L * (i_new * i_new - IMAX * IMAX)
             i_new = -IMAX
             ilim = 1.0
-        x[E_IN] += va * i_new * dt
-        x[E_R] += rt * i_new * i_new * dt
-        x[E_EMF] += KE * w_m * i_new * dt
         x[I] = i_new
         x[IM] += (i_new - x[IM]) * a_c                                   # eq. 5.2
         x[TQ] += (KT * i_new - x[TQ]) * a_h                              # eq. 5.4 + demod
@@ -227,33 +241,42 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
             pn1 = 0.0
             ps2 = 0.0
             pn2 = 0.0
+            edamp = 0.0
             for kb in range(nball):
                 tb = kb * dtb
                 zs_b = zs + vzs * tb
-                f_s1 = -contact_force(x[ZB1] - zs_b, x[VB1] - vzs, k, c, hb)   # P'_1 eq. 5.17
-                f_n1 = contact_force(zn1 + vzn1 * tb - x[ZB1], vzn1 - x[VB1], k, c, hb)  # P_1
-                f_s2 = -contact_force(x[ZB2] - zs_b, x[VB2] - vzs, k, c, hb)
-                f_n2 = contact_force(zn2 + vzn2 * tb - x[ZB2], vzn2 - x[VB2], k, c, hb)
-                x[VB1] += dtb * (f_s1 + f_n1) / mb                                # eq. 5.16
-                x[VB2] += dtb * (f_s2 + f_n2) / mb
+                d1 = x[VB1] - vzs
+                d2 = vzn1 - x[VB1]
+                d3 = x[VB2] - vzs
+                d4 = vzn2 - x[VB2]
+                f1, fd1 = contact(x[ZB1] - zs_b, d1, k, c, hb)
+                f2, fd2 = contact(zn1 + vzn1 * tb - x[ZB1], d2, k, c, hb)
+                f3, fd3 = contact(x[ZB2] - zs_b, d3, k, c, hb)
+                f4, fd4 = contact(zn2 + vzn2 * tb - x[ZB2], d4, k, c, hb)
+                # P'_j = -f (eq. 5.17), P_j = f (eq. 5.18); ball: M_b z'' = P' + P (5.16)
+                x[VB1] += dtb * (f2 - f1) / mb
+                x[VB2] += dtb * (f4 - f3) / mb
                 x[ZB1] += dtb * x[VB1]
                 x[ZB2] += dtb * x[VB2]
-                ps1 += f_s1
-                pn1 += f_n1
-                ps2 += f_s2
-                pn2 += f_n2
+                ps1 -= f1
+                pn1 += f2
+                ps2 -= f3
+                pn2 += f4
+                edamp += fd1 * d1 + fd2 * d2 + fd3 * d3 + fd4 * d4
             ps1 /= nball
             pn1 /= nball
             ps2 /= nball
             pn2 /= nball
+            x[E_DAMP] += Z * edamp * dtb
         else:
             # massless balls: the two contacts in series, k/2, c/2, dead zone b/2
-            pn1 = contact_force(zn1 - zs, vzn1 - vzs, 0.5 * k, 0.5 * c, 2.0 * hb)
-            pn2 = contact_force(zn2 - zs, vzn2 - vzs, 0.5 * k, 0.5 * c, 2.0 * hb)
+            pn1, fd1 = contact(zn1 - zs, vzn1 - vzs, 0.5 * k, 0.5 * c, 2.0 * hb)
+            pn2, fd2 = contact(zn2 - zs, vzn2 - vzs, 0.5 * k, 0.5 * c, 2.0 * hb)
             ps1 = -pn1
             ps2 = -pn2
             x[ZB1] = 0.5 * (zn1 + zs)
             x[ZB2] = 0.5 * (zn2 + zs)
+            x[E_DAMP] += Z * (fd1 * (vzn1 - vzs) + fd2 * (vzn2 - vzs)) * dt
         if abs(pn1) > pmax1:
             pmax1 = abs(pn1)
         if abs(pn2) > pmax2:
@@ -364,7 +387,7 @@ M_CUR, M_SPEED, M_ANGLE, M_POS, M_TEMP = range(5)
 NM = 5
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FM)
 def measure(x: np.ndarray, s: np.ndarray, noise: np.ndarray, m: np.ndarray) -> None:
     """Sensor readings of state x: current (eq. 5.2), encoder speed and angle, LVDT (eq. 5.1).
 
@@ -379,7 +402,7 @@ def measure(x: np.ndarray, s: np.ndarray, noise: np.ndarray, m: np.ndarray) -> N
     m[M_TEMP] = x[TEMP]
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=FM)
 def run_open(x: np.ndarray, p: np.ndarray, u_seq: np.ndarray, out_seq: np.ndarray,
              x_seq: np.ndarray) -> None:
     """Advance len(u_seq) periods with a precomputed input sequence (no controller).

@@ -118,7 +118,7 @@ class ScrewParams(_Validated):
     stiffness_preload_slope_per_m: float = P(820.5, "1/m", 0.0, 1e7,
                                              "stiffness-preload slope m (eq. 5.21)",
                                              "section 5.6.2")
-    contact_damping_n_s_per_m: float = P(150.0, "N s/m", 0.0, 1e5,
+    contact_damping_n_s_per_m: float = P(150.0, "N s/m", 5.0, 1e5,
                                          "contact damping c per contact (eq. 5.17-5.18): "
                                          "damping ratio 0.65 for one ball on its two contacts",
                                          "chosen")
@@ -170,9 +170,12 @@ class SensorParams(_Validated):
 class DriveParams(_Validated):
     """The drive: current PI at the PWM rate, PWM and inverter (section 5.3)."""
     _group: ClassVar[str] = "drive"
-    current_kp_v_per_a: float = P(24.0, "V/A", 0.0, 1e4, "current loop proportional gain",
+    current_kp_v_per_a: float = P(20.0, "V/A", 0.0, 1e4,
+                                  "current loop proportional gain: 800 Hz closed-loop "
+                                  "bandwidth (section 5.2.2)",
                                   "tuned here (thesis gains not given)")
-    current_ki_v_per_as: float = P(1600.0, "V/(A s)", 0.0, 1e7, "current loop integral gain",
+    current_ki_v_per_as: float = P(1333.3, "V/(A s)", 0.0, 1e7,
+                                   "current loop integral gain: zero on the winding pole R/L",
                                    "tuned here (thesis gains not given)")
     pwm_carrier_hz: float = P(10000.0, "Hz", 1000.0, 100000.0,
                               "triangular carrier frequency", "section 5.3")
