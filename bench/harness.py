@@ -15,8 +15,8 @@ import numpy as np
 from numba import njit
 
 from bench import BenchError
-from bench.control import ControllerParams, controller_step
 from bench.control import NC as CTRL_NC
+from bench.control import ControllerParams, controller_step
 from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K

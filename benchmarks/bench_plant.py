@@ -176,7 +176,7 @@ def solve_ivp_peer(sim_s: float = 0.5) -> list[dict]:
 
 def memory_120s() -> float:
     """Peak RSS (MB) of a fresh process that runs the 120 s RUL run and keeps its trace."""
-    code = ("import resource, sys, tracemalloc; sys.path.insert(0, %r)\n"
+    code = (f"import resource, sys, tracemalloc; sys.path.insert(0, {str(ROOT)!r})\n"
             "from bench.harness import simulate\nfrom bench.profiles import rul\n"
             "from plant_rt.params import PlantParams\n"
             "simulate(rul(duration_s=0.01), PlantParams())\n"
@@ -187,7 +187,7 @@ def memory_120s() -> float:
             "peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
             "print(peak / 1024, base / 1024, sum(v.nbytes for v in tr.columns.values()) / 2**20,"
             " traced / 2**20)\n"
-            ) % str(ROOT)
+            )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
     return float(out[0]), float(out[1]), float(out[2]), float(out[3])

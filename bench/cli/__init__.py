@@ -43,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
     sub = parser.add_subparsers(title="commands", dest="command", metavar="COMMAND")
     seen: set[str] = set()
-    for name, module in SUBCOMMANDS.items():
+    for module in SUBCOMMANDS.values():
         if module in seen:
             continue
         try:

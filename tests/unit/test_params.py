@@ -6,8 +6,7 @@ import math
 
 import pytest
 
-from plant_rt.params import (PARAMS, MotorParams, ParameterError, PlantParams, ScrewParams,
-                             resolve)
+from plant_rt.params import PARAMS, MotorParams, ParameterError, PlantParams, ScrewParams, resolve
 
 
 def test_defaults_are_the_thesis_tables():
