@@ -49,7 +49,8 @@ class Drive:
     sp_spd: np.ndarray
     mode: np.ndarray
     demand: np.ndarray          # logged ECU current demand (A), NaN if not logged
-    x0_m: float                 # first logged LVDT position (m)
+    x0_m: float                 # LVDT reading at the start (m)
+    x0_true_m: float | None = None   # nut position at the start from an absolute encoder
 
 
 def angle_to_travel(params: PlantParams) -> float:
@@ -86,10 +87,13 @@ def _delay_periods(params: PlantParams) -> int:
     return int(round(params.effects.sensor_delay_s / params.sim.sync_period_s))
 
 
-def _x0_true(params: PlantParams, x0_meas_m: float) -> float:
-    """Nut position whose LVDT reading (gain, offset) is the first logged sample."""
+def _x0_true(params: PlantParams, drive: Drive) -> float:
+    """Nut position at the start: from the absolute encoder angle when the log has one,
+    else the position whose LVDT reading (gain, offset) is the logged initial reading."""
+    if drive.x0_true_m is not None:
+        return drive.x0_true_m
     se = params.sensors
-    return (x0_meas_m - se.lvdt_offset_m) / se.lvdt_gain
+    return (drive.x0_m - se.lvdt_offset_m) / se.lvdt_gain
 
 
 def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
@@ -103,7 +107,7 @@ def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
     """
     n = len(drive.t) if n is None else min(n, len(drive.t))
     cparams = cparams or ControllerParams(sample_period_s=params.sim.sync_period_s)
-    plant = initial_plant(params, _x0_true(params, drive.x0_m))
+    plant = initial_plant(params, _x0_true(params, drive))
     x = plant.x.copy()
     meas = np.zeros((n, K.NM))
     dem = np.zeros(n)
@@ -155,7 +159,7 @@ def _closed(x, p, s, u0, noise, sp_pos, sp_spd, mode, kvec, cstate, ndelay, meas
 def open_loop(params: PlantParams, drive: Drive, n: int | None = None) -> dict[str, np.ndarray]:
     """Replay the logged ECU demand (held one period, as the bus does) into the plant."""
     n = len(drive.t) if n is None else min(n, len(drive.t))
-    plant = initial_plant(params, _x0_true(params, drive.x0_m))
+    plant = initial_plant(params, _x0_true(params, drive))
     x = plant.x.copy()
     meas = np.zeros((n, K.NM))
     applied = np.zeros(n)
@@ -175,7 +179,7 @@ def mechanics_replay(params: PlantParams, drive: Drive, speed_meas: np.ndarray,
     smoothed (noise enters at each re-synchronisation).
     """
     n = len(drive.t) if n is None else min(n, len(drive.t))
-    plant = initial_plant(params, _x0_true(params, drive.x0_m))
+    plant = initial_plant(params, _x0_true(params, drive))
     x = plant.x.copy()
     meas = np.zeros((n, K.NM))
     applied = np.zeros(n)

@@ -1,0 +1,115 @@
+"""The bench's side of the CAN bus: transport selection, loopback hub, logs.
+
+The only thing the bench holds is a python-can ``BusABC``; which one comes from
+ordinary python-can configuration (see `plant_rt.transport` for the precedence: flags,
+``can.rc``/environment/config file, vcan0, the loopback hub of `bench up`). When none
+is found, commands that need a bus start a private loopback hub for their own run.
+
+- `bench.bus.hub`: the loopback hub (python-can-remote on 127.0.0.1),
+- `bench.bus.procs`: starting/stopping hub and plant processes,
+- `bench.bus.logs`: candump logs: tolerant reading, replay, decoding to a `Trace`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+import can.cli
+
+from bench import BenchError
+from plant_rt.transport import (
+    BusUnavailable,
+    close_bus,
+    describe,
+    open_bus,
+    resolve,
+)
+
+BUS_KEYS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """python-can's own bus flags (-i/-c/-b/--fd/--bus-kwargs ...), as every
+    python-can tool accepts them."""
+    can.cli.add_bus_arguments(parser)
+
+
+def bus_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The bus settings given on the command line (only those given)."""
+    cfg: dict[str, Any] = {k: getattr(args, k) for k in BUS_KEYS if k in args}
+    cfg.update(getattr(args, "bus_kwargs", None) or {})
+    return cfg
+
+
+def find_bus(settings: dict[str, Any] | None = None) -> tuple[dict[str, Any], str] | None:
+    """(bus config, source) from configuration, vcan0 or a running hub; None if none."""
+    try:
+        return resolve(settings or {})
+    except BusUnavailable as exc:
+        raise BenchError(str(exc)) from None
+
+
+def is_simulated(cfg: dict[str, Any]) -> bool:
+    """True for buses where no real actuator can be (the loopback hub, virtual, vcan)."""
+    iface = str(cfg.get("interface", ""))
+    chan = str(cfg.get("channel", ""))
+    return (iface == "virtual" or (iface == "remote" and chan.startswith("ws://127.0.0.1"))
+            or (iface == "socketcan" and chan.startswith("vcan")))
+
+
+def connect(cfg: dict[str, Any], receive_own_messages: bool = False,
+            timeout: float = 5.0) -> can.BusABC:
+    """Open the bus `cfg` (BenchError with the reason if it cannot be opened)."""
+    try:
+        return open_bus(cfg, timeout=timeout, receive_own_messages=receive_own_messages)
+    except BusUnavailable as exc:
+        raise BenchError(str(exc)) from None
+
+
+@dataclass
+class BusSession:
+    """A bus for one command, with whatever the bench had to start for it."""
+    cfg: dict[str, Any]
+    source: str
+    children: list = field(default_factory=list)
+
+    @property
+    def description(self) -> str:
+        return f"{describe(self.cfg)} ({self.source})"
+
+    def close(self) -> None:
+        for child in reversed(self.children):
+            child.stop()
+        self.children.clear()
+
+
+@contextmanager
+def session(settings: dict[str, Any] | None = None, start_hub: bool = True):
+    """Yield a `BusSession`: the configured bus, else a private loopback hub started
+    for this command (stopped on exit)."""
+    from bench.bus.procs import start_hub as _start_hub
+
+    found = find_bus(settings)
+    sess: BusSession
+    if found is not None:
+        sess = BusSession(*found)
+    elif start_hub:
+        hub = _start_hub(persistent=False)
+        sess = BusSession({**(settings or {}), "interface": "remote",
+                           "channel": hub.info["url"]}, "private loopback hub", [hub])
+    else:
+        raise BenchError("no CAN bus: bench is not up (no loopback hub running), there is "
+                         "no vcan0 and no python-can configuration (-i/-c, CAN_INTERFACE, "
+                         "~/.canrc); run `bench up` first")
+    try:
+        yield sess
+    finally:
+        sess.close()
+
+
+__all__ = ["add_bus_arguments", "bus_settings", "find_bus", "connect", "close_bus",
+           "session", "BusSession", "is_simulated"]

@@ -1,0 +1,105 @@
+"""`bench gap`: where the sim-to-real gap lies, which unmodelled effect causes it, how far
+it shrinks (issue 5). See docs/gap.md."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+
+def add_subparser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "gap", help="diagnose the gap between a log and the nominal model",
+        description="Re-simulate a logged run from its set-points, localise the residual "
+                    "(signal, path, regime, frequency band), fit a library of candidate "
+                    "effects (least squares, ranked by BIC, forward selection of pairs) and "
+                    "measure how far the best one shrinks the gap on held-out data. The "
+                    "fits use the plant's fast mode (averaged PWM, massless balls).")
+    p.add_argument("log", nargs="?", metavar="REAL",
+                   help="candump log (.log) or trace (.npz/.csv/.parquet) of the run")
+    p.add_argument("--holdout", metavar="OTHER",
+                   help="another log for held-out validation (default: the last part of REAL)")
+    p.add_argument("--holdout-frac", type=float, default=0.5, metavar="F",
+                   help="without --holdout: fraction of REAL held out, at its end "
+                        "(default 0.5)")
+    p.add_argument("--model", default="plant", metavar="NAME",
+                   help="nominal model: plant (high-fidelity plant at nominal parameters, "
+                        "default) or monitor (HUMS monitoring model)")
+    p.add_argument("--effects", metavar="A,B,...",
+                   help="candidate effects to try (default: the whole library; see "
+                        "--list-effects)")
+    p.add_argument("--nominal", metavar="CALIBRATION.json",
+                   help="nominal parameters from `bench calibrate` (default: thesis values)")
+    p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
+                   help="encoder angle reference: absolute (zero at nut zero, the bench's "
+                        "plant) or relative (start of the log)")
+    p.add_argument("--fundamental", type=float, metavar="HZ",
+                   help="command fundamental for the frequency split (default: from the "
+                        "log's metadata, else the strongest line of the set-point velocity)")
+    p.add_argument("--json", metavar="PATH", help="write the diagnosis JSON here ('-': stdout)")
+    p.add_argument("--report", metavar="DIR", help="write figures (PNG) and index.html here")
+    p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--fit-always", action="store_true",
+                   help="fit the candidates even when the gap is within the noise floor")
+    p.add_argument("--list-effects", action="store_true",
+                   help="list the candidate effects with their parameters and exit")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.set_defaults(func=run)
+
+
+def list_effects() -> str:
+    from bench.gap import effects as E
+    lines = []
+    for name in E.names():
+        e = E.get(name)
+        ps = ", ".join(f"{q.name} [{q.lo:g}, {q.hi:g}] {q.unit}" for q in e.params)
+        lines.append(f"{name:15s} ({e.where}) {e.doc}\n{'':17s}{ps}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bench import BenchError
+    if args.list_effects:
+        print(list_effects())
+        return 0
+    if not args.log:
+        raise BenchError("bench gap needs a log (REAL): a candump .log or a trace file")
+    from bench.gap import effects as E
+    from bench.gap.diagnose import Options, diagnose
+    from bench.gap.inputs import load_log, load_nominal
+    from bench.gap.summary import text
+    if args.workers < 1:
+        raise BenchError("--workers must be >= 1")
+    names = E.parse_list(args.effects)
+    nominal = load_nominal(args.nominal)
+    log = load_log(args.log)
+    hold = load_log(args.holdout) if args.holdout else None
+    if args.fundamental is not None:
+        if not args.fundamental > 0:
+            raise BenchError("--fundamental must be > 0 Hz")
+        log.meta["fundamental_hz"] = args.fundamental
+    say = (lambda s: None) if args.quiet else (lambda s: print(f"gap: {s}", file=sys.stderr))
+    t0 = time.perf_counter()
+    res = diagnose(log, hold, nominal, Options(
+        model=args.model, effects=names, holdout_frac=args.holdout_frac,
+        workers=args.workers, encoder=args.encoder, fit_always=args.fit_always,
+        progress=not args.quiet and sys.stderr.isatty()), log=say)
+    js = res.json()
+    say(f"done in {time.perf_counter() - t0:.1f} s")
+    if args.json == "-":
+        json.dump(js, sys.stdout, indent=1)
+        print()
+    else:
+        print(f"log: {args.log} ({len(log)} samples, {len(log) * log.dt:.3g} s)")
+        print(text(js))
+        if args.json:
+            Path(args.json).write_text(json.dumps(js, indent=1))
+            print(f"json: {args.json}")
+    if args.report:
+        from bench.gap.report import write_report
+        idx = write_report(res, js, Path(args.report))
+        print(f"report: {idx}", file=sys.stderr if args.json == "-" else sys.stdout)
+    return 0

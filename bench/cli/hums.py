@@ -1,0 +1,241 @@
+"""`bench hums`: thesis chapter 6 (monitoring model, indexes, sweep, RUL) and past it.
+
+    bench hums fit        H1: the monitoring model's position gain by Nelder-Mead
+    bench hums sweep      H1-H6: the 11-point degradation sweep, three maneuvers
+    bench hums rul        R1-R2: the 120 s run-to-failure run, thesis and fused RUL
+    bench hums campaign   >= 20 randomised run-to-failure runs + healthy runs, scored
+    bench hums report     self-contained HTML report of one or more logs
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+from bench import BenchError
+
+
+def add_subparser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("hums", help="health and usage monitoring (thesis chapter 6)",
+                       description="Monitoring model, HUMS indexes, degradation sweep, RUL "
+                       "prediction and reports (thesis chapter 6, rows H1-H6, R1-R2).")
+    s = p.add_subparsers(title="hums commands", dest="hums_command", metavar="COMMAND")
+    p.set_defaults(func=lambda a: _no_sub(p))
+
+    def common(q: argparse.ArgumentParser, workers: bool = True) -> None:
+        q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                       help="override a plant parameter (see `bench plant --list-params`)")
+        if workers:
+            q.add_argument("--workers", type=int, default=None,
+                           help="worker processes (default: 2, or 1 on a one-core machine)")
+        q.add_argument("--json", metavar="PATH", help="write the results as JSON")
+
+    q = s.add_parser("fit", help="H1: fit the monitoring model's position gain",
+                     description="Fit the monitoring model's position P gain to a nominal "
+                     "high-fidelity run of the 2 Hz sine by Nelder-Mead from 20 (thesis "
+                     "units), as thesis section 6.1 does.")
+    common(q, workers=False)
+    q.set_defaults(func=run_fit)
+
+    q = s.add_parser("sweep", help="H1-H6: 11-point degradation sweep",
+                     description="Backlash 0-100 um and friction x1-x4 in 11 points, for the "
+                     "open-loop velocity step (H2), velocity cosine (H3) and closed-loop "
+                     "sine (H4/H5), without and/or with sensor noise (H6).")
+    q.add_argument("--noise", choices=["on", "off", "both"], default="both",
+                   help="sensor noise (default: %(default)s)")
+    q.add_argument("--points", type=int, default=11, help="degradation points (default 11)")
+    q.add_argument("--figures", metavar="DIR", help="write PNG figures (figs. 6.2-6.10)")
+    q.add_argument("--doc", metavar="PATH", help="update the generated sweep section of "
+                   "this markdown file (e.g. docs/hums.md)")
+    common(q)
+    q.set_defaults(func=run_sweep)
+
+    q = s.add_parser("rul", help="R1-R2: the 120 s run-to-failure run",
+                     description="The H4 sine for 120 s with preload decaying linearly and "
+                     "backlash and friction growing exponentially; the thesis' cubic RUL "
+                     "(threshold 0.93, warning 0.80, failure 0.56) with a bootstrap band, "
+                     "and the fused predictor.")
+    q.add_argument("--noise", action="store_true", help="sensor noise on (the true failure "
+                   "time then comes from a noise-free twin run)")
+    q.add_argument("--no-fused", action="store_true",
+                   help="only the thesis' algorithm (skips the fusion calibration runs)")
+    q.add_argument("--figures", metavar="DIR", help="write PNG figures (figs. 6.11-6.15)")
+    q.add_argument("--doc", metavar="PATH", help="update the generated rul section of "
+                   "this markdown file")
+    common(q)
+    q.set_defaults(func=run_rul)
+
+    q = s.add_parser("campaign", help="randomised run-to-failure campaign, prognostic metrics",
+                     description="N run-to-failure runs with randomised schedule (duration, "
+                     "growth rates, start preload, preload decay) and noise seeds, each with "
+                     "a noise-free twin for its true failure time, plus healthy runs for "
+                     "false alarms; scored with progpy (prognostic horizon, alpha-lambda "
+                     "with alpha = 0.2, relative accuracy).")
+    q.add_argument("--runs", type=int, default=20, help="run-to-failure runs (default 20)")
+    q.add_argument("--healthy", type=int, default=10, help="healthy runs (default 10)")
+    q.add_argument("--seed", type=int, default=2024, help="campaign seed (default 2024)")
+    q.add_argument("--figures", metavar="DIR", help="write the campaign figure")
+    q.add_argument("--doc", metavar="PATH", help="update the generated campaign section "
+                   "of this markdown file")
+    common(q)
+    q.set_defaults(func=run_campaign)
+
+    q = s.add_parser("report", help="HTML health report of logs",
+                     description="A self-contained HTML report (figures, indexes, verdict, "
+                     "RUL with band) of candump logs (decoded through the DBC) or trace "
+                     "files (.npz, .csv, .parquet).")
+    q.add_argument("logs", nargs="+", metavar="LOG", help="candump .log or trace file")
+    q.add_argument("--out", default="hums-report", metavar="DIR",
+                   help="output directory (default: %(default)s)")
+    q.add_argument("--period", type=float, default=None, metavar="S",
+                   help="command period in s (default: from the log)")
+    q.add_argument("--no-rul", action="store_true", help="skip the trend/RUL part")
+    q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                   help="nominal plant parameter override")
+    q.set_defaults(func=run_report)
+
+
+def _no_sub(p: argparse.ArgumentParser) -> int:
+    p.print_help()
+    return 2
+
+
+def _params(args: argparse.Namespace):
+    from plant_rt.params import ParameterError, PlantParams
+    try:
+        return PlantParams().with_assignments(args.set)
+    except ParameterError as exc:
+        raise BenchError(str(exc)) from None
+
+
+def _check_workers(args: argparse.Namespace) -> None:
+    if getattr(args, "workers", None) is not None and args.workers < 1:
+        raise BenchError("--workers must be >= 1")
+
+
+def _print_rows(rows) -> None:
+    for r in rows:
+        ratio = r.ratio
+        rs = f"{ratio:6.3f}" if math.isfinite(ratio) else ""
+        print(f"{r.id:4s} {r.quantity[:70]:70s} {str(r.thesis)[:16]:>16s} "
+              f"{str(r.project)[:26]:>26s} {rs}")
+
+
+def _write_json(path: str | None, data) -> None:
+    if path:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(json.dumps(data, indent=2))
+        print(f"wrote {path}")
+
+
+def _doc_dir(doc: str | None) -> Path | None:
+    return Path(doc).parent if doc else None
+
+
+def run_fit(args: argparse.Namespace) -> int:
+    from bench.hums import monitor as M
+    params = _params(args)
+    t0 = time.perf_counter()
+    fit, _ = M.fitted(params)
+    print(f"monitor position gain: {fit.gain_thesis_units:.2f} (rad/s)/V thesis units = "
+          f"{fit.gain_rad_s_per_m:.0f} (rad/s)/m (thesis: {M.THESIS_FITTED_GAIN:g})")
+    print(f"start {fit.start_thesis_units:g}: RMS position difference "
+          f"{fit.rms_start_m * 1e6:.1f} um; fitted: {fit.rms_residual_m * 1e6:.3f} um "
+          f"({100 * fit.relative_residual:.3f} % of the RMS position), "
+          f"{fit.evaluations} evaluations, converged: {fit.converged}")
+    print(f"plant ECU position gain: {fit.plant_gain_rad_s_per_m / 285.7:.2f} thesis units "
+          f"({time.perf_counter() - t0:.1f} s)")
+    _write_json(args.json, fit.to_json())
+    return 0
+
+
+def run_sweep(args: argparse.Namespace) -> int:
+    from bench.hums import sweep as S
+    from bench.hums.table import check, replace_section
+    _check_workers(args)
+    res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers)
+    rows = S.rows(res)
+    _print_rows(rows)
+    print(f"{len(res.points)} plant runs in {res.elapsed_s:.1f} s")
+    paths = S.figures(res, args.figures) if args.figures else []
+    for p in paths:
+        print(f"wrote {p}")
+    _write_json(args.json, [r.to_json() for r in rows])
+    if args.doc:
+        replace_section(args.doc, "sweep", S.markdown(res, paths, _doc_dir(args.doc)))
+        print(f"updated {args.doc}")
+    missing = check(rows)
+    if missing:
+        import sys
+        print(f"warning: rows {', '.join(missing)} differ from the thesis by > 10 % and no "
+              "reason is on record for these parameters; explain them before publishing",
+              file=sys.stderr)
+    return 0
+
+
+def run_rul(args: argparse.Namespace) -> int:
+    from bench.hums import rul as R
+    from bench.hums.table import replace_section
+    _check_workers(args)
+    res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
+                    workers=args.workers)
+    rows = R.rows(res)
+    _print_rows(rows)
+    print(f"done in {res.elapsed_s:.1f} s")
+    paths = R.figures(res, args.figures) if args.figures else []
+    for p in paths:
+        print(f"wrote {p}")
+    _write_json(args.json, [r.to_json() for r in rows])
+    if args.doc:
+        name = "rul-noise" if args.noise else "rul"
+        replace_section(args.doc, name, R.markdown(res, paths, _doc_dir(args.doc)))
+        print(f"updated {args.doc}")
+    return 0
+
+
+def run_campaign(args: argparse.Namespace) -> int:
+    from bench.hums import rul as R
+    from bench.hums.table import replace_section
+    _check_workers(args)
+    if args.runs < 1 or args.healthy < 0:
+        raise BenchError("--runs must be >= 1 and --healthy >= 0")
+    res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args), args.workers)
+    text = R.campaign_markdown(res)
+    print(text)
+    paths = R.campaign_figure(res, args.figures) if args.figures else []
+    for p in paths:
+        print(f"wrote {p}")
+    _write_json(args.json, R.campaign_json(res))
+    if args.doc:
+        body = text
+        if paths:
+            d = _doc_dir(args.doc)
+            body += "\n" + "\n".join(
+                f"![{p.stem}]({_rel(p, d)})" for p in paths) + "\n"
+        replace_section(args.doc, "campaign", body)
+        print(f"updated {args.doc}")
+    return 0
+
+
+def _rel(p: Path, d: Path | None) -> str:
+    if d is None:
+        return p.as_posix()
+    try:
+        return p.resolve().relative_to(d.resolve()).as_posix()
+    except ValueError:
+        return p.as_posix()
+
+
+def run_report(args: argparse.Namespace) -> int:
+    from bench.hums.report import write_report
+    if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
+        raise BenchError("--period must be > 0 s")
+    page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,
+                                  period_s=args.period)
+    for a in analyses:
+        print(f"{a.name}: {a.verdict}; " + "; ".join(a.reasons))
+    print(f"wrote {page}")
+    return 0

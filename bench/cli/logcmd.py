@@ -1,0 +1,74 @@
+"""`bench log FILE.log`: record every frame on the bus, like `candump -L`."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+
+from bench import BenchError
+
+
+def add_subparser(sub: argparse._SubParsersAction) -> None:
+    from bench.bus import add_bus_arguments
+    p = sub.add_parser("log", help="record the bus to a candump log (like candump -L)",
+                       description="Record every frame on the bus (any bus python-can opens; "
+                       "by default the loopback hub of `bench up` or vcan0) to a candump log, "
+                       "until Ctrl-C, --duration or --count.")
+    p.add_argument("file", metavar="FILE.log", help="candump log to write")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="stop after S seconds")
+    p.add_argument("--count", type=int, default=None, metavar="N", help="stop after N frames")
+    add_bus_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import can
+
+    from bench.bus import bus_settings, close_bus, connect, find_bus
+
+    found = find_bus(bus_settings(args))
+    if found is None:
+        raise BenchError("no bus to record: no python-can configuration, no vcan0 and no "
+                         "loopback hub running (run `bench up`)")
+    cfg, source = found
+    bus = connect(cfg)
+    stop = {"flag": False}
+
+    def on_signal(signum, frame):  # noqa: ARG001
+        stop["flag"] = True
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    writer = can.CanutilsLogWriter(args.file)
+    n = 0
+    end = None if args.duration is None else time.monotonic() + args.duration
+    print(f"recording {cfg.get('interface')}:{cfg.get('channel')} ({source}) to {args.file}",
+          file=sys.stderr, flush=True)
+    last_flush = time.monotonic()
+    try:
+        while not stop["flag"]:
+            if end is not None and time.monotonic() >= end:
+                break
+            if args.count is not None and n >= args.count:
+                break
+            try:
+                msg = bus.recv(0.1)
+            except Exception as exc:  # noqa: BLE001 - a dead bus ends the recording
+                raise BenchError(f"the bus failed after {n} frames: {exc}") from None
+            if msg is None:
+                continue
+            writer.on_message_received(msg)
+            n += 1
+            now = time.monotonic()
+            if now - last_flush > 0.5:
+                writer.file.flush()
+                last_flush = now
+    finally:
+        writer.stop()
+        close_bus(bus)
+        for s, h in old.items():
+            signal.signal(s, h)
+    print(f"{n} frames written to {args.file}")
+    return 0

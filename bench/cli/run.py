@@ -1,0 +1,164 @@
+"""`bench run PROFILE`: the ECU runs a profile against the plant over the CAN bus."""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import math
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from bench import BenchError
+
+
+def _profile_flags() -> dict[str, str]:
+    """Profile keyword -> flag, for every keyword of every profile except duration_s."""
+    from bench.profiles import PROFILES
+    out: dict[str, str] = {}
+    for factory in PROFILES.values():
+        for name in inspect.signature(factory).parameters:
+            if name != "duration_s":
+                out[name] = "--" + name.replace("_", "-")
+    return out
+
+
+def add_subparser(sub: argparse._SubParsersAction) -> None:
+    from bench.bus import add_bus_arguments
+    from bench.profiles import PROFILES, profile_args
+    lines = []
+    for name in PROFILES:
+        args = ", ".join(f"{k}={v:g}" if isinstance(v, (int, float)) and v is not None
+                         else f"{k}={v}" for k, v in profile_args(name).items())
+        lines.append(f"  {name}: {args}")
+    p = sub.add_parser(
+        "run", help="run a profile against the plant over the CAN bus (the ECU)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="The ECU as a CANopen master (NMT, SYNC producer, heartbeat) runs the "
+        "position/speed controller against the plant over the bus. Starts a loopback hub and "
+        "a plant for the run when `bench up` was not run.\n\nprofiles and their parameters "
+        "(flags --name-with-dashes):\n" + "\n".join(lines))
+    p.add_argument("profile", choices=list(PROFILES), metavar="PROFILE",
+                   help="one of: " + ", ".join(PROFILES))
+    p.add_argument("--pace", choices=["realtime", "sync"], default="realtime",
+                   help="realtime: SYNC on wall-clock deadlines; sync: lockstep, as fast as "
+                        "the bus allows (default: %(default)s)")
+    p.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="run length (s); the profile's own by default")
+    p.add_argument("--set", dest="assignments", action="append", default=[],
+                   metavar="NAME=VALUE", help="plant parameter, written by SDO before the run "
+                   "(repeatable; see `bench plant --list-params`)")
+    p.add_argument("--log", metavar="FILE.log", help="candump log of every frame")
+    p.add_argument("--save", metavar="TRACE", help="save the trace (.csv, .parquet or .npz)")
+    p.add_argument("--spin-us", type=int, default=200, metavar="US",
+                   help="real-time pacers (ECU and plant): busy-wait window before each "
+                        "period (default: %(default)s us)")
+    p.add_argument("--no-plant", action="store_true",
+                   help="never start a plant (a real actuator must answer)")
+    p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
+                   help="actuator node id (default 0x10)")
+    prog = p.add_mutually_exclusive_group()
+    prog.add_argument("--progress", dest="progress", action="store_true", default=None,
+                      help="show a progress bar (default: on a terminal, runs over 2 s)")
+    prog.add_argument("--no-progress", dest="progress", action="store_false")
+    g = p.add_argument_group("profile parameters")
+    for kw, flag in _profile_flags().items():
+        g.add_argument(flag, dest=f"pf_{kw}", type=float, default=None, metavar="X",
+                       help=argparse.SUPPRESS)
+    add_bus_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bench.bus import bus_settings
+    from bench.ecu import run_over_bus
+    from bench.profiles import make_profile, profile_args
+
+    kwargs = {k[3:]: v for k, v in vars(args).items() if k.startswith("pf_") and v is not None}
+    if args.duration is not None:
+        if not (math.isfinite(args.duration) and args.duration > 0):
+            raise BenchError("--duration must be > 0 s")
+        if "duration_s" in profile_args(args.profile):
+            kwargs["duration_s"] = args.duration
+    profile = make_profile(args.profile, **kwargs)
+    if args.save and Path(args.save).suffix.lower() not in (".csv", ".parquet", ".npz"):
+        raise BenchError(f"--save: unknown table format {Path(args.save).suffix!r} "
+                         "(use .csv, .parquet or .npz)")
+    if not 0 <= args.spin_us <= 1000:
+        raise BenchError("--spin-us must be within 0..1000 us")
+    duration = args.duration if args.duration is not None else profile.duration_s
+    progress = args.progress
+    if progress is None:
+        progress = sys.stderr.isatty() and duration >= 2.0
+
+    def say(msg: str) -> None:
+        print(msg, file=sys.stderr, flush=True)
+
+    try:
+        trace = run_over_bus(profile, assignments=args.assignments, pace=args.pace,
+                             duration_s=args.duration, log_path=args.log, progress=progress,
+                             settings=bus_settings(args), start_plant=not args.no_plant,
+                             node_id=args.node_id, announce=say, spin_us=args.spin_us)
+    except BenchError as exc:
+        partial = getattr(exc, "trace", None)
+        if partial is not None and len(partial):
+            if args.save:
+                partial.save(args.save)
+            msg = f"{exc}; {len(partial)} periods done"
+            if args.log:
+                msg += f", log up to there in {args.log}"
+            raise BenchError(msg) from None
+        raise
+    if args.save:
+        trace.save(args.save)
+    print(summary(trace, args.save))
+    return 0
+
+
+def summary(trace, save: str | None = None) -> str:
+    """A few lines describing a bus run."""
+    m = trace.meta
+    ecu = m.get("ecu", {})
+    n = len(trace)
+    sim = n * trace.dt if n > 1 else 0.0
+    wall = ecu.get("wall_s", float("nan"))
+    lines = [f"run {m.get('profile')} over {m.get('bus')}, pace {m.get('pace')}",
+             f"  {n} periods ({sim:.3f} s simulated) in {wall:.2f} s wall: "
+             f"{sim / wall if wall else float('nan'):.2f}x real time"]
+    pos, sp = trace["position_m"], trace["setpoint_position_m"]
+    if n:
+        if int(trace["mode"][0]) == 1:
+            lines.append(f"  final position {pos[-1] * 1e3:.3f} mm (set-point "
+                         f"{sp[-1] * 1e3:.3f} mm), peak |current| "
+                         f"{np.nanmax(np.abs(trace['current_a'])):.2f} A")
+        else:
+            lines.append(f"  final motor speed {trace['motor_speed_rad_s'][-1]:.2f} rad/s "
+                         f"(set-point {trace['setpoint_speed_rad_s'][-1]:.2f} rad/s), peak "
+                         f"|current| {np.nanmax(np.abs(trace['current_a'])):.2f} A")
+    pc = m.get("plant_counters", {})
+    if pc and "error" not in pc:
+        lines.append(f"  plant: {pc['frames_received']} frames received, {pc['bad_frames']} bad, "
+                     f"{pc['unknown_frames']} unknown, {pc['demands_invalid']} invalid demands, "
+                     f"{pc['rpdo_missing']} RPDO missing, {pc['deadline_misses']} deadline "
+                     f"misses, jitter p50/p99/max {pc['jitter_p50_us']:.0f}/"
+                     f"{pc['jitter_p99_us']:.0f}/{pc['jitter_max_us']:.0f} us")
+    if m.get("pace") == "realtime":
+        lines.append(f"  ECU SYNC jitter p50/p99/max {ecu.get('sync_jitter_p50_us', 0):.0f}/"
+                     f"{ecu.get('sync_jitter_p99_us', 0):.0f}/"
+                     f"{ecu.get('sync_jitter_max_us', 0):.0f} us, "
+                     f"{ecu.get('sync_deadline_misses', 0)} deadline misses, "
+                     f"{ecu.get('late_tpdo', 0)} late TPDO sets")
+    em = m.get("emcy", [])
+    if em:
+        c = Counter(e["name"] for e in em)
+        lines.append(f"  EMCY: {len(em)} (" + ", ".join(f"{k} x{v}" for k, v in c.items())
+                     + ")")
+    else:
+        lines.append("  EMCY: none")
+    if m.get("log"):
+        lines.append(f"  log: {m['log']} ({ecu.get('frames_logged', 0)} frames)")
+    if save:
+        lines.append(f"  trace: {save}")
+    return "\n".join(lines)

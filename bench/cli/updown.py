@@ -1,0 +1,151 @@
+"""`bench up` / `bench status` / `bench down`: the bench's background bus and plant."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+from bench import BenchError
+
+
+def add_subparser(sub: argparse._SubParsersAction) -> None:
+    from bench.bus import add_bus_arguments
+    up = sub.add_parser("up", help="start the loopback bus and the plant in the background",
+                        description="Start the loopback CAN hub (when no bus is configured and "
+                        "there is no vcan0) and the plant node in the background; their pids "
+                        "and logs are kept in the state directory ($BENCH_STATE_DIR, "
+                        "$XDG_RUNTIME_DIR/ema-bench or ./.bench).")
+    up.add_argument("--pace", choices=["realtime", "sync"], default="realtime",
+                    help="the plant's pacer at start (a run may switch it; default: "
+                         "%(default)s)")
+    up.add_argument("--set", dest="assignments", action="append", default=[],
+                    metavar="NAME=VALUE", help="plant parameter at start (repeatable)")
+    up.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
+                    help="actuator node id (default 0x10)")
+    add_bus_arguments(up)
+    up.set_defaults(func=cmd_up)
+
+    st = sub.add_parser("status", help="show the plant node's state, counters and parameters",
+                        description="Read the actuator node's NMT state, status word, counters "
+                        "and parameters by SDO. Answers within about 2 s when no plant is "
+                        "there.")
+    st.add_argument("--all", action="store_true",
+                    help="list every parameter (default: only those not at their default)")
+    st.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
+                    help="actuator node id (default 0x10)")
+    add_bus_arguments(st)
+    st.set_defaults(func=cmd_status)
+
+    dn = sub.add_parser("down", help="stop the background plant and loopback bus",
+                        description="Stop what `bench up` started (plant, then hub).")
+    dn.set_defaults(func=cmd_down)
+
+
+def cmd_up(args: argparse.Namespace) -> int:
+    from bench.bus import bus_settings, find_bus
+    from bench.bus.procs import start_hub, start_plant
+    from plant_rt.params import ParameterError, PlantParams
+    from plant_rt.transport import PLANT_FILE, read_state, state_dir, write_state
+
+    try:
+        PlantParams().with_assignments(args.assignments)
+    except ParameterError as exc:
+        raise BenchError(str(exc)) from None
+    plant = read_state(PLANT_FILE)
+    if plant:
+        print(f"already up: plant pid {plant['pid']} on {plant['bus']} "
+              f"(`bench down` first to restart)")
+        return 0
+    found = find_bus(bus_settings(args))
+    started = []
+    if found is None:
+        hub = start_hub(persistent=True)
+        started.append(hub)
+        cfg, source = {"interface": "remote", "channel": hub.info["url"]}, "loopback hub"
+        print(f"hub: pid {hub.pid}, {hub.info['url']} (127.0.0.1 only)")
+    else:
+        cfg, source = found
+    try:
+        child = start_plant(cfg, pace=args.pace, assignments=args.assignments,
+                            persistent=True, node_id=args.node_id)
+    except BenchError:
+        for c in started:
+            c.stop()
+        raise
+    bus = f"{cfg.get('interface')}:{cfg.get('channel')}"
+    write_state(PLANT_FILE, {"pid": child.pid, "bus": bus, "source": source,
+                             "pace": args.pace, "log": str(child.log_path),
+                             "started": time.time()})
+    print(f"plant: pid {child.pid}, node 0x{(args.node_id or 0x10):02X} on {bus} ({source}), "
+          f"pace {args.pace}; log {child.log_path}")
+    print(f"state: {state_dir()}")
+    return 0
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else f"{v:g}"
+    return str(v)
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    from bench.bus import bus_settings, close_bus, connect, find_bus
+    from bench.ecu import Ecu, status_names
+    from plant_rt.busdef import NMTState, Pace
+    from plant_rt.params import PlantParams
+    from plant_rt.transport import HUB_FILE, PLANT_FILE, read_state
+
+    hub, plant = read_state(HUB_FILE), read_state(PLANT_FILE)
+    found = find_bus(bus_settings(args))
+    if found is None:
+        raise BenchError("bench is not up: no loopback hub running, no vcan0 and no "
+                         "python-can configuration (run `bench up`)")
+    cfg, source = found
+    print(f"bus: {cfg.get('interface')}:{cfg.get('channel')} ({source})"
+          + (f", hub pid {hub['pid']}" if hub else ""))
+    if plant:
+        print(f"plant process: pid {plant['pid']}, log {plant['log']}")
+    bus = connect(cfg, timeout=2.0)
+    ecu = None
+    try:
+        ecu = Ecu(bus, node_id=args.node_id, echo=False, sdo_timeout_s=0.25)
+        state = ecu.wait_for_plant(0.35)
+        st = ecu.read_status()
+        pace = Pace(int(ecu.sdo_read("node_control.pace"))).name.lower()
+        params = ecu.read_params()
+    finally:
+        if ecu is not None:
+            ecu.close()
+        close_bus(bus)
+    word = int(st["status_word"])
+    print(f"node 0x{ecu.node_id:02X}: {NMTState(state).name}, pace {pace}, plant time "
+          f"{st['plant_time_s']:.3f} s, status 0x{word:04X} "
+          f"({', '.join(status_names(word)) or 'ok'})")
+    print("counters: " + ", ".join(f"{k} {_fmt(v)}" for k, v in st.items()
+                                   if k not in ("nmt_state", "status_word", "plant_time_s")))
+    diff = PlantParams().diff(params)
+    shown = params.flat() if args.all else {k: b for k, (_, b) in diff.items()}
+    title = "parameters" if args.all else "parameters not at their default"
+    print(f"{title}: " + ("none" if not shown else ""))
+    for k, v in shown.items():
+        print(f"  {k} = {_fmt(v)}")
+    return 0
+
+
+def cmd_down(args: argparse.Namespace) -> int:  # noqa: ARG001
+    from bench.bus.procs import stop_pid
+    from plant_rt.transport import HUB_FILE, PLANT_FILE, read_state, remove_state, state_dir
+
+    did = False
+    for name, label in ((PLANT_FILE, "plant"), (HUB_FILE, "hub")):
+        st = read_state(name)
+        if st:
+            stop_pid(int(st["pid"]))
+            print(f"stopped {label} (pid {st['pid']})")
+            did = True
+        remove_state(name)
+    if not did:
+        print(f"nothing to stop (no bench running from {state_dir()})", file=sys.stderr)
+    return 0

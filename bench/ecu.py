@@ -1,0 +1,628 @@
+"""The ECU: a CANopen master that runs the bench's controller against the plant over the bus.
+
+It holds a python-can bus and nothing of the plant but what the bus carries: NMT, SYNC
+production, its own heartbeat, SDO (canopen `RemoteNode` from `dbc/ema.eds`) and the
+PDOs of `dbc/ema.dbc` (cantools). The same `bench.control.Controller` as the in-process
+harness computes the current demand, so a lockstep bus run reproduces
+`bench.harness.simulate` within the DBC quantisation.
+
+Per control period k (CiA 301 synchronous PDOs):
+
+    ECU: SYNC(k) -> plant: latches RPDO(k-1), sends TPDO1-3 (sensors at t_k), steps
+    ECU: sends ECU_Setpoint(k) (the set-points of t_k) right after its SYNC
+    ECU: decodes TPDOs, demand(k) = controller(set-points(t_k), measurements(t_k)),
+         sends RPDO1(k)  -> applied by the plant at SYNC(k+1)
+
+`pace="sync"`: the next SYNC goes out as soon as the period is done (lockstep);
+`pace="realtime"`: SYNCs are released on absolute wall-clock deadlines
+(`plant_rt.pacing`), and a TPDO that misses its window leaves the previous value.
+
+Every frame goes to the candump log: received frames as they arrive, the ECU's own
+as it sends them (with ``echo=True``, as the bus returns them through
+``receive_own_messages``, at the cost of one more frame per send to receive). The log is
+flushed and closed whatever ends the run.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+import canopen
+import numpy as np
+from canopen.network import MessageListener
+from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
+
+from bench import BenchError
+from bench.control import Controller, ControllerParams
+from bench.profiles import Profile
+from bench.trace import Trace
+from plant_rt.busdef import (
+    ControlWord,
+    FrameError,
+    Frames,
+    NMTCommand,
+    NMTState,
+    Pace,
+    ParamObjects,
+    StatusWord,
+    load_od,
+)
+from plant_rt.pacing import RealtimePacer
+from plant_rt.params import ParameterError, PlantParams, check_value, resolve
+
+TWO_PI = 2.0 * math.pi
+# canopen logs SDO aborts and timeouts it reports anyway as exceptions; keep stderr clean
+logging.getLogger("canopen").setLevel(logging.CRITICAL)
+TPDOS = ("EMA_TPDO1", "EMA_TPDO2", "EMA_TPDO3")
+
+
+class PlantLost(BenchError):
+    """The plant stopped answering (no TPDO, no heartbeat)."""
+
+
+class BusLost(BenchError):
+    """The bus connection itself failed."""
+
+
+@dataclass
+class EcuStats:
+    """What the ECU measured about the run."""
+    periods: int = 0
+    late_tpdo: int = 0            # periods whose TPDOs missed their window (realtime)
+    wall_s: float = 0.0
+    sync_jitter_p50_us: float = 0.0
+    sync_jitter_p99_us: float = 0.0
+    sync_jitter_max_us: float = 0.0
+    sync_deadline_misses: int = 0
+    frames_logged: int = 0
+
+
+class _Log(can.Listener):
+    """Every frame into a candump log (python-can's CanutilsLogWriter)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.writer = can.CanutilsLogWriter(self.path)
+        self.count = 0
+        self._last_flush = time.monotonic()
+        self._lock = threading.Lock()     # set-up: notifier thread and main thread
+
+    def on_message_received(self, msg: can.Message) -> None:
+        with self._lock:
+            self.writer.on_message_received(msg)
+            self.count += 1
+            now = time.monotonic()
+            if now - self._last_flush > 0.5:
+                self.writer.file.flush()
+                self._last_flush = now
+
+    def close(self) -> None:
+        try:
+            self.writer.stop()
+        except Exception:  # noqa: BLE001 - closing must not mask the run's error
+            pass
+
+
+class Ecu:
+    """The bench's CANopen master for the actuator node `node_id` on `bus`."""
+
+    def __init__(self, bus: can.BusABC, node_id: int | None = None, ecu_id: int | None = None,
+                 log_path: str | Path | None = None, echo: bool = False,
+                 sdo_timeout_s: float = 0.5) -> None:
+        self.bus = bus
+        self.frames = Frames(node_id, ecu_id)
+        self.node_id = self.frames.node_id
+        self.ecu_id = self.frames.ecu_id
+        self.od = load_od(self.node_id)
+        self.network = canopen.Network(_TeeBus(bus, self))   # canopen's sends are logged too
+        self.remote = canopen.RemoteNode(self.node_id, self.od)
+        self.network.add_node(self.remote)
+        self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
+        self.param_objects = ParamObjects(self.od)
+        self.log = _Log(Path(log_path)) if log_path else None
+        self.echo = echo               # the bus returns our own frames (for the log)
+        self.emcy: list[dict[str, Any]] = []
+        self.plant_state: NMTState | None = None
+        self.plant_hb: float | None = None
+        self.bootups = 0
+        self._notifier: can.Notifier | None = None
+        self._sync_counter = 0
+        self._sync_max = int(self.od[0x1019].default)
+        self._hb_period = self.frames.cycle_time_ms("ECU_Heartbeat") / 1000.0
+        self._hb_next = 0.0
+        self._cob = self.frames.cob
+        self._tpdo_names = {self._cob[n]: n for n in TPDOS}
+        self._hb_cob = self._cob["EMA_Heartbeat"]
+        self._emcy_cob = self._cob["EMA_EMCY"]
+        self._clock = time.monotonic
+        self._t0_wall = time.time()
+
+    # -- frames ---------------------------------------------------------------------------
+    def send(self, msg: can.Message) -> None:
+        self._log_sent(msg)
+        try:
+            self.bus.send(msg)
+        except (can.CanError, OSError) as exc:
+            raise BusLost(f"cannot send on the bus: {exc}") from None
+
+    def _log_sent(self, msg: can.Message) -> None:
+        """Log an own frame just before it goes out, so that an answer (received on the
+        notifier thread) can never precede its request in the log."""
+        if not self.echo and self.log is not None:
+            msg.timestamp = time.time()
+            msg.is_rx = False
+            self.log.on_message_received(msg)
+
+    def _monitor(self, msg: can.Message) -> None:
+        """Log a received frame and track the plant's heartbeat and EMCY."""
+        if self.log is not None:
+            self.log.on_message_received(msg)
+        cid = msg.arbitration_id
+        if cid == self._hb_cob and len(msg.data) == 1:
+            state = int(msg.data[0]) & 0x7F
+            self.plant_hb = self._clock()
+            if state == NMTState.BOOT_UP:
+                self.bootups += 1
+            try:
+                self.plant_state = NMTState(state)
+            except ValueError:
+                pass
+        elif cid == self._emcy_cob:
+            try:
+                decoded = self.frames.decode(msg)
+            except FrameError:
+                return
+            if decoded:
+                sig = decoded[1]
+                code = int(sig["EMCY_ErrorCode"])
+                self.emcy.append({
+                    "wall_s": round(msg.timestamp - self._t0_wall, 6) if msg.timestamp else None,
+                    "code": code,
+                    "name": self.frames.label("EMA_EMCY", "EMCY_ErrorCode", code),
+                    "status_word": int(sig["EMCY_StatusWord"]),
+                    "cycle": int(sig["EMCY_Cycle"])})
+
+    def listen(self) -> None:
+        """Start the receive thread (SDO, heartbeat, EMCY, log) for set-up and queries."""
+        if self._notifier is None:
+            mon = _Callback(self._monitor)
+            self._notifier = can.Notifier(self.bus, [MessageListener(self.network), mon],
+                                          timeout=0.02)
+
+    def unlisten(self) -> None:
+        if self._notifier is not None:
+            self._notifier.stop(timeout=1.0)
+            self._notifier = None
+
+    def close(self) -> None:
+        self.unlisten()
+        if self.log is not None:
+            self.log.close()
+
+    # -- NMT and heartbeat ------------------------------------------------------------------
+    def nmt(self, command: NMTCommand) -> None:
+        self.send(self.frames.encode("NMT", {"NMT_Command": int(command),
+                                             "NMT_NodeId": self.node_id}))
+
+    def heartbeat(self, state: NMTState = NMTState.OPERATIONAL) -> None:
+        now = self._clock()
+        if now >= self._hb_next:
+            self.send(self.frames.encode("ECU_Heartbeat", {"ECU_NMTState": int(state)}))
+            self._hb_next = now + self._hb_period
+
+    def wait_for_plant(self, timeout: float = 0.5) -> NMTState:
+        """The plant's NMT state from its heartbeat, else from an SDO read (the heartbeat
+        may be disabled); PlantLost if neither answers within about `timeout` + 0.3 s."""
+        self.listen()
+        end = self._clock() + timeout
+        seen = self.plant_hb
+        while self._clock() < end:
+            if self.plant_hb is not None and self.plant_hb != seen:
+                return self.plant_state or NMTState.PRE_OPERATIONAL
+            time.sleep(0.01)
+        try:   # heartbeat disabled (0x1017 = 0)? ask by SDO
+            return NMTState(int(self.remote.sdo["node_status"]["nmt_state"].raw))
+        except Exception:  # noqa: BLE001
+            pass
+        raise PlantLost(f"no actuator node 0x{self.node_id:02X} answering on the bus "
+                        f"(no heartbeat within {timeout:g} s, no SDO answer)")
+
+    def reset_node(self, timeout: float = 3.0) -> None:
+        """NMT reset node and wait for the boot-up frame."""
+        self.listen()
+        before = self.bootups
+        self.nmt(NMTCommand.RESET_NODE)
+        end = self._clock() + timeout
+        while self._clock() < end:
+            if self.bootups > before:
+                return
+            time.sleep(0.005)
+        raise PlantLost(f"actuator node 0x{self.node_id:02X} did not boot up within "
+                        f"{timeout:g} s of an NMT reset")
+
+    # -- SDO ----------------------------------------------------------------------------------
+    def _sdo_var(self, name: str):
+        if "." in name:
+            group, leaf = name.split(".", 1)
+        else:
+            group, leaf = name, None
+        try:
+            var = self.remote.sdo[group]
+            return var[leaf] if leaf is not None else var
+        except KeyError:
+            raise BenchError(f"the object dictionary has no object {name!r}") from None
+
+    def sdo_read(self, name: str) -> Any:
+        """Read an object by name (``group.leaf``, e.g. ``node_status.cycles``)."""
+        self.listen()
+        var = self._sdo_var(name)
+        try:
+            return var.raw
+        except SdoAbortedError as exc:
+            raise BenchError(f"the plant refused to read {name}: {exc}") from None
+        except SdoCommunicationError as exc:
+            raise PlantLost(f"no SDO answer reading {name}: {exc}") from None
+
+    def sdo_write(self, name: str, raw: Any) -> None:
+        self.listen()
+        var = self._sdo_var(name)
+        try:
+            var.raw = raw
+        except SdoAbortedError as exc:
+            raise BenchError(f"the plant refused {name} = {raw!r}: {exc}") from None
+        except SdoCommunicationError as exc:
+            raise PlantLost(f"no SDO answer writing {name}: {exc}") from None
+
+    def set_params(self, values: dict[str, Any]) -> None:
+        """Write plant parameters by SDO (checked here first for a clear message)."""
+        for name, value in values.items():
+            try:
+                info = resolve(name)
+                raw = ParamObjects.to_od(info, check_value(info, value))
+            except ParameterError as exc:
+                raise BenchError(str(exc)) from None
+            self.sdo_write(info.name, raw)
+
+    def read_params(self) -> PlantParams:
+        """Every plant parameter, read by SDO."""
+        values = {}
+        for name, po in self.param_objects.by_name.items():
+            values[name] = ParamObjects.from_od(po.info, self.sdo_read(name))
+        return PlantParams().with_dict(values)
+
+    def read_status(self) -> dict[str, Any]:
+        """Object 0x2100 (node status and counters) by name."""
+        rec = self.od["node_status"]
+        return {var.name: self.sdo_read(f"node_status.{var.name}")
+                for sub, var in rec.subindices.items() if sub}
+
+    # -- running a profile ------------------------------------------------------------------
+    def prepare(self, pace: Pace, values: dict[str, Any], spin_us: int | None = None
+                ) -> PlantParams:
+        """Reset the node, set pace (and the plant pacer's spin window) and parameters,
+        restart the plant at t = 0; returns the parameters the plant now has (read back)."""
+        self.wait_for_plant(2.0)
+        self.reset_node()
+        self.sdo_write("node_control.pace", int(pace))
+        if spin_us is not None:
+            self.sdo_write("node_control.spin_us", int(spin_us))
+        self.set_params(values)
+        self.sdo_write("node_control.reset_plant", 1)
+        return self.read_params()
+
+    def run(self, profile: Profile, params: PlantParams, cparams: ControllerParams | None = None,
+            pace: Pace = Pace.SYNC, duration_s: float | None = None, progress: bool = False,
+            spin_us: int = 200, on_period: Callable[[int], None] | None = None) -> Trace:
+        """Run `profile` on the prepared plant; returns the trace (partial on error: the
+        error is raised after the trace is stored in `self.partial`)."""
+        ts = params.sim.sync_period_s
+        cparams = cparams or ControllerParams(sample_period_s=ts)
+        if not math.isclose(cparams.sample_period_s, ts):
+            raise BenchError(f"controller period {cparams.sample_period_s} s differs from the "
+                             f"plant's SYNC period {ts} s")
+        dur = profile.duration_s if duration_s is None else duration_s
+        n = int(round(dur / ts))
+        if n < 1:
+            raise BenchError(f"a run of {dur} s is shorter than one SYNC period")
+        t = np.arange(n) * ts
+        sp_pos, sp_spd = profile.setpoints(t)
+        mode = int(profile.mode)
+        cpr = float(params.sensors.encoder_counts_per_rev)
+        ctrl = Controller(cparams)
+        ctrl.step(0.0, 0.0, mode, 0.0, 0.0)   # load the compiled step before the clock runs
+        ctrl.reset()
+        rows = {k: np.full(n, np.nan) for k in (
+            "current_demand_a", "current_a", "motor_speed_rad_s", "motor_angle_rad",
+            "position_m", "winding_temperature_k", "status_word", "bus_time_s")}
+        stats = EcuStats()
+        self.partial: Trace | None = None
+        k = 0
+        bar = None
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=round(n * ts, 3), unit="sim s", desc=profile.name, leave=False)
+        latest: dict[str, dict[str, Any]] = {}
+        fresh: set[str] = set()
+        frames = self.frames
+        bus = self.bus
+        tpdo_names = self._tpdo_names
+        monitor = self._monitor
+        pacer = RealtimePacer(ts, spin_us * 1e-6) if pace == Pace.REALTIME else None
+        enc_rpdo = frames.by_name["EMA_RPDO1"]
+        enc_sp = frames.by_name["ECU_Setpoint"]
+        cob_rpdo, cob_sp = self._cob["EMA_RPDO1"], self._cob["ECU_Setpoint"]
+        enable = int(ControlWord.ENABLE)
+        t_wall0 = time.perf_counter()
+        t_first_sync: float | None = None
+        last_bar = time.monotonic()
+        error: BaseException | None = None
+
+        def poll(timeout: float) -> None:
+            try:
+                msg = bus.recv(timeout=max(0.0, timeout))
+            except (can.CanError, OSError, Exception) as exc:  # noqa: BLE001
+                raise BusLost(f"the bus connection failed: {type(exc).__name__}: {exc}") \
+                    from None
+            if msg is None:
+                return
+            monitor(msg)
+            name = tpdo_names.get(msg.arbitration_id)
+            if name is not None:
+                try:
+                    decoded = frames.decode(msg)
+                except FrameError:
+                    return
+                latest[name] = decoded[1]  # type: ignore[index]
+                fresh.add(name)
+
+        self.unlisten()
+        # keep full garbage collections (tens of ms with numba and scipy loaded) out of
+        # the control loop: what exists now is not scanned again until the run ends
+        gc.collect()
+        gc.freeze()
+        try:
+            self._hb_next = 0.0
+            self.heartbeat()
+            self.nmt(NMTCommand.START)
+            if pacer is not None:
+                pacer.start(5 * ts)
+            for k in range(n):
+                if pacer is not None:
+                    pacer.wait(poll)
+                fresh.clear()
+                self._send_sync()
+                # the set-points of this period are known at its SYNC: send them while
+                # the plant answers (ECU TPDO, synchronous)
+                self.send(can.Message(arbitration_id=cob_sp, is_extended_id=False,
+                                      data=enc_sp.encode({
+                                          "SetpointPosition": frames.clamp(
+                                              "ECU_Setpoint", "SetpointPosition", sp_pos[k]),
+                                          "SetpointSpeed": frames.clamp(
+                                              "ECU_Setpoint", "SetpointSpeed", sp_spd[k]),
+                                          "Mode": mode}, strict=True)))
+                if t_first_sync is None:
+                    t_first_sync = time.perf_counter()
+                rows["bus_time_s"][k] = time.perf_counter() - t_first_sync
+                if pacer is None:
+                    self._wait_tpdos(poll, fresh, k, ts)
+                else:
+                    window = pacer.release_ns + int(0.8 * pacer.period_ns)
+                    while len(fresh) < 3:
+                        left = (window - time.perf_counter_ns()) / 1e9
+                        if left <= 0:
+                            break
+                        poll(left)
+                    if len(fresh) < 3:
+                        stats.late_tpdo += 1
+                        if k % 50 == 0:
+                            self._check_alive(k, ts)
+                    if len(latest) < 3:
+                        pacer.done()
+                        continue
+                t1, t2, t3 = latest["EMA_TPDO1"], latest["EMA_TPDO2"], latest["EMA_TPDO3"]
+                pos = float(t3["LvdtPosition"])
+                spd = float(t2["EncoderSpeed"])
+                demand = ctrl.step(sp_pos[k], sp_spd[k], mode, pos, spd)
+                demand32 = float(np.float32(demand))
+                self.send(can.Message(arbitration_id=cob_rpdo, is_extended_id=False,
+                                      data=enc_rpdo.encode({"CurrentDemand": demand32,
+                                                            "ControlWord": enable},
+                                                           strict=True)))
+                rows["current_demand_a"][k] = demand32
+                rows["current_a"][k] = t1["MotorCurrent"]
+                rows["status_word"][k] = t1["StatusWord"]
+                rows["motor_speed_rad_s"][k] = spd
+                rows["motor_angle_rad"][k] = t2["EncoderAngle"] * TWO_PI / cpr
+                rows["position_m"][k] = pos
+                rows["winding_temperature_k"][k] = t3["WindingTemperature"]
+                stats.periods = k + 1
+                self.heartbeat()
+                if pacer is not None:
+                    pacer.done()
+                if on_period is not None:
+                    on_period(k)
+                if bar is not None and (k & 0xFF) == 0:
+                    now = time.monotonic()
+                    if now - last_bar > 0.25:
+                        bar.update(round(k * ts - bar.n, 3))
+                        last_bar = now
+        except BaseException as exc:  # noqa: BLE001 - stored, re-raised below
+            error = exc
+        finally:
+            gc.unfreeze()
+            stats.wall_s = time.perf_counter() - t_wall0
+            if bar is not None:
+                bar.update(round(stats.periods * ts - bar.n, 3))
+                bar.close()
+            if pacer is not None:
+                stats.sync_jitter_p50_us = pacer.lateness.percentile_us(50)
+                stats.sync_jitter_p99_us = pacer.lateness.percentile_us(99)
+                stats.sync_jitter_max_us = pacer.lateness.max_us
+                stats.sync_deadline_misses = pacer.misses
+        m = stats.periods
+        cols = {"t_s": t[:m], "setpoint_position_m": sp_pos[:m],
+                "setpoint_speed_rad_s": sp_spd[:m], "mode": np.full(m, float(mode))}
+        cols.update({k_: v[:m] for k_, v in rows.items()})
+        meta = {"source": "bus", "pace": Pace(pace).name.lower(), "profile": profile.name,
+                "profile_kwargs": profile.kwargs, "fundamental_hz": profile.fundamental_hz,
+                "params": params.to_dict(), "controller": asdict(cparams),
+                "complete": m == n, "node_id": self.node_id, "ecu": asdict(stats)}
+        trace = Trace(cols, meta)
+        self.partial = trace
+        if error is not None:
+            if self.log is not None:
+                stats.frames_logged = self.log.count
+            raise error
+        self._finish(trace, stats)
+        return trace
+
+    def _finish(self, trace: Trace, stats: EcuStats) -> None:
+        """Orderly end: drive to PRE-OPERATIONAL, stop heartbeat monitoring, counters."""
+        self.listen()
+        try:
+            self.nmt(NMTCommand.ENTER_PRE_OPERATIONAL)
+            self.remote.sdo[0x1016][1].raw = 0   # orderly log-out: stop consuming our heartbeat
+            trace.meta["plant_counters"] = self.read_status()
+        except (BenchError, SdoAbortedError, SdoCommunicationError) as exc:
+            trace.meta["plant_counters"] = {"error": str(exc)}
+        time.sleep(0.02)   # let the last answers reach the log
+        trace.meta["emcy"] = list(self.emcy)
+        if self.log is not None:
+            stats.frames_logged = self.log.count
+        trace.meta["ecu"] = asdict(stats)
+
+    def _send_sync(self) -> None:
+        self._sync_counter = self._sync_counter % self._sync_max + 1
+        self.send(self.frames.encode("SYNC", {"SYNC_Counter": self._sync_counter}))
+
+    def _check_alive(self, k: int, ts: float) -> None:
+        age = None if self.plant_hb is None else self._clock() - self.plant_hb
+        timeout = 3 * self.frames.cycle_time_ms("EMA_Heartbeat") / 1000.0 + 0.05
+        if age is None or age > timeout:
+            seen = "never" if age is None else f"{age:.2f} s ago"
+            raise PlantLost(f"the plant stopped answering at t = {k * ts:.3f} s (SYNC {k}): "
+                            f"no TPDO, last heartbeat {seen}")
+
+    def _wait_tpdos(self, poll, fresh: set[str], k: int, ts: float) -> None:
+        """Lockstep: wait for TPDO1-3 of this SYNC (the plant answers every SYNC)."""
+        start = self._clock()
+        while len(fresh) < 3:
+            poll(0.1)
+            self.heartbeat()
+            waited = self._clock() - start
+            if len(fresh) < 3 and waited > 1.0:
+                self._check_alive(k, ts)
+                if waited > 10.0:
+                    raise PlantLost(f"the plant sent no TPDO for SYNC {k} (t = {k * ts:.3f} s) "
+                                    f"within 10 s although its heartbeat continues")
+
+
+class _TeeBus:
+    """The bus as canopen's Network sees it: sends are also logged (SDO, NMT)."""
+
+    def __init__(self, bus: can.BusABC, ecu: Ecu) -> None:
+        self._bus, self._ecu = bus, ecu
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self._ecu._log_sent(msg)
+        self._bus.send(msg, timeout)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._bus, name)
+
+
+class _Callback(can.Listener):
+    def __init__(self, fn: Callable[[can.Message], None]) -> None:
+        self.fn = fn
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.fn(msg)
+
+
+def status_names(word: int) -> list[str]:
+    return [f.name.lower() for f in StatusWord if f and f.name and int(word) & f]
+
+
+__all__ = ["Ecu", "EcuStats", "PlantLost", "BusLost", "status_names"]
+
+
+def plant_values(profile: Profile, assignments: list[str] | None = None,
+                 values: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Parameter settings for a run: the profile's own (e.g. the RUL schedule), then
+    `values`, then ``NAME=VALUE`` assignments; checked here (BenchError if invalid)."""
+    out: dict[str, Any] = dict(profile.params_overrides)
+    out.update(values or {})
+    for a in assignments or []:
+        if "=" not in a:
+            raise BenchError(f"--set expects NAME=VALUE, got {a!r}")
+        k, v = a.split("=", 1)
+        out[k.strip()] = v.strip()
+    try:
+        PlantParams().with_dict(out)
+    except ParameterError as exc:
+        raise BenchError(str(exc)) from None
+    return out
+
+
+def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
+                 assignments: list[str] | None = None, pace: Pace | str = Pace.SYNC,
+                 duration_s: float | None = None, log_path: str | Path | None = None,
+                 progress: bool = False, settings: dict[str, Any] | None = None,
+                 start_plant: bool = True, cparams: ControllerParams | None = None,
+                 node_id: int | None = None, announce: Callable[[str], None] | None = None,
+                 echo: bool = False, spin_us: int = 200) -> Trace:
+    """Run `profile` against the plant over the bus and return the trace.
+
+    The bus is the configured one (flags in `settings`, environment, config file,
+    vcan0, the hub of `bench up`), else a private loopback hub started for this run.
+    When no plant answers on a simulated bus (hub, virtual, vcan) and `start_plant`,
+    a plant process is started for the run. Everything started here is stopped here.
+    On error the partial trace is in the exception's ``trace`` attribute."""
+    from bench.bus import close_bus, connect, is_simulated, session
+    from bench.bus.procs import start_plant as _start_plant
+
+    pace = Pace[pace.upper()] if isinstance(pace, str) else Pace(pace)
+    vals = plant_values(profile, assignments, values)
+    say = announce or (lambda s: None)
+    with session(settings) as sess:
+        bus = connect(sess.cfg, receive_own_messages=echo)
+        ecu = None
+        try:
+            ecu = Ecu(bus, node_id=node_id, log_path=log_path, echo=echo)
+            try:
+                ecu.wait_for_plant(1.0 if sess.children else 0.6)
+            except PlantLost:
+                if not (start_plant and is_simulated(sess.cfg)):
+                    raise PlantLost(f"no actuator node 0x{ecu.node_id:02X} answering on "
+                                    f"{sess.description}") from None
+                say("starting a plant for this run")
+                sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
+                                                  node_id=node_id))
+            say(f"bus {sess.description}")
+            params = ecu.prepare(pace, vals, spin_us if pace == Pace.REALTIME else None)
+            try:
+                trace = ecu.run(profile, params, cparams, pace, duration_s, progress,
+                                spin_us=spin_us)
+            except BenchError as exc:
+                exc.trace = ecu.partial  # type: ignore[attr-defined]
+                raise
+            except KeyboardInterrupt as exc:
+                exc.trace = ecu.partial  # type: ignore[attr-defined]
+                raise
+            trace.meta["bus"] = sess.description
+            if log_path:
+                trace.meta["log"] = str(log_path)
+            return trace
+        finally:
+            if ecu is not None:
+                ecu.close()
+            close_bus(bus)

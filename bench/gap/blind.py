@@ -1,0 +1,421 @@
+"""Blind check of the gap diagnosis (`bench gap-bench`).
+
+Logs are generated in-process by `bench.harness.simulate` (the bench's own closed loop,
+the same frames a lockstep bus run gives) at FULL fidelity (switching PWM, dynamic
+balls) with sensor noise on, while the diagnosis re-simulates in the fast mode: the
+"real" plant is not the model the diagnosis fits. Each case is one of
+
+    nominal   noise only
+    single    one effect at a random magnitude
+    pair      two different effects at random magnitudes
+    outside   an effect outside the candidate library (unlogged external load, or a
+              position-periodic current-sensor error applied to the logged current)
+
+Effects act in the plant (parameters, inside the loop) or, for sensor-side effects, on
+the logged columns after the run (a first-order LVDT lag, a time skew of the
+measurements). Their magnitudes are drawn here from physical ranges (thesis section
+5.7.4 where it gives one) with code and ranges independent of the candidate library;
+the diagnosis receives only the measured columns, without metadata.
+
+Whether an effect is "above the noise floor" is decided here from simulation truth the
+diagnosis never sees: the noise-free log with the effect against the noise-free
+nominal log, per signal, divided by the RMS difference two noisy nominal logs of the
+generator leave between them over sqrt(2); above the floor when any signal's ratio is
+>= 1.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.gap.maneuvers import excitation
+from bench.harness import simulate
+from bench.trace import MEASURED, Trace
+from plant_rt.params import PlantParams
+
+LOG_S = 10.0
+NOMINAL = PlantParams()
+# motor-side viscous coefficient per unit of effects.viscous_scale (thesis table 5.4,
+# eq. 5.13 reflected through the reducer): (c_sm + c_sr) tau / eta
+_VISC_PER_SCALE = ((NOMINAL.motor.viscous_friction_nm_s + NOMINAL.reducer.viscous_friction_nm_s)
+                   * NOMINAL.reducer.ratio / NOMINAL.reducer.efficiency)
+
+
+def _lu(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _pm(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(rng.uniform(lo, hi) * rng.choice([-1.0, 1.0]))
+
+
+@dataclass
+class Truth:
+    """One injected effect: its name, plant overrides, log-side action and the value the
+    matching library parameter should recover."""
+    name: str
+    plant: dict[str, Any] = field(default_factory=dict)
+    log: dict[str, float] = field(default_factory=dict)
+    expect: dict[str, float] = field(default_factory=dict)    # library param -> true value
+    nominal: dict[str, float] = field(default_factory=dict)   # library param -> no-effect value
+
+
+def draw(name: str, rng: np.random.Generator) -> Truth:
+    """A random magnitude of effect `name` (generator-side ranges)."""
+    n = NOMINAL
+    if name == "backlash":
+        v = rng.uniform(5e-6, 100e-6)
+        return Truth(name, {"effects.backlash_m": v}, expect={"backlash_m": v},
+                     nominal={"backlash_m": 0.0})
+    if name == "friction":
+        v = _lu(rng, 1.5, 4.0)
+        return Truth(name, {"effects.friction_scale": v}, expect={"friction_scale": v},
+                     nominal={"friction_scale": 1.0})
+    if name == "viscous":
+        s = _lu(rng, 2e4, 4e5)
+        return Truth(name, {"effects.viscous_scale": s},
+                     expect={"viscous_nm_s_per_rad": s * _VISC_PER_SCALE},
+                     nominal={"viscous_nm_s_per_rad": _VISC_PER_SCALE})
+    if name == "stribeck":
+        a, v = rng.uniform(0.5, 2.0), _lu(rng, 0.3, 10.0)
+        return Truth(name, {"screw.stribeck_amplitude": a, "screw.stribeck_velocity_rad_s": v},
+                     expect={"stribeck_amplitude": a, "stribeck_velocity_rad_s": v},
+                     nominal={"stribeck_amplitude": n.screw.stribeck_amplitude,
+                              "stribeck_velocity_rad_s": n.screw.stribeck_velocity_rad_s})
+    if name == "stiffness":
+        v = _lu(rng, 5e5, 2e7)
+        return Truth(name, {"screw.contact_stiffness_n_per_m": v},
+                     expect={"contact_stiffness_n_per_m": v},
+                     nominal={"contact_stiffness_n_per_m": n.screw.contact_stiffness_n_per_m})
+    if name == "preload":
+        v = rng.uniform(500.0, 5000.0)
+        return Truth(name, {"effects.preload_n": v}, expect={"preload_n": v},
+                     nominal={"preload_n": 0.0})
+    if name == "sensor_delay":
+        v = float(rng.integers(1, 6)) * 1e-3
+        return Truth(name, {"effects.sensor_delay_s": v}, expect={"sensor_delay_s": v},
+                     nominal={"sensor_delay_s": 0.0})
+    if name == "lvdt_lag":
+        v = rng.uniform(1e-3, 10e-3)
+        return Truth(name, log={"lvdt_lag_s": v}, expect={"lvdt_lag_s": v},
+                     nominal={"lvdt_lag_s": 0.0})
+    if name == "log_skew":
+        v = float(rng.integers(1, 5)) * 1e-3
+        return Truth(name, log={"skew_s": v}, expect={"log_skew_s": v},
+                     nominal={"log_skew_s": 0.0})
+    if name == "lvdt_gain":
+        v = 1.0 + _pm(rng, 0.005, 0.05)
+        return Truth(name, {"sensors.lvdt_gain": v}, expect={"lvdt_gain": v},
+                     nominal={"lvdt_gain": 1.0})
+    if name == "lvdt_offset":
+        v = _pm(rng, 5e-6, 200e-6)
+        return Truth(name, {"sensors.lvdt_offset_m": v}, expect={"lvdt_offset_m": v},
+                     nominal={"lvdt_offset_m": 0.0})
+    if name == "encoder_gain":
+        v = 1.0 + _pm(rng, 0.005, 0.05)
+        return Truth(name, {"sensors.encoder_gain": v}, expect={"encoder_gain": v},
+                     nominal={"encoder_gain": 1.0})
+    if name == "current_offset":
+        v = _pm(rng, 0.05, 0.5)
+        return Truth(name, {"sensors.current_offset_a": v}, expect={"current_offset_a": v},
+                     nominal={"current_offset_a": 0.0})
+    if name == "resistance":
+        v = n.motor.resistance_ohm * _lu(rng, 1.5, 4.0)
+        return Truth(name, {"motor.resistance_ohm": v}, expect={"resistance_ohm": v},
+                     nominal={"resistance_ohm": n.motor.resistance_ohm})
+    if name == "thermal_drift":
+        v = rng.uniform(0.002, 0.006)
+        return Truth(name, {"motor.resistance_tempco_per_k": v},
+                     expect={"resistance_tempco_per_k": v},
+                     nominal={"resistance_tempco_per_k": 0.0})
+    if name == "kt":
+        v = n.motor.kt_nm_per_a * (1.0 + _pm(rng, 0.02, 0.15))
+        return Truth(name, {"motor.kt_nm_per_a": v}, expect={"kt_nm_per_a": v},
+                     nominal={"kt_nm_per_a": n.motor.kt_nm_per_a})
+    if name == "inertia":
+        v = n.motor.inertia_kg_m2 * (1.0 + _pm(rng, 0.05, 0.5))
+        return Truth(name, {"motor.inertia_kg_m2": v}, expect={"inertia_kg_m2": v},
+                     nominal={"inertia_kg_m2": n.motor.inertia_kg_m2})
+    if name == "lead":
+        v = n.screw.lead_m * (1.0 + _pm(rng, 0.002, 0.02))
+        return Truth(name, {"screw.lead_m": v}, expect={"lead_m": v},
+                     nominal={"lead_m": n.screw.lead_m})
+    if name == "external_load":        # outside the library: an unlogged disturbance force
+        if rng.uniform() < 0.5:
+            return Truth(name, {"load.kind": "sine", "load.amplitude_n":
+                                rng.uniform(200.0, 2000.0), "load.frequency_hz":
+                                rng.uniform(3.0, 12.0)})
+        return Truth(name, {"load.kind": "step", "load.amplitude_n": _pm(rng, 300.0, 3000.0),
+                            "load.start_s": rng.uniform(1.0, 8.0)})
+    if name == "current_ripple":       # outside: position-periodic current-sensor error
+        return Truth(name, log={"ripple_a": rng.uniform(0.1, 0.5),
+                                "ripple_per_rev": float(rng.integers(2, 9))})
+    raise KeyError(name)
+
+
+POOL = ("backlash", "friction", "viscous", "stribeck", "stiffness", "preload",
+        "sensor_delay", "lvdt_lag", "log_skew", "lvdt_gain", "lvdt_offset", "encoder_gain",
+        "current_offset", "resistance", "thermal_drift", "kt", "inertia", "lead")
+OUTSIDE = ("external_load", "current_ripple")
+
+
+def apply_log_side(cols: dict[str, np.ndarray], truths: list[Truth], dt: float
+                   ) -> dict[str, np.ndarray]:
+    """Sensor-side effects on logged columns (generator code, not the library's)."""
+    out = {k: np.array(v, float) for k, v in cols.items()}
+    for tr in truths:
+        if "lvdt_lag_s" in tr.log:
+            a = math.exp(-dt / tr.log["lvdt_lag_s"])
+            y = out["position_m"]
+            z = np.empty_like(y)
+            acc = y[0]
+            for i, v in enumerate(y):
+                acc = a * acc + (1.0 - a) * v
+                z[i] = acc
+            out["position_m"] = z
+        if "skew_s" in tr.log:
+            d = int(round(tr.log["skew_s"] / dt))
+            for c in ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m"):
+                y = out[c]
+                out[c] = np.concatenate([np.repeat(y[:1], d), y[:-d]])
+        if "ripple_a" in tr.log:
+            out["current_a"] = out["current_a"] + tr.log["ripple_a"] * np.sin(
+                tr.log["ripple_per_rev"] * out["motor_angle_rad"])
+    return out
+
+
+@dataclass
+class Case:
+    index: int
+    kind: str
+    truths: list[Truth]
+    noise_seed: int
+
+    @property
+    def label(self) -> str:
+        return "+".join(sorted(t.name for t in self.truths)) or "none"
+
+
+def make_cases(n: int, seed: int) -> list[Case]:
+    """`n` cases: 20 % nominal, 45 % single, 25 % pair, 10 % outside (rounded, in a
+    shuffled order fixed by `seed`)."""
+    rng = np.random.default_rng(seed)
+    kinds = (["nominal"] * round(0.2 * n) + ["single"] * round(0.45 * n)
+             + ["pair"] * round(0.25 * n))
+    kinds += ["outside"] * max(0, n - len(kinds))
+    kinds = kinds[:n]
+    rng.shuffle(kinds)
+    cases = []
+    for i, kind in enumerate(kinds):
+        if kind == "nominal":
+            truths: list[Truth] = []
+        elif kind == "single":
+            truths = [draw(str(rng.choice(POOL)), rng)]
+        elif kind == "pair":
+            a, b = rng.choice(len(POOL), size=2, replace=False)
+            truths = [draw(POOL[a], rng), draw(POOL[b], rng)]
+        else:
+            truths = [draw(str(rng.choice(OUTSIDE)), rng)]
+        cases.append(Case(i, kind, truths, int(rng.integers(1, 2**31 - 1))))
+    return cases
+
+
+def generate(case: Case, noise: bool = True, fidelity: str = "full",
+             duration_s: float = LOG_S) -> Trace:
+    """The case's log: measured columns only, no metadata."""
+    over: dict[str, Any] = {"sensors.noise": noise, "sensors.noise_seed": case.noise_seed}
+    for t in case.truths:
+        over.update(t.plant)
+    if fidelity == "fast":
+        over.update({"drive.pwm_mode": "averaged", "sim.ball_model": "quasistatic"})
+    tr = simulate(excitation(duration_s), NOMINAL.with_dict(over))
+    cols = {c: tr[c] for c in MEASURED}
+    cols = apply_log_side(cols, case.truths, tr.dt)
+    return Trace(cols, {})
+
+
+SNR_SIGNALS = ("current_a", "motor_speed_rad_s", "position_m", "motor_angle_rad")
+
+
+def floor_snr(case: Case, fidelity: str, duration_s: float,
+              ref: dict[str, Any]) -> dict[str, float]:
+    """Per-signal RMS change the case's effects cause (noise-free) over the generator's
+    noise floor (RMS difference of two noisy nominal logs / sqrt 2)."""
+    clean = generate(case, noise=False, fidelity=fidelity, duration_s=duration_s)
+    out = {}
+    for s in SNR_SIGNALS:
+        d = clean[s] - ref["clean"][s]
+        out[s] = float(np.sqrt(np.mean(d ** 2)) / ref["floor"][s])
+    return out
+
+
+def reference(fidelity: str, duration_s: float, seed: int) -> dict[str, Any]:
+    """Noise-free nominal log and the generator's noise floor per signal."""
+    nominal = Case(-1, "nominal", [], seed)
+    clean = generate(nominal, noise=False, fidelity=fidelity, duration_s=duration_s)
+    a = generate(Case(-1, "nominal", [], seed + 1), fidelity=fidelity, duration_s=duration_s)
+    b = generate(Case(-1, "nominal", [], seed + 2), fidelity=fidelity, duration_s=duration_s)
+    floor = {s: float(np.sqrt(np.mean((a[s] - b[s]) ** 2)) / math.sqrt(2.0))
+             for s in SNR_SIGNALS}
+    return {"clean": {s: clean[s] for s in SNR_SIGNALS}, "floor": floor}
+
+
+# --- running and scoring ----------------------------------------------------------------
+
+_REF: dict[str, Any] = {}
+
+
+def _init(ref: dict[str, Any]) -> None:
+    _REF.update(ref)
+
+
+def run_case(case: Case, fidelity: str = "full", duration_s: float = LOG_S,
+             ref: dict[str, Any] | None = None,
+             effects: list[str] | None = None) -> dict[str, Any]:
+    """Generate, diagnose (seeing only the measured log) and score one case."""
+    from bench.gap.diagnose import Options, diagnose
+    ref = ref or _REF
+    log = generate(case, fidelity=fidelity, duration_s=duration_s)
+    t0 = time.perf_counter()
+    res = diagnose(log, options=Options(workers=1, effects=effects))
+    elapsed = time.perf_counter() - t0
+    js = res.json()
+    snr_each = {t.name: floor_snr(Case(case.index, case.kind, [t], case.noise_seed),
+                                  fidelity, duration_s, ref) for t in case.truths}
+    snr_all = floor_snr(case, fidelity, duration_s, ref) if case.truths else {}
+    return score(case, js, snr_each, snr_all, elapsed)
+
+
+def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
+          snr_all: dict[str, float], elapsed: float) -> dict[str, Any]:
+    verdict = js["verdict"]
+    ranking = js["ranking"]
+    names = [r["effect"] for r in ranking]
+    truth_set = sorted(t.name for t in case.truths)
+    above_each = {k: max(v.values()) >= 1.0 for k, v in snr_each.items()}
+    rec: dict[str, Any] = {
+        "index": case.index, "kind": case.kind, "truth": case.label,
+        "truth_values": {t.name: (t.expect or {k: v for k, v in {**t.plant, **t.log}.items()})
+                         for t in case.truths},
+        "verdict": verdict, "top2": names[:2], "elapsed_s": elapsed,
+        "snr": {k: max(v.values()) for k, v in snr_each.items()},
+        "snr_all": max(snr_all.values()) if snr_all else 0.0,
+        "above_floor": all(above_each.values()) if above_each else False,
+        "ties": js["localisation"].get("selection", {}).get("indistinguishable_from_chosen", []),
+        "shrink_pct": ranking[0]["heldout_shrink_pct"] if ranking else None,
+    }
+    if case.kind == "single":
+        rec["top1"] = verdict == truth_set[0]
+        rec["top1_or_tie"] = rec["top1"] or (truth_set[0] in rec["ties"])
+    if case.kind == "pair":
+        rec["pair_top2"] = any(sorted(n.split("+")) == truth_set for n in names[:2])
+        rec["pair_verdict"] = sorted(verdict.split("+")) == truth_set
+        rec["both_in_top_singles"] = set(truth_set) <= set(
+            [n for n in names if "+" not in n][:2])
+    # parameter recovery for correctly attributed effects
+    errs = {}
+    if ranking and case.truths:
+        got = ranking[0]["params"]
+        for t in case.truths:
+            if t.name in verdict.split("+"):
+                for k, v in t.expect.items():
+                    if k in got and got[k]["value"] is not None:
+                        dev = abs(v - t.nominal.get(k, 0.0)) or abs(v) or 1.0
+                        errs[k] = abs(got[k]["value"] - v) / dev
+    rec["param_rel_err"] = errs
+    return rec
+
+
+def run(n: int, seed: int, workers: int = 2, fidelity: str = "full",
+        duration_s: float = LOG_S, progress: bool = True,
+        on_result: Callable[[dict[str, Any]], None] | None = None,
+        effects: list[str] | None = None) -> dict[str, Any]:
+    """Run `n` blind cases (seeded) on `workers` processes; results and summary.
+    `effects`: restrict the diagnosis' library (default: all; the generator's pool is
+    unchanged, so a restricted library scores lower)."""
+    cases = make_cases(n, seed)
+    ref = reference(fidelity, duration_s, seed + 7919)
+    results: list[dict[str, Any]] = []
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(cases), unit="case", desc="gap-bench")
+    t0 = time.perf_counter()
+    if workers <= 1:
+        _init(ref)
+        for c in cases:
+            results.append(run_case(c, fidelity, duration_s, ref, effects))
+            if on_result:
+                on_result(results[-1])
+            if bar is not None:
+                bar.update(1)
+    else:
+        from bench.gap.pool import make_pool
+        with make_pool(workers, _init, (ref,)) as ex:
+            futs = [ex.submit(run_case, c, fidelity, duration_s, None, effects)
+                    for c in cases]
+            from concurrent.futures import as_completed
+            for fu in as_completed(futs):
+                results.append(fu.result())
+                if on_result:
+                    on_result(results[-1])
+                if bar is not None:
+                    bar.update(1)
+    if bar is not None:
+        bar.close()
+    results.sort(key=lambda r: r["index"])
+    return {"seed": seed, "cases": n, "fidelity": fidelity, "log_s": duration_s,
+            "library": effects or "all",
+            "wall_s": time.perf_counter() - t0, "workers": workers,
+            "floor": ref["floor"], "summary": summarise(results), "results": results}
+
+
+def _rate(xs: list[bool]) -> dict[str, Any]:
+    return {"rate": (sum(xs) / len(xs)) if xs else None, "n": len(xs), "hits": sum(xs)}
+
+
+def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
+    single = [r for r in results if r["kind"] == "single"]
+    single_above = [r for r in single if r["above_floor"]]
+    single_below = [r for r in single if not r["above_floor"]]
+    pair = [r for r in results if r["kind"] == "pair"]
+    pair_above = [r for r in pair if r["above_floor"]]
+    nominal = [r for r in results if r["kind"] == "nominal"]
+    outside = [r for r in results if r["kind"] == "outside"]
+    effect_cases = [r for r in single + pair if r["above_floor"]]
+    shr = [r["shrink_pct"] for r in effect_cases if r["shrink_pct"] is not None]
+    errs = [e for r in single_above + pair_above for e in r["param_rel_err"].values()]
+    per_effect: dict[str, dict[str, Any]] = {}
+    for r in single_above:
+        d = per_effect.setdefault(r["truth"], {"n": 0, "top1": 0, "top1_or_tie": 0,
+                                               "verdicts": {}})
+        d["n"] += 1
+        d["top1"] += int(r["top1"])
+        d["top1_or_tie"] += int(r["top1_or_tie"])
+        d["verdicts"][r["verdict"]] = d["verdicts"].get(r["verdict"], 0) + 1
+    return {
+        "single_top1_above_floor": _rate([r["top1"] for r in single_above]),
+        "single_top1_or_tie_above_floor": _rate([r["top1_or_tie"] for r in single_above]),
+        "single_below_floor_none": _rate([r["verdict"] == "none" for r in single_below]),
+        "single_top1_all": _rate([r["top1"] for r in single]),
+        "pair_in_top2": _rate([r["pair_top2"] for r in pair]),
+        "pair_in_top2_above_floor": _rate([r["pair_top2"] for r in pair_above]),
+        "pair_verdict_exact": _rate([r["pair_verdict"] for r in pair]),
+        "median_heldout_shrink_pct": float(np.median(shr)) if shr else None,
+        "heldout_shrink_n": len(shr),
+        "param_rel_err_median": float(np.median(errs)) if errs else None,
+        "param_rel_err_n": len(errs),
+        "nominal_no_gap": _rate([r["verdict"] == "none" for r in nominal]),
+        "outside_unexplained": _rate([r["verdict"] == "unexplained" for r in outside]),
+        "outside_not_attributed": _rate([r["verdict"] in ("unexplained", "none")
+                                         for r in outside]),
+        "mean_diagnosis_s": float(np.mean([r["elapsed_s"] for r in results])) if results
+        else None,
+        "per_effect_single": per_effect,
+    }

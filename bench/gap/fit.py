@@ -1,0 +1,285 @@
+"""Fitting candidate effects to a log: bounded least squares, BIC/AIC, confidence intervals.
+
+Each candidate (one effect or a combination) is fitted with `scipy.optimize.
+least_squares` on the normalised closed-loop residuals of the fit part of the log, in
+[0, 1] coordinates per parameter (logarithmic where the parameter spans decades), from
+a few starting points (the best is kept). Parameters that only take whole SYNC periods
+(delays) are grid-searched. Confidence intervals come from the Jacobian at the optimum,
+inflated by the residuals' correlation length (residuals of a closed loop are not
+independent samples).
+
+Scores (lower is better), with n_eff = n / L the effective number of samples:
+    BIC = n_eff ln(RSS / n) + k ln(n_eff),   AIC = n_eff ln(RSS / n) + 2 k
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from bench.gap import effects as E
+from bench.gap.problem import Problem
+
+DIFF_STEP = 0.01     # finite-difference step in [0, 1] coordinates
+MAX_NFEV = 40        # residual evaluations per least-squares run (per start)
+FTOL = 1e-5          # relative change of the normalised RSS that ends the fit (it is
+                     # ~ samples x signals, so 1e-5 is far below one unit of BIC)
+XTOL = 1e-4          # step in [0, 1] coordinates that ends the fit
+
+
+@dataclass
+class Fit:
+    """A fitted candidate: effect names, values, intervals and its scores."""
+    effects: tuple[str, ...]
+    theta: list[dict[str, float]]            # one dict per effect
+    ci95: list[dict[str, tuple[float, float]]]
+    rss: float                               # normalised residual sum of squares (fit part)
+    n: int                                   # residuals in the fit
+    k: int                                   # fitted parameters
+    nfev: int
+    corr_len: float = 1.0
+    ok: bool = True
+    message: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+    objs: list[E.Effect] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return "+".join(self.effects)
+
+    def bic(self, corr_len: float) -> float:
+        neff = max(self.n / corr_len, self.k + 2.0)
+        return neff * math.log(max(self.rss, 1e-300) / self.n) + self.k * math.log(neff)
+
+    def aic(self, corr_len: float) -> float:
+        neff = max(self.n / corr_len, self.k + 2.0)
+        return neff * math.log(max(self.rss, 1e-300) / self.n) + 2.0 * self.k
+
+    def params_dict(self) -> dict[str, dict[str, Any]]:
+        """{param: {value, ci95, unit}} over all effects (JSON-ready)."""
+        out: dict[str, dict[str, Any]] = {}
+        objs = self.objs or [E.get(n) for n in self.effects]
+        for eff, th, ci in zip(objs, self.theta, self.ci95, strict=True):
+            for p in eff.params:
+                lo, hi = ci.get(p.name, (float("nan"), float("nan")))
+                out[p.name] = {"value": th[p.name], "ci95": [lo, hi], "unit": p.unit}
+        return out
+
+
+def corr_length(r: np.ndarray, max_lag: int = 400) -> float:
+    """Integrated autocorrelation time of a residual series (samples, >= 1): 1 + 2 sum of
+    the autocorrelation up to its first non-positive value."""
+    r = np.asarray(r, float)
+    r = r - r.mean()
+    n = len(r)
+    if n < 4 or not np.any(r):
+        return 1.0
+    m = min(max_lag, n // 4)
+    f = np.fft.rfft(r, 2 * n)
+    ac = np.fft.irfft(f * np.conj(f))[:m + 1]
+    ac = ac / ac[0]
+    s = 0.0
+    for k in range(1, m + 1):
+        if ac[k] <= 0.0:
+            break
+        s += ac[k]
+    return float(max(1.0, 1.0 + 2.0 * s))
+
+
+def residual_corr_length(p: Problem, sim: dict[str, np.ndarray], lo: int, hi: int) -> float:
+    """Energy-weighted mean correlation length of the signals' residuals over [lo, hi)."""
+    num = den = 0.0
+    for s in p.sigma:
+        r = (p.meas[s][lo:hi] - sim[s][lo:hi]) / p.sigma[s]
+        e = float(np.mean(r ** 2))
+        num += e * corr_length(r)
+        den += e
+    return num / den if den > 0 else 1.0
+
+
+def resolve(names: Sequence[str | E.Effect]) -> list[E.Effect]:
+    """Effect objects for names (registry) or objects (passed through)."""
+    return [E.get(n) if isinstance(n, str) else n for n in names]
+
+
+class Objective:
+    """Residual function of a candidate set in [0, 1] coordinates (continuous params).
+
+    `prior`: optional {param name: (value, sd in [0, 1] coordinates)}: Gaussian prior
+    residuals (u - u_prior) / sd appended (calibration's regularisation)."""
+
+    def __init__(self, problem: Problem, names: Sequence[str | E.Effect],
+                 fixed: list[dict[str, float]] | None = None,
+                 prior: dict[str, tuple[float, float]] | None = None) -> None:
+        self.p = problem
+        self.effects = resolve(names)
+        self.names = tuple(e.name for e in self.effects)
+        self.fixed = fixed or [{} for _ in self.effects]
+        # free continuous parameters: (effect index, Param)
+        self.free = [(i, prm) for i, eff in enumerate(self.effects) for prm in eff.params
+                     if prm.integer_step <= 0 and prm.name not in self.fixed[i]]
+        self.prior = prior or {}
+        self.nfev = 0
+
+    def thetas(self, u: Sequence[float]) -> list[dict[str, float]]:
+        th = [dict(f) for f in self.fixed]
+        for (i, prm), ui in zip(self.free, u, strict=True):
+            th[i][prm.name] = prm.from_unit(ui)
+        return th
+
+    def simulate(self, th: list[dict[str, float]], n: int | None = None) -> dict[str, np.ndarray]:
+        self.nfev += 1
+        return self.p.simulate(self.effects, th, self.p.n_fit if n is None else n)
+
+    def prior_residual(self, u: np.ndarray) -> np.ndarray:
+        out = [(ui - prm.to_unit(self.prior[prm.name][0])) / self.prior[prm.name][1]
+               for (_, prm), ui in zip(self.free, u, strict=True) if prm.name in self.prior]
+        return np.array(out, float)
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        sim = self.simulate(self.thetas(u))
+        r = self.p.residual(sim, 0, self.p.n_fit)
+        if self.prior:
+            r = np.concatenate([r, self.prior_residual(u)])
+        return r
+
+
+def _discrete_grid(problem: Problem, names: Sequence[str | E.Effect],
+                   start: list[dict[str, float]]) -> list[dict[str, float]]:
+    """Grid-search discrete parameters with continuous ones held at `start`."""
+    effs = resolve(names)
+    th = [dict(s) for s in start]
+    for i, eff in enumerate(effs):
+        for prm in eff.params:
+            if prm.integer_step <= 0:
+                continue
+            best, best_v = math.inf, th[i][prm.name]
+            for v in prm.grid():
+                trial = [dict(t) for t in th]
+                trial[i][prm.name] = v
+                sim = problem.simulate(effs, trial, problem.n_fit)
+                cost = float(np.sum(problem.residual(sim, 0, problem.n_fit) ** 2))
+                if cost < best:
+                    best, best_v = cost, v
+            th[i][prm.name] = best_v
+    return th
+
+
+def fit(problem: Problem, names: Sequence[str | E.Effect],
+        start: list[dict[str, float]] | None = None, max_nfev: int = MAX_NFEV,
+        prior: dict[str, tuple[float, float]] | None = None) -> Fit:
+    """Fit the candidate set `names` (registry names or Effect objects) to the fit part
+    of `problem`.
+
+    `start`: starting values per effect (e.g. a single effect's fit when it is extended
+    to a pair); otherwise each effect's own start points are tried. `prior`: see
+    `Objective`.
+    """
+    effs = resolve(names)
+    names = [e.name for e in effs]
+    k = sum(len(e.params) for e in effs)
+    nom = [e.nominal(problem.base) for e in effs]
+    # candidate starting points: every effect's own start points, in step; with `start`
+    # (a pair grown from a single), `start` itself and `start` with each added effect
+    # (all but the first) moved to its own start points (its value fitted alone can be far
+    # off once paired)
+    own = [e.start_points(problem.base) for e in effs]
+    m = max(len(s) for s in own)
+    starts = [[own[i][min(j, len(own[i]) - 1)] for i in range(len(effs))] for j in range(m)]
+    if start is not None:
+        grown = [[dict(s) for s in start]]
+        for i in range(1, len(effs)):
+            for sp in own[i]:
+                st = [dict(s) for s in start]
+                st[i] = dict(sp)
+                grown.append(st)
+        starts = grown
+    for st in starts:
+        for i, e in enumerate(effs):
+            for prm in e.params:
+                v = st[i].get(prm.name, nom[i][prm.name])
+                if prm.integer_step > 0:
+                    v = prm.lo + round((v - prm.lo) / prm.integer_step) * prm.integer_step
+                st[i][prm.name] = min(max(v, prm.lo), prm.hi)
+    # the best start by cost (one simulation each)
+    effs_obj = list(effs)
+    nfev0 = 0
+    best_st, best_cost = starts[0], math.inf
+    for st in starts:
+        sim = problem.simulate(effs_obj, st, problem.n_fit)
+        nfev0 += 1
+        r = problem.residual(sim, 0, problem.n_fit)
+        c = float(r @ r)
+        if c < best_cost:
+            best_st, best_cost = st, c
+    # discrete parameters: grid search with the continuous ones at the best start
+    if any(prm.integer_step > 0 for e in effs for prm in e.params):
+        disc = _discrete_grid(problem, effs_obj, best_st)
+        fixed = [{prm.name: disc[i][prm.name] for prm in e.params if prm.integer_step > 0}
+                 for i, e in enumerate(effs)]
+        nfev0 += sum(len(prm.grid()) for e in effs for prm in e.params if prm.integer_step > 0)
+    else:
+        fixed = [{} for _ in effs]
+    obj = Objective(problem, effs, fixed, prior)
+    obj.nfev = nfev0
+    if not obj.free:
+        th = [dict(f) for f in fixed]
+        sim = obj.simulate(th)
+        r = problem.residual(sim, 0, problem.n_fit)
+        return Fit(tuple(names), th, [dict(_exact(f)) for f in fixed], float(r @ r), len(r),
+                   k, obj.nfev, residual_corr_length(problem, sim, 0, problem.n_fit),
+                   extra={"discrete_only": True}, objs=list(effs))
+    best_u = np.clip(np.array([prm.to_unit(best_st[i][prm.name]) for i, prm in obj.free]),
+                     0.0, 1.0)
+    best_cost = float(np.sum(obj(best_u) ** 2))
+    with np.errstate(over="ignore", invalid="ignore"):
+        res = least_squares(obj, best_u, bounds=(0.0, 1.0), diff_step=DIFF_STEP,
+                            x_scale=1.0, max_nfev=max_nfev, method="trf",
+                            ftol=FTOL, xtol=XTOL)
+    u = res.x if 0.5 * float(res.fun @ res.fun) <= 0.5 * best_cost else best_u
+    th = obj.thetas(u)
+    sim = obj.simulate(th)
+    r = problem.residual(sim, 0, problem.n_fit)
+    rss = float(r @ r)
+    L = residual_corr_length(problem, sim, 0, problem.n_fit)
+    ci = _intervals(obj, u, res.jac, rss, len(r), L, fixed)
+    return Fit(tuple(names), th, ci, rss, len(r), k, obj.nfev, L, bool(res.success),
+               str(res.message), objs=list(effs))
+
+
+def _exact(fixed: dict[str, float]) -> dict[str, tuple[float, float]]:
+    return {k: (v, v) for k, v in fixed.items()}
+
+
+def _intervals(obj: Objective, u: np.ndarray, jac: np.ndarray, rss: float, n: int,
+               corr_len: float, fixed: list[dict[str, float]]
+               ) -> list[dict[str, tuple[float, float]]]:
+    """95 % intervals from the Jacobian: cov_u = (J^T J / (s^2 L) + J_p^T J_p)^-1 with
+    s^2 = RSS/(n-k), L the correlation length and J_p the prior rows (if any), mapped
+    through each parameter's scale (asymmetric for logarithmic ones)."""
+    out: list[dict[str, tuple[float, float]]] = [dict() for _ in obj.effects]
+    k = len(u)
+    jd, jp = jac[:n], jac[n:]                       # data rows, prior rows
+    try:
+        s2 = max(rss / max(n - k, 1) * corr_len, 1e-12)
+        info = jd.T @ jd / s2 + jp.T @ jp
+        cov = np.linalg.pinv(info)
+        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except (np.linalg.LinAlgError, ValueError):
+        sd = np.full(k, np.inf)
+    for j, (i, prm) in enumerate(obj.free):
+        if not np.isfinite(sd[j]) or sd[j] == 0.0 and not np.any(jac[:, j]):
+            out[i][prm.name] = (prm.lo, prm.hi)      # not identifiable from this log
+            continue
+        lo = prm.from_unit(u[j] - 1.96 * sd[j])
+        hi = prm.from_unit(u[j] + 1.96 * sd[j])
+        out[i][prm.name] = (lo, hi)
+    for i, fx in enumerate(fixed):
+        for name, v in fx.items():
+            out[i][name] = (v, v)                    # grid-searched: exact on its grid
+    return out

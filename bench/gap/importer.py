@@ -1,0 +1,259 @@
+"""Import a signal table logged by another rig (`bench import TABLE --map MAP`).
+
+Many rigs do not log CAN. A CSV or Parquet table at any fixed or varying sample rate,
+with a column map, becomes the bench's signal table (`bench.trace.Trace`) at the SYNC
+rate, ready for `bench gap`, `bench calibrate` and the HUMS.
+
+The map (JSON or CSV) gives, per bench signal: the source column, its unit and an
+optional scale (and, for angles, an optional wrap period in raw values to unwrap):
+
+    JSON  [{"signal": "position_m", "column": "lvdt", "unit": "mm", "scale": 1.0}, ...]
+          or {"position_m": {"column": "lvdt", "unit": "mm"}, "t_s": "time", ...}
+    CSV   signal,column,unit,scale[,wrap]
+
+value_SI = raw x scale x unit factor. The time signal is ``t_s``; without it, give the
+table's fixed rate (``source_rate_hz``). Resampling onto the SYNC grid (the overlap of
+all mapped columns): linear interpolation, except ``mode`` (previous value); each
+column's own blank/NaN rows are skipped, so channels logged at different rates in one
+table are fine. Points are interpolated, not averaged: a table much faster than the
+SYNC rate is sampled, as the bench's own sensors are.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+from bench.trace import Trace
+
+QUANTITY = {
+    "t_s": "time", "setpoint_position_m": "length", "position_m": "length",
+    "setpoint_speed_rad_s": "speed", "motor_speed_rad_s": "speed",
+    "motor_angle_rad": "angle", "current_a": "current", "current_demand_a": "current",
+    "mode": "mode",
+}
+UNITS: dict[str, dict[str, float]] = {
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0},
+    "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},
+    "speed": {"rad/s": 1.0, "rpm": 2 * math.pi / 60, "deg/s": math.pi / 180,
+              "rev/s": 2 * math.pi},
+    "angle": {"rad": 1.0, "deg": math.pi / 180, "rev": 2 * math.pi},
+    "current": {"A": 1.0, "mA": 1e-3},
+    "mode": {"-": 1.0, "": 1.0},
+}
+
+
+@dataclass(frozen=True)
+class MapEntry:
+    signal: str
+    column: str
+    unit: str
+    scale: float = 1.0
+    wrap: float = 0.0          # wrap period in raw table values (unwrapped), 0: none
+
+    @property
+    def factor(self) -> float:
+        return self.scale * UNITS[QUANTITY[self.signal]][self.unit]
+
+
+def _entry(d: dict[str, Any], where: str) -> MapEntry:
+    sig = str(d.get("signal", "")).strip()
+    if sig not in QUANTITY:
+        raise BenchError(f"{where}: unknown bench signal {sig!r} (signals: "
+                         f"{', '.join(QUANTITY)})")
+    col = d.get("column")
+    if col is None or str(col).strip() == "":
+        raise BenchError(f"{where}: signal {sig} has no source column")
+    q = QUANTITY[sig]
+    unit = str(d.get("unit", "-" if q == "mode" else "")).strip()
+    if unit not in UNITS[q]:
+        raise BenchError(f"{where}: unit {unit!r} is not a {q} unit for {sig} (use one of "
+                         f"{', '.join(u for u in UNITS[q] if u)})")
+
+    def num(key: str, default: float) -> float:
+        v = d.get(key, default)
+        if v is None or (isinstance(v, str) and not v.strip()):
+            return default
+        try:
+            x = float(v)
+        except (TypeError, ValueError):
+            raise BenchError(f"{where}: {key} of {sig} must be a number, got {v!r}") from None
+        if not math.isfinite(x):
+            raise BenchError(f"{where}: {key} of {sig} must be finite")
+        return x
+
+    scale = num("scale", 1.0)
+    if scale == 0.0:
+        raise BenchError(f"{where}: scale of {sig} is 0")
+    return MapEntry(sig, str(col).strip(), unit, scale, num("wrap", 0.0))
+
+
+def read_map(path: str | Path) -> list[MapEntry]:
+    """The column map from a JSON or CSV file (BenchError naming the problem)."""
+    path = Path(path)
+    if not path.exists():
+        raise BenchError(f"no such map file: {path}")
+    text = path.read_text()
+    rows: list[dict[str, Any]]
+    if path.suffix.lower() == ".json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise BenchError(f"{path}: not valid JSON ({exc})") from None
+        if isinstance(data, dict):
+            rows = []
+            for sig, v in data.items():
+                rows.append({"signal": sig, **(v if isinstance(v, dict) else {"column": v})})
+        elif isinstance(data, list) and all(isinstance(r, dict) for r in data):
+            rows = data
+        else:
+            raise BenchError(f"{path}: the map must be a list of entries or an object "
+                             "signal -> column")
+    elif path.suffix.lower() == ".csv":
+        rd = csv.DictReader(io.StringIO(text))
+        if not rd.fieldnames or "signal" not in rd.fieldnames or "column" not in rd.fieldnames:
+            raise BenchError(f"{path}: a CSV map needs a header signal,column,unit,scale")
+        rows = list(rd)
+    else:
+        raise BenchError(f"{path}: the map must be .json or .csv")
+    entries = [_entry(r, f"{path.name} entry {i + 1}") for i, r in enumerate(rows)]
+    seen: set[str] = set()
+    for e in entries:
+        if e.signal in seen:
+            raise BenchError(f"{path.name}: signal {e.signal} is mapped twice")
+        seen.add(e.signal)
+    if not entries:
+        raise BenchError(f"{path}: the map is empty")
+    return entries
+
+
+def read_table(path: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
+    """The named columns of a CSV or Parquet table as float arrays (blank -> NaN)."""
+    path = Path(path)
+    if not path.exists():
+        raise BenchError(f"no such table: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".parquet":
+        import pyarrow.parquet as pq
+        try:
+            table = pq.read_table(path)
+        except Exception as exc:  # noqa: BLE001 - pyarrow raises many types
+            raise BenchError(f"{path}: cannot read Parquet ({exc})") from None
+        have = table.column_names
+        _check_columns(path, columns, have)
+        out = {}
+        for c in columns:
+            try:
+                out[c] = table.column(c).to_numpy(zero_copy_only=False).astype(float)
+            except (ValueError, TypeError):
+                raise BenchError(f"{path}: column {c!r} is not numeric") from None
+        return out
+    if suffix in (".csv", ".txt", ".tsv"):
+        text = path.read_text()
+        sample = text[:4096]
+        try:
+            dialect = csv.Sniffer().sniff(sample, delimiters=",;\t ")
+        except csv.Error:
+            dialect = csv.excel
+        rd = csv.reader(io.StringIO(text), dialect)
+        try:
+            header = [h.strip() for h in next(rd)]
+        except StopIteration:
+            raise BenchError(f"{path}: empty table") from None
+        _check_columns(path, columns, header)
+        idx = [header.index(c) for c in columns]
+        data: list[list[float]] = []
+        for lineno, row in enumerate(rd, start=2):
+            if not row or all(not x.strip() for x in row):
+                continue
+            vals = []
+            for i, c in zip(idx, columns, strict=True):
+                x = row[i].strip() if i < len(row) else ""
+                try:
+                    vals.append(float(x) if x else math.nan)
+                except ValueError:
+                    raise BenchError(f"{path} line {lineno}: column {c!r} is not a number: "
+                                     f"{x!r}") from None
+            data.append(vals)
+        if not data:
+            raise BenchError(f"{path}: the table has a header but no rows")
+        arr = np.array(data, float)
+        return {c: arr[:, j] for j, c in enumerate(columns)}
+    raise BenchError(f"{path}: unknown table format {suffix!r} (use .csv or .parquet)")
+
+
+def _check_columns(path: Path, wanted: list[str], have: list[str]) -> None:
+    missing = [c for c in wanted if c not in have]
+    if missing:
+        raise BenchError(f"{path}: no column(s) {', '.join(repr(m) for m in missing)} "
+                         f"(the table has: {', '.join(have)})")
+
+
+def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: float = 1e-3,
+                 source_rate_hz: float | None = None) -> Trace:
+    """The mapped table resampled to the SYNC grid (see module doc)."""
+    if not (1e-5 <= sync_period_s <= 1.0):
+        raise BenchError("the SYNC period must be between 10 us and 1 s")
+    by_sig = {e.signal: e for e in mapping}
+    cols = sorted({e.column for e in mapping})
+    raw = read_table(table, cols)
+    n = len(next(iter(raw.values())))
+    if "t_s" in by_sig:
+        e = by_sig["t_s"]
+        t = raw[e.column] * e.factor
+    elif source_rate_hz:
+        if source_rate_hz <= 0:
+            raise BenchError("the source rate must be > 0 Hz")
+        t = np.arange(n) / source_rate_hz
+    else:
+        raise BenchError("the map has no time signal t_s; map the table's time column or "
+                         "give the table's fixed rate (--source-rate)")
+    out: dict[str, np.ndarray] = {}
+    spans = []
+    series = {}
+    for sig, e in by_sig.items():
+        if sig == "t_s":
+            continue
+        y = raw[e.column] * e.factor
+        ok = np.isfinite(y) & np.isfinite(t)
+        ts, ys = t[ok], y[ok]
+        if len(ts) < 2:
+            raise BenchError(f"column {e.column!r} ({sig}) has fewer than 2 values")
+        d = np.diff(ts)
+        if np.any(d < 0):
+            k = int(np.argmax(d < 0))
+            raise BenchError(f"time goes backwards in the table for {e.column!r} at row "
+                             f"{int(np.flatnonzero(ok)[k + 1]) + 2} (sort the table first)")
+        if np.any(d == 0):
+            keep = np.concatenate([[True], d > 0])
+            ts, ys = ts[keep], ys[keep]
+        if e.wrap:
+            ys = np.unwrap(ys, period=abs(e.wrap * e.factor))
+        series[sig] = (ts, ys)
+        spans.append((ts[0], ts[-1]))
+    if not series:
+        raise BenchError("the map maps no signal besides time")
+    t0 = max(s[0] for s in spans)
+    t1 = min(s[1] for s in spans)
+    if t1 - t0 < sync_period_s:
+        raise BenchError("the mapped columns do not overlap in time")
+    grid = t0 + np.arange(int(math.floor((t1 - t0) / sync_period_s + 1e-9)) + 1) * sync_period_s
+    for sig, (ts, ys) in series.items():
+        if sig == "mode":
+            idx = np.clip(np.searchsorted(ts, grid, side="right") - 1, 0, len(ts) - 1)
+            out[sig] = np.round(ys[idx])
+        else:
+            out[sig] = np.interp(grid, ts, ys)
+    out["t_s"] = grid - grid[0]
+    meta = {"source": str(table), "imported": True, "sync_period_s": sync_period_s,
+            "time_offset_s": float(t0),
+            "map": [e.__dict__ for e in mapping]}
+    return Trace(out, meta)

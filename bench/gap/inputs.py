@@ -1,0 +1,72 @@
+"""Reading what the gap commands are given: logs, traces and nominal parameter files.
+
+- ``*.log`` (candump log format): decoded through the DBC by
+  `bench.bus.logs.trace_from_log` (the bus issue's decoder);
+- ``*.npz`` / ``*.csv`` / ``*.parquet``: a `bench.trace.Trace` file (e.g. from
+  `bench import` or a saved run).
+Only measured columns are kept (simulation truth is dropped), and metadata is reduced
+to what a real log could carry (the command fundamental, if recorded).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from bench import BenchError
+from bench.trace import Trace
+from plant_rt.params import ParameterError, PlantParams
+
+TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
+
+
+def load_log(path: str | Path) -> Trace:
+    """A log or trace file as a Trace of measured columns (BenchError if unreadable)."""
+    path = Path(path)
+    if not path.exists():
+        raise BenchError(f"no such file: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".log":
+        try:
+            from bench.bus.logs import trace_from_log  # type: ignore[import-not-found]
+        except ImportError:
+            raise BenchError(
+                f"{path}: reading candump logs needs bench.bus.logs.trace_from_log (the bus "
+                "issue), which is not available in this installation; convert the log to a "
+                "trace (.npz/.csv/.parquet) or use `bench import`") from None
+        tr = trace_from_log(path)
+    elif suffix in TABLE_SUFFIXES:
+        tr = Trace.load(path)
+    else:
+        raise BenchError(f"{path}: unknown log format {suffix!r} (expected .log, "
+                         f"{', '.join(TABLE_SUFFIXES)})")
+    meta: dict[str, Any] = {"source": str(path)}
+    f0 = (tr.meta or {}).get("fundamental_hz")
+    if isinstance(f0, (int, float)):
+        meta["fundamental_hz"] = float(f0)
+    out = tr.measured()
+    out.meta = meta
+    return out
+
+
+def load_nominal(path: str | Path | None) -> PlantParams:
+    """The nominal parameters: thesis values, or a calibration file from `bench calibrate`
+    ({"params": {dotted name: value}, ...}), or a full parameter JSON."""
+    if path is None:
+        return PlantParams()
+    path = Path(path)
+    if not path.exists():
+        raise BenchError(f"no such file: {path}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise BenchError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise BenchError(f"{path}: expected a JSON object")
+    try:
+        if "params" in data and isinstance(data["params"], dict):
+            return PlantParams().with_dict(data["params"])
+        return PlantParams.from_dict(data)
+    except ParameterError as exc:
+        raise BenchError(f"{path}: {exc}") from None

@@ -1,0 +1,222 @@
+"""The built-in candidate effects (design.md "Sim-to-real gap diagnosis", question 2).
+
+Each is a bounded augmentation of the nominal plant with physical units. Plant-side
+effects change `PlantParams` inside the closed loop; log-side effects transform the
+logged columns after the run. Bounds are wide physical ranges, not the benchmark's.
+
+Known near-equivalences on a bus log (no voltage, no force sensor logged):
+- torque constant error == current-sensor gain error (the drive regulates the sensed
+  current; only torque per sensed ampere is observable), so there is one candidate, `kt`;
+- LVDT gain error ~ screw lead error (both scale LVDT travel per motor radian; they
+  differ only through the nut friction reflected by the lead, a few per cent of torque).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from bench.gap.effects import Effect, Param
+from bench.gap.resim import first_order
+from plant_rt import kernel as K
+from plant_rt.model import param_vector
+from plant_rt.params import PlantParams
+
+MEASURED_COLS = ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")
+
+
+class _Single(Effect):
+    """An effect that sets one plant parameter to the fitted value."""
+    target: str = ""
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        return {self.params[0].name: float(base.get(self.target))}
+
+    def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
+        return {self.target: theta[self.params[0].name]}
+
+
+class Backlash(_Single):
+    name = "backlash"
+    doc = "lost motion between screw and nut (eq. 5.19-5.24)"
+    params = (Param("backlash_m", "m", 0.0, 300e-6, "total backlash b_max"),)
+    target = "effects.backlash_m"
+
+
+class Friction(_Single):
+    name = "friction"
+    doc = "static/Coulomb friction torques and forces scaled (wear, lubricant loss)"
+    params = (Param("friction_scale", "-", 0.2, 8.0,
+                    "scale of all static/Coulomb friction (1 = thesis table 5.4)", log=True),)
+    target = "effects.friction_scale"
+
+
+def nominal_viscous_motor_side(base: PlantParams) -> float:
+    """Motor-side equivalent viscous coefficient of `base` (N m s/rad): the screw-shaft
+    term c_s w_m (eq. 5.13) reflected through the reducer, tau / eta."""
+    p = param_vector(base)
+    return float(p[K.P_CVISC] * base.effects.viscous_scale * p[K.P_TAU] / p[K.P_ETA])
+
+
+class Viscous(Effect):
+    name = "viscous"
+    doc = ("viscous friction growth, as a motor-side coefficient (N m s/rad) added to the "
+           "nominal one (applied through effects.viscous_scale)")
+    params = (Param("viscous_nm_s_per_rad", "N m s/rad", 0.0, 0.02,
+                    "motor-side viscous coefficient (nominal ~2e-8)"),)
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        return {"viscous_nm_s_per_rad": nominal_viscous_motor_side(base)}
+
+    def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
+        per_unit = nominal_viscous_motor_side(base) / base.effects.viscous_scale
+        scale = theta["viscous_nm_s_per_rad"] / per_unit
+        return {"effects.viscous_scale": float(min(max(scale, 0.0), 1e6))}
+
+
+class Stribeck(Effect):
+    name = "stribeck"
+    doc = "Stribeck friction: static over Coulomb overshoot and its decay speed (eq. 5.13)"
+    params = (Param("stribeck_amplitude", "-", 0.0, 3.0,
+                    "static/Coulomb overshoot (0.1 nominal)"),
+              Param("stribeck_velocity_rad_s", "rad/s", 0.05, 50.0,
+                    "screw speed of the overshoot's decay (1 nominal)", log=True))
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        return {"stribeck_amplitude": base.screw.stribeck_amplitude,
+                "stribeck_velocity_rad_s": base.screw.stribeck_velocity_rad_s}
+
+    def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
+        return {"screw.stribeck_amplitude": theta["stribeck_amplitude"],
+                "screw.stribeck_velocity_rad_s": theta["stribeck_velocity_rad_s"]}
+
+
+class Stiffness(_Single):
+    name = "stiffness"
+    doc = "finite (lower) screw-nut contact stiffness k* (eq. 5.21)"
+    params = (Param("contact_stiffness_n_per_m", "N/m", 1e5, 1.5e8,
+                    "contact stiffness without preload (1e8 nominal; the fast mode's 20 us "
+                    "step is stable up to ~2e8)", log=True),)
+    target = "screw.contact_stiffness_n_per_m"
+
+
+class Preload(_Single):
+    name = "preload"
+    doc = "double-nut preload F_pr: stiffer contacts, more rolling friction (eq. 5.21, 5.29)"
+    params = (Param("preload_n", "N", 0.0, 8000.0, "preload force"),)
+    target = "effects.preload_n"
+
+
+class SensorDelay(_Single):
+    name = "sensor_delay"
+    doc = "pure delay of LVDT and encoder samples, seen by the ECU (whole SYNC periods)"
+    params = (Param("sensor_delay_s", "s", 0.0, 0.008, "delay", integer_step=0.001),)
+    target = "effects.sensor_delay_s"
+
+
+class LvdtLag(Effect):
+    name = "lvdt_lag"
+    doc = "first-order lag of the logged LVDT signal (acquisition filter; not in the loop)"
+    where = "log"
+    params = (Param("lvdt_lag_s", "s", 0.0, 0.05, "time constant"),)
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        return {"lvdt_lag_s": 0.0}
+
+    def post(self, cols: dict[str, np.ndarray], theta: Mapping[str, float],
+             dt: float) -> dict[str, np.ndarray]:
+        out = dict(cols)
+        out["position_m"] = first_order(cols["position_m"], dt, theta["lvdt_lag_s"])
+        return out
+
+
+class LogSkew(Effect):
+    name = "log_skew"
+    doc = ("time skew of the logged measurements behind the logged set-point and demand "
+           "(acquisition latency; not in the loop), whole SYNC periods")
+    where = "log"
+    params = (Param("log_skew_s", "s", 0.0, 0.008, "skew", integer_step=0.001),)
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        return {"log_skew_s": 0.0}
+
+    def post(self, cols: dict[str, np.ndarray], theta: Mapping[str, float],
+             dt: float) -> dict[str, np.ndarray]:
+        d = int(round(theta["log_skew_s"] / dt))
+        if d <= 0:
+            return cols
+        out = dict(cols)
+        for c in MEASURED_COLS:
+            if c in cols:
+                v = cols[c]
+                out[c] = np.concatenate([np.full(d, v[0]), v[:-d]])[:len(v)]
+        return out
+
+
+class LvdtGain(_Single):
+    name = "lvdt_gain"
+    doc = "LVDT scale error (in the loop)"
+    params = (Param("lvdt_gain", "-", 0.8, 1.25, "LVDT gain (1 = exact)"),)
+    target = "sensors.lvdt_gain"
+
+
+class LvdtOffset(_Single):
+    name = "lvdt_offset"
+    doc = "LVDT zero offset (in the loop)"
+    params = (Param("lvdt_offset_m", "m", -1e-3, 1e-3, "offset"),)
+    target = "sensors.lvdt_offset_m"
+
+
+class EncoderGain(_Single):
+    name = "encoder_gain"
+    doc = "encoder speed scale error (in the loop)"
+    params = (Param("encoder_gain", "-", 0.8, 1.25, "speed gain (1 = exact)"),)
+    target = "sensors.encoder_gain"
+
+
+class CurrentOffset(_Single):
+    name = "current_offset"
+    doc = "current-sensor offset (the drive regulates the sensed current)"
+    params = (Param("current_offset_a", "A", -2.0, 2.0, "offset"),)
+    target = "sensors.current_offset_a"
+
+
+class Resistance(_Single):
+    name = "resistance"
+    doc = "winding resistance at the reference temperature"
+    params = (Param("resistance_ohm", "ohm", 0.05, 4.0, "R (0.4 nominal)", log=True),)
+    target = "motor.resistance_ohm"
+
+
+class ThermalDrift(_Single):
+    name = "thermal_drift"
+    doc = "winding resistance rising with winding temperature (eq. 5.5 coupled)"
+    params = (Param("resistance_tempco_per_k", "1/K", 0.0, 0.01,
+                    "temperature coefficient (copper 0.00393)"),)
+    target = "motor.resistance_tempco_per_k"
+
+
+class TorqueConstant(_Single):
+    name = "kt"
+    doc = ("torque per sensed ampere: torque-constant error or, equivalently on a bus log, "
+           "current-sensor gain error")
+    params = (Param("kt_nm_per_a", "N m/A", 0.6, 3.0, "torque constant (1.5 nominal)",
+                    log=True),)
+    target = "motor.kt_nm_per_a"
+
+
+class Inertia(_Single):
+    name = "inertia"
+    doc = "rotor (motor-side) inertia error"
+    params = (Param("inertia_kg_m2", "kg m^2", 1e-3, 2e-2, "rotor inertia (4e-3 nominal)",
+                    log=True),)
+    target = "motor.inertia_kg_m2"
+
+
+class Lead(_Single):
+    name = "lead"
+    doc = "screw lead (pitch) error"
+    params = (Param("lead_m", "m", 4.0e-3, 6.0e-3, "lead (5e-3 nominal)"),)
+    target = "screw.lead_m"

@@ -1,0 +1,365 @@
+"""A diagnosis problem: one log, the nominal model, the noise floor and the residuals.
+
+The residual of signal s is r_s = y_log,s - y_sim,s over SYNC samples, normalised by
+the signal's floor sigma_s: the RMS residual the nominal model itself leaves when the
+only differences are sensor noise of the level measured in the log (a parametric
+bootstrap through the closed loop, so noise the loop propagates is included) and, for
+the high-fidelity plant, the fast mode's own error against full fidelity on this log.
+The normalised energy E_s = mean(r_s^2) / sigma_s^2 is then about 1 when nothing but
+noise separates log and model; the excess X = sum_s (E_s - 1) is the gap.
+
+Signals (see `bench.gap.resim.SIGNALS`): current_a (A), motor_speed_rad_s (rad/s),
+position_m (LVDT, m), encoder_position_m (encoder angle as nut travel, m).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+from bench.gap import resim as R
+from bench.gap.effects import Effect
+from bench.trace import MODE_POSITION, MODE_SPEED, Trace
+from plant_rt.params import PlantParams
+
+NEEDED = ("t_s", "mode", "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")
+NOISE_COLS = ("current_a", "position_m", "motor_speed_rad_s")   # plant noise order
+FLOORS = {"current_a": 2e-3, "motor_speed_rad_s": 2e-3, "position_m": 2e-8,
+          "encoder_position_m": 2e-8}
+"""Lowest floors (signal units): resolution-level values for noise-free logs."""
+
+RMAX = 1e4               # normalised residuals are clipped here (a diverging candidate)
+MIN_TRAVEL_M = 50e-6      # below this the log has too little motion to identify anything
+MIN_SAMPLES = 200
+
+
+@dataclass
+class Problem:
+    """Log + nominal model + floors: everything a fit needs (picklable for workers)."""
+    base: PlantParams                   # nominal model (fast mode for fitting)
+    drive: R.Drive
+    meas: dict[str, np.ndarray]         # logged signals (SIGNALS)
+    sigma: dict[str, float]             # floor per signal (units of the signal)
+    n_fit: int                          # samples [0, n_fit) fit; [n_fit, n) held out
+    dt: float
+    noise_sigma: dict[str, float] = field(default_factory=dict)
+    model_floor: dict[str, float] = field(default_factory=dict)
+    sigma_smooth: dict[str, float] = field(default_factory=dict)
+    holdout: Problem | None = None      # another log for held-out evaluation
+    info: dict[str, Any] = field(default_factory=dict)
+    model: str = "plant"                # nominal model name (bench.gap.models)
+
+    @property
+    def n(self) -> int:
+        return len(self.drive.t)
+
+    @property
+    def travel(self) -> float:
+        return R.angle_to_travel(self.base)
+
+    # -- simulation --------------------------------------------------------------------
+    def params_for(self, effects: Sequence[Effect], thetas: Sequence[dict[str, float]]
+                   ) -> PlantParams:
+        over: dict[str, Any] = {}
+        for eff, th in zip(effects, thetas, strict=True):
+            over.update(eff.plant_overrides(th, self.base))
+        return self.base.with_dict(over) if over else self.base
+
+    def simulate(self, effects: Sequence[Effect] = (), thetas: Sequence[dict[str, float]] = (),
+                 n: int | None = None) -> dict[str, np.ndarray]:
+        """Closed-loop re-simulation with `effects` at `thetas`; logged-signal columns."""
+        params = self.params_for(effects, thetas)
+        cols = self.closed_loop(params, n)
+        for eff, th in zip(effects, thetas, strict=True):
+            if eff.where == "log":
+                cols = eff.post(cols, th, self.dt)
+        return self.signals(cols)
+
+    def closed_loop(self, params: PlantParams, n: int | None = None,
+                    noise: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """The nominal model's closed-loop re-simulation with `params`."""
+        if self.model == "plant":
+            return R.closed_loop(params, self.drive, n, noise=noise)
+        from bench.gap.models import closed_loop_of
+        return closed_loop_of(self.model)(params, self.drive, n, noise=noise)
+
+    def signals(self, cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Logged-style columns -> the compared signals (encoder angle as nut travel: the
+        absolute angle times tau p / 2 pi, or, for a relative encoder, the travel since
+        the first sample added to the initial LVDT reading)."""
+        ang = cols["motor_angle_rad"]
+        out = {s: cols[s] for s in ("current_a", "motor_speed_rad_s", "position_m")}
+        if self.drive.x0_true_m is not None:
+            out["encoder_position_m"] = ang * self.travel
+        else:
+            out["encoder_position_m"] = (ang - ang[0]) * self.travel + self.drive.x0_m
+        if "current_demand_a" in cols:
+            out["current_demand_a"] = cols["current_demand_a"]
+        return out
+
+    # -- residuals -----------------------------------------------------------------------
+    def residual(self, sim: dict[str, np.ndarray], lo: int, hi: int) -> np.ndarray:
+        """Normalised residuals of samples [lo, hi), signals stacked."""
+        parts = []
+        for s in R.SIGNALS:
+            r = (self.meas[s][lo:hi] - sim[s][lo:hi]) / self.sigma[s]
+            parts.append(np.clip(np.nan_to_num(r, nan=RMAX, posinf=RMAX, neginf=-RMAX),
+                                 -RMAX, RMAX))
+        return np.concatenate(parts)
+
+    def energies(self, sim: dict[str, np.ndarray], lo: int, hi: int) -> dict[str, float]:
+        """Normalised energy E_s = mean(r_s^2)/sigma_s^2 per signal over [lo, hi)."""
+        out = {}
+        for s in R.SIGNALS:
+            r = (self.meas[s][lo:hi] - sim[s][lo:hi]) / self.sigma[s]
+            r = np.clip(np.nan_to_num(r, nan=RMAX, posinf=RMAX, neginf=-RMAX), -RMAX, RMAX)
+            out[s] = float(np.mean(r ** 2)) if hi > lo else float("nan")
+        return out
+
+    def energies_smooth(self, sim: dict[str, np.ndarray], lo: int, hi: int) -> dict[str, float]:
+        """Normalised energy of the smoothed residual (10-sample moving average) against
+        the smoothed floor: more sensitive to slow, systematic gaps than `energies`."""
+        out = {}
+        for s in R.SIGNALS:
+            d = np.clip(np.nan_to_num(self.meas[s] - sim[s], nan=RMAX * self.sigma[s],
+                                      posinf=RMAX * self.sigma[s],
+                                      neginf=-RMAX * self.sigma[s]),
+                        -RMAX * self.sigma[s], RMAX * self.sigma[s])
+            r = smooth(d)[lo:hi]
+            out[s] = float(np.mean(r ** 2)) / self.sigma_smooth[s] ** 2 if hi > lo \
+                else float("nan")
+        return out
+
+    def excess(self, sim: dict[str, np.ndarray], lo: int, hi: int) -> float:
+        """Gap excess X = sum_s (E_s - 1) over [lo, hi) (0 at the noise floor)."""
+        return float(sum(e - 1.0 for e in self.energies(sim, lo, hi).values()))
+
+
+# --- building a problem from a trace ----------------------------------------------------
+
+def noise_std(y: np.ndarray) -> float:
+    """White-noise standard deviation of `y` from its second difference (robust MAD):
+    var(d2 y) = 6 sigma^2 for white noise; smooth motion barely contributes at 1 kHz."""
+    y = y[np.isfinite(y)]
+    if len(y) < 10:
+        return 0.0
+    d2 = np.diff(y, 2)
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return 1.4826 * mad / math.sqrt(6.0)
+
+
+MAX_GAP_FRACTION = 0.02   # lost SYNC rows (NaN) tolerated and interpolated
+
+
+def fill_gaps(trace: Trace, purpose: str = "gap diagnosis") -> Trace:
+    """A copy with isolated missing rows (lost SYNCs: NaN) interpolated (mode: previous
+    value); BenchError when more than MAX_GAP_FRACTION of a signal is missing or the log
+    holds several runs (NMT restarts: the plant state does not carry over)."""
+    if "run" in trace and len(np.unique(trace["run"][np.isfinite(trace["run"])])) > 1:
+        raise BenchError(f"{purpose}: the log holds "
+                         f"{len(np.unique(trace['run'][np.isfinite(trace['run'])]))} runs "
+                         "(the node was restarted); diagnose one run at a time")
+    cols = dict(trace.columns)
+    n = len(trace)
+    idx = np.arange(n)
+    for c in ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
+              "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m"):
+        if c not in cols:
+            continue
+        y = np.asarray(cols[c], float)
+        ok = np.isfinite(y)
+        if ok.all() or not ok.any():
+            continue
+        if (~ok).mean() > MAX_GAP_FRACTION:
+            raise BenchError(f"{purpose}: {100 * (~ok).mean():.1f} % of {c} is missing "
+                             f"(lost frames); at most {100 * MAX_GAP_FRACTION:.0f} % can be "
+                             "interpolated")
+        if c == "mode":
+            last = np.maximum.accumulate(np.where(ok, idx, 0))
+            y = y[last]
+            y[~np.isfinite(y)] = 0.0
+        else:
+            y = np.interp(idx, idx[ok], y[ok])
+        cols[c] = y
+    out = Trace(cols, dict(trace.meta))
+    return out
+
+
+def check_log(trace: Trace, purpose: str = "gap diagnosis") -> None:
+    """Raise a BenchError saying what the log lacks (set-point, signals, motion)."""
+    if len(trace) < MIN_SAMPLES:
+        raise BenchError(f"{purpose} needs at least {MIN_SAMPLES} samples; the log has "
+                         f"{len(trace)}")
+    has_pos = "setpoint_position_m" in trace and np.isfinite(trace.columns[
+        "setpoint_position_m"]).any()
+    has_spd = "setpoint_speed_rad_s" in trace and np.isfinite(trace.columns[
+        "setpoint_speed_rad_s"]).any()
+    if not (has_pos or has_spd):
+        raise BenchError(f"{purpose} re-simulates the run from its set-point, but the log has "
+                         "no set-point (setpoint_position_m or setpoint_speed_rad_s): log the "
+                         "ECU set-point and mode, or import them with `bench import`")
+    trace.require(NEEDED, purpose)
+    mode = trace["mode"]
+    if has_pos is False and np.any(mode == MODE_POSITION):
+        raise BenchError(f"{purpose}: the log is in position mode but has no "
+                         "setpoint_position_m")
+    if has_spd is False and np.any(mode == MODE_SPEED):
+        raise BenchError(f"{purpose}: the log is in speed mode but has no "
+                         "setpoint_speed_rad_s")
+    t = trace.t
+    d = np.diff(t)
+    if np.any(d <= 0):
+        raise BenchError(f"{purpose}: time stamps must increase strictly (resample with "
+                         "`bench import`)")
+    if np.max(np.abs(d - np.median(d))) > 0.05 * np.median(d):
+        raise BenchError(f"{purpose}: samples are not at a fixed SYNC rate (median "
+                         f"{np.median(d) * 1e3:.3g} ms); resample with `bench import`")
+    if not np.any(mode != 0):
+        raise BenchError(f"{purpose}: the ECU is idle (mode 0) through the whole log, so "
+                         "nothing was commanded")
+    pos = trace["position_m"]
+    travel = float(np.nanmax(pos) - np.nanmin(pos))
+    if travel < MIN_TRAVEL_M:
+        raise BenchError(f"{purpose}: too little motion to identify anything: the nut "
+                         f"travelled {travel * 1e6:.1f} um (needs at least "
+                         f"{MIN_TRAVEL_M * 1e6:.0f} um with reversals, accelerations and "
+                         "dwells)")
+
+
+def drive_of(trace: Trace, encoder: str = "absolute",
+             params: PlantParams | None = None) -> R.Drive:
+    """The re-simulation drive of `trace`: set-points, mode, demand and initial position.
+
+    encoder "absolute": the encoder angle is zero with the nut at zero (the bench's
+    plant, multi-turn encoders, resolvers with a homed zero), so the initial nut position
+    is angle x tau p / 2 pi and an LVDT offset is observable; "relative": the initial
+    position is the median LVDT reading of the first 20 samples.
+    """
+    if encoder not in ("absolute", "relative"):
+        raise BenchError(f"encoder reference must be absolute or relative, not {encoder!r}")
+    n = len(trace)
+    col = trace.columns
+
+    def get(name: str) -> np.ndarray:
+        v = col.get(name)
+        return np.zeros(n) if v is None else np.nan_to_num(np.asarray(v, float))
+
+    demand = col.get("current_demand_a")
+    pos = np.asarray(col["position_m"], float)
+    x0 = float(np.nanmedian(pos[:20]))
+    x0_true = None
+    if encoder == "absolute":
+        x0_true = float(col["motor_angle_rad"][0]) * R.angle_to_travel(params or PlantParams())
+    return R.Drive(trace.t - trace.t[0], get("setpoint_position_m"), get("setpoint_speed_rad_s"),
+                   np.round(get("mode")), np.full(n, np.nan) if demand is None
+                   else np.asarray(demand, float), x0, x0_true)
+
+
+def with_rate(base: PlantParams, dt: float) -> PlantParams:
+    """`base` with its SYNC period set to the log's sample period."""
+    if math.isclose(dt, base.sim.sync_period_s, rel_tol=1e-3):
+        return base
+    return base.with_dict({"sim.sync_period_s": round(dt, 9)})
+
+
+def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
+                   seed: int = 999) -> dict[str, float]:
+    """Sensor noise standard deviations (A, m, rad/s) that reproduce the log's
+    high-frequency content through the nominal closed loop.
+
+    The second-difference estimate of a logged signal also holds noise the loop carries
+    from the other sensors (LVDT noise -> position loop -> demand -> current), so the
+    levels are matched by simulation: sigma <- sigma sqrt(V_log / V_sim), a few times.
+    """
+    target = {c: max(noise_std(cols[c]), FLOORS[c] / 4) for c in NOISE_COLS}
+    sig = dict(target)
+    rng = np.random.default_rng(seed)
+    n = p.n
+    for _ in range(iterations):
+        z = rng.standard_normal((n, 3)) * np.array([sig[c] for c in NOISE_COLS])
+        sim = p.closed_loop(p.base, noise=z)
+        for c in NOISE_COLS:
+            v = max(noise_std(sim[c]), 1e-30)
+            sig[c] = max(sig[c] * min(max(target[c] / v, 0.2), 5.0), FLOORS[c] / 4)
+    return sig
+
+
+def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
+          bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
+          encoder: str = "absolute", purpose: str = "gap diagnosis",
+          model: str = "plant") -> Problem:
+    """A Problem for `trace` against the nominal `base` (made fast-mode here).
+
+    Floors: sensor noise is estimated from the log (`estimate_noise`) and pushed through
+    the nominal closed loop `bootstrap` times (seeded); with `model_floor`, the difference
+    between the fast and the full-fidelity nominal plant on this log is added (squares).
+    """
+    trace = fill_gaps(trace, purpose)
+    check_log(trace, purpose)
+    dt = trace.dt
+    base = with_rate(base, dt)
+    fast = base.with_dict({**R.FAST, "sensors.noise": False})
+    drive = drive_of(trace, encoder, fast)
+    p = Problem(fast, drive, {}, {}, 0, dt, model=model)
+    cols = {c: np.asarray(trace[c], float) for c in
+            ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")}
+    if "current_demand_a" in trace:
+        cols["current_demand_a"] = np.asarray(trace["current_demand_a"], float)
+    p.meas = p.signals(cols)
+    n = len(trace)
+    p.n_fit = max(MIN_SAMPLES // 2, min(n, int(round(n * (1.0 - holdout_frac)))))
+    # -- noise floor ---------------------------------------------------------------------
+    ns = estimate_noise(p, cols)
+    p.noise_sigma = ns
+    nominal = p.simulate()
+    rng = np.random.default_rng(seed)
+    boot = []
+    noisy_cols = []
+    for b in range(bootstrap):
+        z = rng.standard_normal((n, 3)) * np.array([ns[c] for c in NOISE_COLS])
+        nc = p.closed_loop(fast, noise=z)
+        if b < 2:
+            noisy_cols.append(nc)
+        noisy = p.signals(nc)
+        boot.append({s: noisy[s] - nominal[s] for s in R.SIGNALS})
+    mf = {s: 0.0 for s in R.SIGNALS}
+    if model_floor and model == "plant":
+        full = base.with_dict({"sensors.noise": False})
+        if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
+            hi = p.signals(R.closed_loop(full, drive))
+            mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
+    p.model_floor = mf
+    p.sigma = {s: float(math.sqrt(np.mean([np.mean(b[s] ** 2) for b in boot])
+                                  + mf[s] ** 2 + FLOORS[s] ** 2)) for s in R.SIGNALS}
+    p.sigma_smooth = {s: float(math.sqrt(np.mean([np.mean(smooth(b[s]) ** 2) for b in boot])
+                                         + mf[s] ** 2 + FLOORS[s] ** 2)) for s in R.SIGNALS}
+    p.info["nominal"] = nominal
+    p.info["nominal_cols"] = p.closed_loop(fast)
+    p.info["noisy_cols"] = noisy_cols
+    p.info["bootstrap"] = boot
+    p.info["bootstrap_energy"] = [
+        {s: float(np.mean(b[s] ** 2)) / p.sigma[s] ** 2 for s in R.SIGNALS} for b in boot]
+    from bench.gap.fit import corr_length
+    p.info["corr_smooth"] = {s: float(np.mean([corr_length(smooth(b[s]), max_lag=2000)
+                                               for b in boot])) for s in R.SIGNALS}
+    p.info["bootstrap_energy_smooth"] = [
+        {s: float(np.mean(smooth(b[s]) ** 2)) / p.sigma_smooth[s] ** 2 for s in R.SIGNALS}
+        for b in boot]
+    return p
+
+
+SMOOTH_S = 0.01
+
+
+def smooth(y: np.ndarray, w: int = 10) -> np.ndarray:
+    """Centred moving average over `w` samples (edges padded): keeps the systematic,
+    slow part of a residual and divides white noise's energy by about `w`."""
+    if w <= 1 or len(y) < w:
+        return np.asarray(y, float).copy()
+    k = np.ones(w) / w
+    return np.convolve(np.pad(y, (w // 2, w - 1 - w // 2), mode="edge"), k, mode="valid")

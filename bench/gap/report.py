@@ -1,0 +1,162 @@
+"""The `bench gap --report DIR` report: PNG figures and an index.html.
+
+Figures: residual energy by regime and by frequency band (per signal and per path),
+traces of the log against the nominal model and against the model with the chosen
+effect(s) (before/after), and the path residuals over time with the regimes shaded.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.gap import effects as E
+from bench.gap import resim as R
+from bench.gap.localise import BANDS, PATHS, REGIMES
+from bench.gap.summary import fmt_params, text
+
+SIGNAL_UNITS = {"current_a": (1.0, "A"), "motor_speed_rad_s": (1.0, "rad/s"),
+                "position_m": (1e3, "mm"), "encoder_position_m": (1e3, "mm")}
+REGIME_COLOURS = {"reversal": "#d62728", "load_change": "#9467bd", "acceleration": "#ff7f0e",
+                  "cruise": "#2ca02c", "dwell": "#c7c7c7"}
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _bars(ax, table: dict[str, dict[str, float]], keys: list[str], title: str) -> None:
+    rows = list(table)
+    w = 0.8 / max(len(rows), 1)
+    x = np.arange(len(keys))
+    for i, r in enumerate(rows):
+        ax.bar(x + i * w - 0.4 + w / 2, [100 * (table[r].get(k) or 0.0) for k in keys], w,
+               label=r)
+    ax.set_xticks(x, keys, rotation=20, fontsize=8)
+    ax.set_ylabel("share of residual energy (%)")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7)
+
+
+def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
+    """Write the figures and index.html into `out`; returns the index path."""
+    plt = _plt()
+    out.mkdir(parents=True, exist_ok=True)
+    loc = res.localisation
+    p = res.problem
+    figs: list[tuple[str, str]] = []
+    # -- regimes and bands ------------------------------------------------------------------
+    fig, axes = plt.subplots(2, 2, figsize=(12, 7.5))
+    sig = loc["signals"]
+    _bars(axes[0, 0], {s: {r: sig[s]["by_regime"][r]["energy_share"] for r in REGIMES}
+                       for s in sig}, list(REGIMES), "signals: residual by regime")
+    _bars(axes[0, 1], {s: sig[s]["by_band"] for s in sig}, [b[0] for b in BANDS],
+          f"signals: residual by band (f0 = {loc.get('fundamental_hz') or float('nan'):.3g} Hz)")
+    paths = {k: v for k, v in loc["paths"].items() if v.get("available")}
+    if paths:
+        _bars(axes[1, 0], {k: {r: v["by_regime"][r]["energy_share"] for r in REGIMES}
+                           for k, v in paths.items()}, list(REGIMES), "paths: residual by regime")
+        _bars(axes[1, 1], {k: v["by_band"] for k, v in paths.items()}, [b[0] for b in BANDS],
+              "paths: residual by band")
+    fig.tight_layout()
+    fig.savefig(out / "residual_regime_band.png", dpi=110)
+    plt.close(fig)
+    figs.append(("residual_regime_band.png", "Residual energy by regime and frequency band"))
+    # -- traces before / after -----------------------------------------------------------------
+    nominal = p.info.get("nominal") or p.simulate()
+    after = None
+    if res.chosen is not None:
+        after = p.simulate([E.get(n) for n in res.chosen.fit.effects], res.chosen.fit.theta)
+    t = p.drive.t
+    fig, axes = plt.subplots(len(R.SIGNALS), 2, figsize=(13, 2.6 * len(R.SIGNALS)),
+                             sharex=True)
+    for i, s in enumerate(R.SIGNALS):
+        k, u = SIGNAL_UNITS[s]
+        ax = axes[i, 0]
+        ax.plot(t, p.meas[s] * k, lw=0.7, color="k", label="log")
+        ax.plot(t, nominal[s] * k, lw=0.8, color="tab:blue", label="nominal model")
+        if after is not None:
+            ax.plot(t, after[s] * k, lw=0.8, ls="--", color="tab:red",
+                    label=f"model + {res.chosen.fit.name}")
+        ax.set_ylabel(f"{s}\n({u})", fontsize=8)
+        ax.axvline(t[p.n_fit - 1] if p.n_fit < p.n else t[-1], color="grey", lw=0.6, ls=":")
+        ax = axes[i, 1]
+        ax.plot(t, (p.meas[s] - nominal[s]) * k, lw=0.6, color="tab:blue", label="before")
+        if after is not None:
+            ax.plot(t, (p.meas[s] - after[s]) * k, lw=0.6, color="tab:red", label="after")
+        ax.set_ylabel(f"residual ({u})", fontsize=8)
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[0, 1].legend(fontsize=7, loc="upper right")
+    axes[0, 0].set_title("log and models (dotted line: end of the fit part)", fontsize=10)
+    axes[0, 1].set_title("residual before / after", fontsize=10)
+    axes[-1, 0].set_xlabel("t (s)")
+    axes[-1, 1].set_xlabel("t (s)")
+    fig.tight_layout()
+    fig.savefig(out / "traces_before_after.png", dpi=110)
+    plt.close(fig)
+    figs.append(("traces_before_after.png", "Traces and residuals before and after the "
+                 "chosen effect"))
+    # -- path residuals with regimes -----------------------------------------------------------
+    pr = loc.get("_path_residuals", {})
+    reg = loc.get("_regimes")
+    if pr:
+        fig, axes = plt.subplots(len(pr), 1, figsize=(13, 2.2 * len(pr)), sharex=True)
+        axes = np.atleast_1d(axes)
+        for ax, name in zip(axes, [q for q in PATHS if q in pr], strict=False):
+            r = pr[name]
+            scale = 1e6 if name == "screw" else 1.0
+            unit = "um" if name == "screw" else loc["paths"][name]["unit"]
+            if reg is not None:
+                _shade(ax, t, reg)
+            ax.plot(t, r * scale, lw=0.6, color="k")
+            ax.set_ylabel(f"{name}\n({unit})", fontsize=8)
+        axes[-1].set_xlabel("t (s)")
+        axes[0].set_title("path residuals (shading: " + ", ".join(
+            f"{r} {c}" for r, c in REGIME_COLOURS.items()) + ")", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(out / "path_residuals.png", dpi=110)
+        plt.close(fig)
+        figs.append(("path_residuals.png", "Path residuals over time, regimes shaded"))
+    (out / "gap.json").write_text(json.dumps(js, indent=1))
+    idx = out / "index.html"
+    idx.write_text(_html(js, figs))
+    return idx
+
+
+def _shade(ax, t: np.ndarray, reg: np.ndarray) -> None:
+    edges = np.flatnonzero(np.diff(reg)) + 1
+    starts = np.concatenate([[0], edges])
+    ends = np.concatenate([edges, [len(reg)]])
+    for a, b in zip(starts, ends, strict=True):
+        name = REGIMES[int(reg[a])]
+        if name == "dwell":
+            continue
+        ax.axvspan(t[a], t[min(b, len(t) - 1)], color=REGIME_COLOURS[name], alpha=0.15, lw=0)
+
+
+def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
+    rows = "".join(
+        f"<tr><td>{i}</td><td>{html.escape(c['effect'])}</td>"
+        f"<td>{html.escape(fmt_params(c['params']))}</td>"
+        f"<td>{c['heldout_shrink_pct'] if c['heldout_shrink_pct'] is None else round(c['heldout_shrink_pct'], 1)}</td>"
+        f"<td>{c['gap_before']['normalised']:.3g} &rarr; {c['gap_after']['normalised']:.3g}</td>"
+        f"<td>{c['score']['bic']:.1f}</td></tr>"
+        for i, c in enumerate(js["ranking"], 1))
+    imgs = "".join(f"<h3>{html.escape(cap)}</h3><img src='{f}' style='max-width:100%'>"
+                   for f, cap in figs)
+    return f"""<!doctype html><html><head><meta charset="utf-8"><title>gap diagnosis</title>
+<style>body{{font-family:sans-serif;max-width:1300px;margin:auto}}td,th{{padding:2px 8px;
+border-bottom:1px solid #ddd;font-size:13px}}pre{{background:#f6f6f6;padding:8px}}</style>
+</head><body><h1>Sim-to-real gap diagnosis</h1>
+<h2>Verdict: {html.escape(js['verdict'])}</h2>
+<pre>{html.escape(text(js))}</pre>
+<h2>Ranking</h2><table><tr><th>#</th><th>effect</th><th>parameters (95 % CI)</th>
+<th>held-out shrink (%)</th><th>held-out gap (x floor, RMS)</th><th>BIC</th></tr>{rows}</table>
+{imgs}<p><a href="gap.json">gap.json</a></p></body></html>"""

@@ -1,0 +1,18 @@
+"""Health and usage monitoring (thesis chapter 6), and past it.
+
+- `bench.hums.monitor`: the monitoring model of eq. 6.1-6.2 (the nominal actuator the HUMS
+  trusts), compiled, driven by the same set-points with the bus timing, and the
+  Nelder-Mead fit of its position gain (row H1).
+- `bench.hums.indexes`: mean position error (6.4), fidelity coefficients Cp and Ci (6.5-6.6,
+  ratio-of-integrals reading), peak-current ratio (6.7), the calibrated current spectrum
+  (6.3) with harmonic features, lost motion and reversal dead time, whole-trace and per
+  command period (online).
+- `bench.hums.sweep`: the 11-point degradation sweep (rows H2-H6) with figures.
+- `bench.hums.rul`: the thesis' prognosis (R1-R2), a bootstrap band, fused health index,
+  and the run-to-failure campaign scored with progpy's prognostic metrics.
+- `bench.hums.report`: self-contained HTML report of one or more logs.
+
+Every computation reads a `bench.trace.Trace` (in-process run, live bus run, decoded
+candump log or imported table) and only its measured columns; simulation truth columns
+are used for ground truth in studies, never by the monitor.
+"""

@@ -1,0 +1,209 @@
+"""Command line of the plant node (`python -m plant_rt`, also `bench plant`).
+
+    python -m plant_rt [--pace realtime|sync] [--set NAME=VALUE ...] [-i IFACE -c CHANNEL]
+    python -m plant_rt --list-params
+
+The bus comes from python-can's flags, environment or config file, else vcan0, else a
+loopback hub started by `bench up` (see `plant_rt.transport`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import logging
+import math
+import os
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+import can.cli
+
+from plant_rt.busdef import Pace
+from plant_rt.params import PARAMS, ParameterError, PlantParams
+from plant_rt.transport import (
+    BusUnavailable,
+    close_bus,
+    describe,
+    open_bus,
+    pid_alive,
+    resolve,
+)
+
+BUS_KEYS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
+
+
+class PlantError(Exception):
+    """A user error of the plant command (printed as one line)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--pace", choices=[p.name.lower() for p in Pace], default="realtime",
+                        help="realtime: wall-clock periods with absolute deadlines; sync: one "
+                             "period per SYNC frame (lockstep, deterministic) "
+                             "(default: %(default)s)")
+    parser.add_argument("--set", dest="assignments", action="append", default=[],
+                        metavar="NAME=VALUE", help="set a plant parameter at start "
+                        "(repeatable; see --list-params)")
+    parser.add_argument("--params", metavar="FILE.json",
+                        help="start from a parameter set saved as JSON")
+    parser.add_argument("--list-params", action="store_true",
+                        help="print every settable parameter with unit, default and range")
+    parser.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
+                        help="CANopen node id (default 0x10, from dbc/ema.dbc)")
+    parser.add_argument("--ecu-id", type=lambda s: int(s, 0), default=None,
+                        help="node id of the ECU whose heartbeat is consumed (default 0x01)")
+    parser.add_argument("--spin-us", type=int, default=200,
+                        help="real-time pacer: busy-wait window before each period "
+                             "(default: %(default)s us)")
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="exit after S seconds of wall time (default: run until stopped)")
+    parser.add_argument("--ready-file", metavar="PATH",
+                        help="touch PATH once the node has booted (for launchers)")
+    parser.add_argument("--parent-pid", type=int, default=None, metavar="PID",
+                        help="exit when process PID exits (for launchers)")
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="log NMT changes and SDO refusals (-vv: debug)")
+    can.cli.add_bus_arguments(parser)
+
+
+def bus_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The python-can settings given on the command line (only those given)."""
+    cfg: dict[str, Any] = {k: getattr(args, k) for k in BUS_KEYS if k in args}
+    cfg.update(getattr(args, "bus_kwargs", None) or {})
+    return cfg
+
+
+def list_params(out=sys.stdout) -> None:
+    """Every settable parameter: name, unit, default, range, description."""
+    rows = []
+    for p in PARAMS:
+        if p.choices:
+            rng = "|".join(p.choices)
+        elif p.type is bool:
+            rng = "on|off"
+        else:
+            lo = "-inf" if p.min is None else f"{p.min:g}"
+            hi = "inf" if p.max is None else f"{p.max:g}"
+            rng = f"[{lo}, {hi}]"
+        d = p.default
+        dflt = ("nan" if isinstance(d, float) and math.isnan(d) else
+                ("on" if d else "off") if isinstance(d, bool) else f"{d:g}"
+                if isinstance(d, (int, float)) else str(d))
+        rows.append((p.name, p.unit, dflt, rng, p.doc))
+    w = [max(len(r[i]) for r in rows) for i in range(4)]
+    head = ("parameter", "unit", "default", "range")
+    print("  ".join(h.ljust(w[i]) for i, h in enumerate(head)) + "  description", file=out)
+    for r in rows:
+        print("  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4], file=out)
+
+
+def build_params(args: argparse.Namespace) -> PlantParams:
+    try:
+        params = PlantParams()
+        if args.params:
+            path = Path(args.params)
+            if not path.exists():
+                raise PlantError(f"no such parameter file: {path}")
+            params = PlantParams.from_json(path.read_text())
+        return params.with_assignments(args.assignments)
+    except ParameterError as exc:
+        raise PlantError(str(exc)) from None
+
+
+def warm_up(params: PlantParams) -> None:
+    """Load the compiled plant step (numba's disk cache) before the node goes live."""
+    from plant_rt.model import Plant
+    p = Plant(params)
+    p.step(0.0)
+    p.measure()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Start the node; returns when stopped (SIGINT/SIGTERM) or after --duration."""
+    if args.list_params:
+        try:
+            list_params()
+        except BrokenPipeError:  # `| head`: silence the flush at exit
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    level = logging.WARNING if args.verbose == 0 else (
+        logging.INFO if args.verbose == 1 else logging.DEBUG)
+    logging.basicConfig(level=level, format="plant: %(message)s")
+    params = build_params(args)
+    try:
+        found = resolve(bus_settings(args))
+    except BusUnavailable as exc:
+        raise PlantError(str(exc)) from None
+    if found is None:
+        raise PlantError("no CAN bus: no python-can configuration (-i/-c, CAN_INTERFACE, "
+                         "~/.canrc), no vcan0, and no loopback hub running (start one with "
+                         "`bench up`)")
+    cfg, source = found
+    warm_up(params)
+    from plant_rt.busdef import Frames, exclude_filters
+    from plant_rt.node import PlantNode
+    try:
+        frames = Frames(args.node_id, args.ecu_id)
+    except ValueError as exc:
+        raise PlantError(str(exc)) from None
+    # the ECU's set-point frame (one per period) is for loggers, not for the actuator
+    filters = exclude_filters([frames.cob["ECU_Setpoint"]])
+    try:
+        bus = open_bus(cfg, receive_own_messages=False, can_filters=filters)
+    except BusUnavailable as exc:
+        raise PlantError(str(exc)) from None
+    try:
+        node = PlantNode(bus, params, pace=Pace[args.pace.upper()], node_id=args.node_id,
+                         ecu_id=args.ecu_id, spin_us=args.spin_us)
+    except ValueError as exc:
+        close_bus(bus)
+        raise PlantError(str(exc)) from None
+
+    def on_signal(signum, frame):  # noqa: ARG001
+        node.stop()
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    # Everything allocated so far (numpy, numba, canopen, cantools: ~10^6 objects) is
+    # permanent: freezing it keeps the cyclic GC from scanning it, which otherwise
+    # stalls the loop for 30-70 ms at every full collection.
+    gc.collect()
+    gc.freeze()
+    print(f"plant: node 0x{node.node_id:02X} on {describe(cfg)} ({source}), "
+          f"pace {args.pace}", file=sys.stderr, flush=True)
+    try:
+        if args.ready_file:
+            Path(args.ready_file).write_text("ready\n")
+        parent = args.parent_pid
+        node.run(args.duration, alive=(lambda: pid_alive(parent)) if parent else None)
+    except ConnectionError as exc:
+        raise PlantError(f"{exc}") from None
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        close_bus(bus)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m plant_rt",
+        description="The EMA actuator plant as a CANopen node on a CAN bus.")
+    parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except PlantError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    except Exception as exc:  # noqa: BLE001 - never a bare traceback to the user
+        if args.debug:
+            raise
+        print(f"error: {type(exc).__name__}: {exc} (run with --debug for a traceback)",
+              file=sys.stderr)
+        return 1

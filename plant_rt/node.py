@@ -1,0 +1,696 @@
+"""The plant as a CANopen node: NMT, heartbeat, SYNC-driven PDOs, SDO parameters, EMCY.
+
+One thread does everything (receive, SDO, PDOs, stepping), so there is no lock, no
+GIL hand-over between a receive thread and the pacer, and the lockstep mode is
+deterministic. canopen's `LocalNode` is used for what it does well, the object
+dictionary (imported from `dbc/ema.eds`) and the SDO server, fed frame by frame through
+`Network.notify`; NMT, heartbeat, PDOs and EMCY are handled here with the frame layouts
+of `dbc/ema.dbc` (cantools). See docs/bus.md for why not `durand`.
+
+Timing (CiA 301 synchronous PDOs, transmission type 1):
+
+- at a SYNC the node latches the last RPDO received (the ECU's demand of the previous
+  period), sends TPDO1-3 with the sensors sampled at that instant, and
+- `--pace sync`: integrates exactly one SYNC period holding the latched demand
+  (lockstep: deterministic under any load, as fast as the bus allows);
+- `--pace realtime`: the plant integrates one period per wall-clock release of its own
+  absolute-deadline pacer (`plant_rt.pacing`), holding whatever demand was latched at
+  the last SYNC; a late or silent ECU leaves the last command in force until its
+  heartbeat is declared lost. As a drive synchronises its loop to SYNC, the pacer's
+  phase is slowly pulled to SYNC_PHASE of a period after each SYNC, so that SYNC
+  handling never falls into the pacer's spin window or the step.
+
+The simulated world only advances in OPERATIONAL: an idle node costs no CPU.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import can
+import canopen
+from canopen.sdo.exceptions import SdoAbortedError
+
+from plant_rt.busdef import (
+    ControlWord,
+    FrameError,
+    Frames,
+    NMTCommand,
+    NMTState,
+    Pace,
+    ParamObjects,
+    StatusWord,
+    load_od,
+)
+from plant_rt.model import Plant, Status
+from plant_rt.pacing import LatenessStats, RealtimePacer
+from plant_rt.params import ParameterError, PlantParams
+
+log = logging.getLogger("plant_rt.node")
+
+TWO_PI = 2.0 * math.pi
+
+# SDO abort codes (CiA 301)
+ABORT_VALUE_RANGE = 0x06090030
+ABORT_VALUE_HIGH = 0x06090031
+ABORT_VALUE_LOW = 0x06090032
+ABORT_DEVICE_STATE = 0x08000022
+ABORT_APP_REFUSED = 0x08000020
+
+# EMCY error register bits (CiA 301 0x1001)
+ERR_GENERIC, ERR_CURRENT, ERR_TEMPERATURE, ERR_COMMUNICATION, ERR_MANUFACTURER = (
+    0x01, 0x02, 0x08, 0x10, 0x80)
+
+# condition -> (DBC EMCY value-table label, error register bits)
+EMCY_CONDITIONS: dict[StatusWord, tuple[str, int]] = {
+    StatusWord.OVERCURRENT: ("overcurrent", ERR_CURRENT),
+    StatusWord.END_OF_STROKE: ("end_of_stroke", ERR_MANUFACTURER),
+    StatusWord.OVERTEMPERATURE: ("overtemperature", ERR_TEMPERATURE),
+    StatusWord.PLANT_FAULT: ("plant_fault", ERR_MANUFACTURER),
+    StatusWord.COMMAND_TIMEOUT: ("heartbeat_lost", ERR_COMMUNICATION),
+    StatusWord.DEMAND_CLAMPED: ("demand_invalid", ERR_MANUFACTURER),
+}
+_COMMAND_TIMEOUT = int(StatusWord.COMMAND_TIMEOUT)
+_DEMAND_CLAMPED = int(StatusWord.DEMAND_CLAMPED)
+_ENABLED = int(StatusWord.ENABLED)
+_RPDO_MISSING = int(StatusWord.RPDO_MISSING)
+_DEADLINE_MISS = int(StatusWord.DEADLINE_MISS)
+_ENABLE = int(ControlWord.ENABLE)
+_CONDITIONS = [(int(c), label, bits) for c, (label, bits) in EMCY_CONDITIONS.items()]
+EMCY_REARM_S = 0.1
+# real-time pacer: releases locked this fraction of a period after a SYNC has been handled
+SYNC_PHASE = 0.3   # plant time a condition must stay clear before it counts as cleared
+
+
+@dataclass
+class Counters:
+    """What object 0x2100 reports (reset by NMT reset and by 0x2200 sub 3)."""
+    frames_received: int = 0
+    bad_frames: int = 0
+    unknown_frames: int = 0
+    demands_invalid: int = 0
+    sync_received: int = 0
+    cycles: int = 0
+    heartbeat_timeouts: int = 0
+    emcy_sent: int = 0
+    rpdo_missing: int = 0
+    sync_counter_gaps: int = 0
+
+    def reset(self) -> None:
+        for k in self.__dataclass_fields__:
+            setattr(self, k, 0)
+
+
+@dataclass
+class Command:
+    """The ECU's command as received (RPDO1) and as latched at a SYNC."""
+    demand_a: float = 0.0
+    control: ControlWord = ControlWord.NONE
+    invalid: bool = False   # NaN/inf or beyond the current limit (replaced/clamped)
+
+
+@dataclass
+class EmcyState:
+    """Active EMCY conditions and, for those seen clear, since when (plant time, s)."""
+    active: StatusWord = StatusWord.NONE
+    off_since: dict[int, float] = field(default_factory=dict)
+
+
+class PlantNode:
+    """The actuator node on `bus`, integrating `Plant(params)` (see module docstring)."""
+
+    def __init__(self, bus: can.BusABC, params: PlantParams | None = None,
+                 pace: Pace = Pace.REALTIME, node_id: int | None = None,
+                 ecu_id: int | None = None, spin_us: int = 200,
+                 plant_factory: Callable[[PlantParams], Plant] = Plant,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.bus = bus
+        self.frames = Frames(node_id, ecu_id)
+        self.node_id = self.frames.node_id
+        self.od = load_od(self.node_id)
+        self.local = canopen.LocalNode(self.node_id, self.od)
+        self.network = canopen.Network(bus)     # no notifier: frames are fed by run()
+        self.network.add_node(self.local)
+        # NMT and heartbeat are ours (IntEnum states, heartbeat from this loop), not
+        # canopen's NmtSlave (string states, heartbeat from a timer thread).
+        self.network.unsubscribe(0, self.local.nmt.on_command)
+        if self.local.nmt.on_write in self.local._write_callbacks:
+            self.local._write_callbacks.remove(self.local.nmt.on_write)
+        self.local.add_read_callback(self._on_sdo_read)
+        self.local.add_write_callback(self._on_sdo_write)
+        self.param_objects = ParamObjects(self.od)
+        self._status_keys = self._record_keys("node_status")
+        self._control_keys = self._record_keys("node_control")
+        self._tx_keys = self._record_keys("tx_process_data")
+        self._rx_keys = self._record_keys("rx_process_data")
+        self._plant_factory = plant_factory
+        self.clock = clock
+        self.startup_params = params or PlantParams()
+        self.params = self.startup_params
+        self.plant = plant_factory(self.params)
+        self.startup_pace = Pace(pace)
+        self.pace = self.startup_pace
+        self.spin_us = int(spin_us)
+        self.counters = Counters()
+        self.state = NMTState.BOOT_UP
+        self.pending = Command()
+        self.latched = Command()
+        self.applied_a = 0.0
+        self._rpdo_fresh = False
+        self._synced_since_start = False
+        self._last_control = ControlWord.NONE
+        self._last_sync_counter: int | None = None
+        self._sync_max = int(self.od[0x1019].default)
+        self._hb_period_ms = int(self.od[0x1017].default)
+        self._consumer = int(self.od[0x1016][1].default)
+        self._last_ecu_hb: float | None = None
+        self._timeout = False
+        self._rpdo_missing_flag = False
+        self._emcy = EmcyState()
+        self._next_hb = 0.0
+        self._pdo_len_bad = False
+        self._pacer = self._new_pacer()
+        self.step_stats = LatenessStats()
+        self._last_process: dict[str, float | int] | None = None
+        self._sensor_cache: tuple[dict[str, float | int], list[can.Message], int] | None = None
+        self.running = False
+        self.sdo_cob = self.frames.sdo_rx
+        self._rx_ids = {0: self._on_nmt, self.frames.cob["SYNC"]: self._on_sync,
+                        self.frames.cob["EMA_RPDO1"]: self._on_rpdo,
+                        self.sdo_cob: self._on_sdo}
+        self._known_ids = set(self.frames.by_cob)
+
+    # -- helpers ------------------------------------------------------------------------
+    def _record_keys(self, name: str) -> dict[str, tuple[int, int]]:
+        rec = self.od[name]
+        return {var.name: (rec.index, sub) for sub, var in rec.subindices.items() if sub}
+
+    def _new_pacer(self) -> RealtimePacer:
+        return RealtimePacer(self.params.sim.sync_period_s, self.spin_us * 1e-6)
+
+    @property
+    def period_s(self) -> float:
+        return self.params.sim.sync_period_s
+
+    def send(self, msg: can.Message) -> None:
+        try:
+            self.bus.send(msg)
+        except can.CanError as exc:
+            log.warning("send failed: %s", exc)
+        except OSError as exc:
+            raise ConnectionError(f"bus connection lost: {exc}") from exc
+
+    # -- life cycle ---------------------------------------------------------------------
+    def boot(self) -> None:
+        """Power-on / reset: boot-up frame, then PRE-OPERATIONAL with heartbeat."""
+        self.state = NMTState.BOOT_UP
+        self.send(self.frames.encode("EMA_Heartbeat", {"EMA_NMTState": int(NMTState.BOOT_UP)}))
+        self.state = NMTState.PRE_OPERATIONAL
+        self._next_hb = self.clock() + self._hb_period_ms / 1000.0
+        log.info("node 0x%02X booted, PRE-OPERATIONAL", self.node_id)
+
+    def reset_node(self) -> None:
+        """NMT reset node: parameters back to their start-up values, plant at t = 0."""
+        self.local.data_store.clear()
+        self.params = self.startup_params
+        self.pace = self.startup_pace
+        self.plant = self._plant_factory(self.params)
+        self._sensor_cache = None
+        self._reset_communication()
+
+    def _reset_communication(self) -> None:
+        for idx in [i for i in self.local.data_store if i < 0x2000]:
+            del self.local.data_store[idx]
+        self._hb_period_ms = int(self.od[0x1017].default)
+        self._consumer = int(self.od[0x1016][1].default)
+        self.counters.reset()
+        self.step_stats.reset()
+        self._pacer = self._new_pacer()
+        self.pending = Command()
+        self.latched = Command()
+        self.applied_a = 0.0
+        self._timeout = False
+        self._last_ecu_hb = None
+        self._last_sync_counter = None
+        self._emcy = EmcyState()
+        self._pdo_len_bad = False
+        self.boot()
+
+    def _set_state(self, new: NMTState) -> None:
+        if new == self.state:
+            return
+        log.info("NMT %s -> %s", self.state.name, new.name)
+        if new == NMTState.OPERATIONAL:
+            self._synced_since_start = False
+            self._rpdo_fresh = False
+            self.pending = Command()
+            self.latched = Command()
+            self.applied_a = 0.0
+            self._pacer = self._new_pacer()
+            self._pacer.start(self.period_s)
+        elif self.state == NMTState.OPERATIONAL:
+            self.applied_a = 0.0          # leaving OPERATIONAL disables the drive
+            self.latched = Command()
+        self.state = new
+
+    # -- frame dispatch -----------------------------------------------------------------
+    def handle(self, msg: can.Message) -> None:
+        """Process one received frame; bad frames are counted and ignored, never raised."""
+        c = self.counters
+        c.frames_received += 1
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+            c.unknown_frames += 1
+            return
+        handler = self._rx_ids.get(msg.arbitration_id)
+        if handler is None:
+            if msg.arbitration_id == 0x700 + (self._consumer >> 16 & 0x7F):
+                self._on_ecu_heartbeat(msg)
+            elif msg.arbitration_id not in self._known_ids:
+                c.unknown_frames += 1
+            return
+        try:
+            handler(msg)
+        except FrameError as exc:
+            c.bad_frames += 1
+            log.debug("bad frame ignored: %s", exc)
+            if msg.arbitration_id == self.frames.cob["EMA_RPDO1"] and not self._pdo_len_bad:
+                self._pdo_len_bad = True
+                self.emcy("pdo_length", ERR_COMMUNICATION)
+        except Exception:  # noqa: BLE001 - a frame must never stop the node
+            c.bad_frames += 1
+            log.exception("frame 0x%03X not processed", msg.arbitration_id)
+
+    def _on_nmt(self, msg: can.Message) -> None:
+        _, sig = self.frames.decode(msg)  # type: ignore[misc]
+        if sig["NMT_NodeId"] not in (0, self.node_id):
+            return
+        try:
+            cmd = NMTCommand(sig["NMT_Command"])
+        except ValueError:
+            self.counters.bad_frames += 1
+            return
+        if cmd == NMTCommand.RESET_NODE:
+            self.reset_node()
+        elif cmd == NMTCommand.RESET_COMMUNICATION:
+            self._reset_communication()
+        elif cmd == NMTCommand.START:
+            self._set_state(NMTState.OPERATIONAL)
+        elif cmd == NMTCommand.STOP:
+            self._set_state(NMTState.STOPPED)
+        elif cmd == NMTCommand.ENTER_PRE_OPERATIONAL:
+            self._set_state(NMTState.PRE_OPERATIONAL)
+
+    def _on_sdo(self, msg: can.Message) -> None:
+        if self.state == NMTState.STOPPED:
+            return
+        if len(msg.data) != 8:
+            raise FrameError(f"SDO request with {len(msg.data)} bytes")
+        self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+
+    def _on_ecu_heartbeat(self, msg: can.Message) -> None:
+        if len(msg.data) != 1:
+            self.counters.bad_frames += 1
+            return
+        self._last_ecu_hb = self.clock()
+
+    def _on_rpdo(self, msg: can.Message) -> None:
+        _, sig = self.frames.decode(msg)  # type: ignore[misc]
+        self._pdo_len_bad = False
+        if self.state != NMTState.OPERATIONAL:
+            return
+        demand = float(sig["CurrentDemand"])
+        control = ControlWord(int(sig["ControlWord"]) & (ControlWord.ENABLE
+                                                         | ControlWord.FAULT_RESET))
+        limit = self.params.motor.current_max_a
+        invalid = False
+        if not math.isfinite(demand):
+            demand, invalid = 0.0, True
+        elif abs(demand) > limit:
+            demand, invalid = math.copysign(limit, demand), True
+        if invalid:
+            self.counters.demands_invalid += 1
+        if (control & ControlWord.FAULT_RESET) and not (self._last_control
+                                                         & ControlWord.FAULT_RESET):
+            self._fault_reset()
+        self._last_control = control
+        self.pending = Command(demand, control, invalid)
+        self._rpdo_fresh = True
+
+    def _fault_reset(self) -> None:
+        if self._timeout and self._last_ecu_hb is not None and (
+                self.clock() - self._last_ecu_hb) < self._consumer_timeout_s():
+            self._timeout = False
+            log.info("command timeout cleared by fault reset")
+
+    def _on_sync(self, msg: can.Message) -> None:
+        if len(msg.data) not in (0, 1):
+            raise FrameError(f"SYNC with {len(msg.data)} bytes")
+        c = self.counters
+        c.sync_received += 1
+        if len(msg.data) == 1:
+            counter = int(msg.data[0])
+            last = self._last_sync_counter
+            if last is not None and counter != (last % self._sync_max) + 1:
+                c.sync_counter_gaps += 1
+            self._last_sync_counter = counter
+        if self.state != NMTState.OPERATIONAL:
+            return
+        # latch the command received since the previous SYNC (RPDO applied at this SYNC)
+        if self._rpdo_fresh:
+            self.latched = self.pending
+            self._rpdo_fresh = False
+            self._rpdo_missing_flag = False
+        elif self._synced_since_start:
+            c.rpdo_missing += 1
+            self._rpdo_missing_flag = True
+        self._synced_since_start = True
+        self.applied_a = self._applied_demand()
+        self.transmit_tpdos()
+        if self.pace == Pace.SYNC:
+            self._step()
+        else:
+            # keep the SYNC (and the TPDOs it triggers) out of the pacer's spin window and
+            # step: lock the release phase SYNC_PHASE of a period after the SYNC arrival
+            self._pacer.discipline(time.perf_counter_ns(),
+                                   int(SYNC_PHASE * self._pacer.period_ns))
+
+    def _applied_demand(self) -> float:
+        cmd = self.latched
+        if self._timeout or not (cmd.control & ControlWord.ENABLE):
+            return 0.0
+        return cmd.demand_a
+
+    # -- process data ---------------------------------------------------------------------
+    def status_word(self, plant_status: int) -> int:
+        """The TPDO1 status word (bits of `StatusWord`) for the plant status now."""
+        st = int(plant_status) & 0xF
+        if self._timeout:
+            st |= _COMMAND_TIMEOUT
+        if self.latched.invalid:
+            st |= _DEMAND_CLAMPED
+        if (self.state == NMTState.OPERATIONAL and not self._timeout
+                and self.latched.control & _ENABLE):
+            st |= _ENABLED
+        if self._rpdo_missing_flag:
+            st |= _RPDO_MISSING
+        if self.pace == Pace.REALTIME and self._pacer.last_missed:
+            st |= _DEADLINE_MISS
+        return st
+
+    def _sensors(self) -> tuple[dict[str, float | int], list[can.Message], int]:
+        """(sensor signal values, encoded TPDO2 and TPDO3, plant status) for the plant's
+        state now. Cached until the plant moves, so in lockstep the encoding happens
+        right after the step, while the ECU computes, not after the next SYNC."""
+        if self._sensor_cache is None:
+            m = self.plant.measure()
+            f = self.frames
+            cpr = self.params.sensors.encoder_counts_per_rev
+            angle = m.motor_angle_rad
+            counts = round(angle * cpr / TWO_PI) if math.isfinite(angle) else 0
+            v: dict[str, float | int] = {
+                "MotorCurrent": f.clamp("EMA_TPDO1", "MotorCurrent", m.current_a),
+                "EncoderAngle": int(f.clamp("EMA_TPDO2", "EncoderAngle", counts)),
+                "EncoderSpeed": f.clamp("EMA_TPDO2", "EncoderSpeed", m.motor_speed_rad_s),
+                "LvdtPosition": f.clamp("EMA_TPDO3", "LvdtPosition", m.position_m),
+                "WindingTemperature": f.clamp("EMA_TPDO3", "WindingTemperature",
+                                              m.temperature_k),
+            }
+            msgs = [f.encode(name, {s.name: v[s.name] for s in f.by_name[name].signals})
+                    for name in ("EMA_TPDO2", "EMA_TPDO3")]
+            self._sensor_cache = (v, msgs, int(m.status))
+        return self._sensor_cache
+
+    def process_values(self) -> dict[str, float | int]:
+        """The TPDO signals for the plant's sensors now (clamped to the DBC ranges)."""
+        v, _, status = self._sensors()
+        return {**v, "StatusWord": self.status_word(status)}
+
+    def transmit_tpdos(self) -> None:
+        """TPDO1 (current, status word), TPDO2 (encoder), TPDO3 (LVDT, temperature)."""
+        v, msgs, status = self._sensors()
+        word = self.status_word(status)
+        self.send(self.frames.encode("EMA_TPDO1", {"MotorCurrent": v["MotorCurrent"],
+                                                  "StatusWord": word}))
+        for msg in msgs:
+            self.send(msg)
+        self._last_process = {**v, "StatusWord": word}
+
+    def _step(self) -> None:
+        t0 = time.perf_counter_ns()
+        self.plant.step(self.applied_a)
+        self.step_stats.add(time.perf_counter_ns() - t0)
+        self._sensor_cache = None
+        self.counters.cycles += 1
+        self._check_conditions()
+        self._sensors()             # encode the next TPDOs now, off the SYNC's path
+
+    # -- EMCY -----------------------------------------------------------------------------
+    def error_register(self) -> int:
+        reg = 0
+        active = int(self._emcy.active)
+        for cond, _, bits in _CONDITIONS:
+            if active & cond:
+                reg |= bits | ERR_GENERIC
+        return reg
+
+    def emcy(self, label: str, register: int | None = None) -> None:
+        code = self.frames.choice("EMA_EMCY", "EMCY_ErrorCode", label)
+        reg = self.error_register() if register is None else register
+        status = self.status_word(self.plant.status())
+        self.send(self.frames.encode("EMA_EMCY", {
+            "EMCY_ErrorCode": code, "EMCY_ErrorRegister": reg, "EMCY_StatusWord": status,
+            "EMCY_Cycle": self.counters.cycles % (1 << 24)}))
+        self.counters.emcy_sent += 1
+        log.warning("EMCY %s (0x%04X)", label, code)
+
+    def _check_conditions(self) -> None:
+        """EMCY on a rising condition; a condition counts as cleared (and, when none is
+        left, EMCY "no_error" is sent) only after EMCY_REARM_S of plant time off, so a
+        drive chattering at its current limit does not flood the bus."""
+        st = self.status_word(self.plant.status())
+        es = self._emcy
+        active = int(es.active)
+        if not st and not active:
+            return
+        now = self.plant.t
+        for cond, label, bits in _CONDITIONS:
+            if st & cond:
+                es.off_since.pop(cond, None)
+                if not active & cond:
+                    active |= cond
+                    es.active = StatusWord(active)
+                    self.emcy(label, self.error_register() | bits | ERR_GENERIC)
+            elif active & cond:
+                t0 = es.off_since.setdefault(cond, now)
+                if now - t0 >= EMCY_REARM_S:
+                    active &= ~cond
+                    es.active = StatusWord(active)
+                    del es.off_since[cond]
+                    if not active:
+                        self.emcy("no_error", 0)
+
+    # -- timers ---------------------------------------------------------------------------
+    def _consumer_timeout_s(self) -> float:
+        return (self._consumer & 0xFFFF) / 1000.0
+
+    def timers(self) -> float:
+        """Heartbeat production and consumption; returns seconds to the next timer."""
+        now = self.clock()
+        nxt = 0.05
+        if self._hb_period_ms > 0:
+            if now >= self._next_hb:
+                self.send(self.frames.encode("EMA_Heartbeat",
+                                             {"EMA_NMTState": int(self.state)}))
+                self._next_hb += self._hb_period_ms / 1000.0
+                if self._next_hb < now:
+                    self._next_hb = now + self._hb_period_ms / 1000.0
+            nxt = min(nxt, self._next_hb - now)
+        tmo = self._consumer_timeout_s()
+        if tmo > 0 and self._last_ecu_hb is not None and not self._timeout:
+            left = self._last_ecu_hb + tmo - now
+            if left <= 0:
+                self._timeout = True
+                self.counters.heartbeat_timeouts += 1
+                self.applied_a = 0.0
+                log.warning("ECU heartbeat lost for %.0f ms: demand forced to 0", tmo * 1e3)
+                self._check_conditions()
+            else:
+                nxt = min(nxt, left)
+        return max(nxt, 0.0)
+
+    # -- SDO callbacks ------------------------------------------------------------------
+    def _on_sdo_read(self, index: int, subindex: int, od) -> object | None:
+        key = (index, subindex)
+        po = self.param_objects.by_key.get(key)
+        if po is not None:
+            return ParamObjects.to_od(po.info, self.params.get(po.info.name))
+        if index == self._status_keys["nmt_state"][0]:
+            return self._status_value(od.name)
+        if index == self._control_keys["pace"][0]:
+            if od.name == "pace":
+                return int(self.pace)
+            if od.name == "spin_us":
+                return self.spin_us
+            return None
+        if index == self._tx_keys["MotorCurrent"][0] and subindex:
+            v = self._last_process or self.process_values()
+            raw = v[od.name]
+            return raw if od.factor == 1 else round(raw / od.factor)
+        if index == 0x1001:
+            return self.error_register()
+        if index == 0x1006:
+            return int(round(self.params.sim.sync_period_s * 1e6))
+        if index == 0x1017:
+            return self._hb_period_ms
+        if key == (0x1016, 1):
+            return self._consumer
+        return None
+
+    def _status_value(self, name: str) -> float | int:
+        c, p = self.counters, self._pacer
+        values = {
+            "nmt_state": int(self.state),
+            "status_word": self.status_word(self.plant.status()),
+            "deadline_misses": p.misses,
+            "jitter_p50_us": p.lateness.percentile_us(50),
+            "jitter_p99_us": p.lateness.percentile_us(99),
+            "jitter_max_us": p.lateness.max_us,
+            "plant_time_s": self.plant.t,
+            "applied_demand_a": self.applied_a,
+            "skipped_periods": p.skipped,
+            "step_time_p99_us": self.step_stats.percentile_us(99),
+        }
+        if name in values:
+            return values[name]
+        return int(getattr(c, name))
+
+    def _on_sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
+        key = (index, subindex)
+        po = self.param_objects.by_key.get(key)
+        if po is not None:
+            self._require_preop()
+            info = po.info
+            raw = od.decode_raw(data)
+            try:
+                value = ParamObjects.from_od(info, raw)
+                new = self.params.with_dict({info.name: value})
+            except ParameterError as exc:
+                log.info("SDO write refused: %s", exc)
+                code = ABORT_VALUE_RANGE
+                if isinstance(raw, (int, float)) and not isinstance(raw, bool):
+                    if info.max is not None and raw > info.max:
+                        code = ABORT_VALUE_HIGH
+                    elif info.min is not None and raw < info.min:
+                        code = ABORT_VALUE_LOW
+                raise SdoAbortedError(code) from None
+            self._apply_params(new)
+            return
+        if index == self._control_keys["pace"][0]:
+            raw = od.decode_raw(data)
+            if od.name == "pace":
+                self._require_preop()
+                try:
+                    self.pace = Pace(raw)
+                except ValueError:
+                    raise SdoAbortedError(ABORT_VALUE_RANGE) from None
+            elif od.name == "reset_plant":
+                self._require_preop()
+                if raw != 1:
+                    raise SdoAbortedError(ABORT_VALUE_RANGE)
+                self.plant = self._plant_factory(self.params)
+                self._sensor_cache = None
+                self.counters.cycles = 0
+                self._emcy = EmcyState()
+            elif od.name == "reset_counters":
+                if raw != 1:
+                    raise SdoAbortedError(ABORT_VALUE_RANGE)
+                self.counters.reset()
+                self._pacer.reset_stats()
+                self.step_stats.reset()
+            elif od.name == "spin_us":
+                if not 0 <= raw <= self.period_s * 1e6:
+                    raise SdoAbortedError(ABORT_VALUE_HIGH)
+                self.spin_us = int(raw)
+                self._pacer.spin_ns = int(raw) * 1000
+            return
+        if index == self._rx_keys["CurrentDemand"][0]:
+            raise SdoAbortedError(ABORT_APP_REFUSED)   # commands arrive by RPDO only
+        if index == 0x1006:
+            self._require_preop()
+            raw = od.decode_raw(data)
+            try:
+                new = self.params.with_dict({"sim.sync_period_s": raw * 1e-6})
+            except ParameterError:
+                raise SdoAbortedError(ABORT_VALUE_RANGE) from None
+            self._apply_params(new)
+            return
+        if index == 0x1017:
+            self._hb_period_ms = int(od.decode_raw(data))
+            self._next_hb = self.clock() + self._hb_period_ms / 1000.0
+            return
+        if key == (0x1016, 1):
+            self._consumer = int(od.decode_raw(data))
+            return
+
+    def _require_preop(self) -> None:
+        if self.state != NMTState.PRE_OPERATIONAL:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)
+
+    def _apply_params(self, new: PlantParams) -> None:
+        period_changed = new.sim.sync_period_s != self.params.sim.sync_period_s
+        self.params = new
+        self.plant.set_params(new)
+        self._sensor_cache = None
+        if period_changed:
+            self._pacer = self._new_pacer()
+
+    # -- main loop ------------------------------------------------------------------------
+    def _poll(self, timeout: float) -> None:
+        try:
+            msg = self.bus.recv(timeout=max(0.0, min(timeout, self.timers())))
+        except Exception as exc:  # noqa: BLE001 - CanError, OSError, closed websocket
+            raise ConnectionError(f"bus connection lost: {type(exc).__name__}: {exc}") from exc
+        if msg is not None:
+            self.handle(msg)
+
+    def run(self, duration_s: float | None = None,
+            alive: Callable[[], bool] | None = None) -> None:
+        """Serve the bus until `stop()`, for `duration_s` of wall time, or until
+        `alive()` (checked every 0.25 s) returns False."""
+        self.running = True
+        end = None if duration_s is None else self.clock() + duration_s
+        next_check = self.clock() + 0.25
+        self.boot()
+        while self.running:
+            now = self.clock()
+            if end is not None and now >= end:
+                break
+            if alive is not None and now >= next_check:
+                next_check = now + 0.25
+                if not alive():
+                    log.warning("parent process gone: stopping")
+                    break
+            if self.pace == Pace.REALTIME and self.state == NMTState.OPERATIONAL:
+                pacer = self._pacer
+                pacer.wait(self._poll)
+                if self.state != NMTState.OPERATIONAL or self.pace != Pace.REALTIME:
+                    continue     # a frame handled while waiting changed the state
+                self._step()
+                pacer.done()
+            else:
+                self._poll(0.05)
+
+    def stop(self) -> None:
+        self.running = False
+
+
+def plant_status_names(word: int) -> list[str]:
+    """Names of the bits set in a status word (for messages)."""
+    return [f.name.lower() for f in StatusWord if f and word & f and f.name]
+
+
+__all__ = ["PlantNode", "Counters", "Status", "plant_status_names"]

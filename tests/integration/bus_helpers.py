@@ -1,0 +1,112 @@
+"""Shared set-up of the bus integration tests: a bus (the loopback hub always; vcan0 too
+when TEST_SOCKETCAN=1, as python-can gates its socketcan suite) with a lockstep plant on
+it, processes always stopped, every wait bounded."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import can
+
+from bench.bus.procs import Child, start_hub, start_plant
+
+ROOT = Path(__file__).resolve().parents[2]
+BUS_KINDS = ["loopback"] + (["vcan0"] if os.environ.get("TEST_SOCKETCAN") == "1" else [])
+
+
+@dataclass
+class BusEnv:
+    cfg: dict
+    state: Path
+    children: list[Child] = field(default_factory=list)
+
+    @property
+    def flags(self) -> list[str]:
+        return ["-i", self.cfg["interface"], "-c", str(self.cfg["channel"])]
+
+    @property
+    def env(self) -> dict[str, str]:
+        return {**os.environ, "BENCH_STATE_DIR": str(self.state)}
+
+    def bus(self, **kw) -> can.BusABC:
+        from plant_rt.transport import open_bus
+        return open_bus(self.cfg, **kw)
+
+    def stop(self) -> None:
+        for c in reversed(self.children):
+            c.stop()
+
+
+def make_env(kind: str, state: Path, plant: bool = True, **plant_kw) -> BusEnv:
+    os.environ["BENCH_STATE_DIR"] = str(state)
+    if kind == "loopback":
+        hub = start_hub(persistent=False)
+        env = BusEnv({"interface": "remote", "channel": hub.info["url"]}, state, [hub])
+    else:
+        env = BusEnv({"interface": "socketcan", "channel": "vcan0"}, state)
+    if plant:
+        try:
+            env.children.append(start_plant(env.cfg, pace="sync", **plant_kw))
+        except Exception:
+            env.stop()
+            raise
+    return env
+
+
+def module_bus_env(request, tmp_path_factory):
+    """Body of the module-scoped `bus_env` fixture of the bus test modules:
+    ``yield from module_bus_env(request, tmp_path_factory)``."""
+    old = os.environ.get("BENCH_STATE_DIR")
+    env = make_env(request.param, tmp_path_factory.mktemp("state"))
+    yield env
+    env.stop()
+    if old is None:
+        os.environ.pop("BENCH_STATE_DIR", None)
+    else:
+        os.environ["BENCH_STATE_DIR"] = old
+
+
+def bench(*args: str, env: dict | None = None, timeout: float = 120.0
+          ) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "bench", *args], capture_output=True,
+                          text=True, timeout=timeout, env=env, cwd=str(ROOT))
+
+
+def spawn(*cmd: str, env: dict | None = None, **kw) -> subprocess.Popen:
+    return subprocess.Popen(list(cmd), env=env, cwd=str(ROOT), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def wait_until(pred, timeout: float, what: str, step: float = 0.02):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        got = pred()
+        if got:
+            return got
+        time.sleep(step)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+class Collector(can.Listener):
+    """Frames seen by an independent bus client (a candump of the test)."""
+
+    def __init__(self, env: BusEnv) -> None:
+        self.bus = env.bus()
+        self.msgs: list[can.Message] = []
+        self.notifier = can.Notifier(self.bus, [self], timeout=0.02)
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.msgs.append(msg)
+
+    def ids(self) -> list[int]:
+        return [m.arbitration_id for m in self.msgs]
+
+    def close(self) -> None:
+        from plant_rt.transport import close_bus
+        self.notifier.stop(1.0)
+        close_bus(self.bus)

@@ -1,0 +1,124 @@
+"""The operator commands of the bus: up/status/down, run without `bench up`, plant, help."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+from bus_helpers import ROOT, bench
+
+from plant_rt.params import PARAMS
+
+
+@pytest.fixture
+def state_env(tmp_path):
+    env = {**os.environ, "BENCH_STATE_DIR": str(tmp_path / "state")}
+    for k in ("CAN_INTERFACE", "CAN_CHANNEL", "CAN_CONFIG"):
+        env.pop(k, None)
+    yield env
+    bench("down", env=env, timeout=30)
+
+
+def test_status_without_a_bench_is_a_one_line_error(state_env):
+    t0 = time.monotonic()
+    r = bench("status", env=state_env, timeout=30)
+    assert r.returncode == 2
+    assert r.stderr.strip().startswith("error: bench is not up")
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert time.monotonic() - t0 < 10
+
+
+def test_up_status_run_down(state_env, tmp_path):
+    r = bench("up", "--pace", "sync", "--set", "effects.preload_n=1500", env=state_env,
+              timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "hub: pid" in r.stdout and "plant: pid" in r.stdout and "127.0.0.1" in r.stdout
+    r = bench("up", env=state_env)
+    assert "already up" in r.stdout
+    r = bench("status", env=state_env)
+    assert r.returncode == 0, r.stderr
+    assert "node 0x10: PRE_OPERATIONAL, pace sync" in r.stdout
+    assert "effects.preload_n = 1500" in r.stdout
+    assert "frames_received" in r.stdout
+    r = bench("run", "velocity-step", "--pace", "sync", "--set", "effects.backlash_m=1e-5",
+              env=state_env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "300 periods" in r.stdout and "(loopback hub)" in r.stdout
+    r = bench("status", "--all", env=state_env)
+    assert "effects.backlash_m = 1e-05" in r.stdout and "effects.preload_n = 1500" in r.stdout
+    assert f"{len(PARAMS)}" and r.stdout.count(" = ") == len(PARAMS)
+    r = bench("down", env=state_env)
+    assert "stopped plant" in r.stdout and "stopped hub" in r.stdout
+    r = bench("status", env=state_env)
+    assert r.returncode == 2
+
+
+def test_status_with_a_bus_but_no_plant_answers_within_two_seconds(state_env):
+    hub = subprocess.Popen([sys.executable, "-m", "bench.bus.hub"], env=state_env,
+                           stdout=subprocess.PIPE, text=True, cwd=str(ROOT))
+    try:
+        assert hub.stdout.readline().startswith("ws://127.0.0.1:")
+        t0 = time.monotonic()
+        r = bench("status", env=state_env, timeout=30)
+        wall = time.monotonic() - t0
+    finally:
+        hub.terminate()
+        hub.wait(10)
+        hub.stdout.close()
+    assert r.returncode == 2
+    assert "no actuator node 0x10 answering" in r.stderr
+    # the answer itself takes 0.35 s of heartbeat wait + 0.25 s of SDO timeout; the rest is
+    # interpreter and import start-up of `bench` (machine load dependent)
+    assert wall < 6.0
+
+
+def test_run_without_bench_up_starts_and_stops_its_own_bus_and_plant(state_env, tmp_path):
+    r = bench("run", "step", "--pace", "sync", "--duration", "0.1", "--amplitude-m", "0.002",
+              env=state_env, timeout=180)
+    assert r.returncode == 0, r.stderr
+    assert "private loopback hub" in r.stdout and "100 periods" in r.stdout
+    assert "set-point 2.000 mm" in r.stdout
+    r = bench("status", env=state_env)
+    assert r.returncode == 2                      # nothing left running
+
+
+@pytest.mark.parametrize("args, message", [
+    (("run", "step", "--set", "motor.resistance_ohm=-1"),
+     "error: motor.resistance_ohm = -1 ohm is below its minimum 0.0001 ohm"),
+    (("run", "step", "--frequency-hz", "3"), "error: profile 'step' has no parameter"),
+    (("run", "sine", "--duration", "-1"), "error: --duration must be > 0 s"),
+    (("decode", "/nonexistent.log"), "error: no such log: /nonexistent.log"),
+    (("plant", "--set", "nope=1"), "error: unknown parameter 'nope'"),
+])
+def test_user_errors_are_one_line(state_env, args, message):
+    r = bench(*args, env=state_env, timeout=60)
+    assert r.returncode == 2
+    assert r.stderr.strip().startswith(message), r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_plant_list_params_and_no_bus():
+    r = subprocess.run([sys.executable, "-m", "plant_rt", "--list-params"], capture_output=True,
+                       text=True, timeout=60, cwd=str(ROOT))
+    assert r.returncode == 0
+    assert len(r.stdout.strip().splitlines()) == len(PARAMS) + 1
+    assert "effects.backlash_m" in r.stdout and "[0, 0.001]" in r.stdout
+    env = {**os.environ, "BENCH_STATE_DIR": "/nonexistent-bench-state"}
+    r = subprocess.run([sys.executable, "-m", "plant_rt"], capture_output=True, text=True,
+                       timeout=60, cwd=str(ROOT), env=env)
+    assert r.returncode == 2 and r.stderr.startswith("error: no CAN bus")
+
+
+@pytest.mark.parametrize("cmd", [
+    [sys.executable, "-m", "bench.bus.hub", "--help"],
+    [sys.executable, str(ROOT / "dbc" / "generate_eds.py"), "--help"],
+    [sys.executable, "-m", "plant_rt", "--help"],
+    [sys.executable, str(ROOT / "benchmarks" / "bench_bus.py"), "--help"],
+])
+def test_helper_scripts_help(cmd):
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=60, cwd=str(ROOT))
+    assert r.returncode == 0, r.stderr
+    assert "usage:" in r.stdout

@@ -1,0 +1,196 @@
+"""Bad input over the bus: malformed frames, a killed ECU, a killed plant, corrupted logs."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+
+import can
+import canopen
+import pytest
+from bus_helpers import BUS_KINDS, Collector, bench, make_env, module_bus_env, spawn, wait_until
+
+from bench.bus.logs import read_log, trace_from_log
+from bench.trace import Trace
+from plant_rt.busdef import Frames, NMTCommand, StatusWord, load_od
+from plant_rt.transport import close_bus
+
+
+@pytest.fixture(scope="module", params=BUS_KINDS)
+def bus_env(request, tmp_path_factory):
+    yield from module_bus_env(request, tmp_path_factory)
+
+
+def remote_node(env):
+    network = canopen.Network(env.bus())
+    network.notifier = can.Notifier(network.bus, network.listeners, timeout=0.05)
+    node = canopen.RemoteNode(0x10, load_od())
+    network.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    return network, node
+
+
+def close(network):
+    network.notifier.stop(1.0)
+    close_bus(network.bus)
+
+
+def test_malformed_frames_are_counted_and_the_plant_keeps_answering(bus_env):
+    f = Frames()
+    network, node = remote_node(bus_env)
+    bus = network.bus
+    try:
+        node.nmt.send_command(NMTCommand.RESET_NODE)
+        time.sleep(0.3)
+        node.nmt.send_command(NMTCommand.START)
+        raw = [(0x210, b"\x01\x02"), (0x123, b"\xAA"), (0x7EE, b""), (0x080, b"\x01\x02\x03"),
+               (0x610, b"\x40\x00")]
+        for cid, data in raw:
+            bus.send(can.Message(arbitration_id=cid, data=data, is_extended_id=False))
+        bus.send(can.Message(arbitration_id=0x1ABCDEF, data=b"\x00", is_extended_id=True))
+        bus.send(f.encode_unchecked("EMA_RPDO1", {"CurrentDemand": float("nan"),
+                                                  "ControlWord": 1}))
+        bus.send(f.encode("SYNC", {"SYNC_Counter": 1}))
+        bus.send(f.encode_unchecked("EMA_RPDO1", {"CurrentDemand": -1e4, "ControlWord": 1}))
+        bus.send(f.encode("SYNC", {"SYNC_Counter": 2}))
+        time.sleep(0.2)
+        st = node.sdo["node_status"]
+        assert st["bad_frames"].raw == 3           # RPDO, SYNC and SDO of the wrong length
+        assert st["unknown_frames"].raw == 3       # two unknown ids and an extended frame
+        assert st["demands_invalid"].raw == 2      # NaN and -10 kA
+        assert st["cycles"].raw == 2
+        assert st["applied_demand_a"].raw == pytest.approx(-25.0)
+        assert st["status_word"].raw & StatusWord.DEMAND_CLAMPED
+        with pytest.raises(canopen.SdoAbortedError) as e:
+            node.sdo.upload(0x3000, 0)
+        assert e.value.code == 0x06020000
+    finally:
+        node.nmt.send_command(NMTCommand.RESET_NODE)
+        close(network)
+
+
+def test_ecu_killed_mid_run_plant_goes_safe_with_emcy(bus_env, tmp_path):
+    watch = Collector(bus_env)
+    ecu = spawn(sys.executable, "-m", "bench", "run", "sine", "--pace", "sync",
+                "--duration", "60", *bus_env.flags, env=bus_env.env)
+    network, node = remote_node(bus_env)
+    try:
+        wait_until(lambda: watch.ids().count(0x80) > 300, 60, "the ECU's run to start")
+        ecu.send_signal(signal.SIGKILL)
+        ecu.communicate(timeout=10)
+        t_kill = time.monotonic()
+        wait_until(lambda: 0x90 in watch.ids(), 2.0, "an EMCY after the ECU died")
+        assert time.monotonic() - t_kill < 1.0
+        f = Frames()
+        emcy = [f.decode(m)[1] for m in watch.msgs if m.arbitration_id == 0x90]
+        assert f.label("EMA_EMCY", "EMCY_ErrorCode", emcy[-1]["EMCY_ErrorCode"]) == \
+            "heartbeat_lost"
+        word = node.sdo["node_status"]["status_word"].raw
+        assert word & StatusWord.COMMAND_TIMEOUT and not word & StatusWord.ENABLED
+        assert node.sdo["node_status"]["applied_demand_a"].raw == 0.0
+        assert node.sdo["node_status"]["heartbeat_timeouts"].raw == 1
+    finally:
+        if ecu.poll() is None:
+            ecu.kill()
+            ecu.communicate(timeout=10)
+        close(network)
+        watch.close()
+        node.nmt.send_command(NMTCommand.RESET_NODE)
+
+
+@pytest.fixture
+def own_env(tmp_path):
+    old = os.environ.get("BENCH_STATE_DIR")
+    env = make_env("loopback", tmp_path / "state")
+    yield env
+    env.stop()
+    if old is None:
+        os.environ.pop("BENCH_STATE_DIR", None)
+    else:
+        os.environ["BENCH_STATE_DIR"] = old
+
+
+def test_plant_killed_mid_run_ecu_stops_with_a_clear_error_and_a_complete_log(own_env,
+                                                                             tmp_path):
+    log, saved = tmp_path / "cut.log", tmp_path / "cut.npz"
+    ecu = spawn(sys.executable, "-m", "bench", "run", "sine", "--pace", "sync", "--duration",
+                "60", "--no-plant", "--log", str(log), "--save", str(saved), *own_env.flags,
+                env=own_env.env)
+    try:
+        wait_until(lambda: log.exists() and log.stat().st_size > 200_000, 60,
+                   "the run to log frames")
+        plant = own_env.children[-1]
+        os.kill(plant.pid, signal.SIGKILL)
+        t_kill = time.monotonic()
+        out, err = ecu.communicate(timeout=20)
+        elapsed = time.monotonic() - t_kill
+    finally:
+        if ecu.poll() is None:
+            ecu.kill()
+            ecu.communicate(timeout=10)
+    assert ecu.returncode == 2, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("error: the plant stopped answering at t = "), err
+    assert "periods done, log up to there in" in err
+    assert elapsed < 5.0
+    issues = []
+    frames = list(read_log(log, issues))
+    assert not issues and len(frames) > 1000
+    dec = trace_from_log(log)
+    part = Trace.load(saved)
+    assert part.meta["complete"] is False
+    assert abs(len(dec) - len(part)) <= 1 and len(part) > 100
+    n = min(len(dec), len(part))
+    assert (dec["position_m"][:n - 1] == part["position_m"][:n - 1]).all()
+
+
+def test_replay_reports_corrupted_lines_and_plays_the_rest(bus_env, tmp_path):
+    src = tmp_path / "src.log"
+    lines = [f"({1000 + k * 0.001:.6f}) vcan0 181#{k:016X}" for k in range(30)]
+    lines[3] = lines[3][:-5]                       # truncated data
+    lines[10] = "(1000.0100 vcan0 181#00"          # broken timestamp
+    lines[20] = "complete garbage"
+    src.write_text("\n".join(lines) + "\n(1000.05) vcan0 1")   # truncated last line
+    watch = Collector(bus_env)
+    try:
+        time.sleep(0.2)
+        r = bench("replay", str(src), *bus_env.flags, env=bus_env.env)
+        time.sleep(0.3)
+    finally:
+        watch.close()
+    assert r.returncode == 1
+    for n in (4, 11, 21, 31):
+        assert f"line {n}:" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr
+    assert "27 frames played" in r.stdout
+    got = [m for m in watch.msgs if m.arbitration_id == 0x181]
+    assert len(got) == 27
+    assert int.from_bytes(got[-1].data, "big") == 29
+    span = got[-1].timestamp - got[0].timestamp
+    assert 0.02 < span < 0.5                        # original timing (29 ms) kept, roughly
+    r = bench("replay", str(src), "--skip-bad", "--speed", "0", *bus_env.flags,
+              env=bus_env.env)
+    assert r.returncode == 0
+
+
+def test_bench_log_records_the_bus(bus_env, tmp_path):
+    out = tmp_path / "rec.log"
+    rec = spawn(sys.executable, "-m", "bench", "log", str(out), "--duration", "4",
+                *bus_env.flags, env=bus_env.env)
+    bus = bus_env.bus()
+    try:
+        time.sleep(2.5)
+        for k in range(20):
+            bus.send(can.Message(arbitration_id=0x555, data=bytes([k]), is_extended_id=False))
+        o, e = rec.communicate(timeout=20)
+    finally:
+        close_bus(bus)
+        if rec.poll() is None:
+            rec.kill()
+            rec.communicate(timeout=10)
+    assert rec.returncode == 0, e
+    got = [m for m in read_log(out) if m.arbitration_id == 0x555]
+    assert [m.data[0] for m in got] == list(range(20))

@@ -1,0 +1,89 @@
+"""The candidate-effect library: lazy registry, units and bounds, parameter scales."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bench import BenchError
+from bench.gap import effects as E
+from bench.gap.effects import Effect, Param
+from plant_rt.params import PlantParams, resolve
+
+REQUIRED = {"backlash", "friction", "viscous", "stribeck", "stiffness", "preload",
+            "sensor_delay", "lvdt_lag", "lvdt_gain", "lvdt_offset", "encoder_gain",
+            "current_offset", "resistance", "thermal_drift", "kt", "inertia", "lead"}
+
+
+def test_library_covers_the_issue_and_every_parameter_has_unit_and_bounds():
+    assert REQUIRED <= set(E.names())
+    base = PlantParams()
+    for name in E.names():
+        eff = E.get(name)
+        assert eff.params and eff.doc and eff.where in ("plant", "log")
+        nom = eff.nominal(base)
+        for p in eff.params:
+            assert p.unit and p.lo < p.hi, (name, p)
+            assert p.lo <= nom[p.name] <= p.hi or name == "viscous", (name, p.name)
+        over = eff.plant_overrides({p.name: p.from_unit(0.5) for p in eff.params}, base)
+        for k in over:
+            resolve(k)                       # real plant parameter names
+        base.with_dict(over)                 # within the plant's own ranges
+
+
+def test_unknown_effect_is_a_clear_error():
+    with pytest.raises(BenchError, match="unknown effect 'ripple'.*known: backlash"):
+        E.get("ripple")
+    with pytest.raises(BenchError, match="unknown effect"):
+        E.parse_list("backlash,ripple")
+    assert E.parse_list("kt, kt ,lead") == ["kt", "lead"]
+
+
+class Bump(Effect):
+    name = "bump"
+    doc = "test effect"
+    params = (Param("bump_a", "A", 0.0, 1.0, "amplitude"),)
+    where = "log"
+
+    def nominal(self, base):
+        return {"bump_a": 0.0}
+
+
+def test_register_is_lazy_and_checked():
+    E.register("bump", __name__, "Bump")
+    try:
+        assert E.get("bump").params[0].unit == "A"
+        E.register("notaneffect", "math", "pi")
+        with pytest.raises(BenchError, match="cannot be loaded|not a bench.gap Effect"):
+            E.get("notaneffect")
+    finally:
+        E.EFFECTS.pop("bump", None)
+        E.EFFECTS.pop("notaneffect", None)
+
+
+@pytest.mark.parametrize("p", [Param("a", "m", 0.0, 3e-4, ""), Param("b", "-", 0.2, 8.0, "", log=True)])
+def test_unit_coordinates_round_trip(p):
+    for u in np.linspace(0, 1, 7):
+        assert p.to_unit(p.from_unit(u)) == pytest.approx(u, abs=1e-12)
+    assert p.from_unit(-1.0) == p.lo and p.from_unit(2.0) == pytest.approx(p.hi)
+    h = 1e-6
+    num = (p.from_unit(0.3 + h) - p.from_unit(0.3 - h)) / (2 * h)
+    assert p.dvalue_du(0.3) == pytest.approx(num, rel=1e-5)
+
+
+def test_discrete_grid_is_whole_periods():
+    g = E.get("sensor_delay").params[0].grid()
+    assert g[0] == 0.0 and math.isclose(g[1], 1e-3) and math.isclose(g[-1], 8e-3)
+
+
+def test_log_side_effects_act_on_logged_columns_only():
+    cols = {"current_a": np.arange(10.0), "position_m": np.r_[np.zeros(5), np.ones(5)],
+            "motor_speed_rad_s": np.zeros(10), "motor_angle_rad": np.zeros(10),
+            "current_demand_a": np.arange(10.0)}
+    lag = E.get("lvdt_lag").post(cols, {"lvdt_lag_s": 0.005}, 1e-3)
+    assert lag["position_m"][5] < 0.5 and lag["position_m"][-1] > 0.5
+    sk = E.get("log_skew").post(cols, {"log_skew_s": 0.002}, 1e-3)
+    np.testing.assert_array_equal(sk["current_a"][2:], cols["current_a"][:-2])
+    np.testing.assert_array_equal(sk["current_demand_a"], cols["current_demand_a"])
