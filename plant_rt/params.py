@@ -189,7 +189,9 @@ class DriveParams(_Validated):
 class EffectParams(_Validated):
     """Degradation and effect parameters held constant during a run (section 5.7.4)."""
     _group: ClassVar[str] = "effects"
-    backlash_m: float = P(0.0, "m", 0.0, 1e-3, "backlash b_max (eq. 5.19-5.24)", "5.7.4")
+    backlash_m: float = P(0.0, "m", 0.0, 1e-3,
+                          "backlash b_max along the contact normal (eq. 5.19-5.24); axial "
+                          "lost motion b/(cos alpha sin beta) = 1.416 b", "5.7.4")
     friction_scale: float = P(1.0, "-", 0.0, 20.0,
                               "scale of static/Coulomb friction torques and forces (1 = "
                               "nominal, 4 = 100 % degradation)", "5.7.4")

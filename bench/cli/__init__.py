@@ -17,6 +17,7 @@ from bench import BenchError, __version__
 
 # subcommand name -> module under bench.cli
 SUBCOMMANDS: dict[str, str] = {
+    "demo": "demo",
     "reproduce": "reproduce",
     "plant": "plant",
     "up": "updown",

@@ -5,6 +5,7 @@
     bench hums rul        R1-R2: the 120 s run-to-failure run, thesis and fused RUL
     bench hums campaign   >= 20 randomised run-to-failure runs + healthy runs, scored
     bench hums report     self-contained HTML report of one or more logs
+    bench hums watch      live: indexes of every command period of a run on the bus
 """
 
 from __future__ import annotations
@@ -96,6 +97,30 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
                    help="nominal plant parameter override")
     q.set_defaults(func=run_report)
+
+    from bench.bus import add_bus_arguments
+    q = s.add_parser("watch", help="live indexes per command period, listening to the bus",
+                     description="The HUMS as a passive bus client: decodes the ECU's "
+                     "set-points and the actuator's PDOs through the DBC, runs the monitoring "
+                     "model alongside and prints (and writes with --out) Cp, Ci, peak ratio "
+                     "and lost motion of every command period, with the level against the "
+                     "thesis' thresholds. Start it, then `bench run` on the same bus (e.g. "
+                     "after `bench up`). Stops on Ctrl-C, --duration, or --idle seconds "
+                     "without SYNC once a run was seen.")
+    q.add_argument("--period", type=float, default=0.5, metavar="S",
+                   help="command period of the profile (default: %(default)s s, the 2 Hz "
+                        "sine)")
+    q.add_argument("--duration", type=float, default=None, metavar="S",
+                   help="stop after S seconds of listening")
+    q.add_argument("--idle", type=float, default=2.0, metavar="S",
+                   help="stop S seconds after the last SYNC (default: %(default)s)")
+    q.add_argument("--out", metavar="FILE.csv", help="append one row per period (CSV)")
+    q.add_argument("--node-id", type=lambda v: int(v, 0), default=None,
+                   help="actuator node id (default 0x10)")
+    q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                   help="nominal plant parameter override")
+    add_bus_arguments(q)
+    q.set_defaults(func=run_watch)
 
 
 def _no_sub(p: argparse.ArgumentParser) -> int:
@@ -238,4 +263,66 @@ def run_report(args: argparse.Namespace) -> int:
     for a in analyses:
         print(f"{a.name}: {a.verdict}; " + "; ".join(a.reasons))
     print(f"wrote {page}")
+    return 0
+
+
+def run_watch(args: argparse.Namespace) -> int:
+    import csv
+    import signal
+    import sys
+
+    from bench.bus import bus_settings, close_bus, connect, find_bus
+    from bench.hums.live import LiveHums, format_result, watch
+    for name in ("period", "idle"):
+        v = getattr(args, name)
+        if not (math.isfinite(v) and v > 0):
+            raise BenchError(f"--{name} must be > 0 s")
+    if args.duration is not None and not args.duration > 0:
+        raise BenchError("--duration must be > 0 s")
+    params = _params(args)
+    hums = LiveHums(args.period, params, args.node_id)   # fits the monitor gain first
+    found = find_bus(bus_settings(args))
+    if found is None:
+        raise BenchError("no bus to listen to: no python-can configuration, no vcan0 and no "
+                         "loopback hub running (run `bench up`)")
+    cfg, source = found
+    bus = connect(cfg)
+    out = None
+    writer = None
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        out = open(args.out, "w", newline="")  # noqa: SIM115 - closed in finally
+
+    def on_result(r) -> None:
+        nonlocal writer
+        print(format_result(r), flush=True)
+        if out is not None:
+            row = r.row()
+            if writer is None:
+                writer = csv.DictWriter(out, fieldnames=list(row))
+                writer.writeheader()
+            writer.writerow(row)
+            out.flush()
+
+    def on_signal(signum, frame):  # noqa: ARG001
+        raise KeyboardInterrupt
+
+    old = {s_: signal.signal(s_, on_signal) for s_ in (signal.SIGINT, signal.SIGTERM)}
+    n = 0
+    try:
+        n = watch(bus, hums, on_result, args.duration, args.idle,
+                  ready=lambda: print(f"listening on {cfg.get('interface')}:"
+                                      f"{cfg.get('channel')} ({source}), command period "
+                                      f"{args.period:g} s", file=sys.stderr, flush=True))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for s_, h in old.items():
+            signal.signal(s_, h)
+        close_bus(bus)
+        if out is not None:
+            out.close()
+    print(f"{n} command periods over {hums.run} run(s), {hums.frames_seen} frames"
+          + (f", {hums.bad_frames} bad" if hums.bad_frames else "")
+          + (f"; rows in {args.out}" if args.out else ""), file=sys.stderr)
     return 0

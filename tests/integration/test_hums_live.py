@@ -1,0 +1,96 @@
+"""The HUMS live on the bus (`bench hums watch`): per-command-period indexes of a run, as
+a passive bus client, equal to the same indexes computed from the run's candump log."""
+
+from __future__ import annotations
+
+import csv
+import os
+import select
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from bus_helpers import BUS_KINDS, ROOT, module_bus_env, spawn
+
+from bench.bus.logs import read_log, trace_from_log
+from bench.ecu import run_over_bus
+from bench.hums import monitor as M
+from bench.hums.indexes import period_indexes
+from bench.hums.live import LiveHums
+from bench.profiles import make_profile
+from plant_rt.params import PlantParams
+
+
+@pytest.fixture(scope="module", params=BUS_KINDS)
+def bus_env(request, tmp_path_factory):
+    yield from module_bus_env(request, tmp_path_factory)
+
+
+def _wait_line(proc, needle: str, timeout: float) -> str:
+    end = time.monotonic() + timeout
+    seen = ""
+    while time.monotonic() < end:
+        r, _, _ = select.select([proc.stderr], [], [], 0.1)
+        if r:
+            line = proc.stderr.readline()
+            seen += line
+            if needle in line:
+                return seen
+        if proc.poll() is not None:
+            break
+    raise AssertionError(f"no {needle!r} from the watcher within {timeout} s: {seen}")
+
+
+def test_watch_reports_every_period_like_the_log(bus_env, tmp_path):
+    out = tmp_path / "live.csv"
+    proc = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "1.5",
+                 "--out", str(out), *bus_env.flags, env=bus_env.env)
+    try:
+        _wait_line(proc, "listening", 60)
+        values = {"effects.backlash_m": 50e-6, "sensors.noise": True,
+                  "sensors.noise_seed": 5}
+        log = tmp_path / "run.log"
+        run_over_bus(make_profile("sine", cycles=4), values=values, pace="sync",
+                     settings=bus_env.cfg, log_path=log)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, stderr
+    assert "4 command periods over 1 run(s)" in stderr
+    with open(out) as f:
+        live = list(csv.DictReader(f))
+    assert [int(r["period"]) for r in live] == [0, 1, 2, 3]
+    # 50 um of backlash: every period below the thesis' warning level, none healthy
+    assert all(r["level"] in ("WARNING", "DEGRADED") for r in live)
+    assert "WARNING" in stdout
+
+    # the same numbers from the log: replayed through LiveHums, and offline
+    replay = LiveHums(0.5).feed_all(read_log(log))
+    tr = trace_from_log(log)
+    params = PlantParams()
+    kp = M.fitted(params)[0].gain_rad_s_per_m
+    nom = M.nominal_for(tr, kp, M.MonitorParams.from_plant(params))
+    offline = list(period_indexes(tr, nom, 0.5, kin=None))
+    assert len(offline) == len(replay) == 4
+    for key in ("cp", "ci", "peak_ratio"):
+        a = np.array([float(r[key]) for r in live])
+        b = np.array([getattr(ix, key) for ix in offline])
+        np.testing.assert_allclose(a, b, rtol=1e-6, err_msg=key)
+        c = np.array([getattr(r.indexes, key) for r in replay])
+        np.testing.assert_allclose(c, a, rtol=1e-9, err_msg=key)
+
+
+def test_watch_without_a_bus_is_a_one_line_error(tmp_path):
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+    env["BENCH_STATE_DIR"] = str(tmp_path / "none")
+    env["HOME"] = str(tmp_path)          # no ~/.canrc
+    r = subprocess.run([sys.executable, "-m", "bench", "hums", "watch", "--duration", "1"],
+                       capture_output=True, text=True, timeout=120, env=env, cwd=str(ROOT))
+    if r.returncode == 0:
+        pytest.skip("this machine has a configured bus (vcan0 or python-can config)")
+    assert r.returncode == 2
+    assert r.stderr.startswith("error: no bus to listen to")
+    assert "Traceback" not in r.stderr
