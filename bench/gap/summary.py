@@ -46,6 +46,9 @@ def text(js: dict[str, Any], top: int = 8) -> str:
     out = []
     m = loc.get("model", {})
     out.append(f"model: {m.get('name', '?')} ({m.get('fidelity', '')})")
+    if m.get("effects_not_representable"):
+        out.append("  not tried (this model has no place for them; use --model plant): "
+                   + ", ".join(m["effects_not_representable"]))
     ns = sig["noise_sigma"]
     out.append("noise (estimated from the log): "
                f"current {ns['current_a']:.3g} A, speed {ns['motor_speed_rad_s']:.3g} rad/s, "

@@ -386,7 +386,8 @@ def closed_loop(params: PlantParams, drive: Any, n: int | None = None,
     kp = position_kp_rad_s_per_m
     if kp is None:
         kp = (cparams or ControllerParams()).position_kp_rad_s_per_m
-    mon = Monitor(mp, kp, cparams, x0_m=float(drive.x0_m))
+    x0 = getattr(drive, "x0_true_m", None)      # absolute encoder start, when the log has it
+    mon = Monitor(mp, kp, cparams, x0_m=float(drive.x0_m if x0 is None else x0))
     out = mon.run(drive.sp_pos[:n], drive.sp_spd[:n], drive.mode[:n], noise)
     return {"current_a": out[:, 0], "current_demand_a": out[:, 4],
             "motor_speed_rad_s": out[:, 1], "motor_angle_rad": out[:, 2],
