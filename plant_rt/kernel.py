@@ -166,9 +166,12 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     dynamic = p[P_BALL_DYN] != 0.0
     nball = int(p[P_NBALL])
     dtb = dt / nball
+    dtb_mb = dtb / mb            # no division in the ball micro-step loop
     lz, ls = p[P_LZETA], p[P_LSIG]
     ez, es = p[P_EZETA], p[P_ESIG]
     idem = u[U_IDEM]
+    igain, ioff, inoise = u[U_IGAIN], u[U_IOFF], u[U_INOISE]
+    alpha_r, tamb, rth = p[P_ALPHA_R], p[P_TAMB], p[P_RTH]
     ilim = 0.0
     if idem >= IMAX:            # the drive limits the demand to i_max (table 5.2)
         idem = IMAX
@@ -191,7 +194,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         om = x[OM]
         w_m = om / tau                             # motor speed (eq. 5.8)
         # ---- drive: current PI with clamping anti-windup, measured current ----------
-        i_fb = u[U_IGAIN] * x[IM] + u[U_IOFF] + u[U_INOISE]
+        i_fb = igain * x[IM] + ioff + inoise
         e = idem - i_fb
         v_un = kpi * e + x[CI]
         vset = v_un
@@ -210,7 +213,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         else:
             va = vset
         # ---- motor (eq. 5.3-5.6): Crank-Nicolson, so the energy books close exactly -----
-        rt = R0 * (1.0 + p[P_ALPHA_R] * (x[TEMP] - p[P_TAMB]))
+        rt = R0 * (1.0 + alpha_r * (x[TEMP] - tamb))
         hr = 0.5 * dt * rt / L
         i_new = (i * (1.0 - hr) + dt * (va - KE * w_m) / L) / (1.0 + hr)
         i_avg = 0.5 * (i + i_new)
@@ -228,7 +231,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         x[I] = i_new
         x[IM] += (i_new - x[IM]) * a_c                                   # eq. 5.2
         x[TQ] += (KT * i_new - x[TQ]) * a_h                              # eq. 5.4 + demod
-        x[TEMP] += (p[P_TAMB] + rt * i_new * i_new * p[P_RTH] - x[TEMP]) * a_w  # eq. 5.5
+        x[TEMP] += (tamb + rt * i_new * i_new * rth - x[TEMP]) * a_w  # eq. 5.5
         # ---- ball contacts (eq. 5.16-5.24) ---------------------------------------------
         zs = kin * x[TH]
         vzs = kin * om
@@ -242,27 +245,30 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
             ps2 = 0.0
             pn2 = 0.0
             edamp = 0.0
+            # ball states in locals for the micro-step loop (same arithmetic, registers)
+            vb1, vb2, zb1, zb2 = x[VB1], x[VB2], x[ZB1], x[ZB2]
             for kb in range(nball):
                 tb = kb * dtb
                 zs_b = zs + vzs * tb
-                d1 = x[VB1] - vzs
-                d2 = vzn1 - x[VB1]
-                d3 = x[VB2] - vzs
-                d4 = vzn2 - x[VB2]
-                f1, fd1 = contact(x[ZB1] - zs_b, d1, k, c, hb)
-                f2, fd2 = contact(zn1 + vzn1 * tb - x[ZB1], d2, k, c, hb)
-                f3, fd3 = contact(x[ZB2] - zs_b, d3, k, c, hb)
-                f4, fd4 = contact(zn2 + vzn2 * tb - x[ZB2], d4, k, c, hb)
+                d1 = vb1 - vzs
+                d2 = vzn1 - vb1
+                d3 = vb2 - vzs
+                d4 = vzn2 - vb2
+                f1, fd1 = contact(zb1 - zs_b, d1, k, c, hb)
+                f2, fd2 = contact(zn1 + vzn1 * tb - zb1, d2, k, c, hb)
+                f3, fd3 = contact(zb2 - zs_b, d3, k, c, hb)
+                f4, fd4 = contact(zn2 + vzn2 * tb - zb2, d4, k, c, hb)
                 # P'_j = -f (eq. 5.17), P_j = f (eq. 5.18); ball: M_b z'' = P' + P (5.16)
-                x[VB1] += dtb * (f2 - f1) / mb
-                x[VB2] += dtb * (f4 - f3) / mb
-                x[ZB1] += dtb * x[VB1]
-                x[ZB2] += dtb * x[VB2]
+                vb1 += (f2 - f1) * dtb_mb
+                vb2 += (f4 - f3) * dtb_mb
+                zb1 += dtb * vb1
+                zb2 += dtb * vb2
                 ps1 -= f1
                 pn1 += f2
                 ps2 -= f3
                 pn2 += f4
                 edamp += fd1 * d1 + fd2 * d2 + fd3 * d3 + fd4 * d4
+            x[VB1], x[VB2], x[ZB1], x[ZB2] = vb1, vb2, zb1, zb2
             ps1 /= nball
             pn1 /= nball
             ps2 /= nball
