@@ -323,3 +323,25 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
     if not len(tr) and not found:
         raise BenchError(f"{path}: no SYNC frame, so no control period to decode")
     return tr
+
+
+TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
+
+
+def load_trace(path: str | Path) -> Trace:
+    """A candump log (decoded through the DBC) or a saved trace table (.npz, .csv,
+    .parquet) as a Trace; BenchError naming the file when it cannot be read."""
+    path = Path(path)
+    if not path.exists():
+        raise BenchError(f"no such file: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".log":
+        tr = trace_from_log(path)
+    elif suffix in TABLE_SUFFIXES:
+        tr = Trace.load(path)
+    else:
+        raise BenchError(f"{path}: unknown log format {suffix!r} (a candump .log, or a "
+                         f"trace {', '.join(TABLE_SUFFIXES)})")
+    tr.meta.setdefault("source", str(path))
+    return tr
+

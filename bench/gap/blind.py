@@ -356,7 +356,7 @@ def run(n: int, seed: int, workers: int = 2, fidelity: str = "full",
             if bar is not None:
                 bar.update(1)
     else:
-        from bench.gap.pool import make_pool
+        from bench.workers import make_pool
         with make_pool(workers, _init, (ref,)) as ex:
             futs = [ex.submit(run_case, c, fidelity, duration_s, None, effects)
                     for c in cases]

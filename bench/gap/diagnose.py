@@ -35,9 +35,9 @@ from bench.gap import effects as E
 from bench.gap import localise as LZ
 from bench.gap import resim as R
 from bench.gap.fit import Fit, fit
-from bench.gap.pool import ensure_started, make_pool
 from bench.gap.problem import Problem, build, fill_gaps
 from bench.trace import Trace
+from bench.workers import ensure_started, make_pool
 from plant_rt.params import PlantParams
 
 SIGNIFICANT = 1.5       # smoothed residual energy / floor above which a gap is significant

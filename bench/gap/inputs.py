@@ -18,29 +18,11 @@ from bench import BenchError
 from bench.trace import Trace
 from plant_rt.params import ParameterError, PlantParams
 
-TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
-
 
 def load_log(path: str | Path) -> Trace:
     """A log or trace file as a Trace of measured columns (BenchError if unreadable)."""
-    path = Path(path)
-    if not path.exists():
-        raise BenchError(f"no such file: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".log":
-        try:
-            from bench.bus.logs import trace_from_log  # type: ignore[import-not-found]
-        except ImportError:
-            raise BenchError(
-                f"{path}: reading candump logs needs bench.bus.logs.trace_from_log (the bus "
-                "issue), which is not available in this installation; convert the log to a "
-                "trace (.npz/.csv/.parquet) or use `bench import`") from None
-        tr = trace_from_log(path)
-    elif suffix in TABLE_SUFFIXES:
-        tr = Trace.load(path)
-    else:
-        raise BenchError(f"{path}: unknown log format {suffix!r} (expected .log, "
-                         f"{', '.join(TABLE_SUFFIXES)})")
+    from bench.bus.logs import load_trace
+    tr = load_trace(path)
     meta: dict[str, Any] = {"source": str(path)}
     f0 = (tr.meta or {}).get("fundamental_hz")
     if isinstance(f0, (int, float)):

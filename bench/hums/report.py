@@ -30,31 +30,13 @@ from bench.hums import monitor as M
 from bench.trace import MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
 
-TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
 MIN_PERIODS_FOR_TREND = 6
 
 
 def load_log(path: str | Path) -> Trace:
     """A Trace from a candump log (through the DBC) or a trace table."""
-    path = Path(path)
-    if not path.exists():
-        raise BenchError(f"no such file: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".log":
-        try:
-            from bench.bus.logs import trace_from_log  # type: ignore[import-not-found]
-        except ImportError:
-            raise BenchError(f"{path}: decoding candump logs needs bench.bus.logs, which "
-                             "this installation does not have; export the log as a "
-                             ".npz/.csv/.parquet trace") from None
-        tr = trace_from_log(path)
-    elif suffix in TABLE_SUFFIXES:
-        tr = Trace.load(path)
-    else:
-        raise BenchError(f"{path}: unknown log type {suffix!r} (candump .log, or a trace "
-                         ".npz/.csv/.parquet)")
-    tr.meta.setdefault("source", str(path))
-    return tr
+    from bench.bus.logs import load_trace
+    return load_trace(path)
 
 
 def command_frequency(trace: Trace) -> float:

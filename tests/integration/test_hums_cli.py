@@ -97,7 +97,7 @@ def test_report_errors_are_one_line(logs, tmp_path, capsys):
     assert r.returncode == 2
     assert r.stderr.startswith("error:") and "current_a or position_m" in r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
-    cases = [(logs / "notes.txt", "unknown log type"), (logs / "missing.npz", "no such file")]
+    cases = [(logs / "notes.txt", "unknown log format"), (logs / "missing.npz", "no such file")]
     try:
         import bench.bus.logs  # noqa: F401
     except ImportError:

@@ -1,8 +1,9 @@
-"""Worker processes for the gap diagnosis and its benchmark.
+"""Worker processes for the long jobs (HUMS sweeps and campaigns, gap diagnosis).
 
-Workers are spawned (not forked) with one BLAS/OpenMP thread each: the fitting calls
-small dense linear algebra whose OpenBLAS threads would otherwise spin and take the
-other core from the second worker (measured: a diagnosis took 2x longer with two
+Workers are spawned (not forked: numba and threads do not survive a fork well) with one
+BLAS/OpenMP/numba thread each, so two workers use two cores and no more: the fitting
+calls small dense linear algebra whose OpenBLAS threads would otherwise spin and take
+the other core from the second worker (measured: a diagnosis took 2x longer with two
 forked workers than alone).
 """
 
@@ -58,7 +59,7 @@ def ensure_started(pool: ProcessPoolExecutor) -> None:
         for proc in list((getattr(pool, "_processes", None) or {}).values()):
             proc.kill()
         raise BenchError(f"worker processes did not start ({type(exc).__name__}); a "
-                         "script using bench.gap with workers > 1 needs an "
+                         "script using bench.gap or bench.hums with workers > 1 needs an "
                          "`if __name__ == '__main__':` guard, or use workers=1") from None
 
 
