@@ -22,6 +22,7 @@ from typing import Any
 import can.cli
 
 from plant_rt.busdef import Pace
+from plant_rt.pacing import use_realtime_priority
 from plant_rt.params import PARAMS, ParameterError, PlantParams
 from plant_rt.transport import (
     BusUnavailable,
@@ -58,6 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--spin-us", type=int, default=200,
                         help="real-time pacer: busy-wait window before each period "
                              "(default: %(default)s us)")
+    parser.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                        help="run under SCHED_FIFO at priority N (1-99; needs root or "
+                             "CAP_SYS_NICE); 0: normal scheduling (default)")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="exit after S seconds of wall time (default: run until stopped)")
     parser.add_argument("--ready-file", metavar="PATH",
@@ -133,6 +137,8 @@ def run(args: argparse.Namespace) -> int:
         logging.INFO if args.verbose == 1 else logging.DEBUG)
     logging.basicConfig(level=level, format="plant: %(message)s")
     params = build_params(args)
+    if not 0 <= args.rt_priority <= 99:
+        raise PlantError("--rt-priority must be within 0..99")
     try:
         found = resolve(bus_settings(args))
     except BusUnavailable as exc:
@@ -171,8 +177,9 @@ def run(args: argparse.Namespace) -> int:
     # stalls the loop for 30-70 ms at every full collection.
     gc.collect()
     gc.freeze()
+    sched = use_realtime_priority(args.rt_priority)
     print(f"plant: node 0x{node.node_id:02X} on {describe(cfg)} ({source}), "
-          f"pace {args.pace}", file=sys.stderr, flush=True)
+          f"pace {args.pace}, {sched}", file=sys.stderr, flush=True)
     try:
         if args.ready_file:
             Path(args.ready_file).write_text("ready\n")

@@ -55,6 +55,10 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--spin-us", type=int, default=200, metavar="US",
                    help="real-time pacers (ECU and plant): busy-wait window before each "
                         "period (default: %(default)s us)")
+    p.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                   help="run the ECU (and the hub and plant it starts) under SCHED_FIFO at "
+                        "priority N (1-99; needs root or CAP_SYS_NICE); 0: normal scheduling "
+                        "(default)")
     p.add_argument("--no-plant", action="store_true",
                    help="never start a plant (a real actuator must answer)")
     p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
@@ -88,6 +92,8 @@ def run(args: argparse.Namespace) -> int:
                          "(use .csv, .parquet or .npz)")
     if not 0 <= args.spin_us <= 1000:
         raise BenchError("--spin-us must be within 0..1000 us")
+    if not 0 <= args.rt_priority <= 99:
+        raise BenchError("--rt-priority must be within 0..99")
     duration = args.duration if args.duration is not None else profile.duration_s
     progress = args.progress
     if progress is None:
@@ -96,6 +102,10 @@ def run(args: argparse.Namespace) -> int:
     def say(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
 
+    from plant_rt.pacing import use_normal_priority, use_realtime_priority
+    sched = use_realtime_priority(args.rt_priority)
+    if args.rt_priority:
+        say(f"scheduling: {sched}")
     try:
         trace = run_over_bus(profile, assignments=args.assignments, pace=args.pace,
                              duration_s=args.duration, log_path=args.log, progress=progress,
@@ -111,6 +121,9 @@ def run(args: argparse.Namespace) -> int:
                 msg += f", log up to there in {args.log}"
             raise BenchError(msg) from None
         raise
+    finally:
+        use_normal_priority()
+    trace.meta["scheduling"] = sched
     if args.save:
         trace.save(args.save)
     print(summary(trace, args.save))
@@ -145,6 +158,9 @@ def summary(trace, save: str | None = None) -> str:
                      f"misses, jitter p50/p99/max {pc['jitter_p50_us']:.0f}/"
                      f"{pc['jitter_p99_us']:.0f}/{pc['jitter_max_us']:.0f} us")
     if m.get("pace") == "realtime":
+        if m.get("scheduling"):
+            lines.append(f"  scheduling of the ECU (and of a hub and plant started for "
+                         f"the run): {m['scheduling']}")
         lines.append(f"  ECU SYNC jitter p50/p99/max {ecu.get('sync_jitter_p50_us', 0):.0f}/"
                      f"{ecu.get('sync_jitter_p99_us', 0):.0f}/"
                      f"{ecu.get('sync_jitter_max_us', 0):.0f} us, "

@@ -24,6 +24,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                     metavar="NAME=VALUE", help="plant parameter at start (repeatable)")
     up.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
                     help="actuator node id (default 0x10)")
+    up.add_argument("--rt-priority", type=int, default=0, metavar="N",
+                    help="start hub and plant under SCHED_FIFO at priority N (1-99; needs "
+                         "root or CAP_SYS_NICE); 0: normal scheduling (default)")
     add_bus_arguments(up)
     up.set_defaults(func=cmd_up)
 
@@ -58,8 +61,13 @@ def cmd_up(args: argparse.Namespace) -> int:
         print(f"already up: plant pid {plant['pid']} on {plant['bus']} "
               f"(`bench down` first to restart)")
         return 0
+    from plant_rt.pacing import use_normal_priority, use_realtime_priority
+    if not 0 <= args.rt_priority <= 99:
+        raise BenchError("--rt-priority must be within 0..99")
     found = find_bus(bus_settings(args))
     started = []
+    if args.rt_priority:     # the hub and the plant started below inherit the policy
+        print(f"scheduling: {use_realtime_priority(args.rt_priority)}")
     if found is None:
         hub = start_hub(persistent=True)
         started.append(hub)
@@ -74,6 +82,8 @@ def cmd_up(args: argparse.Namespace) -> int:
         for c in started:
             c.stop()
         raise
+    finally:
+        use_normal_priority()
     bus = f"{cfg.get('interface')}:{cfg.get('channel')}"
     write_state(PLANT_FILE, {"pid": child.pid, "bus": bus, "source": source,
                              "pace": args.pace, "log": str(child.log_path),

@@ -92,6 +92,8 @@ def test_run_without_bench_up_starts_and_stops_its_own_bus_and_plant(state_env, 
     (("run", "sine", "--duration", "-1"), "error: --duration must be > 0 s"),
     (("decode", "/nonexistent.log"), "error: no such log: /nonexistent.log"),
     (("plant", "--set", "nope=1"), "error: unknown parameter 'nope'"),
+    (("run", "sine", "--rt-priority", "100"), "error: --rt-priority must be within 0..99"),
+    (("up", "--rt-priority", "-1"), "error: --rt-priority must be within 0..99"),
 ])
 def test_user_errors_are_one_line(state_env, args, message):
     r = bench(*args, env=state_env, timeout=60)

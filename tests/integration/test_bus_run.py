@@ -145,3 +145,14 @@ def test_realtime_run_completes(bus_env):
     assert pc["cycles"] + pc["skipped_periods"] >= 280
     assert np.isfinite(tr["position_m"][100:]).all()
     assert load_od()[0x1017].default == 100
+
+
+def test_realtime_run_with_real_time_scheduling(bus_env):
+    r = bench("run", "sine", "--pace", "realtime", "--duration", "0.3", "--rt-priority", "5",
+              *bus_env.flags, env=bus_env.env)
+    assert r.returncode == 0, r.stderr
+    assert "300 periods" in r.stdout
+    # SCHED_FIFO where permitted (root, CAP_SYS_NICE), else the refusal is said
+    assert ("SCHED_FIFO priority 5" in r.stdout
+            or "normal scheduling (SCHED_FIFO 5 refused" in r.stdout), r.stdout
+

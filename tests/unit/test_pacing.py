@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
-from plant_rt.pacing import LatenessStats, RealtimePacer
+from plant_rt.pacing import LatenessStats, RealtimePacer, use_normal_priority, use_realtime_priority
 
 
 class FakeClock:
@@ -73,3 +75,23 @@ def test_discipline_locks_the_phase_to_an_event_slowly():
         p.release_ns += 1_000_000             # as done() would
         base_shift = (p.release_ns - (event + 300_000)) % 1_000_000
     assert min(base_shift, 1_000_000 - base_shift) < 2_000
+
+
+def test_realtime_priority_is_applied_or_the_refusal_described():
+    assert use_realtime_priority(0) == "normal scheduling"
+    with pytest.raises(ValueError, match="1..99"):
+        use_realtime_priority(100)
+    before = os.sched_getscheduler(0)
+    try:
+        said = use_realtime_priority(3)
+        if said.startswith("SCHED_FIFO"):
+            assert said == "SCHED_FIFO priority 3"
+            assert os.sched_getscheduler(0) == os.SCHED_FIFO
+            assert os.sched_getparam(0).sched_priority == 3
+        else:                                  # not permitted here: said, nothing changed
+            assert "refused" in said and "CAP_SYS_NICE" in said
+            assert os.sched_getscheduler(0) == before
+    finally:
+        use_normal_priority()
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER
+
