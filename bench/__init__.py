@@ -11,3 +11,20 @@ __version__ = "0.1.0"
 
 class BenchError(Exception):
     """An error the user can fix: printed as one line ``error: ...`` by the CLI."""
+
+
+def machine_description() -> str:
+    """CPU model, core count and Python version, for benchmark and report headers."""
+    import os
+    import platform
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
+

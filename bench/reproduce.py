@@ -429,20 +429,5 @@ def figures(res: Result, outdir: str | Path) -> list[Path]:
     return paths
 
 
-def machine_description() -> str:
-    import os
-    import platform
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
-
-
 __all__ = ["run", "markdown", "figures", "Row", "Result", "make_profile",
            "stiffness_deflection", "analytic_axial_stiffness"]

@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -28,6 +27,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench import machine_description  # noqa: E402
 
 SECTION = "## Bus (issue 3)"
 
@@ -48,18 +49,6 @@ while True:
 print(" ".join(str(x) for x in lat), flush=True)
 bus.shutdown()
 """
-
-
-def machine() -> str:
-    cpu = platform.processor() or "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
 def percentiles(values, qs=(50, 99)):
@@ -323,7 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     n_lat = 500 if args.quick else 5000
     cycles = 1000 if args.quick else args.cycles
     lock_s = 1.0 if args.quick else 5.0
-    res: dict = {"machine": machine(), "load_before": os.getloadavg()[0]}
+    res: dict = {"machine": machine_description(), "load_before": os.getloadavg()[0]}
     res["bus_load"] = bus_load()
     res["latency"] = [latency("select", n_lat), latency("can_remote", n_lat)]
     for r in res["latency"]:

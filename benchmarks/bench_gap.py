@@ -23,10 +23,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench import machine_description  # noqa: E402
 from bench.gap import blind  # noqa: E402
 from bench.gap import effects as E  # noqa: E402
 from bench.gap.diagnose import Options, diagnose  # noqa: E402
-from bench.reproduce import machine_description  # noqa: E402
 
 SECTION = "## Gap diagnosis (issue 5)"
 CASES = [

@@ -103,7 +103,7 @@ def run(repeats: int, workers: int) -> dict:
 
 
 def markdown(res: dict, repeats: int, workers: int) -> str:
-    from bench.hums.table import machine_description
+    from bench import machine_description
     sw, rl, pt = res["sweep"], res["rul"], res["parts"]
     ok = lambda v, goal: "yes" if v < goal else "**no**"  # noqa: E731
     lines = [SECTION, "",

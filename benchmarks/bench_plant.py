@@ -32,9 +32,9 @@ from numba import njit
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from bench import machine_description  # noqa: E402
 from bench.harness import simulate  # noqa: E402
 from bench.profiles import sine  # noqa: E402
-from bench.reproduce import machine_description  # noqa: E402
 from plant_rt import kernel as K  # noqa: E402
 from plant_rt.model import Plant  # noqa: E402
 from plant_rt.params import PlantParams  # noqa: E402

@@ -7,7 +7,7 @@ import json
 import time
 from pathlib import Path
 
-from bench import BenchError
+from bench import BenchError, machine_description
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     res = R.run(params, only=args.only, progress=True)
     elapsed = time.perf_counter() - t0
-    text = R.markdown(res, R.machine_description())
+    text = R.markdown(res, machine_description())
     text += f"\nWall time of the run: {elapsed:.1f} s.\n"
     if args.figures:
         paths = R.figures(res, args.figures)

@@ -546,8 +546,8 @@ def run_rul(params: PlantParams | None = None, noise: bool = False, fused: bool 
             cal: Calibration | None = None) -> RulResult:
     """R1-R2: the 120 s run with the thesis' schedule, its indexes, the thesis' prediction,
     and (with `fused`) the fused prediction with its band."""
+    from bench import machine_description
     from bench.hums.pool import run_all
-    from bench.hums.table import machine_description
     t0 = time.perf_counter()
     base = params or PlantParams()
     kp = M.fitted(base)[0].gain_rad_s_per_m
@@ -875,8 +875,8 @@ def run_campaign(n_runs: int = 20, n_healthy: int = 10, seed: int = 2024,
     noise-free twin for its true failure time) and `n_healthy` healthy runs (false
     alarms), scored for the thesis algorithm (on Ci and on harmonic Ci) and the fused
     predictor with progpy's metrics."""
+    from bench import machine_description
     from bench.hums.pool import run_all
-    from bench.hums.table import machine_description
     if n_runs < 1:
         raise BenchError("the campaign needs at least one run-to-failure run")
     t0 = time.perf_counter()

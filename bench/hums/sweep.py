@@ -117,7 +117,7 @@ def _point(job: tuple[str, str, bool, float, int, float, str]) -> Point:
 def run(params: PlantParams | None = None, noise: str = "both", points: int = 11,
         workers: int | None = None, progress: bool = True) -> SweepResult:
     """The whole sweep: H1 fit, then `points` levels x 3 maneuvers x noise settings."""
-    from bench.hums.table import machine_description
+    from bench import machine_description
     if points < 2:
         raise BenchError("the sweep needs at least 2 degradation points")
     noises = {"off": (False,), "on": (True,), "both": (False, True)}.get(noise)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import platform
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -76,19 +75,6 @@ def markdown(rows: list[Row]) -> str:
         out.append("| " + " | ".join(c.replace("\n", " ").replace("|", "\\|")
                                      for c in cells) + " |")
     return "\n".join(out) + "\n"
-
-
-def machine_description() -> str:
-    import os
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
 def replace_section(path: str | Path, name: str, body: str) -> Path:
