@@ -27,6 +27,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+import perfdoc  # noqa: E402
 
 from bench import machine_description  # noqa: E402
 
@@ -283,15 +284,7 @@ def write_section(path: Path, res: dict) -> None:
           "and NMT traffic is occasional and not counted.", ""]
     if res.get("notes"):
         L += [res["notes"], ""]
-    section = "\n".join(L)
-    text = path.read_text() if path.exists() else "# Performance\n\n"
-    start = text.find(SECTION)
-    if start >= 0:
-        end = text.find("\n## ", start + len(SECTION))
-        text = text[:start] + section + (text[end + 1:] if end >= 0 else "")
-    else:
-        text = text.rstrip("\n") + "\n\n" + section
-    path.write_text(text)
+    perfdoc.write_section(path, "\n".join(L))
 
 
 def main(argv: list[str] | None = None) -> int:

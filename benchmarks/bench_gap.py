@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from perfdoc import write_section  # noqa: E402
 
 from bench import machine_description  # noqa: E402
 from bench.gap import blind  # noqa: E402
@@ -94,14 +94,6 @@ def markdown(rows: list[dict], workers: int, repeats: int, load: tuple[str, str]
               "is in the fits: each candidate takes 20-60 closed-loop re-simulations "
               "(start points, finite-difference Jacobians, the held-out check).", ""]
     return "\n".join(lines)
-
-
-def write_section(path: Path, text: str) -> None:
-    old = path.read_text() if path.exists() else "# Performance\n\n"
-    pat = re.compile(re.escape(SECTION) + r".*?(?=^## |\Z)", re.S | re.M)
-    new = pat.sub(lambda m: text + "\n", old) if pat.search(old) else \
-        old.rstrip() + "\n\n" + text + "\n"
-    path.write_text(new)
 
 
 def main() -> None:

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import subprocess
 import sys
 import time
@@ -29,6 +28,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from perfdoc import write_section  # noqa: E402
 
 SECTION = "## HUMS (issue 4)"
 
@@ -133,14 +133,6 @@ def markdown(res: dict, repeats: int, workers: int) -> str:
              "healthy runs + calibration, ~5200 simulated seconds) is not a benchmark goal; "
              "its wall time is in docs/hums.md.", ""]
     return "\n".join(lines)
-
-
-def write_section(path: Path, text: str) -> None:
-    old = path.read_text() if path.exists() else "# Performance\n\n"
-    pat = re.compile(re.escape(SECTION) + r".*?(?=^## |\Z)", re.S | re.M)
-    new = pat.sub(lambda m: text + "\n", old) if pat.search(old) else \
-        old.rstrip() + "\n\n" + text + "\n"
-    path.write_text(new)
 
 
 def main() -> None:

@@ -31,6 +31,7 @@ from numba import njit
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+import perfdoc  # noqa: E402
 
 from bench import machine_description  # noqa: E402
 from bench.harness import simulate  # noqa: E402
@@ -248,15 +249,7 @@ def write_section(path: Path, res: dict) -> None:
               f"{m['trace']:.1f} MB). The process's peak RSS is {m['peak_rss']:.0f} MB, of which "
               f"{m['rss_after_imports']:.0f} MB is the interpreter with numpy, scipy, numba "
               "and the compiled kernel before the run starts.", "", ""]
-    section = "\n".join(lines)
-    text = path.read_text() if path.exists() else "# Performance\n\n"
-    start = text.find("## Plant (issue 2)")
-    if start >= 0:
-        end = text.find("\n## ", start + 5)
-        text = text[:start] + section + (text[end + 1:] if end >= 0 else "")
-    else:
-        text = text.rstrip("\n") + "\n\n" + section
-    path.write_text(text)
+    perfdoc.write_section(path, "\n".join(lines))
 
 
 if __name__ == "__main__":
