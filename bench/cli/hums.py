@@ -237,21 +237,11 @@ def run_campaign(args: argparse.Namespace) -> int:
     if args.doc:
         body = text
         if paths:
-            d = _doc_dir(args.doc)
-            body += "\n" + "\n".join(
-                f"![{p.stem}]({_rel(p, d)})" for p in paths) + "\n"
+            from bench.hums.table import figure_links
+            body += "\n" + "\n".join(figure_links(paths, _doc_dir(args.doc))) + "\n"
         replace_section(args.doc, "campaign", body)
         print(f"updated {args.doc}")
     return 0
-
-
-def _rel(p: Path, d: Path | None) -> str:
-    if d is None:
-        return p.as_posix()
-    try:
-        return p.resolve().relative_to(d.resolve()).as_posix()
-    except ValueError:
-        return p.as_posix()
 
 
 def run_report(args: argparse.Namespace) -> int:

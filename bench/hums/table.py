@@ -94,3 +94,18 @@ def replace_section(path: str | Path, name: str, body: str) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     return path
+
+
+def figure_links(paths: list[Path] | None, doc_dir: Path | None = None) -> list[str]:
+    """Markdown image lines for `paths`, relative to `doc_dir` where they lie under it."""
+    out = []
+    for p in paths or []:
+        rel = Path(p)
+        if doc_dir is not None:
+            try:
+                rel = Path(p).resolve().relative_to(Path(doc_dir).resolve())
+            except ValueError:
+                rel = Path(p)
+        out.append(f"![{Path(p).stem}]({rel.as_posix()})")
+    return out
+
