@@ -83,6 +83,14 @@ def _run_case(name: str, d: float, seed: int, cycles: float, out: Path,
                          progress=sys.stderr.isatty(), settings=bus_settings(args),
                          announce=say if name == CASES[0][0] else None)
     trace.save(out / f"{name}.npz")
+    # a plant already on the bus (`bench up --set ...`) keeps its own start-up values for
+    # what the demo does not set: say so rather than pass them off as the defaults
+    from plant_rt.params import PlantParams
+    ran = PlantParams.from_dict(trace.meta["params"])
+    other = ran.diff(PlantParams().with_assignments(sets))
+    if other:
+        say(f"warning: the plant on this bus ran {name} with non-default "
+            f"{', '.join(sorted(other))}; restart it without --set for the embedded defaults")
     return path
 
 
