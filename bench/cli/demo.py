@@ -54,13 +54,7 @@ def _assignments(d: float, seed: int) -> list[str]:
     from bench.hums.sweep import degraded
     from plant_rt.params import PlantParams
     p = degraded(PlantParams(), d, noise=True, seed=seed)
-    base = PlantParams()
-    return [f"{k}={v}" for k, v in p.flat().items() if not _same(base.get(k), v)]
-
-
-def _same(a, b) -> bool:
-    return a == b or (isinstance(a, float) and isinstance(b, float)
-                      and math.isnan(a) and math.isnan(b))
+    return [f"{k}={v}" for k, (v, _) in p.diff(PlantParams()).items()]
 
 
 def _run_case(name: str, d: float, seed: int, cycles: float, out: Path,

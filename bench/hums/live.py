@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import can
-import numpy as np
 
 from bench import BenchError
 from bench.bus.logs import SIGNAL_COLUMNS
@@ -197,9 +196,3 @@ def format_result(r: PeriodResult) -> str:
     return (f"run {r.run} period {r.period:4d} t {r.t_start_s:8.2f} s  Cp {ix.cp:6.3f}  "
             f"Ci {ci:6.3f}  peak ratio {ix.peak_ratio:5.2f}  lost motion {lm:6.1f} um  "
             f"{LEVELS[r.level]}")
-
-
-def results_table(results: list[PeriodResult]) -> dict[str, np.ndarray]:
-    rows = [r.row() for r in results]
-    keys = list(rows[0]) if rows else []
-    return {k: np.array([row[k] for row in rows]) for k in keys}
