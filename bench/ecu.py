@@ -342,7 +342,8 @@ class Ecu:
         ctrl.reset()
         rows = {k: np.full(n, np.nan) for k in (
             "current_demand_a", "current_a", "motor_speed_rad_s", "motor_angle_rad",
-            "position_m", "winding_temperature_k", "status_word", "bus_time_s")}
+            "position_m", "winding_temperature_k", "load_force_n", "status_word",
+            "bus_time_s")}
         stats = EcuStats()
         self.partial: Trace | None = None
         k = 0
@@ -444,6 +445,7 @@ class Ecu:
                 rows["motor_angle_rad"][k] = t2["EncoderAngle"] * TWO_PI / cpr
                 rows["position_m"][k] = pos
                 rows["winding_temperature_k"][k] = t3["WindingTemperature"]
+                rows["load_force_n"][k] = t3["LoadForce"]
                 stats.periods = k + 1
                 self.heartbeat()
                 if pacer is not None:

@@ -20,7 +20,7 @@ from bench.control import ControllerParams, controller_step
 from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K
-from plant_rt.model import Plant, schedule_at
+from plant_rt.model import Plant, load_noise_seed, schedule_at
 from plant_rt.params import PlantParams
 
 TRUTH_FROM_STATE = ("true_position_m", "true_current_a", "true_motor_speed_rad_s",
@@ -37,11 +37,14 @@ class RunInputs:
     u: np.ndarray
     noise: np.ndarray
     sched: np.ndarray   # (n, 3): preload N, backlash m, friction scale
+    noise_load: np.ndarray  # (n,): load cell noise (N)
 
 
 def run_inputs(profile: Profile, params: PlantParams, duration_s: float | None = None,
-               mode_override: np.ndarray | None = None) -> RunInputs:
-    """Inputs of every SYNC period of `profile` under `params` (noise stream as Plant's)."""
+               mode_override: np.ndarray | None = None,
+               ext_force_n: np.ndarray | None = None) -> RunInputs:
+    """Inputs of every SYNC period of `profile` under `params` (noise stream as Plant's).
+    `ext_force_n`: an axial force (N) per period added to the load profile of `params`."""
     ts = params.sim.sync_period_s
     dur = profile.duration_s if duration_s is None else duration_s
     n = int(round(dur / ts))
@@ -57,21 +60,32 @@ def run_inputs(profile: Profile, params: PlantParams, duration_s: float | None =
     u[:, K.U_VSCALE] = params.effects.viscous_scale
     u[:, K.U_IGAIN] = params.sensors.current_gain
     u[:, K.U_IOFF] = params.sensors.current_offset_a
+    if ext_force_n is not None:
+        f = np.asarray(ext_force_n, float)
+        if f.shape != (n,):
+            raise BenchError(f"ext_force_n has shape {f.shape}, expected ({n},)")
+        u[:, K.U_FEXT] = f
     se = params.sensors
     noise = np.zeros((n, 3))
+    noise_load = np.zeros(n)
     if se.noise:
         z = np.random.default_rng(se.noise_seed).standard_normal((n + 1, 3))[:n]
         noise[:] = z * np.array([se.current_noise_a, se.position_noise_m, se.speed_noise_rad_s])
-    return RunInputs(t, sp_pos, sp_spd, mode, u, noise, sched)
+        noise_load[:] = (np.random.default_rng(load_noise_seed(params)).standard_normal(n + 1)[:n]
+                         * se.load_noise_n)
+    return RunInputs(t, sp_pos, sp_spd, mode, u, noise, sched, noise_load)
 
 
 def simulate(profile: Profile, params: PlantParams | None = None,
              cparams: ControllerParams | None = None, duration_s: float | None = None,
-             progress: bool = False, chunk_s: float = 1.0) -> Trace:
+             progress: bool = False, chunk_s: float = 1.0,
+             ext_force_n: np.ndarray | None = None) -> Trace:
     """Run `profile` on the plant with the ECU controller in-process; returns a Trace.
 
     `params` are applied with the profile's own overrides (e.g. the RUL schedule).
     With `progress`, a tqdm bar advances every `chunk_s` of simulated time.
+    `ext_force_n`: an extra axial force (N) per SYNC period on top of `params.load`
+    (in-process only; the load cell reads it like any other external force).
     """
     params = (params or PlantParams())
     if profile.params_overrides:
@@ -80,7 +94,7 @@ def simulate(profile: Profile, params: PlantParams | None = None,
     if not math.isclose(cparams.sample_period_s, params.sim.sync_period_s):
         raise BenchError("controller sample period and plant SYNC period differ")
     plant = Plant(params)
-    ri = run_inputs(profile, params, duration_s)
+    ri = run_inputs(profile, params, duration_s, ext_force_n=ext_force_n)
     n = len(ri.t)
     meas = np.zeros((n, K.NM))
     dem = np.zeros(n)
@@ -123,6 +137,8 @@ def simulate(profile: Profile, params: PlantParams | None = None,
         "motor_speed_rad_s": meas[:n, K.M_SPEED],
         "motor_angle_rad": meas[:n, K.M_ANGLE],
         "position_m": meas[:n, K.M_POS],
+        # the load cell sampled at SYNC k reads the force averaged over period k - 1
+        "load_force_n": np.concatenate([[0.0], diag[:n - 1, K.O_FEXT]]) + ri.noise_load[:n],
     }
     if ndelay:
         idx = np.maximum(np.arange(n) - ndelay, 0)

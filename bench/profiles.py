@@ -114,9 +114,17 @@ def rul(duration_s: float = 120.0, amplitude_m: float = 0.5e-3,
                    fundamental_hz=frequency_hz)
 
 
+def gap_excitation(duration_s: float = 10.0, load_n: float = 2000.0) -> Profile:
+    """The gap diagnosis maneuver (`bench.gap.maneuvers.excitation`): 1-4 Hz sines,
+    current-limited steps, cruise ramps and dwells under a `load_n` N sine load."""
+    from bench.gap.maneuvers import excitation
+    return excitation(duration_s, load_n)
+
+
 PROFILES: dict[str, Callable[..., Profile]] = {
     "step": step, "sine": sine, "velocity-step": velocity_step,
     "velocity-cosine": velocity_cosine, "chirp": chirp, "rul": rul,
+    "gap-excitation": gap_excitation,
 }
 
 

@@ -8,7 +8,8 @@ a clear error naming what is missing.
 
 Measured columns (what crosses the bus, what a real actuator gives):
     t_s, setpoint_position_m, setpoint_speed_rad_s, mode, current_demand_a, current_a,
-    motor_speed_rad_s, motor_angle_rad, position_m
+    motor_speed_rad_s, motor_angle_rad, position_m, load_force_n (load cell; a run
+    without one simply has no such column)
 Truth columns (only from a simulated plant; never used by the HUMS or the diagnosis):
     true_position_m, true_current_a, true_motor_speed_rad_s, motor_torque_nm,
     friction_torque_nm, friction_force_n, reaction_torque_nm, temperature_k,
@@ -30,7 +31,7 @@ import numpy as np
 from bench import BenchError
 
 MEASURED = ("t_s", "setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
-            "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")
+            "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m", "load_force_n")
 TRUTH = ("true_position_m", "true_current_a", "true_motor_speed_rad_s", "motor_torque_nm",
          "friction_torque_nm", "friction_force_n", "reaction_torque_nm", "temperature_k",
          "ext_force_n", "backlash_m", "friction_scale", "preload_n", "voltage_v")

@@ -46,8 +46,10 @@ STATE_NAMES = (
 NP = 50
 
 # --- inputs u (held over one SYNC period) -----------------------------------------------
-U_IDEM, U_PRELOAD, U_BACKLASH, U_FSCALE, U_VSCALE, U_INOISE, U_IGAIN, U_IOFF = range(8)
-NU = 8
+U_IDEM, U_PRELOAD, U_BACKLASH, U_FSCALE, U_VSCALE, U_INOISE, U_IGAIN, U_IOFF, U_FEXT = range(9)
+NU = 9
+# U_FEXT: external axial force (N) added to the load profile of p over the period: a
+# logged load-cell force replayed by the gap diagnosis, or a disturbance injected in-process
 
 # --- period diagnostics out -------------------------------------------------------------
 (O_FRIC_T, O_FRIC_F, O_REACT_T, O_VOLT, O_FEXT, O_ILIM, O_PMAX1, O_PMAX2) = range(8)
@@ -310,7 +312,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
                 om_new = 0.0
                 x[STS] = 1.0 if abs(tt) <= c_stat else 0.0
         # ---- double nut (eq. 5.27-5.32) -----------------------------------------------
-        fext = _ext_force(p, t)
+        fext = _ext_force(p, t) + u[U_FEXT]                             # F_ext, eq. 5.29
         fz1 = -pn1 * g                                                 # eq. 5.28
         fz2 = -pn2 * g
         ffr_tot = 0.0

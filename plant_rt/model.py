@@ -43,6 +43,7 @@ class Measurement(NamedTuple):
     position_m: float         # LVDT nut position (eq. 5.1) + noise
     temperature_k: float      # winding temperature (eq. 5.5)
     status: int
+    load_n: float = 0.0       # load cell: F_ext averaged over the last period + noise
 
 
 def param_vector(params: PlantParams) -> np.ndarray:
@@ -135,6 +136,11 @@ def schedule_at(params: PlantParams, t: float) -> tuple[float, float, float]:
     return preload, backlash, fscale
 
 
+def load_noise_seed(params: PlantParams) -> list[int]:
+    """Seed of the load cell's noise stream (separate from the other sensors')."""
+    return [int(params.sensors.noise_seed), 4]
+
+
 class Plant:
     """The EMA plant of thesis chapter 5 behind a one-SYNC-period step."""
 
@@ -155,6 +161,8 @@ class Plant:
         self.out[:] = 0.0
         self._rng = np.random.default_rng(self.params.sensors.noise_seed)
         self._noise = np.zeros(3)
+        self._rng_load = np.random.default_rng(load_noise_seed(self.params))
+        self._noise_load = 0.0
         delay = round(self.params.effects.sensor_delay_s / self.params.sim.sync_period_s)
         self._hist: deque[np.ndarray] = deque(maxlen=max(delay, 1))
         self._ndelay = delay
@@ -223,6 +231,8 @@ class Plant:
             z = self._rng.standard_normal(3)
             self._noise[:] = (z[0] * se.current_noise_a, z[1] * se.position_noise_m,
                               z[2] * se.speed_noise_rad_s)
+            # the load cell's own stream: adding it left the other sensors' noise unchanged
+            self._noise_load = float(self._rng_load.standard_normal()) * se.load_noise_n
 
     # -- outputs -------------------------------------------------------------------
     @property
@@ -249,7 +259,8 @@ class Plant:
         if self._ndelay and self._hist:  # LVDT and encoder samples sensor_delay_s old
             m = self._hist[0]   # (the first sample repeats until the history is full)
         return Measurement(float(cur), float(m[K.M_SPEED]), float(m[K.M_ANGLE]),
-                           float(m[K.M_POS]), float(temp), int(self.status()))
+                           float(m[K.M_POS]), float(temp), int(self.status()),
+                           float(self.out[K.O_FEXT]) + self._noise_load)
 
     def truth(self) -> dict[str, float]:
         """Simulation-only signals at the current time / over the last period."""

@@ -418,6 +418,7 @@ class PlantNode:
                 "LvdtPosition": f.clamp("EMA_TPDO3", "LvdtPosition", m.position_m),
                 "WindingTemperature": f.clamp("EMA_TPDO3", "WindingTemperature",
                                               m.temperature_k),
+                "LoadForce": f.clamp("EMA_TPDO3", "LoadForce", m.load_n),
             }
             msgs = [f.encode(name, {s.name: v[s.name] for s in f.by_name[name].signals})
                     for name in ("EMA_TPDO2", "EMA_TPDO3")]
@@ -430,7 +431,7 @@ class PlantNode:
         return {**v, "StatusWord": self.status_word(status)}
 
     def transmit_tpdos(self) -> None:
-        """TPDO1 (current, status word), TPDO2 (encoder), TPDO3 (LVDT, temperature)."""
+        """TPDO1 (current, status word), TPDO2 (encoder), TPDO3 (LVDT, temperature, load)."""
         v, msgs, status = self._sensors()
         word = self.status_word(status)
         self.send(self.frames.encode("EMA_TPDO1", {"MotorCurrent": v["MotorCurrent"],

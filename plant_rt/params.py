@@ -164,6 +164,10 @@ class SensorParams(_Validated):
                                 "chosen")
     speed_noise_rad_s: float = P(0.2, "rad/s", 0.0, 100.0, "encoder speed noise std",
                                  "chosen")
+    load_noise_n: float = P(2.0, "N", 0.0, 1000.0,
+                            "load cell (strain-gauge bridge, section 4.4) noise std per "
+                            "SYNC sample; the cell reads F_ext averaged over the period",
+                            "chosen")
 
 
 @dataclass(frozen=True)

@@ -192,7 +192,7 @@ class SdoTracker:
 # -- decoding -----------------------------------------------------------------------------
 COLUMNS = ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
            "current_a", "motor_speed_rad_s", "encoder_counts", "position_m",
-           "winding_temperature_k", "status_word", "bus_time_s", "run")
+           "winding_temperature_k", "load_force_n", "status_word", "bus_time_s", "run")
 SIGNAL_COLUMNS = {
     "ECU_Setpoint": (("SetpointPosition", "setpoint_position_m"),
                      ("SetpointSpeed", "setpoint_speed_rad_s"), ("Mode", "mode")),
@@ -200,7 +200,8 @@ SIGNAL_COLUMNS = {
     "EMA_TPDO1": (("MotorCurrent", "current_a"), ("StatusWord", "status_word")),
     "EMA_TPDO2": (("EncoderAngle", "encoder_counts"), ("EncoderSpeed", "motor_speed_rad_s")),
     "EMA_TPDO3": (("LvdtPosition", "position_m"), ("WindingTemperature",
-                                                   "winding_temperature_k")),
+                                                   "winding_temperature_k"),
+                  ("LoadForce", "load_force_n")),
 }
 
 

@@ -8,10 +8,12 @@ balls) with sensor noise on, while the diagnosis re-simulates in the fast mode: 
     nominal   noise only
     single    one effect at a random magnitude
     pair      two different effects at random magnitudes
-    outside   an effect outside the candidate library (unlogged external load, or a
-              position-periodic current-sensor error applied to the logged current)
+    outside   an effect outside the candidate library (an external force the load cell
+              does not see, or a position-periodic current-sensor error applied to the
+              logged current)
 
-Effects act in the plant (parameters, inside the loop) or, for sensor-side effects, on
+Every log is the diagnosis maneuver (`bench.gap.maneuvers.excitation`, with its axial sine
+load measured by the load cell). Effects act in the plant (parameters, inside the loop) or, for sensor-side effects, on
 the logged columns after the run (a first-order LVDT lag, a time skew of the
 measurements). Their magnitudes are drawn here from physical ranges (thesis section
 5.7.4 where it gives one) with code and ranges independent of the candidate library;
@@ -146,13 +148,12 @@ def draw(name: str, rng: np.random.Generator) -> Truth:
         v = n.screw.lead_m * (1.0 + _pm(rng, 0.002, 0.02))
         return Truth(name, {"screw.lead_m": v}, expect={"lead_m": v},
                      nominal={"lead_m": n.screw.lead_m})
-    if name == "external_load":        # outside the library: an unlogged disturbance force
+    if name == "external_load":        # outside the library: a force the load cell misses
         if rng.uniform() < 0.5:
-            return Truth(name, {"load.kind": "sine", "load.amplitude_n":
-                                rng.uniform(200.0, 2000.0), "load.frequency_hz":
-                                rng.uniform(3.0, 12.0)})
-        return Truth(name, {"load.kind": "step", "load.amplitude_n": _pm(rng, 300.0, 3000.0),
-                            "load.start_s": rng.uniform(1.0, 8.0)})
+            return Truth(name, log={"dist_sine_n": rng.uniform(200.0, 2000.0),
+                                    "dist_hz": rng.uniform(3.0, 12.0)})
+        return Truth(name, log={"dist_step_n": _pm(rng, 300.0, 3000.0),
+                                "dist_t0_s": rng.uniform(1.0, 8.0)})
     if name == "current_ripple":       # outside: position-periodic current-sensor error
         return Truth(name, log={"ripple_a": rng.uniform(0.1, 0.5),
                                 "ripple_per_rev": float(rng.integers(2, 9))})
@@ -163,6 +164,22 @@ POOL = ("backlash", "friction", "viscous", "stribeck", "stiffness", "preload",
         "sensor_delay", "lvdt_lag", "log_skew", "lvdt_gain", "lvdt_offset", "encoder_gain",
         "current_offset", "resistance", "thermal_drift", "kt", "inertia", "lead")
 OUTSIDE = ("external_load", "current_ripple")
+
+
+def disturbance(truths: list[Truth], t: np.ndarray) -> np.ndarray | None:
+    """The unlogged axial force (N) per SYNC period of an `external_load` case: a force
+    between the load cell and the nut (a binding guide, a second load path), so the plant
+    feels it and the logged load does not. A step rises in 10 ms as the plant's steps."""
+    f = np.zeros_like(t)
+    found = False
+    for tr in truths:
+        if "dist_sine_n" in tr.log:
+            f += tr.log["dist_sine_n"] * np.sin(2 * math.pi * tr.log["dist_hz"] * t)
+            found = True
+        if "dist_step_n" in tr.log:
+            f += tr.log["dist_step_n"] * np.clip((t - tr.log["dist_t0_s"]) / 0.01, 0.0, 1.0)
+            found = True
+    return f if found else None
 
 
 def apply_log_side(cols: dict[str, np.ndarray], truths: list[Truth], dt: float
@@ -234,8 +251,13 @@ def generate(case: Case, noise: bool = True, fidelity: str = "full",
         over.update(t.plant)
     if fidelity == "fast":
         over.update({"drive.pwm_mode": "averaged", "sim.ball_model": "quasistatic"})
-    tr = simulate(excitation(duration_s), NOMINAL.with_dict(over))
+    prof = excitation(duration_s)
+    dist = disturbance(case.truths, np.arange(int(round(duration_s / NOMINAL.sim.sync_period_s)))
+                       * NOMINAL.sim.sync_period_s)
+    tr = simulate(prof, NOMINAL.with_dict(over), ext_force_n=dist)
     cols = {c: tr[c] for c in MEASURED}
+    if dist is not None:    # the load cell reads period k - 1 at SYNC k: remove the unseen part
+        cols["load_force_n"] = cols["load_force_n"] - np.concatenate([[0.0], dist[:-1]])
     cols = apply_log_side(cols, case.truths, tr.dt)
     return Trace(cols, {})
 

@@ -183,6 +183,18 @@ def significance(p: Problem) -> tuple[bool, dict[str, float], dict[str, float]]:
     return any(sm[s] > thr[s] for s in R.SIGNALS), raw, sm
 
 
+def _load_note(p: Problem, model: str) -> str:
+    """How the re-simulation treats the axial load of the log."""
+    f = p.drive.load_n
+    if f is None:
+        return "no load cell in the log (load_force_n): zero axial load assumed"
+    peak = float(np.nanmax(np.abs(f))) if len(f) else 0.0
+    if model != "plant":
+        return (f"logged load up to {peak:.0f} N is not an input of the monitoring model "
+                "(eq. 6.1, no load term): its effect is part of the gap")
+    return f"axial load replayed from the load cell (load_force_n, up to {peak:.0f} N)"
+
+
 def diagnose(trace: Trace, holdout: Trace | None = None, nominal: PlantParams | None = None,
              options: Options | None = None,
              log: Callable[[str], None] | None = None) -> Result:
@@ -256,6 +268,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
                     "(drive.pwm_mode=averaged, sim.ball_model=quasistatic), ~240x real time"
                     if o.model == "plant" else "monitoring model (rigid screw, no PWM)",
                     "effects_not_representable": skipped,
+                    "load": _load_note(p, o.model),
                     "nominal_differs_from_thesis": {k: v[1] for k, v in
                                                     PlantParams().diff(base).items()}}
     if not sig and not o.fit_always:

@@ -5,8 +5,11 @@ All splits use logged signals only. Residuals are normalised by the floors of th
 
 Regimes (per SYNC sample, first match wins), from set-points and measured motion:
     reversal      within 25 ms of a reversal of the nut (set-point or measured)
-    load_change   within 50 ms of a step in the current demand that the set-point's
-                  acceleration does not explain
+    load_change   with a load cell (`load_force_n`): within 50 ms of the measured load
+                  changing faster than 5 kN/s (a load step or fast ramp; the diagnosis
+                  maneuver's slow sine load stays below); without one: within 50 ms of a
+                  step in the current demand that the set-point's acceleration does not
+                  explain
     acceleration  |set-point or measured acceleration| above 10 % of its maximum
     cruise        moving (|v| above 2 % of its maximum) at steady speed
     dwell         at rest
@@ -28,6 +31,7 @@ from bench.gap import resim as R
 from bench.gap.problem import Problem
 
 REGIMES = ("reversal", "load_change", "acceleration", "cruise", "dwell")
+LOAD_RATE_N_PER_S = 5000.0   # load cell rate above which a sample is in a load change
 BANDS = (("below_fundamental", 0.0, 0.5), ("fundamental", 0.5, 1.5),
          ("harmonic_2", 1.5, 2.5), ("harmonic_3", 2.5, 3.5),
          ("harmonics_4_10", 3.5, 10.5), ("broadband", 10.5, math.inf))
@@ -83,10 +87,18 @@ def regimes(p: Problem) -> np.ndarray:
             flips = idx[1:][(s[idx[1:]] != s[idx[:-1]]) & (idx[1:] - idx[:-1] < int(0.3 / dt))]
             for k in flips:
                 rev[max(0, k - half):k + half] = True
-    # load changes: demand steps the set-point acceleration does not explain
+    # load changes: from the load cell when logged, else demand steps the set-point
+    # acceleration does not explain
     load = np.zeros(n, bool)
     dem = d.demand
-    if np.isfinite(dem).all():
+    if d.load_n is not None:
+        w = max(1, int(round(0.01 / dt)))
+        fs = _smooth(np.nan_to_num(d.load_n), w)
+        rate = np.zeros(n)
+        if n > w:
+            rate[w:] = np.abs(fs[w:] - fs[:-w]) / (w * dt)
+        load = _dilate(rate > LOAD_RATE_N_PER_S, int(round(0.05 / dt)))
+    elif np.isfinite(dem).all():
         w = max(1, int(round(0.01 / dt)))
         ds = _smooth(dem, w)
         jump = np.abs(ds[w:] - ds[:-w]) if n > w else np.zeros(0)
@@ -168,7 +180,7 @@ def path_residuals(p: Problem, cols: dict[str, np.ndarray]) -> dict[str, np.ndar
     dem = cols.get("current_demand_a")
     if dem is not None and np.isfinite(dem).all():
         drv = R.Drive(p.drive.t, p.drive.sp_pos, p.drive.sp_spd, p.drive.mode, dem,
-                      p.drive.x0_m, p.drive.x0_true_m)
+                      p.drive.x0_m, p.drive.x0_true_m, p.drive.load_n)
         ol = R.open_loop(base, drv)
         out["drive"] = cols["current_a"] - ol["current_a"]
         mech = R.mechanics_replay(base, drv, _smooth(spd, 3))
@@ -186,12 +198,23 @@ def path_residuals(p: Problem, cols: dict[str, np.ndarray]) -> dict[str, np.ndar
 
 def lost_motion(p: Problem, screw_residual: np.ndarray) -> float:
     """Lost motion of the screw path (m): median LVDT-minus-kinematics residual while the
-    nut moves backwards minus while it moves forwards: the axial lost motion, which is
-    the plant's backlash (along the contact normal, eq. 5.19-5.24) / (cos alpha sin beta),
-    or the compliance times the friction force, which shift the nut against the motion."""
+    screw pushes the nut backwards minus while it pushes it forwards: the axial lost
+    motion, which is the plant's backlash (along the contact normal, eq. 5.19-5.24) /
+    (cos alpha sin beta), or the compliance times the contact force.
+
+    The side the screw pushes is that of F_ext + F_s sign(v) (nut equilibrium, eq. 5.31,
+    F_s the nominal nut friction): the direction of motion on an unloaded run, the load's
+    sign under a load well above friction (then reversals do not cross the backlash, load
+    sign changes do). Samples where that force is within F_s / 2 of zero are left out."""
     v = _smooth(p.meas["motor_speed_rad_s"], 9)
     thr = max(0.05 * float(np.percentile(np.abs(v), 99)), 1e-9)
-    fwd, back = v > thr, v < -thr
+    sv = np.where(v > thr, 1.0, np.where(v < -thr, -1.0, 0.0))
+    fc = p.base.screw.nut_static_friction_n
+    load = np.zeros_like(v) if p.drive.load_n is None else _smooth(
+        np.nan_to_num(p.drive.load_n), 9)
+    push = load + fc * sv
+    margin = np.where(sv != 0.0, 0.5 * fc, 1.5 * fc)
+    fwd, back = push > margin, push < -margin
     if fwd.sum() < 10 or back.sum() < 10:
         return float("nan")
     return float(np.median(screw_residual[back]) - np.median(screw_residual[fwd]))

@@ -7,6 +7,17 @@ segments; its two halves use different amplitudes and frequencies so the held-ou
 is another maneuver, not a copy.
 
 Position set-points are nut positions (m); the ECU is in position mode throughout.
+
+The rig also applies an axial load, measured by the load cell (`load_force_n`): a slow
+sine (`LOAD_HZ`, not a harmonic of the set-point lines) of `load_n`, 2 kN by default
+(between the 1 and 3.5 kN of the thesis' disturbance test, section 5.7.3). Without it the contact force is mostly the
+nut's Coulomb friction, of nearly constant magnitude, so a soft screw (deflection F/k)
+looks like backlash, a torque-constant error like an inertia error (kt/J sets the
+acceleration) and a lead error like an LVDT gain error. Under a load that crosses zero
+these separate: backlash is a jump of the nut when the load changes sign, compliance a
+deflection proportional to it; the current that holds the load is F p / (2 pi eta kt tau)
+(kt, lead), the current that accelerates the rotor is J a / kt. `load_n=0` gives the
+unloaded maneuver (a rig without a load actuator).
 """
 
 from __future__ import annotations
@@ -78,9 +89,24 @@ HALF_B = [
 ]
 
 
-def excitation(duration_s: float = 10.0) -> Profile:
+LOAD_HZ = 0.37
+"""Frequency of the maneuver's axial load (Hz): about two cycles per 5 s half."""
+
+
+def load_overrides(load_n: float) -> dict[str, float | str]:
+    """Plant load settings of the maneuver's rig: a sine of `load_n` N at LOAD_HZ."""
+    if not math.isfinite(load_n):
+        raise ValueError("load_n must be finite")
+    if load_n == 0.0:
+        return {}
+    return {"load.kind": "sine", "load.amplitude_n": float(load_n),
+            "load.frequency_hz": LOAD_HZ, "load.start_s": 0.0}
+
+
+def excitation(duration_s: float = 10.0, load_n: float = 2000.0) -> Profile:
     """The diagnosis maneuver: half A then half B (each 5 s), truncated or repeated to
-    `duration_s`. Fundamental for the frequency split: 2 Hz (half A's first sine)."""
+    `duration_s`, under a `load_n` N axial sine load (0: unloaded). Fundamental for the
+    frequency split: 2 Hz (half A's first sine)."""
     segs = HALF_A + HALF_B
     pos, length = _build(segs)
 
@@ -91,7 +117,8 @@ def excitation(duration_s: float = 10.0) -> Profile:
         return np.zeros_like(np.asarray(t, dtype=float))
 
     return Profile("gap-excitation", MODE_POSITION, float(duration_s), position, speed,
-                   {"duration_s": float(duration_s)}, fundamental_hz=2.0)
+                   {"duration_s": float(duration_s), "load_n": float(load_n)},
+                   fundamental_hz=2.0, params_overrides=load_overrides(load_n))
 
 
 COMPACT_A = [Segment("hold", 0.1), Segment("sine", 1.0, 0.5e-3, 2.0),
@@ -100,10 +127,11 @@ COMPACT_B = [Segment("hold", 0.1), Segment("sine", 1.0, 0.7e-3, 3.0),
              Segment("step", 0.35, -1.5e-3), Segment("ramp", 0.3, 0.0), Segment("hold", 0.25)]
 
 
-def compact() -> Profile:
-    """A 4 s version of `excitation` (two 2 s halves with every regime), for tests and
-    quick checks."""
+def compact(load_n: float = 2000.0) -> Profile:
+    """A 4 s version of `excitation` (two 2 s halves with every regime, the same load),
+    for tests and quick checks."""
     pos, length = _build(COMPACT_A + COMPACT_B)
     return Profile("gap-compact", MODE_POSITION, length, pos,
                    lambda t: np.zeros_like(np.asarray(t, dtype=float)),
-                   {"duration_s": length}, fundamental_hz=2.0)
+                   {"duration_s": length, "load_n": float(load_n)}, fundamental_hz=2.0,
+                   params_overrides=load_overrides(load_n))

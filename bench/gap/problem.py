@@ -168,7 +168,7 @@ def fill_gaps(trace: Trace, purpose: str = "gap diagnosis") -> Trace:
     n = len(trace)
     idx = np.arange(n)
     for c in ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
-              "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m"):
+              "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m", "load_force_n"):
         if c not in cols:
             continue
         y = np.asarray(cols[c], float)
@@ -233,7 +233,8 @@ def check_log(trace: Trace, purpose: str = "gap diagnosis") -> None:
 
 def drive_of(trace: Trace, encoder: str = "absolute",
              params: PlantParams | None = None) -> R.Drive:
-    """The re-simulation drive of `trace`: set-points, mode, demand and initial position.
+    """The re-simulation drive of `trace`: set-points, mode, demand, initial position and,
+    when the log has a load cell (`load_force_n`), the axial load replayed into the plant.
 
     encoder "absolute": the encoder angle is zero with the nut at zero (the bench's
     plant, multi-turn encoders, resolvers with a homed zero), so the initial nut position
@@ -255,9 +256,13 @@ def drive_of(trace: Trace, encoder: str = "absolute",
     x0_true = None
     if encoder == "absolute":
         x0_true = float(col["motor_angle_rad"][0]) * R.angle_to_travel(params or PlantParams())
+    load = col.get("load_force_n")
+    if load is not None and not np.isfinite(load).any():
+        load = None
     return R.Drive(trace.t - trace.t[0], get("setpoint_position_m"), get("setpoint_speed_rad_s"),
                    np.round(get("mode")), np.full(n, np.nan) if demand is None
-                   else np.asarray(demand, float), x0, x0_true)
+                   else np.asarray(demand, float), x0, x0_true,
+                   None if load is None else get("load_force_n"))
 
 
 def with_rate(base: PlantParams, dt: float) -> PlantParams:

@@ -3,7 +3,7 @@
 Everything here is driven by logged signals only (never by simulation truth):
 
 - `closed_loop`: the same loop as the bench (set-point -> ECU -> plant), driven by the
-  logged set-points and mode. The ECU demand computed at SYNC k is applied by the drive
+  logged set-points and mode, and by the logged axial load when the log has a load cell. The ECU demand computed at SYNC k is applied by the drive
   during period k+1, exactly as over the bus and in `bench.harness`.
 - `open_loop`: the logged ECU demand replayed into the plant with the same one-period
   hold (isolates current demand -> current: the drive path).
@@ -51,6 +51,15 @@ class Drive:
     demand: np.ndarray          # logged ECU current demand (A), NaN if not logged
     x0_m: float                 # LVDT reading at the start (m)
     x0_true_m: float | None = None   # nut position at the start from an absolute encoder
+    load_n: np.ndarray | None = None  # load cell (N) at each SYNC, None: no load logged
+
+    def applied_load(self, n: int) -> np.ndarray:
+        """External force (N) held over each of the first `n` periods: the load cell's
+        reading at SYNC k + 1 is the force averaged over period k (zeros without one)."""
+        if self.load_n is None or n == 0:
+            return np.zeros(n)
+        f = np.nan_to_num(np.asarray(self.load_n[:n], float))
+        return np.append(f[1:], f[-1])
 
 
 def angle_to_travel(params: PlantParams) -> float:
@@ -114,7 +123,7 @@ def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
     nz = np.zeros((n, 3)) if noise is None else np.ascontiguousarray(noise[:n])
     _closed(x, plant.param_vector, plant._s, _plant_inputs(params), nz,
             drive.sp_pos[:n], drive.sp_spd[:n], drive.mode[:n], cparams.vector(),
-            np.zeros(CTRL_NC), _delay_periods(params), meas, dem)
+            np.zeros(CTRL_NC), _delay_periods(params), meas, dem, drive.applied_load(n))
     return _columns(meas, dem, _delay_periods(params))
 
 
@@ -130,7 +139,7 @@ def _columns(meas: np.ndarray, dem: np.ndarray, ndelay: int) -> dict[str, np.nda
 
 @njit(cache=True, error_model="numpy")
 def _closed(x, p, s, u0, noise, sp_pos, sp_spd, mode, kvec, cstate, ndelay, meas_out,
-            dem_out):  # pragma: no cover - compiled
+            dem_out, fext):  # pragma: no cover - compiled
     n = sp_pos.shape[0]
     m = np.zeros(K.NM)
     u = u0.copy()
@@ -146,6 +155,7 @@ def _closed(x, p, s, u0, noise, sp_pos, sp_spd, mode, kvec, cstate, ndelay, meas
         dem_out[k] = d
         u[K.U_IDEM] = applied
         u[K.U_INOISE] = noise[k, 0]
+        u[K.U_FEXT] = fext[k]
         K.advance(x, p, u, diag)
         applied = d
         if not np.isfinite(x[K.OM]):
@@ -165,7 +175,7 @@ def open_loop(params: PlantParams, drive: Drive, n: int | None = None) -> dict[s
     applied = np.zeros(n)
     applied[1:] = np.nan_to_num(drive.demand[:n - 1])
     _replay(x, plant.param_vector, plant._s, _plant_inputs(params), applied, meas,
-            np.zeros(n), np.zeros(n), 0)
+            np.zeros(n), np.zeros(n), 0, drive.applied_load(n))
     return _columns(meas, applied, _delay_periods(params))
 
 
@@ -191,12 +201,12 @@ def mechanics_replay(params: PlantParams, drive: Drive, speed_meas: np.ndarray,
     if nd:
         sync[n - nd:] = speed_meas[n - 1]
     _replay(x, plant.param_vector, plant._s, _plant_inputs(params), applied, meas,
-            sync / params.sensors.encoder_gain, np.ones(n), segment)
+            sync / params.sensors.encoder_gain, np.ones(n), segment, drive.applied_load(n))
     return _columns(meas, applied, nd)
 
 
 @njit(cache=True, error_model="numpy")
-def _replay(x, p, s, u0, applied, meas_out, w_sync, w_ok, segment):  # pragma: no cover
+def _replay(x, p, s, u0, applied, meas_out, w_sync, w_ok, segment, fext):  # pragma: no cover
     n = applied.shape[0]
     m = np.zeros(K.NM)
     u = u0.copy()
@@ -228,6 +238,7 @@ def _replay(x, p, s, u0, applied, meas_out, w_sync, w_ok, segment):  # pragma: n
         for j in range(K.NM):
             meas_out[k, j] = m[j]
         u[K.U_IDEM] = applied[k]
+        u[K.U_FEXT] = fext[k]
         K.advance(x, p, u, diag)
         if not np.isfinite(x[K.OM]):
             for kk in range(k + 1, n):

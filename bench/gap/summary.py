@@ -46,6 +46,8 @@ def text(js: dict[str, Any], top: int = 8) -> str:
     out = []
     m = loc.get("model", {})
     out.append(f"model: {m.get('name', '?')} ({m.get('fidelity', '')})")
+    if m.get("load"):
+        out.append(f"  load: {m['load']}")
     if m.get("effects_not_representable"):
         out.append("  not tried (this model has no place for them; use --model plant): "
                    + ", ".join(m["effects_not_representable"]))

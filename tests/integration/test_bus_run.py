@@ -20,11 +20,12 @@ from bench.harness import simulate
 from bench.profiles import make_profile
 from bench.trace import Trace
 from plant_rt.busdef import NMTCommand, load_od
-from plant_rt.params import PlantParams
+from plant_rt.params import PARAMS, PlantParams
 
-# DBC quantisation: position 10 nm, current 0.1 mA, speed 0.1 mrad/s, angle 1 count
+# DBC quantisation: position 10 nm, current 0.1 mA, speed 0.1 mrad/s, angle 1 count,
+# load 2 N
 QUANT = {"position_m": 1e-8, "current_a": 1e-4, "motor_speed_rad_s": 1e-4,
-         "motor_angle_rad": 2 * np.pi / 16384, "current_demand_a": 1e-4}
+         "motor_angle_rad": 2 * np.pi / 16384, "current_demand_a": 1e-4, "load_force_n": 2.0}
 
 @pytest.fixture(scope="module", params=BUS_KINDS)
 def bus_env(request, tmp_path_factory):
@@ -34,7 +35,8 @@ def bus_env(request, tmp_path_factory):
 @pytest.mark.parametrize("name, kwargs, values", [
     ("step", {"duration_s": 0.4}, {}),
     ("sine", {"duration_s": 0.3}, {"effects.backlash_m": 30e-6, "sensors.noise": True,
-                                   "sensors.noise_seed": 3}),
+                                   "sensors.noise_seed": 3, "load.kind": "sine",
+                                   "load.amplitude_n": 800.0, "load.frequency_hz": 5.0}),
     ("velocity-step", {}, {"drive.pwm_mode": "averaged"}),
 ])
 def test_lockstep_bus_run_equals_in_process(bus_env, tmp_path, name, kwargs, values):
@@ -49,12 +51,14 @@ def test_lockstep_bus_run_equals_in_process(bus_env, tmp_path, name, kwargs, val
         err = np.max(np.abs(tr[col] - ref[col]))
         # the ECU computes from quantised sensors: a few quanta of difference, no drift
         assert err <= 20 * q, (col, err / q)
+    if "load.kind" in values:   # the load cell carries the applied force
+        assert np.max(np.abs(tr["load_force_n"])) > 700.0
     # the log decodes to exactly the trace the ECU recorded
     dec = trace_from_log(log)
     assert dec.meta["issue_count"] == 0 and dec.meta["bad_frames"] == 0
     assert PlantParams.from_dict(dec.meta["params"]).diff(params) == {}
     for col in ("current_demand_a", "current_a", "motor_speed_rad_s", "motor_angle_rad",
-                "position_m", "status_word"):
+                "position_m", "load_force_n", "status_word"):
         np.testing.assert_allclose(dec[col], tr[col], rtol=0, atol=1e-12, err_msg=col)
     # set-points: the ECU used the exact profile; the frame carries them quantised
     np.testing.assert_allclose(dec["setpoint_position_m"], tr["setpoint_position_m"],
@@ -74,7 +78,7 @@ def test_bench_decode_writes_csv_and_parquet(bus_env, tmp_path):
         out = tmp_path / f"d.{ext}"
         r = bench("decode", str(log), "-o", str(out), env=bus_env.env)
         assert r.returncode == 0, r.stderr
-        assert "200 SYNC periods" in r.stdout and "79 parameters from SDO" in r.stdout
+        assert "200 SYNC periods" in r.stdout and f"{len(PARAMS)} parameters from SDO" in r.stdout
         dec = Trace.load(out)
         np.testing.assert_allclose(dec["position_m"], live["position_m"], atol=1e-12)
 

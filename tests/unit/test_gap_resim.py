@@ -26,26 +26,46 @@ def drive_of(tr):
 ])
 def test_closed_loop_equals_harness(extra):
     params = FAST.with_dict(extra)
-    tr = simulate(excitation(1.5), params)
+    tr = simulate(excitation(1.5, load_n=0.0), params)
     cols = R.closed_loop(params, drive_of(tr))
     for c in ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m",
               "current_demand_a"):
         np.testing.assert_array_equal(cols[c], tr[c], err_msg=c)
 
 
+def test_closed_loop_replays_the_logged_load():
+    """An axial force held over each period is replayed from the load cell (the
+    cell at SYNC k reads period k - 1); the maneuver's continuous sine load, held per
+    period in the re-simulation, stays far below the sensors' noise."""
+    t = np.arange(1500) * 1e-3
+    force = 1800.0 * np.sin(2 * np.pi * 0.9 * t) + 400.0 * (t > 0.7)
+    tr = simulate(excitation(1.5, load_n=0.0), FAST, ext_force_n=force)
+    assert np.max(np.abs(tr["load_force_n"][1:] - force[:-1])) < 1e-9
+    cols = R.closed_loop(FAST, drive_of(tr))
+    for c in ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m"):
+        # the cell's period average of a held force differs from it in the last bit only
+        np.testing.assert_allclose(cols[c], tr[c], rtol=1e-9, atol=1e-12, err_msg=c)
+    unloaded = simulate(excitation(1.5, load_n=0.0), FAST)
+    assert np.max(np.abs(unloaded["current_a"] - tr["current_a"])) > 0.05   # the load acts
+    tl = simulate(excitation(1.5), FAST)          # 2 kN sine load from the plant's params
+    cols = R.closed_loop(FAST, drive_of(tl))
+    assert np.max(np.abs(cols["position_m"] - tl["position_m"])) < 0.2e-6
+    assert np.max(np.abs(cols["current_a"] - tl["current_a"])) < 0.02
+
+
 def test_open_loop_replay_of_the_logged_demand_is_exact():
-    tr = simulate(excitation(1.0), FAST)
+    tr = simulate(excitation(1.0, load_n=0.0), FAST)
     cols = R.open_loop(FAST, drive_of(tr))
     np.testing.assert_array_equal(cols["current_a"], tr["current_a"])
     np.testing.assert_array_equal(cols["position_m"], tr["position_m"])
 
 
 def test_screw_path_is_quiet_without_backlash_and_shows_lost_motion_with_it():
-    tr = simulate(excitation(2.0), FAST)
+    tr = simulate(excitation(2.0, load_n=0.0), FAST)
     kin = R.second_order(tr["motor_angle_rad"] * R.angle_to_travel(FAST), 1e-3,
                          FAST.sensors.lvdt_natural_rad_s, FAST.sensors.lvdt_damping)
     assert np.sqrt(np.mean((tr["position_m"] - kin) ** 2)) < 0.5e-6
-    tb = simulate(excitation(2.0), FAST.with_dict({"effects.backlash_m": 50e-6}))
+    tb = simulate(excitation(2.0, load_n=0.0), FAST.with_dict({"effects.backlash_m": 50e-6}))
     kin = R.second_order(tb["motor_angle_rad"] * R.angle_to_travel(FAST), 1e-3,
                          FAST.sensors.lvdt_natural_rad_s, FAST.sensors.lvdt_damping)
     lost = np.max(tb["position_m"] - kin) - np.min(tb["position_m"] - kin)

@@ -95,11 +95,13 @@ def test_trace_rows_follow_sync_and_keep_time_across_lost_syncs():
     seq = []
     for k, counter in enumerate((1, 2, 4, 5)):       # SYNC 3 lost
         seq.append(f.encode("SYNC", {"SYNC_Counter": counter}))
-        seq.append(f.encode("EMA_TPDO3", {"LvdtPosition": k * 1e-3, "WindingTemperature": 300}))
+        seq.append(f.encode("EMA_TPDO3", {"LvdtPosition": k * 1e-3, "WindingTemperature": 300,
+                                             "LoadForce": 10.0 * k}))
         seq.append(f.encode("EMA_RPDO1", {"CurrentDemand": float(k), "ControlWord": 1}))
     seq.insert(4, can.Message(arbitration_id=0x390, data=b"\x00", is_extended_id=False))
     tr = trace_from_messages(seq)
     assert len(tr) == 5 and tr.meta["sync_gaps"] == 1 and tr.meta["bad_frames"] == 1
     assert list(tr["position_m"][[0, 1, 3, 4]]) == pytest.approx([0, 1e-3, 2e-3, 3e-3])
+    assert list(tr["load_force_n"][[0, 1, 3, 4]]) == pytest.approx([0, 10, 20, 30])
     assert tr["current_demand_a"][2] != tr["current_demand_a"][2]   # NaN row
     assert tr["t_s"][4] == pytest.approx(4e-3)
