@@ -16,8 +16,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                     "signal -> column/entry, or CSV with header signal,column,unit,scale. "
                     "Signals: t_s, setpoint_position_m, setpoint_speed_rad_s, mode, "
                     "current_demand_a, current_a, motor_speed_rad_s, motor_angle_rad, "
-                    "position_m. Units: time s/ms/us/ns/min, length m/mm/um/in, speed "
-                    "rad/s/rpm/deg/s/rev/s, angle rad/deg/rev, current A/mA, mode -.")
+                    "position_m, load_force_n (load cell). Units: time s/ms/us/ns/min, "
+                    "length m/mm/um/in, speed rad/s/rpm/deg/s/rev/s, angle rad/deg/rev, "
+                    "current A/mA, force N/kN/lbf, mode -.")
     p.add_argument("table", metavar="TABLE", help="CSV or Parquet table")
     p.add_argument("--map", required=True, metavar="MAP", help="column map (.json or .csv)")
     p.add_argument("-o", "--output", metavar="OUT",

@@ -112,9 +112,12 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
     after_ho = p.energies(after, p.n_fit, p.n)
     params = {k: float(v) for k, v in f.theta[0].items()}
     ci = {k: [float(a), float(b)] for k, (a, b) in f.ci95[0].items()}
-    notes = [f"{a} and {b} act through their {what} on a log without force measurement: "
-             f"the log fixes the {what}; the prior tolerances split it"
-             for a, b, what in ALIASES if a in names and b in names]
+    loaded = p.drive.load_n is not None and float(np.nanmax(np.abs(p.drive.load_n))) > 100.0
+    how = ("mostly through their" if loaded else "only through their")
+    why = (" (the logged load's holding current, F p / (2 pi eta tau kt), is a small "
+           "addition)" if loaded else " on a log without force measurement")
+    notes = [f"{a} and {b} act {how} {what}{why}: the log fixes the {what}; the prior "
+             "tolerances split it" for a, b, what in ALIASES if a in names and b in names]
     return {
         "model": model,
         "fidelity": "fast mode (averaged PWM, massless balls)",

@@ -38,7 +38,7 @@ QUANTITY = {
     "t_s": "time", "setpoint_position_m": "length", "position_m": "length",
     "setpoint_speed_rad_s": "speed", "motor_speed_rad_s": "speed",
     "motor_angle_rad": "angle", "current_a": "current", "current_demand_a": "current",
-    "mode": "mode",
+    "mode": "mode", "load_force_n": "force",
 }
 UNITS: dict[str, dict[str, float]] = {
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0},
@@ -47,6 +47,7 @@ UNITS: dict[str, dict[str, float]] = {
               "rev/s": 2 * math.pi},
     "angle": {"rad": 1.0, "deg": math.pi / 180, "rev": 2 * math.pi},
     "current": {"A": 1.0, "mA": 1e-3},
+    "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605},
     "mode": {"-": 1.0, "": 1.0},
 }
 

@@ -37,20 +37,20 @@ def logs(tmp_path_factory):
                                                "effects.backlash_m": 40e-6})).measured()
     # the healthy log as another rig's table: ms, mm, rpm, mA, degrees
     t = healthy.t
-    rows = ["time_ms,lvdt_mm,enc_rpm,enc_deg,i_ma,idem_a,sp_mm,mode"]
+    rows = ["time_ms,lvdt_mm,enc_rpm,enc_deg,i_ma,idem_a,sp_mm,mode,load_kn"]
     for k in range(len(t)):
         rows.append(",".join(repr(float(x)) for x in (
             t[k] * 1e3, healthy["position_m"][k] * 1e3,
             healthy["motor_speed_rad_s"][k] * 60 / (2 * np.pi),
             np.degrees(healthy["motor_angle_rad"][k]), healthy["current_a"][k] * 1e3,
             healthy["current_demand_a"][k], healthy["setpoint_position_m"][k] * 1e3,
-            healthy["mode"][k])))
+            healthy["mode"][k], healthy["load_force_n"][k] * 1e-3)))
     (d / "rig.csv").write_text("\n".join(rows) + "\n")
     (d / "map.csv").write_text(
         "signal,column,unit,scale\nt_s,time_ms,ms,1\nposition_m,lvdt_mm,mm,1\n"
         "motor_speed_rad_s,enc_rpm,rpm,1\nmotor_angle_rad,enc_deg,deg,1\n"
         "current_a,i_ma,mA,1\ncurrent_demand_a,idem_a,A,1\n"
-        "setpoint_position_m,sp_mm,mm,1\nmode,mode,-,1\n")
+        "setpoint_position_m,sp_mm,mm,1\nmode,mode,-,1\nload_force_n,load_kn,kN,1\n")
     worn.save(d / "worn.npz")
     return d
 
@@ -60,6 +60,9 @@ def test_import_calibrate_gap(logs):
               str(logs / "healthy.npz"))
     assert r.returncode == 0, r.stderr
     assert "4000 samples" in r.stdout
+    from bench.trace import Trace
+    imported = Trace.load(logs / "healthy.npz")
+    assert np.max(np.abs(imported["load_force_n"])) > 1900.0     # the 2 kN load, in N
     r = bench("calibrate", str(logs / "healthy.npz"), "--params",
               "motor.inertia_kg_m2,effects.friction_scale,sensors.encoder_gain",
               "-o", str(logs / "cal.json"))
