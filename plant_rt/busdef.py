@@ -185,17 +185,26 @@ class Frames:
     def message(self, can_id: int) -> cantools.database.can.Message | None:
         return self.by_cob.get(can_id)
 
-    def decode(self, msg: can.Message) -> tuple[str, dict[str, Any]] | None:
+    def decode(self, msg: can.Message, allow_truncated: bool = False
+               ) -> tuple[str, dict[str, Any]] | None:
         """(message name, signals) of a frame, None for an id the DBC does not describe.
 
-        Raises FrameError for a described id with the wrong length."""
+        Raises FrameError for a described id with the wrong length. `allow_truncated`
+        (reading logs): a shorter frame gives the signals that fit whole in it (none:
+        FrameError), as a frame of an older layout whose later signals were appended
+        since (EMA_TPDO3 before the load cell)."""
         m = self.by_cob.get(msg.arbitration_id)
         if m is None or msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             return None
-        if len(msg.data) != m.length:
+        short = allow_truncated and 0 < len(msg.data) < m.length
+        sig = None
+        if len(msg.data) == m.length or short:
+            sig = m.decode(bytes(msg.data), decode_choices=False, scaling=True,
+                           allow_truncated=short)
+        if sig is None or (short and not sig):   # wrong length, or no signal fits
             raise FrameError(f"{m.name} (0x{msg.arbitration_id:03X}) with {len(msg.data)} "
                              f"bytes, expected {m.length}")
-        return m.name, m.decode(bytes(msg.data), decode_choices=False, scaling=True)
+        return m.name, sig
 
     # -- value tables -------------------------------------------------------------------
     def choice(self, name: str, signal: str, label: str) -> int:

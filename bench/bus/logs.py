@@ -222,7 +222,7 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
     first_ts: float | None = None
     last_counter: int | None = None
     run = 0
-    n_frames = bad = gaps = 0
+    n_frames = bad = short = gaps = 0
     emcy: list[dict[str, Any]] = []
     for msg in messages:
         n_frames += 1
@@ -250,12 +250,15 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
             sdo.feed(msg)
             continue
         try:
-            decoded = frames.decode(msg)
+            # process data of an older, shorter layout: keep the signals it carries
+            decoded = frames.decode(msg, allow_truncated=cid in decoded_ids)
         except FrameError:
             bad += 1
             continue
         if decoded is None:
             continue
+        if len(msg.data) < frames.by_cob[cid].length:   # older layout: the rest stays NaN
+            short += 1
         name, sig = decoded
         if cid == nmt_cob:
             if (sig["NMT_Command"] == NMTCommand.START
@@ -271,7 +274,8 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
             continue
         if cur is not None and cid in decoded_ids:
             for s, col in SIGNAL_COLUMNS[decoded_ids[cid]]:
-                cur[col] = float(sig[s])
+                if s in sig:
+                    cur[col] = float(sig[s])
     # parameters the SDO traffic revealed
     values: dict[str, Any] = {}
     for (idx, sub), raw in sdo.values.items():
@@ -301,7 +305,8 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
     cols["motor_angle_rad"] = cols.pop("encoder_counts") * TWO_PI / cpr
     meta: dict[str, Any] = {
         "source": source, "node_id": frames.node_id, "period_s": ts, "counts_per_rev": cpr,
-        "frames": n_frames, "bad_frames": bad, "sync_gaps": gaps, "runs": run,
+        "frames": n_frames, "bad_frames": bad, "short_frames": short, "sync_gaps": gaps,
+        "runs": run,
         "emcy": emcy, "params_from_sdo": sorted(values),
         "issues": [{"line": i.line, "reason": i.reason} for i in (issues or [])[:100]],
         "issue_count": len(issues or []),

@@ -45,6 +45,10 @@ def run(args: argparse.Namespace) -> int:
           f"ms, {m['runs']} run(s), {m['bad_frames']} bad frames, {m['sync_gaps']} lost SYNCs, "
           f"{len(issues)} bad lines, {len(m['emcy'])} EMCY, "
           f"{len(m['params_from_sdo'])} parameters from SDO")
+    if m.get("short_frames"):
+        print(f"{args.file}: {m['short_frames']} frames shorter than dbc/ema.dbc describes "
+              "(an older frame layout): their signals that fit were decoded, the columns "
+              "of the missing ones are empty")
     if args.output:
         tr.save(args.output)
         print(f"wrote {args.output} ({len(tr)} rows, {len(tr.columns)} columns)")

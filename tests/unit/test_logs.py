@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 
 import can
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -88,6 +89,25 @@ def test_sdo_tracker_expedited_and_segmented():
     t.feed(_sdo(0x610, 0x2F, 0x00, 0x22, 0x01, 1, 0, 0, 0))
     t.feed(_sdo(0x590, 0x80, 0x00, 0x22, 0x01, 0x22, 0, 0, 8))
     assert (0x2200, 1) not in t.values
+
+
+def test_frames_of_the_older_shorter_layout_keep_the_signals_they_carry():
+    """EMA_TPDO3 was 6 bytes before the load cell: logs of that layout still give LVDT and
+    temperature (load left empty), counted as short frames, not dropped as bad ones."""
+    f = Frames()
+    seq = []
+    for k in range(3):
+        seq.append(f.encode("SYNC", {"SYNC_Counter": k + 1}))
+        full = f.encode("EMA_TPDO3", {"LvdtPosition": k * 1e-3, "WindingTemperature": 300,
+                                      "LoadForce": 0.0})
+        full.data = full.data[:6]
+        full.dlc = 6
+        seq.append(full)
+    tr = trace_from_messages(seq)
+    assert tr.meta["short_frames"] == 3 and tr.meta["bad_frames"] == 0
+    assert list(tr["position_m"]) == pytest.approx([0, 1e-3, 2e-3])
+    assert list(tr["winding_temperature_k"]) == pytest.approx([300, 300, 300])
+    assert np.isnan(tr["load_force_n"]).all()
 
 
 def test_trace_rows_follow_sync_and_keep_time_across_lost_syncs():
