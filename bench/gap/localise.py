@@ -61,6 +61,16 @@ def _dilate(mask: np.ndarray, half: int) -> np.ndarray:
     return c > 0.5
 
 
+def _change(y: np.ndarray, w: int) -> np.ndarray:
+    """|change| of `y` (moving average over `w` samples) over the last `w` samples; 0 for
+    the first `w`."""
+    ys = _smooth(y, w)
+    out = np.zeros(len(ys))
+    if len(ys) > w:
+        out[w:] = np.abs(ys[w:] - ys[:-w])
+    return out
+
+
 def regimes(p: Problem) -> np.ndarray:
     """Regime index (into REGIMES) of every sample."""
     d, dt, n = p.drive, p.dt, p.n
@@ -91,20 +101,13 @@ def regimes(p: Problem) -> np.ndarray:
     # acceleration does not explain
     load = np.zeros(n, bool)
     dem = d.demand
+    w = max(1, int(round(0.01 / dt)))
     if d.load_n is not None:
-        w = max(1, int(round(0.01 / dt)))
-        fs = _smooth(np.nan_to_num(d.load_n), w)
-        rate = np.zeros(n)
-        if n > w:
-            rate[w:] = np.abs(fs[w:] - fs[:-w]) / (w * dt)
+        rate = _change(d.load_n, w) / (w * dt)
         load = _dilate(rate > LOAD_RATE_N_PER_S, int(round(0.05 / dt)))
     elif np.isfinite(dem).all():
-        w = max(1, int(round(0.01 / dt)))
-        ds = _smooth(dem, w)
-        jump = np.abs(ds[w:] - ds[:-w]) if n > w else np.zeros(0)
         thr = max(0.5, 5.0 * p.noise_sigma.get("current_a", 0.1))
-        ev = np.zeros(n, bool)
-        ev[w:] = jump > thr
+        ev = _change(dem, w) > thr
         ev &= ~_dilate(accel | rev, int(round(0.05 / dt)))
         load = _dilate(ev, int(round(0.05 / dt)))
     out = np.full(n, REGIMES.index("dwell"))

@@ -82,3 +82,15 @@ def test_initial_position_from_the_absolute_encoder():
     cols = R.closed_loop(params, d)
     assert abs(cols["position_m"][0] - 2e-3) < 1e-9
     assert abs(cols["motor_angle_rad"][0] * R.angle_to_travel(params) - 2e-3) < 1e-6
+
+
+def test_a_logged_load_step_marks_the_load_change_regime():
+    from bench.gap import localise as L
+    from bench.profiles import make_profile
+    params = FAST.with_dict({"sensors.noise": True, "load.kind": "step",
+                             "load.amplitude_n": 1500.0, "load.start_s": 1.0})
+    tr = simulate(make_profile("sine", duration_s=2.0), params).measured()
+    reg = L.regimes(P.build(tr, PlantParams()))
+    idx = np.flatnonzero(reg == L.REGIMES.index("load_change"))
+    # the 10 ms step at 1.0 s, widened by the 10 ms rate window and 50 ms either side
+    assert len(idx) > 50 and 930 <= idx.min() <= 1000 and 1000 <= idx.max() <= 1090
