@@ -9,6 +9,7 @@ run of the same scenario gives the same trace (tests/integration).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,9 +43,10 @@ class RunInputs:
 
 def run_inputs(profile: Profile, params: PlantParams, duration_s: float | None = None,
                mode_override: np.ndarray | None = None,
-               ext_force_n: np.ndarray | None = None) -> RunInputs:
+               ext_force_n: Callable[[np.ndarray], np.ndarray] | None = None) -> RunInputs:
     """Inputs of every SYNC period of `profile` under `params` (noise stream as Plant's).
-    `ext_force_n`: an axial force (N) per period added to the load profile of `params`."""
+    `ext_force_n(t)`: an axial force (N) held over the period starting at t, added to the
+    load profile of `params`."""
     ts = params.sim.sync_period_s
     dur = profile.duration_s if duration_s is None else duration_s
     n = int(round(dur / ts))
@@ -61,10 +63,7 @@ def run_inputs(profile: Profile, params: PlantParams, duration_s: float | None =
     u[:, K.U_IGAIN] = params.sensors.current_gain
     u[:, K.U_IOFF] = params.sensors.current_offset_a
     if ext_force_n is not None:
-        f = np.asarray(ext_force_n, float)
-        if f.shape != (n,):
-            raise BenchError(f"ext_force_n has shape {f.shape}, expected ({n},)")
-        u[:, K.U_FEXT] = f
+        u[:, K.U_FEXT] = ext_force_n(t)
     se = params.sensors
     noise = np.zeros((n, 3))
     noise_load = np.zeros(n)
@@ -79,12 +78,12 @@ def run_inputs(profile: Profile, params: PlantParams, duration_s: float | None =
 def simulate(profile: Profile, params: PlantParams | None = None,
              cparams: ControllerParams | None = None, duration_s: float | None = None,
              progress: bool = False, chunk_s: float = 1.0,
-             ext_force_n: np.ndarray | None = None) -> Trace:
+             ext_force_n: Callable[[np.ndarray], np.ndarray] | None = None) -> Trace:
     """Run `profile` on the plant with the ECU controller in-process; returns a Trace.
 
     `params` are applied with the profile's own overrides (e.g. the RUL schedule).
     With `progress`, a tqdm bar advances every `chunk_s` of simulated time.
-    `ext_force_n`: an extra axial force (N) per SYNC period on top of `params.load`
+    `ext_force_n(t)`: an extra axial force (N) per SYNC period on top of `params.load`
     (in-process only; the load cell reads it like any other external force).
     """
     params = (params or PlantParams())

@@ -166,20 +166,25 @@ POOL = ("backlash", "friction", "viscous", "stribeck", "stiffness", "preload",
 OUTSIDE = ("external_load", "current_ripple")
 
 
-def disturbance(truths: list[Truth], t: np.ndarray) -> np.ndarray | None:
-    """The unlogged axial force (N) per SYNC period of an `external_load` case: a force
-    between the load cell and the nut (a binding guide, a second load path), so the plant
-    feels it and the logged load does not. A step rises in 10 ms as the plant's steps."""
-    f = np.zeros_like(t)
-    found = False
-    for tr in truths:
-        if "dist_sine_n" in tr.log:
-            f += tr.log["dist_sine_n"] * np.sin(2 * math.pi * tr.log["dist_hz"] * t)
-            found = True
-        if "dist_step_n" in tr.log:
-            f += tr.log["dist_step_n"] * np.clip((t - tr.log["dist_t0_s"]) / 0.01, 0.0, 1.0)
-            found = True
-    return f if found else None
+def disturbance(truths: list[Truth]) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The unlogged axial force (N) of an `external_load` case as a function of time: a
+    force between the load cell and the nut (a binding guide, a second load path), so the
+    plant feels it and the logged load does not. A step rises in 10 ms as the plant's
+    steps. None when the case has none."""
+    parts = [tr.log for tr in truths if "dist_sine_n" in tr.log or "dist_step_n" in tr.log]
+    if not parts:
+        return None
+
+    def force(t: np.ndarray) -> np.ndarray:
+        f = np.zeros_like(t)
+        for d in parts:
+            if "dist_sine_n" in d:
+                f += d["dist_sine_n"] * np.sin(2 * math.pi * d["dist_hz"] * t)
+            if "dist_step_n" in d:
+                f += d["dist_step_n"] * np.clip((t - d["dist_t0_s"]) / 0.01, 0.0, 1.0)
+        return f
+
+    return force
 
 
 def apply_log_side(cols: dict[str, np.ndarray], truths: list[Truth], dt: float
@@ -251,13 +256,12 @@ def generate(case: Case, noise: bool = True, fidelity: str = "full",
         over.update(t.plant)
     if fidelity == "fast":
         over.update({"drive.pwm_mode": "averaged", "sim.ball_model": "quasistatic"})
-    prof = excitation(duration_s)
-    dist = disturbance(case.truths, np.arange(int(round(duration_s / NOMINAL.sim.sync_period_s)))
-                       * NOMINAL.sim.sync_period_s)
-    tr = simulate(prof, NOMINAL.with_dict(over), ext_force_n=dist)
+    dist = disturbance(case.truths)
+    tr = simulate(excitation(duration_s), NOMINAL.with_dict(over), ext_force_n=dist)
     cols = {c: tr[c] for c in MEASURED}
     if dist is not None:    # the load cell reads period k - 1 at SYNC k: remove the unseen part
-        cols["load_force_n"] = cols["load_force_n"] - np.concatenate([[0.0], dist[:-1]])
+        cols["load_force_n"] = cols["load_force_n"] - np.concatenate([[0.0],
+                                                                      dist(tr.t)[:-1]])
     cols = apply_log_side(cols, case.truths, tr.dt)
     return Trace(cols, {})
 

@@ -37,10 +37,11 @@ def test_closed_loop_replays_the_logged_load():
     """An axial force held over each period is replayed from the load cell (the
     cell at SYNC k reads period k - 1); the maneuver's continuous sine load, held per
     period in the re-simulation, stays far below the sensors' noise."""
-    t = np.arange(1500) * 1e-3
-    force = 1800.0 * np.sin(2 * np.pi * 0.9 * t) + 400.0 * (t > 0.7)
+    def force(t):
+        return 1800.0 * np.sin(2 * np.pi * 0.9 * t) + 400.0 * (t > 0.7)
+
     tr = simulate(excitation(1.5, load_n=0.0), FAST, ext_force_n=force)
-    assert np.max(np.abs(tr["load_force_n"][1:] - force[:-1])) < 1e-9
+    assert np.max(np.abs(tr["load_force_n"][1:] - force(tr.t)[:-1])) < 1e-9
     cols = R.closed_loop(FAST, drive_of(tr))
     for c in ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m"):
         # the cell's period average of a held force differs from it in the last bit only
