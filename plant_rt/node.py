@@ -21,12 +21,22 @@ Timing (CiA 301 synchronous PDOs, transmission type 1):
   handling never falls into the pacer's spin window or the step.
 
 The simulated world only advances in OPERATIONAL: an idle node costs no CPU.
+
+Time bases (issue 9): in lockstep the node's timers count SYNC periods, not wall time.
+The heartbeat consumer (0x1016) declares the ECU lost after more than consumer time /
+SYNC period SYNCs without its heartbeat (a late heartbeat cannot latch a timeout: no
+SYNC, no motion); in real time it runs on the wall clock. A timeout follows the error
+behaviour object 0x1029 (default 0: OPERATIONAL -> PRE-OPERATIONAL). The EMCY inhibit
+time (0x1015) and the log rate limit run on the node clock (`PlantNode.node_time`): SYNC
+time in lockstep while OPERATIONAL (EMCYs fall on the same SYNCs in every run), the wall
+clock otherwise.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -81,9 +91,12 @@ _RPDO_MISSING = int(StatusWord.RPDO_MISSING)
 _DEADLINE_MISS = int(StatusWord.DEADLINE_MISS)
 _ENABLE = int(ControlWord.ENABLE)
 _CONDITIONS = [(int(c), label, bits) for c, (label, bits) in EMCY_CONDITIONS.items()]
-EMCY_REARM_S = 0.1
+EMCY_REARM_S = 0.1   # plant time a condition must stay clear before it counts as cleared
 # real-time pacer: releases locked this fraction of a period after a SYNC has been handled
-SYNC_PHASE = 0.3   # plant time a condition must stay clear before it counts as cleared
+SYNC_PHASE = 0.3
+# error behaviour 0x1029 sub 1 (CiA 301): on a communication error (heartbeat lost)
+ERROR_BEHAVIOUR_PRE_OPERATIONAL, ERROR_BEHAVIOUR_NONE, ERROR_BEHAVIOUR_STOPPED = 0, 1, 2
+_EPS_S = 1e-9        # node-clock comparisons: SYNC time is a sum of float periods
 
 
 @dataclass
@@ -99,6 +112,7 @@ class Counters:
     emcy_sent: int = 0
     rpdo_missing: int = 0
     sync_counter_gaps: int = 0
+    emcy_suppressed: int = 0
 
     def reset(self) -> None:
         for k in self.__dataclass_fields__:
@@ -118,6 +132,95 @@ class EmcyState:
     """Active EMCY conditions and, for those seen clear, since when (plant time, s)."""
     active: StatusWord = StatusWord.NONE
     off_since: dict[int, float] = field(default_factory=dict)
+
+
+class Inhibit:
+    """At most one event per `inhibit_s` of a caller's clock (CiA 301 EMCY inhibit time).
+
+    An event that comes within the inhibit time waits; a later one with the same key
+    replaces it (its latest state is what is sent, the repeat is counted), events with
+    distinct keys wait in the order of their latest occurrence. Nothing is lost but
+    repeats, and the queue holds at most one event per key. `inhibit_s` 0: no limit."""
+
+    def __init__(self, inhibit_s: float) -> None:
+        self.inhibit_s = inhibit_s
+        self.last_s = -math.inf                  # when the last event was released (s)
+        self.pending: dict[object, list] = {}    # key -> [payload, repeats suppressed]
+
+    def add(self, key: object, payload: object) -> bool:
+        """Queue an event; True when it replaced a waiting one of the same key."""
+        old = self.pending.pop(key, None)
+        self.pending[key] = [payload, old[1] + 1 if old else 0]
+        return old is not None
+
+    def next_s(self) -> float:
+        """When the next event may be released (s of the caller's clock)."""
+        return self.last_s + self.inhibit_s
+
+    def due(self, now_s: float) -> list[tuple[object, int]]:
+        """The events to release at `now_s`: (payload, repeats it replaced)."""
+        out = []
+        while self.pending and now_s >= self.next_s() - _EPS_S:
+            key = next(iter(self.pending))
+            payload, repeats = self.pending.pop(key)
+            out.append((payload, repeats))
+            self.last_s = now_s
+        return out
+
+    def drain(self) -> list[tuple[object, int]]:
+        """Every waiting event, at once (a reset); the inhibit time starts afresh."""
+        out = [(payload, repeats) for payload, repeats in self.pending.values()]
+        self.pending.clear()
+        self.last_s = -math.inf
+        return out
+
+
+class LogLimiter:
+    """python logging with at most one line per message (its format string) per window of
+    a caller's clock (s): lines within the window are not written but counted; when the
+    window ends (`flush`) the latest is written with the count of the others, so a flood
+    gives one line per window and says how many it stands for."""
+
+    def __init__(self, logger: logging.Logger, window_s: float) -> None:
+        self.logger = logger
+        self.window_s = window_s
+        self._lines: dict[str, list] = {}   # fmt -> [last written (s), suppressed, args, kw]
+        self._held = 0                      # messages with suppressed lines
+
+    def log(self, now_s: float, level: int, fmt: str, *args: object, **kw: object) -> None:
+        """`logger.log(level, fmt, *args, **kw)` unless a line of `fmt` was written less
+        than the window ago (exc_info=True is captured now, for a later write)."""
+        if not self.logger.isEnabledFor(level):
+            return
+        if kw.get("exc_info") is True:
+            kw["exc_info"] = sys.exc_info()
+        e = self._lines.get(fmt)
+        if e is not None and now_s < e[0] + self.window_s - _EPS_S:
+            self._held += e[1] == 0
+            e[1] += 1
+            e[2], e[3] = (level, args), kw
+            return
+        if e is not None and e[1]:
+            self._held -= 1
+        self._write(fmt, level, args, kw, e[1] if e else 0)
+        self._lines[fmt] = [now_s, 0, (level, args), kw]
+
+    def flush(self, now_s: float) -> None:
+        """Write the latest suppressed line of every message whose window has ended."""
+        if not self._held:
+            return
+        for fmt, e in self._lines.items():
+            if e[1] and now_s >= e[0] + self.window_s - _EPS_S:
+                (level, args), kw = e[2], e[3]
+                self._write(fmt, level, args, kw, e[1] - 1)   # the latest is written
+                e[0], e[1] = now_s, 0
+                self._held -= 1
+
+    def _write(self, fmt: str, level: int, args: tuple, kw: dict, suppressed: int) -> None:
+        if suppressed:
+            fmt += " [%d similar lines suppressed]"
+            args = (*args, suppressed)
+        self.logger.log(level, fmt, *args, **kw)
 
 
 class PlantNode:
@@ -167,10 +270,19 @@ class PlantNode:
         self._sync_max = int(self.od[0x1019].default)
         self._hb_period_ms = int(self.od[0x1017].default)
         self._consumer = int(self.od[0x1016][1].default)
-        self._last_ecu_hb: float | None = None
+        self._error_behaviour = int(self.od[0x1029][1].default)
+        self._last_ecu_hb: float | None = None    # wall clock (s)
+        self._syncs_since_hb: int | None = None   # SYNCs received since the ECU heartbeat
         self._timeout = False
         self._rpdo_missing_flag = False
         self._emcy = EmcyState()
+        # node clock (see node_time): SYNC time, and the wall/SYNC base and its offset
+        self._sync_time_s = 0.0
+        self._tbase_sync = False
+        self._tbase_offset_s = 0.0
+        self._emcy_inhibit = Inhibit(0.0)
+        self._log = LogLimiter(log, 0.0)
+        self._set_emcy_inhibit(int(self.od[0x1015].default))
         self._next_hb = 0.0
         self._pdo_len_bad = False
         self._pacer = self._new_pacer()
@@ -196,11 +308,23 @@ class PlantNode:
     def period_s(self) -> float:
         return self.params.sim.sync_period_s
 
+    def node_time(self) -> float:
+        """The clock of the node's EMCY inhibit time and log rate limit (s): SYNC time (the
+        SYNC periods received) in lockstep while OPERATIONAL, the wall clock otherwise;
+        continuous when the base changes (call it right after a state or pace change)."""
+        sync_base = self.pace == Pace.SYNC and self.state == NMTState.OPERATIONAL
+        raw = self._sync_time_s if sync_base else self.clock()
+        if sync_base != self._tbase_sync:
+            before = self.clock() if sync_base else self._sync_time_s
+            self._tbase_offset_s += before - raw
+            self._tbase_sync = sync_base
+        return raw + self._tbase_offset_s
+
     def send(self, msg: can.Message) -> None:
         try:
             self.bus.send(msg)
         except can.CanError as exc:
-            log.warning("send failed: %s", exc)
+            self._log.log(self.node_time(), logging.WARNING, "send failed: %s", exc)
         except OSError as exc:
             raise ConnectionError(f"bus connection lost: {exc}") from exc
 
@@ -211,7 +335,8 @@ class PlantNode:
         self.send(self.frames.encode("EMA_Heartbeat", {"EMA_NMTState": int(NMTState.BOOT_UP)}))
         self.state = NMTState.PRE_OPERATIONAL
         self._next_hb = self.clock() + self._hb_period_ms / 1000.0
-        log.info("node 0x%02X booted, PRE-OPERATIONAL", self.node_id)
+        self._log.log(self.node_time(), logging.INFO, "node 0x%02X booted, PRE-OPERATIONAL",
+                      self.node_id)
 
     def reset_node(self) -> None:
         """NMT reset node: parameters back to their start-up values, plant at t = 0."""
@@ -223,10 +348,15 @@ class PlantNode:
         self._reset_communication()
 
     def _reset_communication(self) -> None:
+        # EMCYs still waiting for the inhibit time belong to the session the reset ends:
+        # sent now, before the boot-up, never after it; the new session starts unthrottled
+        self._send_emcy(self._emcy_inhibit.drain())
         for idx in [i for i in self.local.data_store if i < 0x2000]:
             del self.local.data_store[idx]
         self._hb_period_ms = int(self.od[0x1017].default)
         self._consumer = int(self.od[0x1016][1].default)
+        self._error_behaviour = int(self.od[0x1029][1].default)
+        self._set_emcy_inhibit(int(self.od[0x1015].default))
         self.counters.reset()
         self.step_stats.reset()
         self._pacer = self._new_pacer()
@@ -235,6 +365,7 @@ class PlantNode:
         self.applied_a = 0.0
         self._timeout = False
         self._last_ecu_hb = None
+        self._syncs_since_hb = None
         self._last_sync_counter = None
         self._emcy = EmcyState()
         self._pdo_len_bad = False
@@ -243,7 +374,8 @@ class PlantNode:
     def _set_state(self, new: NMTState) -> None:
         if new == self.state:
             return
-        log.info("NMT %s -> %s", self.state.name, new.name)
+        self._log.log(self.node_time(), logging.INFO, "NMT %s -> %s", self.state.name,
+                      new.name)
         if new == NMTState.OPERATIONAL:
             self._synced_since_start = False
             self._rpdo_fresh = False
@@ -256,6 +388,7 @@ class PlantNode:
             self.applied_a = 0.0          # leaving OPERATIONAL disables the drive
             self.latched = Command()
         self.state = new
+        self.node_time()                  # the node clock may change its base here
 
     # -- frame dispatch -----------------------------------------------------------------
     def handle(self, msg: can.Message) -> None:
@@ -276,13 +409,14 @@ class PlantNode:
             handler(msg)
         except FrameError as exc:
             c.bad_frames += 1
-            log.debug("bad frame ignored: %s", exc)
+            self._log.log(self.node_time(), logging.DEBUG, "bad frame ignored: %s", exc)
             if msg.arbitration_id == self.frames.cob["EMA_RPDO1"] and not self._pdo_len_bad:
                 self._pdo_len_bad = True
                 self.emcy("pdo_length", ERR_COMMUNICATION)
         except Exception:  # noqa: BLE001 - a frame must never stop the node
             c.bad_frames += 1
-            log.exception("frame 0x%03X not processed", msg.arbitration_id)
+            self._log.log(self.node_time(), logging.ERROR, "frame 0x%03X not processed",
+                          msg.arbitration_id, exc_info=True)
 
     def _on_nmt(self, msg: can.Message) -> None:
         _, sig = self.frames.decode(msg)  # type: ignore[misc]
@@ -316,6 +450,7 @@ class PlantNode:
             self.counters.bad_frames += 1
             return
         self._last_ecu_hb = self.clock()
+        self._syncs_since_hb = 0
 
     def _on_rpdo(self, msg: can.Message) -> None:
         _, sig = self.frames.decode(msg)  # type: ignore[misc]
@@ -341,22 +476,27 @@ class PlantNode:
         self._rpdo_fresh = True
 
     def _fault_reset(self) -> None:
-        if self._timeout and self._last_ecu_hb is not None and (
-                self.clock() - self._last_ecu_hb) < self._consumer_timeout_s():
+        if self._timeout and self._ecu_alive():
             self._timeout = False
-            log.info("command timeout cleared by fault reset")
+            self._log.log(self.node_time(), logging.INFO,
+                          "command timeout cleared by fault reset")
 
     def _on_sync(self, msg: can.Message) -> None:
         if len(msg.data) not in (0, 1):
             raise FrameError(f"SYNC with {len(msg.data)} bytes")
         c = self.counters
         c.sync_received += 1
+        self._sync_time_s += self.period_s
         if len(msg.data) == 1:
             counter = int(msg.data[0])
             last = self._last_sync_counter
             if last is not None and counter != (last % self._sync_max) + 1:
                 c.sync_counter_gaps += 1
             self._last_sync_counter = counter
+        if self._syncs_since_hb is not None:
+            self._syncs_since_hb += 1
+            if self.pace == Pace.SYNC and not self._ecu_alive() and not self._timeout:
+                self._consumer_timed_out()
         if self.state != NMTState.OPERATIONAL:
             return
         # latch the command received since the previous SYNC (RPDO applied at this SYNC)
@@ -459,14 +599,33 @@ class PlantNode:
         return reg
 
     def emcy(self, label: str, register: int | None = None) -> None:
+        """Raise EMCY `label` (DBC value table) with the state now; sent at once, or when
+        the inhibit time (0x1015) ends, replacing a waiting EMCY with the same code."""
         code = self.frames.choice("EMA_EMCY", "EMCY_ErrorCode", label)
         reg = self.error_register() if register is None else register
         status = self.status_word(self.plant.status())
-        self.send(self.frames.encode("EMA_EMCY", {
-            "EMCY_ErrorCode": code, "EMCY_ErrorRegister": reg, "EMCY_StatusWord": status,
-            "EMCY_Cycle": self.counters.cycles % (1 << 24)}))
-        self.counters.emcy_sent += 1
-        log.warning("EMCY %s (0x%04X)", label, code)
+        values = {"EMCY_ErrorCode": code, "EMCY_ErrorRegister": reg,
+                  "EMCY_StatusWord": status, "EMCY_Cycle": self.counters.cycles % (1 << 24)}
+        if self._emcy_inhibit.add(code, (label, code, values)):
+            self.counters.emcy_suppressed += 1
+        self._send_due_emcy(self.node_time())
+
+    def _send_due_emcy(self, now_s: float) -> None:
+        self._send_emcy(self._emcy_inhibit.due(now_s))
+
+    def _send_emcy(self, items: list[tuple[object, int]]) -> None:
+        for (label, code, values), repeats in items:  # type: ignore[misc]
+            self.send(self.frames.encode("EMA_EMCY", values))   # encoded when sent only
+            self.counters.emcy_sent += 1
+            if repeats:
+                log.warning("EMCY %s (0x%04X), %d repeats suppressed", label, code, repeats)
+            else:
+                log.warning("EMCY %s (0x%04X)", label, code)
+
+    def _set_emcy_inhibit(self, units_100us: int) -> None:
+        """EMCY inhibit time (0x1015, 100 us units); the log rate limit follows it."""
+        self._emcy_inhibit_raw = int(units_100us)
+        self._emcy_inhibit.inhibit_s = self._log.window_s = int(units_100us) * 100e-6
 
     def _check_conditions(self) -> None:
         """EMCY on a rising condition; a condition counts as cleared (and, when none is
@@ -498,8 +657,43 @@ class PlantNode:
     def _consumer_timeout_s(self) -> float:
         return (self._consumer & 0xFFFF) / 1000.0
 
+    def _consumer_syncs(self) -> int:
+        """Lockstep heartbeat consumer time in SYNC periods (consumer time / SYNC period,
+        rounded up)."""
+        return math.ceil(self._consumer_timeout_s() / self.period_s - _EPS_S)
+
+    def _ecu_alive(self) -> bool:
+        """False once the ECU heartbeat, seen before, has been missing for longer than the
+        consumer time: more SYNC periods in lockstep, wall time in real time."""
+        tmo = self._consumer_timeout_s()
+        if tmo <= 0:
+            return True
+        if self.pace == Pace.SYNC:
+            n = self._syncs_since_hb
+            return n is None or n <= self._consumer_syncs()
+        return self._last_ecu_hb is None or self.clock() - self._last_ecu_hb < tmo
+
+    def _consumer_timed_out(self) -> None:
+        """Heartbeat lost: demand 0, status bit 4, EMCY 0x8130, then the error behaviour
+        of 0x1029 sub 1 (0 PRE-OPERATIONAL if OPERATIONAL, 1 no change, 2 STOPPED)."""
+        self._timeout = True
+        self.counters.heartbeat_timeouts += 1
+        self.applied_a = 0.0
+        tmo = self._consumer_timeout_s()
+        base = (f"{self._consumer_syncs()} SYNC periods" if self.pace == Pace.SYNC
+                else f"{tmo * 1e3:.0f} ms")
+        self._log.log(self.node_time(), logging.WARNING,
+                      "ECU heartbeat lost for more than %s: demand forced to 0", base)
+        self._check_conditions()
+        if self._error_behaviour == ERROR_BEHAVIOUR_STOPPED:
+            self._set_state(NMTState.STOPPED)
+        elif (self._error_behaviour == ERROR_BEHAVIOUR_PRE_OPERATIONAL
+              and self.state == NMTState.OPERATIONAL):
+            self._set_state(NMTState.PRE_OPERATIONAL)
+
     def timers(self) -> float:
-        """Heartbeat production and consumption; returns seconds to the next timer."""
+        """Heartbeat production, the real-time heartbeat consumer, EMCYs and log lines
+        whose inhibit time has ended; returns seconds to the next timer."""
         now = self.clock()
         nxt = 0.05
         if self._hb_period_ms > 0:
@@ -511,16 +705,18 @@ class PlantNode:
                     self._next_hb = now + self._hb_period_ms / 1000.0
             nxt = min(nxt, self._next_hb - now)
         tmo = self._consumer_timeout_s()
-        if tmo > 0 and self._last_ecu_hb is not None and not self._timeout:
+        if (self.pace == Pace.REALTIME and tmo > 0 and self._last_ecu_hb is not None
+                and not self._timeout):
             left = self._last_ecu_hb + tmo - now
             if left <= 0:
-                self._timeout = True
-                self.counters.heartbeat_timeouts += 1
-                self.applied_a = 0.0
-                log.warning("ECU heartbeat lost for %.0f ms: demand forced to 0", tmo * 1e3)
-                self._check_conditions()
+                self._consumer_timed_out()
             else:
                 nxt = min(nxt, left)
+        t = self.node_time()
+        self._send_due_emcy(t)
+        self._log.flush(t)
+        if self._emcy_inhibit.pending:
+            nxt = min(nxt, self._emcy_inhibit.next_s() - t)
         return max(nxt, 0.0)
 
     # -- SDO callbacks ------------------------------------------------------------------
@@ -549,6 +745,10 @@ class PlantNode:
             return self._hb_period_ms
         if key == (0x1016, 1):
             return self._consumer
+        if index == 0x1015:
+            return self._emcy_inhibit_raw
+        if key == (0x1029, 1):
+            return self._error_behaviour
         return None
 
     def _status_value(self, name: str) -> float | int:
@@ -580,7 +780,7 @@ class PlantNode:
                 value = ParamObjects.from_od(info, raw)
                 new = self.params.with_dict({info.name: value})
             except ParameterError as exc:
-                log.info("SDO write refused: %s", exc)
+                self._log.log(self.node_time(), logging.INFO, "SDO write refused: %s", exc)
                 code = ABORT_VALUE_RANGE
                 if isinstance(raw, (int, float)) and not isinstance(raw, bool):
                     if info.max is not None and raw > info.max:
@@ -598,6 +798,7 @@ class PlantNode:
                     self.pace = Pace(raw)
                 except ValueError:
                     raise SdoAbortedError(ABORT_VALUE_RANGE) from None
+                self.node_time()              # the node clock may change its base
             elif od.name == "reset_plant":
                 self._require_preop()
                 if raw != 1:
@@ -636,6 +837,16 @@ class PlantNode:
         if key == (0x1016, 1):
             self._consumer = int(od.decode_raw(data))
             return
+        if index == 0x1015:
+            self._set_emcy_inhibit(od.decode_raw(data))
+            return
+        if key == (0x1029, 1):
+            raw = int(od.decode_raw(data))
+            if raw not in (ERROR_BEHAVIOUR_PRE_OPERATIONAL, ERROR_BEHAVIOUR_NONE,
+                           ERROR_BEHAVIOUR_STOPPED):
+                raise SdoAbortedError(ABORT_VALUE_RANGE)
+            self._error_behaviour = raw
+            return
 
     def _require_preop(self) -> None:
         if self.state != NMTState.PRE_OPERATIONAL:
@@ -673,7 +884,7 @@ class PlantNode:
             if alive is not None and now >= next_check:
                 next_check = now + 0.25
                 if not alive():
-                    log.warning("parent process gone: stopping")
+                    log.warning("parent process gone: stopping")   # once: the loop ends
                     break
             if self.pace == Pace.REALTIME and self.state == NMTState.OPERATIONAL:
                 pacer = self._pacer

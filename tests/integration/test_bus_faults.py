@@ -14,7 +14,7 @@ from bus_helpers import BUS_KINDS, Collector, bench, make_env, module_bus_env, s
 
 from bench.bus.logs import read_log, trace_from_log
 from bench.trace import Trace
-from plant_rt.busdef import Frames, NMTCommand, StatusWord, load_od
+from plant_rt.busdef import Frames, NMTCommand, NMTState, StatusWord, load_od
 from plant_rt.transport import close_bus
 
 
@@ -71,30 +71,69 @@ def test_malformed_frames_are_counted_and_the_plant_keeps_answering(bus_env):
         close(network)
 
 
-def test_ecu_killed_mid_run_plant_goes_safe_with_emcy(bus_env, tmp_path):
-    watch = Collector(bus_env)
-    ecu = spawn(sys.executable, "-m", "bench", "run", "sine", "--pace", "sync",
+def _kill_ecu_mid_run(bus_env, watch: Collector, pace: str):
+    """`bench run sine` at `pace` against the module's plant, SIGKILLed after 300 SYNCs;
+    returns the monotonic time of the kill and how many frames `watch` had seen then."""
+    ecu = spawn(sys.executable, "-m", "bench", "run", "sine", "--pace", pace,
                 "--duration", "60", *bus_env.flags, env=bus_env.env)
-    network, node = remote_node(bus_env)
     try:
         wait_until(lambda: watch.ids().count(0x80) > 300, 60, "the ECU's run to start")
+    finally:
         ecu.send_signal(signal.SIGKILL)
-        ecu.communicate(timeout=10)
+        seen = len(watch.msgs)
         t_kill = time.monotonic()
+        ecu.communicate(timeout=10)
+    return t_kill, seen
+
+
+def test_ecu_killed_mid_run_lockstep_plant_holds_still(bus_env):
+    """Lockstep: the heartbeat consumer counts SYNC periods. A dead ECU sends no SYNC, so
+    the plant does not move, which is safe; no timeout is declared on wall time."""
+    watch = Collector(bus_env)
+    network, node = remote_node(bus_env)
+    try:
+        _, seen = _kill_ecu_mid_run(bus_env, watch, "sync")
+        st = node.sdo["node_status"]
+        t_plant = st["plant_time_s"].raw
+        time.sleep(1.0)                                  # > 3 consumer times of wall time
+        assert st["plant_time_s"].raw == t_plant > 0.3
+        assert 0x90 not in watch.ids()[seen:]              # no EMCY after the kill
+        assert st["heartbeat_timeouts"].raw == 0
+        assert not st["status_word"].raw & StatusWord.COMMAND_TIMEOUT
+        hb = [m for m in watch.msgs if m.arbitration_id == 0x710]
+        assert hb[-1].data[0] == NMTState.OPERATIONAL    # alive, holding still
+    finally:
+        close(network)
+        watch.close()
+        node.nmt.send_command(NMTCommand.RESET_NODE)
+
+
+def test_ecu_killed_mid_run_realtime_plant_leaves_operational_with_one_emcy(bus_env):
+    """Real time: the consumer runs on the wall clock (0x1016, 300 ms); the error behaviour
+    0x1029 = 0 takes the node to PRE-OPERATIONAL: demand 0, drive disabled, EMCY 0x8130."""
+    watch = Collector(bus_env)
+    network, node = remote_node(bus_env)
+    try:
+        t_kill, seen = _kill_ecu_mid_run(bus_env, watch, "realtime")
         wait_until(lambda: 0x90 in watch.ids(), 2.0, "an EMCY after the ECU died")
         assert time.monotonic() - t_kill < 1.0
+        wait_until(lambda: [m for m in watch.msgs[seen:] if m.arbitration_id == 0x710
+                            and m.data[0] == NMTState.PRE_OPERATIONAL], 1.0,
+                   "a PRE-OPERATIONAL heartbeat after the kill")
+        st = node.sdo["node_status"]
+        t_plant = st["plant_time_s"].raw
+        word = st["status_word"].raw
+        assert word & StatusWord.COMMAND_TIMEOUT and not word & StatusWord.ENABLED
+        assert st["nmt_state"].raw == NMTState.PRE_OPERATIONAL
+        assert st["applied_demand_a"].raw == 0.0
+        assert st["heartbeat_timeouts"].raw == 1
+        time.sleep(0.5)
+        assert st["plant_time_s"].raw == t_plant           # the plant stopped
         f = Frames()
         emcy = [f.decode(m)[1] for m in watch.msgs if m.arbitration_id == 0x90]
-        assert f.label("EMA_EMCY", "EMCY_ErrorCode", emcy[-1]["EMCY_ErrorCode"]) == \
-            "heartbeat_lost"
-        word = node.sdo["node_status"]["status_word"].raw
-        assert word & StatusWord.COMMAND_TIMEOUT and not word & StatusWord.ENABLED
-        assert node.sdo["node_status"]["applied_demand_a"].raw == 0.0
-        assert node.sdo["node_status"]["heartbeat_timeouts"].raw == 1
+        names = [f.label("EMA_EMCY", "EMCY_ErrorCode", e["EMCY_ErrorCode"]) for e in emcy]
+        assert names.count("heartbeat_lost") == 1 and names[-1] == "heartbeat_lost"
     finally:
-        if ecu.poll() is None:
-            ecu.kill()
-            ecu.communicate(timeout=10)
         close(network)
         watch.close()
         node.nmt.send_command(NMTCommand.RESET_NODE)

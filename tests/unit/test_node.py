@@ -190,29 +190,43 @@ def test_bad_frames_are_counted_and_ignored(rig):
     assert rig.status("demands_invalid") == 2
     assert rig.status("sync_counter_gaps") == 1
     assert rig.status("rpdo_missing") == 1
-    names = rig.emcy_names()
-    assert "pdo_length" in names and "demand_invalid" in names
+    # demand_invalid rose 1 SYNC period after pdo_length: it waits for the end of the EMCY
+    # inhibit time (0x1015, 100 ms; SYNC periods in lockstep)
+    assert rig.emcy_names() == ["pdo_length"]
+    for k in range(7, 7 + 100):
+        rig.sync(k)
+    assert rig.emcy_names()[:2] == ["pdo_length", "demand_invalid"]
+    assert rig.status("emcy_suppressed") == 0
     assert rig.node.state == NMTState.OPERATIONAL
 
 
 def test_ecu_heartbeat_lost_forces_zero_demand_and_sends_emcy(rig):
+    """Lockstep: the consumer (0x1016, 300 ms) counts SYNC periods, not wall time; on a
+    timeout the error behaviour 0x1029 = 0 takes the node out of OPERATIONAL."""
     rig.nmt(NMTCommand.START)
     rig.send("ECU_Heartbeat", {"ECU_NMTState": 5})
     rig.send("EMA_RPDO1", {"CurrentDemand": 4.0, "ControlWord": 1})
     rig.sync(1)
     assert rig.node.applied_a == 4.0
-    rig.wait_for(lambda m: m.arbitration_id == 0x90, timeout=1.0)   # 300 ms consumer time
-    assert "heartbeat_lost" in rig.emcy_names()
-    assert rig.node.applied_a == 0.0
-    tp = rig.sync(2)
-    assert tp[0]["StatusWord"] & StatusWord.COMMAND_TIMEOUT
-    assert not tp[0]["StatusWord"] & StatusWord.ENABLED
+    time.sleep(0.4)                                   # wall time does not count in lockstep
+    for k in range(2, 301):
+        tp = rig.sync((k - 1) % 240 + 1)
+        assert not tp[0]["StatusWord"] & StatusWord.COMMAND_TIMEOUT
+    assert rig.emcy_names() == [] and rig.node.applied_a == 4.0
+    rig.send("SYNC", {"SYNC_Counter": 301 % 240})     # 301 SYNC periods without heartbeat
+    em = rig.wait_for(lambda m: m.arbitration_id == 0x90, timeout=1.0)
+    assert rig.emcy_names() == ["heartbeat_lost"]
+    word = rig.frames.decode(em)[1]["EMCY_StatusWord"]
+    assert word & StatusWord.COMMAND_TIMEOUT and not word & StatusWord.ENABLED
+    assert rig.status("nmt_state") == NMTState.PRE_OPERATIONAL
     assert rig.status("heartbeat_timeouts") == 1
     assert rig.status("applied_demand_a") == 0.0
-    # the ECU comes back and resets the fault: the drive follows commands again
+    # the ECU comes back, starts the node and resets the fault: commands apply again
     rig.send("ECU_Heartbeat", {"ECU_NMTState": 5})
+    rig.nmt(NMTCommand.START)
     rig.send("EMA_RPDO1", {"CurrentDemand": 2.0, "ControlWord": 0x81})
-    rig.sync(3)
+    tp = rig.sync(62)
+    assert not tp[0]["StatusWord"] & StatusWord.COMMAND_TIMEOUT
     assert rig.node.applied_a == 2.0
 
 
