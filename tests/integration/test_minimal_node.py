@@ -113,16 +113,29 @@ def test_the_double_consumes_the_ecu_heartbeat(node_env):
     try:
         node = net.add_node(0x10, str(ROOT / "dbc" / "ema.eds"))
         node.sdo.RESPONSE_TIMEOUT = 1.0
-        node.nmt.send_command(0x81)
-        node.nmt.wait_for_bootup(3.0)
+        bootups: list[int] = []
+        node.nmt.add_heartbeat_callback(lambda state: state == 0 and bootups.append(state))
+
+        def reset_node() -> None:   # (canopen's wait_for_bootup misses an early boot-up)
+            n = len(bootups)
+            node.nmt.send_command(0x81)
+            end = time.monotonic() + 3.0
+            while len(bootups) == n:
+                assert time.monotonic() < end, "no boot-up within 3 s of NMT reset node"
+                time.sleep(0.01)
+
+        reset_node()
         assert node.sdo[0x1016][1].raw == 0x1012C
+        t0 = time.time()                  # the hub stamps frames with time.time()
         net.send_message(0x701, [0x05])
-        t0 = time.monotonic()
-        err = node.emcy.wait(0x8130, timeout=2.0)
-        assert err is not None and time.monotonic() - t0 >= 0.29
+        end = time.monotonic() + 2.0
+        while not [e for e in node.emcy.log if e.code == 0x8130]:
+            assert time.monotonic() < end, "no EMCY 0x8130 within 2 s"
+            time.sleep(0.01)
+        err = next(e for e in node.emcy.log if e.code == 0x8130)
+        assert err.timestamp - t0 >= 0.29      # not before the 300 ms timeout
         assert node.sdo[0x1001].raw & 0x10
-        node.nmt.send_command(0x81)
-        node.nmt.wait_for_bootup(3.0)
+        reset_node()
         assert node.sdo[0x1001].raw == 0
     finally:
         net.disconnect()
@@ -152,10 +165,17 @@ def test_realtime_run_reports_what_is_missing_and_completes(node_env, tmp_path):
     # NaN (4-5 at the start on this loaded machine); after it, the last values are used
     pos = tr["position_m"]
     assert np.isfinite(pos).sum() >= 900 and np.isfinite(pos[100:]).all()
-    # the nut follows the 0.5 mm sine (in-process: rms error 0.106 mm, peak 0.48 mm)
-    err_m = pos - tr["setpoint_position_m"]
-    assert np.sqrt(np.nanmean(err_m ** 2)) < 0.2e-3
-    assert 0.35e-3 < np.nanmax(np.abs(pos)) < 0.7e-3
+    # the loop is closed through the node: the nut follows the 0.5 mm sine (in-process:
+    # median error 0.105 mm, peak 0.48 mm, correlation 0.954; a nut that stays at 0:
+    # median error 0.35 mm, no correlation). Real time on a loaded machine leaves the
+    # ECU on stale TPDOs for bursts of periods (load average 7: 60-75 % late sets, one
+    # run in 8 with a 4 mm excursion, median error 0.12 mm): hence the median and
+    # generous bounds
+    sp = tr["setpoint_position_m"]
+    ok = np.isfinite(pos)
+    assert np.median(np.abs(pos[ok] - sp[ok])) < 0.2e-3
+    assert np.corrcoef(pos[ok], sp[ok])[0, 1] > 0.5
+    assert 0.35e-3 < np.max(np.abs(pos[ok])) < 5e-3
     # the log is complete: every SYNC, and the node's three TPDOs for each of them
     with can.LogReader(log) as reader:
         ids = Counter(m.arbitration_id for m in reader)
