@@ -31,7 +31,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -63,6 +63,17 @@ TWO_PI = 2.0 * math.pi
 # canopen logs SDO aborts and timeouts it reports anyway as exceptions; keep stderr clean
 logging.getLogger("canopen").setLevel(logging.CRITICAL)
 TPDOS = ("EMA_TPDO1", "EMA_TPDO2", "EMA_TPDO3")
+# CiA 301 SDO abort codes by which a node says it does not have an object
+ABSENT_ABORTS = (0x06020000, 0x06090011)   # object / sub-index does not exist
+MISSING = object()                         # what `Ecu.read_optional` returns for them
+IDENTITY = {"device_type": (0x1000, None), "vendor_id": (0x1018, 1),
+            "product_code": (0x1018, 2), "revision": (0x1018, 3), "serial": (0x1018, 4)}
+# why a profile's own parameter settings cannot go to a node without the plant's objects
+SETTING_HINTS = {
+    "load": "the load is the rig's, not the node's: run it unloaded with --load-n 0 and let "
+            "the rig apply its load",
+    "schedule": "the degradation schedule exists only in the simulated plant",
+}
 
 
 class PlantLost(BenchError):
@@ -84,6 +95,20 @@ class EcuStats:
     sync_jitter_max_us: float = 0.0
     sync_deadline_misses: int = 0
     frames_logged: int = 0
+
+
+@dataclass
+class NodeInfo:
+    """What `Ecu.prepare` found on the node beyond CiA 301 (the trace's ``meta["node"]``)."""
+    identity: dict[str, int] = field(default_factory=dict)   # 0x1000, 0x1018 sub 1-4
+    missing: list[str] = field(default_factory=list)     # optional objects the node lacks
+    params_complete: bool = True       # every 0x2000-0x2008 parameter was read back
+    params: dict[str, Any] = field(default_factory=dict)     # those read (node's values)
+    encoder_counts_per_rev: int = 0
+    encoder_counts_source: str = ""
+    sync_period_s: float = 0.0
+    sync_period_source: str = ""
+    notes: list[str] = field(default_factory=list)       # what the ECU did about it
 
 
 class _Log(can.Listener):
@@ -145,6 +170,10 @@ class Ecu:
         self._emcy_cob = self._cob["EMA_EMCY"]
         self._clock = time.monotonic
         self._t0_wall = time.time()
+        self.node_info = NodeInfo()
+        self._present: dict[tuple[int, int], bool] = {}   # (index, sub) -> the node has it
+        self._absent_index: set[int] = set()                # whole objects it does not have
+        self._missing: dict[str, None] = {}                 # labels of objects it lacks
 
     # -- frames ---------------------------------------------------------------------------
     def send(self, msg: can.Message) -> None:
@@ -230,7 +259,10 @@ class Ecu:
                 return self.plant_state or NMTState.PRE_OPERATIONAL
             time.sleep(0.01)
         try:   # heartbeat disabled (0x1017 = 0)? ask by SDO
-            return NMTState(int(self.remote.sdo["node_status"]["nmt_state"].raw))
+            if self.has_object("node_status.nmt_state"):
+                return NMTState(int(self.sdo_read("node_status.nmt_state")))
+            # a node that answers SDO is PRE-OPERATIONAL or OPERATIONAL (CiA 301)
+            return self.plant_state or NMTState.PRE_OPERATIONAL
         except Exception:  # noqa: BLE001
             pass
         raise PlantLost(f"no actuator node 0x{self.node_id:02X} answering on the bus "
@@ -250,8 +282,12 @@ class Ecu:
                         f"{timeout:g} s of an NMT reset")
 
     # -- SDO ----------------------------------------------------------------------------------
-    def _sdo_var(self, name: str):
-        if "." in name:
+    def _sdo_var(self, name: str | int | tuple[int, int]):
+        """The SDO variable of object `name`: ``group.leaf`` (e.g. ``node_status.cycles``),
+        a group name, an index, or (index, sub-index)."""
+        if isinstance(name, tuple):
+            group, leaf = name
+        elif isinstance(name, str) and "." in name:
             group, leaf = name.split(".", 1)
         else:
             group, leaf = name, None
@@ -261,23 +297,92 @@ class Ecu:
         except KeyError:
             raise BenchError(f"the object dictionary has no object {name!r}") from None
 
-    def sdo_read(self, name: str) -> Any:
-        """Read an object by name (``group.leaf``, e.g. ``node_status.cycles``)."""
+    @staticmethod
+    def _label(var) -> str:
+        """``0xIIII sub S (group.leaf)`` of an SDO variable, for messages."""
+        od = var.od
+        parent = getattr(od, "parent", None)
+        if parent is None:
+            return f"0x{od.index:04X} ({od.name})"
+        return f"0x{od.index:04X} sub {od.subindex} ({parent.name}.{od.name})"
+
+    def _note_absent(self, var, code: int) -> None:
+        """Remember that the node lacks `var` (`code` 0x06020000: its whole object)."""
+        od = var.od
+        if code == ABSENT_ABORTS[0]:
+            self._absent_index.add(od.index)
+            parent = getattr(od, "parent", None)
+            label = f"0x{od.index:04X} ({(parent or od).name})"
+        else:
+            self._present[(od.index, od.subindex)] = False
+            label = self._label(var)
+        self._missing.setdefault(label, None)
+
+    @property
+    def missing(self) -> list[str]:
+        """Optional objects the node was found not to have (labels, sorted)."""
+        return sorted(self._missing)
+
+    def has_object(self, name: str | int | tuple[int, int]) -> bool:
+        """True if the node has object `name`: an SDO upload is answered, or refused for
+        another reason than absence (e.g. a write-only object). Cached per object."""
         self.listen()
         var = self._sdo_var(name)
-        try:
-            return var.raw
-        except SdoAbortedError as exc:
-            raise BenchError(f"the plant refused to read {name}: {exc}") from None
-        except SdoCommunicationError as exc:
-            raise PlantLost(f"no SDO answer reading {name}: {exc}") from None
+        od = var.od
+        key = (od.index, od.subindex)
+        if od.index in self._absent_index:
+            return False
+        if key not in self._present:
+            try:
+                self.remote.sdo.upload(*key)
+                self._present[key] = True
+            except SdoAbortedError as exc:
+                if exc.code in ABSENT_ABORTS:
+                    self._note_absent(var, exc.code)
+                else:
+                    self._present[key] = True
+            except SdoCommunicationError as exc:
+                raise PlantLost(f"no SDO answer reading {self._label(var)}: {exc}") from None
+        return self._present.get(key, False)
 
-    def sdo_write(self, name: str, raw: Any) -> None:
+    def read_optional(self, name: str | int | tuple[int, int]) -> Any:
+        """Object `name` by SDO, or `MISSING` if the node does not have it (recorded in
+        `missing`); other refusals are a BenchError, no answer PlantLost."""
+        self.listen()
+        var = self._sdo_var(name)
+        if var.od.index in self._absent_index or self._present.get(
+                (var.od.index, var.od.subindex)) is False:
+            return MISSING
+        try:
+            value = var.raw
+        except SdoAbortedError as exc:
+            if exc.code in ABSENT_ABORTS:
+                self._note_absent(var, exc.code)
+                return MISSING
+            raise BenchError(f"the plant refused to read {self._label(var)}: {exc}") from None
+        except SdoCommunicationError as exc:
+            raise PlantLost(f"no SDO answer reading {self._label(var)}: {exc}") from None
+        self._present[(var.od.index, var.od.subindex)] = True
+        return value
+
+    def sdo_read(self, name: str | int | tuple[int, int]) -> Any:
+        """Read an object by name (``group.leaf``, e.g. ``node_status.cycles``)."""
+        value = self.read_optional(name)
+        if value is MISSING:
+            raise BenchError(f"actuator node 0x{self.node_id:02X} has no object "
+                             f"{self._label(self._sdo_var(name))}")
+        return value
+
+    def sdo_write(self, name: str | int | tuple[int, int], raw: Any) -> None:
         self.listen()
         var = self._sdo_var(name)
         try:
             var.raw = raw
         except SdoAbortedError as exc:
+            if exc.code in ABSENT_ABORTS:
+                self._note_absent(var, exc.code)
+                raise BenchError(f"actuator node 0x{self.node_id:02X} has no object "
+                                 f"{self._label(var)} (writing {raw!r})") from None
             raise BenchError(f"the plant refused {name} = {raw!r}: {exc}") from None
         except SdoCommunicationError as exc:
             raise PlantLost(f"no SDO answer writing {name}: {exc}") from None
@@ -292,32 +397,163 @@ class Ecu:
                 raise BenchError(str(exc)) from None
             self.sdo_write(info.name, raw)
 
+    def check_settable(self, values: dict[str, Any], origin: dict[str, str] | None = None
+                       ) -> None:
+        """BenchError (one line, naming every setting and object) if the node lacks an
+        object that `values` would write; `origin` says where each name came from
+        (``--set``, ``profile NAME``), by canonical parameter name."""
+        origin = origin or {}
+        absent: dict[str, list[str]] = {}
+        for name in values:
+            try:
+                info = resolve(name)
+            except ParameterError as exc:
+                raise BenchError(str(exc)) from None
+            if not self.has_object(info.name):
+                absent.setdefault(origin.get(info.name, "the run"), []).append(info.name)
+        if not absent:
+            return
+        parts = []
+        for source, names in absent.items():
+            objs = ", ".join(f"0x{self.param_objects.by_name[n].index:04X} sub "
+                             f"{self.param_objects.by_name[n].subindex}" for n in names)
+            part = f"{', '.join(names)} ({source}) need{'s' if len(names) == 1 else ''} {objs}"
+            hints = {SETTING_HINTS[n.split('.')[0]] for n in names
+                     if n.split(".")[0] in SETTING_HINTS}
+            parts.append(part + "".join(f": {h}" for h in sorted(hints)))
+        raise BenchError(f"actuator node 0x{self.node_id:02X} lacks the parameter objects "
+                         "this run writes: " + "; ".join(parts))
+
     def read_params(self) -> PlantParams:
-        """Every plant parameter, read by SDO."""
+        """Every plant parameter the node has, read by SDO (the others at their default;
+        `node_info.params_complete` says whether all were there)."""
         values = {}
         for name, po in self.param_objects.by_name.items():
-            values[name] = ParamObjects.from_od(po.info, self.sdo_read(name))
+            raw = self.read_optional(name)
+            if raw is not MISSING:
+                values[name] = ParamObjects.from_od(po.info, raw)
+        self.node_info.params = values
+        self.node_info.params_complete = len(values) == len(self.param_objects.by_name)
         return PlantParams().with_dict(values)
 
     def read_status(self) -> dict[str, Any]:
-        """Object 0x2100 (node status and counters) by name."""
+        """Object 0x2100 (node status and counters) by name; {} if the node has none."""
         rec = self.od["node_status"]
+        if not self.has_object("node_status.nmt_state"):
+            return {}
         return {var.name: self.sdo_read(f"node_status.{var.name}")
                 for sub, var in rec.subindices.items() if sub}
 
+    def read_identity(self) -> dict[str, int]:
+        """CiA 301 device type (0x1000) and identity (0x1018 sub 1-4), those the node has."""
+        out = {}
+        for key, (index, sub) in IDENTITY.items():
+            v = self.read_optional(index if sub is None else (index, sub))
+            if v is not MISSING:
+                out[key] = int(v)
+        return out
+
     # -- running a profile ------------------------------------------------------------------
-    def prepare(self, pace: Pace, values: dict[str, Any], spin_us: int | None = None
-                ) -> PlantParams:
+    def prepare(self, pace: Pace, values: dict[str, Any], spin_us: int | None = None,
+                origin: dict[str, str] | None = None, encoder_counts: int | None = None,
+                sync_driven: bool = False) -> PlantParams:
         """Reset the node, set pace (and the plant pacer's spin window) and parameters,
-        restart the plant at t = 0; returns the parameters the plant now has (read back)."""
+        restart the plant at t = 0; returns the parameters the plant now has (read back).
+
+        Only NMT, heartbeat, SDO of CiA 301 objects and the DBC's PDOs are required; the
+        optional objects (0x2000-0x2008, 0x2100, 0x2200) are used when the node has them.
+        Without them: `node_info` lists what is missing and `node_info.notes` what the
+        ECU does instead (docs/node-contract.md). `encoder_counts` (counts/rev) stands in
+        for a missing 0x2003 sub 11; `sync_driven` vouches that a node without 0x2200
+        steps exactly one period per SYNC (else `Pace.SYNC` is refused)."""
         self.wait_for_plant(2.0)
         self.reset_node()
-        self.sdo_write("node_control.pace", int(pace))
-        if spin_us is not None:
+        info = self.node_info = NodeInfo(notes=[])
+        info.identity = self.read_identity()
+        self._set_pace(pace, sync_driven)
+        if spin_us is not None and self.has_object("node_control.spin_us"):
             self.sdo_write("node_control.spin_us", int(spin_us))
+        self.check_settable(values, origin)
         self.set_params(values)
-        self.sdo_write("node_control.reset_plant", 1)
-        return self.read_params()
+        if self.has_object("node_control.reset_plant"):
+            self.sdo_write("node_control.reset_plant", 1)
+        else:
+            info.notes.append("node has no plant reset (0x2200 sub 2 missing): the run "
+                              "starts from the node's state after NMT reset node")
+        params = self._timing(self.read_params(), encoder_counts)
+        if not info.params_complete:
+            absent = sorted({po.index for n, po in self.param_objects.by_name.items()
+                             if n not in info.params})
+            span = (f"0x{absent[0]:04X}-0x{absent[-1]:04X}" if len(absent) > 1
+                    and absent[-1] - absent[0] == len(absent) - 1 else
+                    ", ".join(f"0x{i:04X}" for i in absent))
+            info.notes.append(f"node has {'no' if not info.params else 'not all'} plant "
+                              f"parameter objects ({span} missing): {len(info.params)} of "
+                              f"{len(self.param_objects.by_name)} read back")
+        if not self.has_object("node_status.nmt_state"):
+            info.notes.append("node has no counters (0x2100 missing): plant counters "
+                              "skipped")
+        info.missing = self.missing
+        return params
+
+    def _set_pace(self, pace: Pace, sync_driven: bool) -> None:
+        """Write the lockstep object 0x2200 sub 1, or decide without it."""
+        if self.has_object("node_control.pace"):
+            self.sdo_write("node_control.pace", int(pace))
+        elif pace == Pace.SYNC and not sync_driven:
+            raise BenchError(f"--pace sync needs the lockstep object 0x2200 sub 1, which "
+                             f"actuator node 0x{self.node_id:02X} does not have (a real "
+                             "actuator runs on its own clock): use --pace realtime")
+        elif pace == Pace.SYNC:
+            self.node_info.notes.append("node has no lockstep (0x2200 sub 1 missing): "
+                                        "lockstep on the caller's word that the node "
+                                        "steps one period per SYNC")
+        else:
+            self.node_info.notes.append("node has no lockstep (0x2200 sub 1 missing): "
+                                        "running in real time")
+
+    def _timing(self, params: PlantParams, encoder_counts: int | None) -> PlantParams:
+        """`params` with the encoder resolution and SYNC period the run uses: the node's
+        parameter objects, else `encoder_counts` / object 0x1006, else the EDS defaults."""
+        info = self.node_info
+        cpr_name, ts_name = "sensors.encoder_counts_per_rev", "sim.sync_period_s"
+        cpr_po = self.param_objects.by_name[cpr_name]
+        cpr_obj = f"0x{cpr_po.index:04X} sub {cpr_po.subindex}"
+        cpr_default = int(self.od[cpr_po.index][cpr_po.subindex].default)
+        if cpr_name in info.params:
+            cpr, source = int(info.params[cpr_name]), f"node {cpr_obj}"
+            if encoder_counts is not None and int(encoder_counts) != cpr:
+                raise BenchError(f"--encoder-counts {encoder_counts} disagrees with the node's "
+                                 f"encoder resolution {cpr_obj} = {cpr} counts/rev")
+        elif encoder_counts is not None:
+            cpr, source = int(encoder_counts), "--encoder-counts"
+        else:
+            cpr, source = cpr_default, f"the EDS default of {cpr_obj}"
+        if cpr_name not in info.params:
+            note = (f"node has no encoder resolution ({cpr_obj} missing): {cpr} counts/rev "
+                    f"from {source}")
+            if encoder_counts is None:
+                note += " (--encoder-counts N for another encoder)"
+            if cpr != cpr_default:   # decoders assume the default when the log lacks it
+                note += f"; the log does not carry it: decode with --counts-per-rev {cpr}"
+            info.notes.append(note)
+        if ts_name in info.params:
+            ts, ts_source = float(info.params[ts_name]), "node 0x2008 sub 1"
+        else:
+            us = self.read_optional(0x1006)
+            if us is not MISSING and int(us) > 0:
+                ts, ts_source = int(us) * 1e-6, "node 0x1006"
+            else:
+                ts = int(self.od[0x1006].default) * 1e-6
+                ts_source = "EDS default of 0x1006"
+                info.notes.append(f"node has no SYNC period (0x1006 missing or 0): "
+                                  f"{ts * 1e3:g} ms, the EDS default")
+        info.encoder_counts_per_rev, info.encoder_counts_source = cpr, source
+        info.sync_period_s, info.sync_period_source = ts, ts_source
+        try:
+            return params.with_dict({cpr_name: cpr, ts_name: ts})
+        except ParameterError as exc:
+            raise BenchError(str(exc)) from None
 
     def run(self, profile: Profile, params: PlantParams, cparams: ControllerParams | None = None,
             pace: Pace = Pace.SYNC, duration_s: float | None = None, progress: bool = False,
@@ -554,7 +790,7 @@ def status_names(word: int) -> list[str]:
     return [f.name.lower() for f in StatusWord if f and f.name and int(word) & f]
 
 
-__all__ = ["Ecu", "EcuStats", "PlantLost", "BusLost", "status_names"]
+__all__ = ["Ecu", "EcuStats", "NodeInfo", "PlantLost", "BusLost", "status_names"]
 
 
 def plant_values(profile: Profile, assignments: list[str] | None = None,
@@ -575,25 +811,70 @@ def plant_values(profile: Profile, assignments: list[str] | None = None,
     return out
 
 
+def setting_origins(profile: Profile, assignments: list[str] | None = None,
+                    values: dict[str, Any] | None = None) -> dict[str, str]:
+    """Canonical parameter name -> where the run's setting of it comes from (for
+    messages): ``profile NAME``, ``values`` or ``--set`` (the last one wins, as in
+    `plant_values`)."""
+    out: dict[str, str] = {}
+    items = [(k, f"profile {profile.name}") for k in profile.params_overrides]
+    items += [(k, "values") for k in (values or {})]
+    items += [(a.split("=", 1)[0].strip(), "--set") for a in assignments or [] if "=" in a]
+    for name, source in items:
+        try:
+            out[resolve(name).name] = source
+        except ParameterError:
+            pass
+    return out
+
+
+def _with_node(trace: Trace | None, info: NodeInfo) -> Trace | None:
+    """`trace` with what the ECU found on the node (``meta["node"]``); the parameters in
+    ``meta["params"]`` only when the node gave them all."""
+    if trace is not None:
+        node = asdict(info)
+        if info.params_complete:
+            del node["params"]           # all of them are in meta["params"]
+        else:
+            trace.meta.pop("params", None)
+        trace.meta["node"] = node
+    return trace
+
+
 def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                  assignments: list[str] | None = None, pace: Pace | str = Pace.SYNC,
                  duration_s: float | None = None, log_path: str | Path | None = None,
                  progress: bool = False, settings: dict[str, Any] | None = None,
                  start_plant: bool = True, cparams: ControllerParams | None = None,
                  node_id: int | None = None, announce: Callable[[str], None] | None = None,
-                 echo: bool = False, spin_us: int = 200) -> Trace:
+                 echo: bool = False, spin_us: int = 200, encoder_counts: int | None = None,
+                 sync_driven: bool = False) -> Trace:
     """Run `profile` against the plant over the bus and return the trace.
 
     The bus is the configured one (flags in `settings`, environment, config file,
     vcan0, the hub of `bench up`), else a private loopback hub started for this run.
     When no plant answers on a simulated bus (hub, virtual, vcan) and `start_plant`,
     a plant process is started for the run. Everything started here is stopped here.
-    On error the partial trace is in the exception's ``trace`` attribute."""
+    On error the partial trace is in the exception's ``trace`` attribute.
+
+    A node without the simulated plant's optional objects (a real actuator,
+    docs/node-contract.md) is run with what it has: `announce` is told what is missing
+    and what the ECU does instead, and ``trace.meta["node"]`` records it (`NodeInfo`);
+    ``meta["params"]`` is then left out, since the ECU does not know the node's
+    parameters. `encoder_counts` (counts/rev) stands in for a missing encoder
+    resolution object; `sync_driven` vouches that a node without the lockstep object
+    steps one period per SYNC, so that `pace` "sync" may run against it."""
     from bench.bus import close_bus, connect, is_simulated, session
     from bench.bus.procs import start_plant as _start_plant
 
     pace = Pace[pace.upper()] if isinstance(pace, str) else Pace(pace)
     vals = plant_values(profile, assignments, values)
+    origin = setting_origins(profile, assignments, values)
+    if encoder_counts is not None:
+        try:
+            check_value(resolve("sensors.encoder_counts_per_rev"), encoder_counts)
+        except ParameterError as exc:
+            raise BenchError(f"--encoder-counts: {exc}") from None
     say = announce or (lambda s: None)
     with session(settings) as sess:
         bus = connect(sess.cfg, receive_own_messages=echo)
@@ -610,16 +891,21 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                 sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
                                                   node_id=node_id))
             say(f"bus {sess.description}")
-            params = ecu.prepare(pace, vals, spin_us if pace == Pace.REALTIME else None)
+            params = ecu.prepare(pace, vals, spin_us if pace == Pace.REALTIME else None,
+                                 origin=origin, encoder_counts=encoder_counts,
+                                 sync_driven=sync_driven)
+            for note in ecu.node_info.notes:
+                say(note)
             try:
                 trace = ecu.run(profile, params, cparams, pace, duration_s, progress,
                                 spin_us=spin_us)
             except BenchError as exc:
-                exc.trace = ecu.partial  # type: ignore[attr-defined]
+                exc.trace = _with_node(ecu.partial, ecu.node_info)  # type: ignore[attr-defined]
                 raise
             except KeyboardInterrupt as exc:
-                exc.trace = ecu.partial  # type: ignore[attr-defined]
+                exc.trace = _with_node(ecu.partial, ecu.node_info)  # type: ignore[attr-defined]
                 raise
+            _with_node(trace, ecu.node_info)
             trace.meta["bus"] = sess.description
             if log_path:
                 trace.meta["log"] = str(log_path)

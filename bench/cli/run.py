@@ -63,6 +63,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                    help="never start a plant (a real actuator must answer)")
     p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
                    help="actuator node id (default 0x10)")
+    p.add_argument("--encoder-counts", type=int, default=None, metavar="N",
+                   help="encoder resolution (counts/rev) of a node without object 0x2003 "
+                        "sub 11 (default: the EDS default, 16384)")
     prog = p.add_mutually_exclusive_group()
     prog.add_argument("--progress", dest="progress", action="store_true", default=None,
                       help="show a progress bar (default: on a terminal, runs over 2 s)")
@@ -110,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
         trace = run_over_bus(profile, assignments=args.assignments, pace=args.pace,
                              duration_s=args.duration, log_path=args.log, progress=progress,
                              settings=bus_settings(args), start_plant=not args.no_plant,
-                             node_id=args.node_id, announce=say, spin_us=args.spin_us)
+                             node_id=args.node_id, announce=say, spin_us=args.spin_us,
+                             encoder_counts=args.encoder_counts)
     except BenchError as exc:
         partial = getattr(exc, "trace", None)
         if partial is not None and len(partial):

@@ -102,7 +102,7 @@ def _fmt(v) -> str:
 
 def cmd_status(args: argparse.Namespace) -> int:
     from bench.bus import bus_settings, close_bus, connect, find_bus
-    from bench.ecu import Ecu, status_names
+    from bench.ecu import MISSING, Ecu, status_names
     from plant_rt.busdef import NMTState, Pace
     from plant_rt.params import PlantParams
     from plant_rt.transport import HUB_FILE, PLANT_FILE, read_state
@@ -123,18 +123,30 @@ def cmd_status(args: argparse.Namespace) -> int:
         ecu = Ecu(bus, node_id=args.node_id, echo=False, sdo_timeout_s=0.25)
         state = ecu.wait_for_plant(0.35)
         st = ecu.read_status()
-        pace = Pace(int(ecu.sdo_read("node_control.pace"))).name.lower()
+        pace = ecu.read_optional("node_control.pace")
         params = ecu.read_params()
+        ident = ecu.read_identity()
     finally:
         if ecu is not None:
             ecu.close()
         close_bus(bus)
-    word = int(st["status_word"])
-    print(f"node 0x{ecu.node_id:02X}: {NMTState(state).name}, pace {pace}, plant time "
-          f"{st['plant_time_s']:.3f} s, status 0x{word:04X} "
-          f"({', '.join(status_names(word)) or 'ok'})")
-    print("counters: " + ", ".join(f"{k} {_fmt(v)}" for k, v in st.items()
-                                   if k not in ("nmt_state", "status_word", "plant_time_s")))
+    if st:
+        word = int(st["status_word"])
+        pace_name = "?" if pace is MISSING else Pace(int(pace)).name.lower()
+        print(f"node 0x{ecu.node_id:02X}: {NMTState(state).name}, pace {pace_name}, plant "
+              f"time {st['plant_time_s']:.3f} s, status 0x{word:04X} "
+              f"({', '.join(status_names(word)) or 'ok'})")
+        print("counters: " + ", ".join(f"{k} {_fmt(v)}" for k, v in st.items()
+                                       if k not in ("nmt_state", "status_word",
+                                                    "plant_time_s")))
+    else:     # a node with only CiA 301 objects (docs/node-contract.md)
+        print(f"node 0x{ecu.node_id:02X}: {NMTState(state).name}, identity "
+              + ", ".join(f"{k} 0x{v:X}" for k, v in ident.items()))
+    if ecu.missing:
+        print(f"missing optional objects: {', '.join(ecu.missing)}")
+    if not ecu.node_info.params:
+        print("parameters: none read back")
+        return 0
     diff = PlantParams().diff(params)
     shown = params.flat() if args.all else {k: b for k, (_, b) in diff.items()}
     title = "parameters" if args.all else "parameters not at their default"
