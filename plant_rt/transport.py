@@ -359,16 +359,55 @@ def open_bus(cfg: dict[str, Any], timeout: float = 5.0, **kwargs: Any) -> can.Bu
 
 
 def close_bus(bus: can.BusABC | None, timeout: float = 2.0) -> None:
-    """Shut a bus down without ever blocking longer than `timeout`."""
+    """Shut a bus down without ever blocking longer than about `timeout`, and leave it
+    shut down whatever happened to its server.
+
+    python-can's `BusABC.__del__` calls `shutdown()` again on any bus not marked shut
+    down, which after a failed first shutdown (a killed hub: python-can-remote's close
+    handshake raises on the dead socket) printed "RemoteBus was not properly shut down"
+    and a traceback at exit. So: a shutdown that raises or hangs (a hung server never
+    answers the close handshake) ends the connection under it, and the bus is then
+    marked shut down the way `BusABC.shutdown` does it."""
     if bus is None:
         return
     th = threading.Thread(target=_quiet_shutdown, args=(bus,), daemon=True, name="close-bus")
     th.start()
     th.join(timeout)
+    if th.is_alive():                 # hung: end the connection the shutdown waits on
+        _end_connection(bus, close=False)
+        th.join(min(timeout, 0.5))
+    if not th.is_alive():
+        _end_connection(bus, close=True)
+    _mark_shut_down(bus)
 
 
 def _quiet_shutdown(bus: can.BusABC) -> None:
     try:
         bus.shutdown()
     except Exception:  # noqa: BLE001 - closing a dead connection is not an error
+        _end_connection(bus, close=True)
+
+
+def _end_connection(bus: can.BusABC, close: bool) -> None:
+    """Shut down (and close, when `close`) the bus's network socket, if it has one."""
+    sock = getattr(bus, "socket", None)
+    if not isinstance(sock, socket.socket) or sock.fileno() < 0:
+        return
+    try:
+        sock.shutdown(socket.SHUT_RDWR)
+    except OSError:
         pass
+    if close:
+        sock.close()
+
+
+def _mark_shut_down(bus: can.BusABC) -> None:
+    """Record a bus whose own shutdown failed as shut down (`BusABC.shutdown`: stop its
+    periodic tasks, set the flag), so `__del__` does not try again."""
+    if getattr(bus, "_is_shutdown", True):
+        return
+    try:
+        can.BusABC.shutdown(bus)          # type: ignore[arg-type]
+    except Exception:  # noqa: BLE001 - periodic tasks of a dead connection
+        pass
+    bus._is_shutdown = True
