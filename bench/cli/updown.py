@@ -113,8 +113,8 @@ def _up(args: argparse.Namespace) -> int:
     finally:
         use_normal_priority()
     bus = f"{cfg.get('interface')}:{cfg.get('channel')}"
-    write_state(PLANT_FILE, {"pid": child.pid, "start": child.token, "bus": bus,
-                             "source": source, "pace": args.pace, "log": str(child.log_path),
+    write_state(PLANT_FILE, {"pid": child.pid, "bus": bus, "source": source,   # + "start"
+                             "pace": args.pace, "log": str(child.log_path),
                              "started": time.time()})
     print(f"plant: pid {child.pid}, node 0x{(args.node_id or 0x10):02X} on {bus} ({source}), "
           f"pace {args.pace}; log {child.log_path}")
