@@ -104,6 +104,19 @@ def list_params(out=sys.stdout) -> None:
         print("  ".join(r[i].ljust(w[i]) for i in range(4)) + "  " + r[4], file=out)
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """Refuse numbers the node cannot run with (NaN/inf durations never end)."""
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise PlantError(f"--duration must be a finite number of seconds > 0, not "
+                         f"{args.duration:g} (without it: until stopped)")
+    if not 0 <= args.spin_us <= 1000:
+        raise PlantError("--spin-us must be within 0..1000 us")
+    if not 0 <= args.rt_priority <= 99:
+        raise PlantError("--rt-priority must be within 0..99")
+    if args.parent_pid is not None and args.parent_pid <= 0:
+        raise PlantError(f"--parent-pid must be a process id > 0, not {args.parent_pid}")
+
+
 def build_params(args: argparse.Namespace) -> PlantParams:
     try:
         params = PlantParams()
@@ -136,9 +149,8 @@ def run(args: argparse.Namespace) -> int:
     level = logging.WARNING if args.verbose == 0 else (
         logging.INFO if args.verbose == 1 else logging.DEBUG)
     logging.basicConfig(level=level, format="plant: %(message)s")
+    check_arguments(args)
     params = build_params(args)
-    if not 0 <= args.rt_priority <= 99:
-        raise PlantError("--rt-priority must be within 0..99")
     try:
         found = resolve(bus_settings(args))
     except BusUnavailable as exc:

@@ -13,6 +13,7 @@ is found, commands that need a bus start a private loopback hub for their own ru
 from __future__ import annotations
 
 import argparse
+import sys
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
@@ -81,16 +82,27 @@ class BusSession:
     def description(self) -> str:
         return f"{describe(self.cfg)} ({self.source})"
 
-    def close(self) -> None:
+    def logs(self) -> list[str]:
+        """The logs of the processes started for this command."""
+        return [str(c.log_path) for c in self.children
+                if getattr(c, "ephemeral", False) and c.log_path is not None]
+
+    def close(self, keep_logs: bool = False) -> None:
+        """Stop what was started for this command; remove its logs unless `keep_logs`."""
         for child in reversed(self.children):
             child.stop()
+            if not keep_logs:
+                child.remove_log()
         self.children.clear()
 
 
 @contextmanager
 def session(settings: dict[str, Any] | None = None, start_hub: bool = True):
     """Yield a `BusSession`: the configured bus, else a private loopback hub started
-    for this command (stopped on exit)."""
+    for this command (stopped on exit).
+
+    The logs of what was started for the command (in `bench.bus.procs.run_dir()`) are
+    removed when it ends well; when it fails they are kept and the error names them."""
     from bench.bus.procs import start_hub as _start_hub
 
     found = find_bus(settings)
@@ -105,10 +117,21 @@ def session(settings: dict[str, Any] | None = None, start_hub: bool = True):
         raise BenchError("no CAN bus: bench is not up (no loopback hub running), there is "
                          "no vcan0 and no python-can configuration (-i/-c, CAN_INTERFACE, "
                          "~/.canrc); run `bench up` first")
+    failed = False
     try:
         yield sess
+    except Exception as exc:
+        failed = True
+        logs = sess.logs()
+        if logs:
+            where = f"logs of the processes started for this command: {', '.join(logs)}"
+            if isinstance(exc, BenchError) and len(exc.args) == 1:
+                exc.args = (f"{exc}; {where}",)
+            else:
+                print(where, file=sys.stderr)
+        raise
     finally:
-        sess.close()
+        sess.close(keep_logs=failed)
 
 
 __all__ = ["add_bus_arguments", "bus_settings", "find_bus", "connect", "close_bus",

@@ -9,6 +9,7 @@ Nothing here waits without a time limit.
 
 from __future__ import annotations
 
+import itertools
 import os
 import select
 import signal
@@ -20,70 +21,138 @@ from pathlib import Path
 from typing import Any
 
 from bench import BenchError
-from plant_rt.transport import pid_alive, state_dir
+from plant_rt.transport import is_process, pid_alive, process_token, state_dir
 
 HUB_START_TIMEOUT_S = 10.0
 PLANT_START_TIMEOUT_S = 90.0   # first start compiles the plant (numba, cached on disk)
+KEEP_RUN_LOGS = 10             # logs of failed commands kept in the run directory
+_RUN_SEQ = itertools.count(1)
 
 
 @dataclass
 class Child:
-    """A process the bench started."""
+    """A process the bench started (`token`: its identity, `plant_rt.transport.process_token`)."""
     name: str
     proc: subprocess.Popen | None = None
     pid: int = 0
     log_path: Path | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    token: str | None = None
+    ephemeral: bool = False    # started for one command: its log is in run_dir()
 
     def alive(self) -> bool:
         if self.proc is not None:
             return self.proc.poll() is None
-        return pid_alive(self.pid)
+        return is_process(self.pid, self.token, MODULES.get(self.name))
 
     def stop(self, timeout: float = 3.0) -> bool:
         """SIGTERM, then SIGKILL after `timeout`; True if it was running."""
-        return stop_pid(self.pid, timeout, self.proc)
+        return stop_pid(self.pid, timeout, self.proc, self.token, MODULES.get(self.name))
+
+    def remove_log(self) -> None:
+        """Remove the log of an ephemeral child (once it has ended well)."""
+        if self.ephemeral and self.log_path is not None:
+            self.log_path.unlink(missing_ok=True)
 
 
-def stop_pid(pid: int, timeout: float = 3.0, proc: subprocess.Popen | None = None) -> bool:
-    if pid <= 0 or not pid_alive(pid):
-        if proc is not None:
-            proc.poll()
+MODULES = {"hub": "bench.bus.hub", "plant": "plant_rt"}
+
+
+def stop_pid(pid: int, timeout: float = 3.0, proc: subprocess.Popen | None = None,
+             token: str | None = None, module: str | None = None) -> bool:
+    """Stop process `pid`: SIGTERM, then SIGKILL after `timeout` s; True if it was running.
+
+    Nothing is signalled unless the process is known to be the one meant: `proc` (our own
+    child, which Popen never lets us confuse with a reused pid), else a live process whose
+    identity token equals `token` or, without a token, whose command line runs `module`
+    (`plant_rt.transport.is_process`). Each signal is preceded by that check."""
+    if proc is not None:
+        return _stop_child(proc, timeout)
+    if not is_process(pid, token, module):
         return False
-    try:
-        os.kill(pid, signal.SIGTERM)
-    except ProcessLookupError:
-        return False
+    _signal(pid, signal.SIGTERM)
     end = time.monotonic() + timeout
     while time.monotonic() < end:
-        if proc is not None and proc.poll() is not None:
-            return True
-        if proc is None and not pid_alive(pid):
+        if not is_process(pid, token, module):
             return True
         time.sleep(0.02)
-    try:
-        os.kill(pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    if proc is not None:
-        try:
-            proc.wait(timeout=2.0)
-        except subprocess.TimeoutExpired:
-            pass
+    if is_process(pid, token, module):
+        _signal(pid, signal.SIGKILL)
     return True
 
 
-def _tail(path: Path | None, n: int = 5) -> str:
-    if path is None or not path.exists():
-        return ""
-    lines = [ln for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
-    return "\n".join(lines[-n:])
+def _signal(pid: int, sig: int) -> None:
+    try:
+        os.kill(pid, sig)
+    except ProcessLookupError:
+        pass
+
+
+def _stop_child(proc: subprocess.Popen, timeout: float) -> bool:
+    """SIGTERM, SIGKILL after `timeout` s, for a child of ours (reaped here)."""
+    if proc.poll() is not None:
+        return False
+    proc.terminate()
+    try:
+        proc.wait(timeout=timeout)
+        return True
+    except subprocess.TimeoutExpired:
+        pass
+    proc.kill()
+    try:
+        proc.wait(timeout=2.0)
+    except subprocess.TimeoutExpired:
+        pass
+    return True
+
+
+def _last_words(path: Path) -> str:
+    """The last line a child wrote to its log, and where the log is (kept for reading)."""
+    lines = []
+    if path.exists():
+        lines = [ln for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
+    return f"{lines[-1].strip() if lines else 'no output'} (log: {path})"
+
+
+def run_dir() -> Path:
+    """Where the hubs and plants started for one command write their logs."""
+    return state_dir() / "run"
+
+
+def _owner(path: Path) -> int | None:
+    """The pid of the bench that wrote run log NAME-PID[-N].log (None if not such a name)."""
+    try:
+        return int(path.stem.split("-")[1])
+    except (IndexError, ValueError):
+        return None
+
+
+def prune_run_logs(d: Path, keep: int = KEEP_RUN_LOGS) -> None:
+    """Keep the newest `keep` logs of benches that are gone (those of failed commands;
+    one that ended well removed its own) and every log of a bench still running."""
+    gone = []
+    for p in d.glob("*-*.*"):
+        owner = _owner(p)
+        if owner is None or pid_alive(owner):     # a reused pid only keeps a log longer
+            continue
+        if p.suffix == ".ready":
+            p.unlink(missing_ok=True)
+        elif p.suffix == ".log":
+            gone.append(p)
+    gone.sort(key=lambda p: p.stat().st_mtime if p.exists() else 0.0, reverse=True)
+    for p in gone[keep:]:
+        p.unlink(missing_ok=True)
 
 
 def _log_file(name: str, persistent: bool) -> Path:
-    d = state_dir() if persistent else state_dir() / "run"
+    if persistent:
+        d = state_dir()
+        d.mkdir(parents=True, exist_ok=True)
+        return d / f"{name}.log"
+    d = run_dir()
     d.mkdir(parents=True, exist_ok=True)
-    return d / (f"{name}.log" if persistent else f"{name}-{os.getpid()}.log")
+    prune_run_logs(d)
+    return d / f"{name}-{os.getpid()}-{next(_RUN_SEQ)}.log"   # one per start: none clobbered
 
 
 def start_hub(persistent: bool = False, timeout: float = HUB_START_TIMEOUT_S,
@@ -111,9 +180,10 @@ def start_hub(persistent: bool = False, timeout: float = HUB_START_TIMEOUT_S,
             break
     if not url.startswith("ws://"):
         stop_pid(proc.pid, 1.0, proc)
-        raise BenchError(f"the loopback hub did not start: {_tail(log_path) or 'no output'}")
+        raise BenchError(f"the loopback hub did not start: {_last_words(log_path)}")
     proc.stdout.close()
-    return Child("hub", proc, proc.pid, log_path, {"url": url})
+    return Child("hub", proc, proc.pid, log_path, {"url": url}, process_token(proc.pid),
+                 ephemeral=not persistent)
 
 
 def plant_command(cfg: dict[str, Any], pace: str = "sync", assignments: list[str] | None = None,
@@ -156,9 +226,10 @@ def start_plant(cfg: dict[str, Any], pace: str = "sync", assignments: list[str] 
     while time.monotonic() < end:
         if ready.exists():
             ready.unlink(missing_ok=True)
-            return Child("plant", proc, proc.pid, log_path, {"pace": pace})
+            return Child("plant", proc, proc.pid, log_path, {"pace": pace},
+                         process_token(proc.pid), ephemeral=not persistent)
         if proc.poll() is not None:
-            raise BenchError(f"the plant exited at start: {_tail(log_path) or 'no output'}")
+            raise BenchError(f"the plant exited at start: {_last_words(log_path)}")
         time.sleep(0.02)
     stop_pid(proc.pid, 1.0, proc)
-    raise BenchError(f"the plant did not boot within {timeout:.0f} s: {_tail(log_path)}")
+    raise BenchError(f"the plant did not boot within {timeout:.0f} s: {_last_words(log_path)}")

@@ -33,11 +33,13 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
+    from bench.cli.outputs import check_output_file
     from bench.gap.calibrate import calibrate
     from bench.gap.inputs import load_log, load_nominal
     names = [n.strip() for n in args.params.split(",") if n.strip()]
     if not names:
         raise BenchError("--params lists no parameter")
+    check_output_file(args.output, "-o", (".json",), stdout_ok=True)   # before the fit
     log = load_log(args.log)
     cal = calibrate(log, load_nominal(args.nominal), names, args.model, args.encoder)
     cal["log"] = str(args.log)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -73,13 +74,21 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap.summary import text
     if args.workers < 1:
         raise BenchError("--workers must be >= 1")
+    if not (math.isfinite(args.holdout_frac) and 0.0 < args.holdout_frac < 1.0):
+        raise BenchError("--holdout-frac must be a fraction between 0 and 1 (exclusive)")
+    if args.fundamental is not None and not (math.isfinite(args.fundamental)
+                                             and args.fundamental > 0):
+        raise BenchError("--fundamental must be a finite frequency > 0 Hz")
+    from bench.cli.outputs import check_output_dir, check_output_file
+    if args.json:                                   # before the diagnosis, not after
+        check_output_file(args.json, "--json", (".json",), stdout_ok=True)
+    if args.report:
+        check_output_dir(args.report, "--report")
     names = E.parse_list(args.effects)
     nominal = load_nominal(args.nominal)
     log = load_log(args.log)
     hold = load_log(args.holdout) if args.holdout else None
     if args.fundamental is not None:
-        if not args.fundamental > 0:
-            raise BenchError("--fundamental must be > 0 Hz")
         log.meta["fundamental_hz"] = args.fundamental
     say = (lambda s: None) if args.quiet else (lambda s: print(f"gap: {s}", file=sys.stderr))
     t0 = time.perf_counter()

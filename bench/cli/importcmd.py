@@ -4,6 +4,7 @@ at the SYNC rate (issue 5). See bench.gap.importer for the map format."""
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 
@@ -31,10 +32,16 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bench import BenchError
+    from bench.cli.outputs import check_output_file
     from bench.gap.importer import import_table, read_map
+    if args.source_rate is not None and not (math.isfinite(args.source_rate)
+                                             and args.source_rate > 0):
+        raise BenchError("--source-rate must be a finite rate > 0 Hz")
+    out = Path(args.output) if args.output else Path(args.table).with_suffix(".npz")
+    check_output_file(out, "-o", (".npz", ".csv", ".parquet"))    # before the import
     mapping = read_map(args.map)
     tr = import_table(args.table, mapping, args.sync_period, args.source_rate)
-    out = Path(args.output) if args.output else Path(args.table).with_suffix(".npz")
     tr.save(out)
     missing = [s for s in ("setpoint_position_m", "mode", "current_a", "motor_speed_rad_s",
                            "motor_angle_rad", "position_m", "current_demand_a")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import time
@@ -24,11 +25,23 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """Refuse, before touching the bus, what would never end or record nothing."""
+    from bench.cli.outputs import check_output_file
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise BenchError(f"--duration must be a finite number of seconds > 0, not "
+                         f"{args.duration:g} (without it: until Ctrl-C)")
+    if args.count is not None and args.count < 1:
+        raise BenchError(f"--count must be >= 1 frame, not {args.count}")
+    check_output_file(args.file, "FILE.log", (".log",))     # candump -L text
+
+
 def run(args: argparse.Namespace) -> int:
     import can
 
     from bench.bus import bus_settings, close_bus, connect, find_bus
 
+    check_arguments(args)
     found = find_bus(bus_settings(args))
     if found is None:
         raise BenchError("no bus to record: no python-can configuration, no vcan0 and no "

@@ -3,10 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
 
 from bench import BenchError
+
+MAX_GAP_S = 10.0
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -14,23 +21,95 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("replay", help="play a candump log onto the bus (like canplayer)",
                        description="Send the frames of a candump log onto the bus with their "
                        "original timing (relative to the first frame). Truncated or corrupted "
-                       "lines are reported with their line numbers and skipped.")
+                       "lines, and lines whose timestamp is not finite, are reported with "
+                       "their line numbers and skipped.")
     p.add_argument("file", metavar="FILE.log", help="candump log to play")
     p.add_argument("--speed", type=float, default=1.0, metavar="X",
                    help="time scale: 2 plays twice as fast; 0 sends as fast as possible "
                         "(default: %(default)s)")
     p.add_argument("--skip-bad", action="store_true",
                    help="exit 0 even when the log has bad lines")
+    p.add_argument("--max-gap", type=float, default=MAX_GAP_S, metavar="S",
+                   help="longest wait between two frames, in wall seconds: a longer step "
+                        "between timestamps (either way) is played at once and counted "
+                        "(default: %(default)s)")
     add_bus_arguments(p)
     p.set_defaults(func=run)
 
 
+def check_arguments(args: argparse.Namespace) -> Path:
+    """Refuse a speed or gap a replay could wait forever on; the log must exist."""
+    if not (math.isfinite(args.speed) and args.speed >= 0):
+        raise BenchError(f"--speed must be a finite number >= 0 (0: as fast as possible), "
+                         f"not {args.speed:g}")
+    if not (math.isfinite(args.max_gap) and args.max_gap > 0):
+        raise BenchError(f"--max-gap must be a finite number of seconds > 0, not "
+                         f"{args.max_gap:g}")
+    path = Path(args.file)
+    if not path.is_file():
+        raise BenchError(f"no such log: {path}")
+    return path
+
+
+def frames(path: Path, issues: list) -> Iterator[can.Message]:
+    """The frames of a candump log, as `bench.bus.logs.read_log` reads them, and also
+    with lines whose timestamp is not finite (a timestamp of 400 digits reads as inf)
+    reported in `issues` and skipped: no time to play them at exists."""
+    from bench.bus.logs import LogIssue, parse_line
+    with path.open("r", errors="replace", newline="") as fh:
+        for lineno, line in enumerate(fh, start=1):
+            if not line.strip():
+                continue
+            try:
+                msg = parse_line(line)
+            except ValueError as exc:
+                issues.append(LogIssue(lineno, str(exc), line.rstrip("\r\n")))
+                continue
+            if not math.isfinite(msg.timestamp):
+                issues.append(LogIssue(lineno, "timestamp is not finite",
+                                       line.rstrip("\r\n")))
+                continue
+            yield msg
+
+
+class Pacer:
+    """When to send each frame: at its log time relative to the previous time origin,
+    divided by `speed`. A step between two frames longer than `max_gap` s of wall time
+    (either way: a corrupted timestamp, two logs joined) is a jump: that frame goes at
+    once and becomes the new origin, so the rest keep their timing."""
+
+    def __init__(self, speed: float, max_gap: float) -> None:
+        self.speed, self.max_gap = speed, max_gap
+        self.origin: tuple[float, float] | None = None    # (log time s, perf_counter s)
+        self.last: float | None = None
+        self.jumps = 0
+
+    def due(self, ts: float) -> float:
+        """perf_counter time at which the frame of log time `ts` (s) is due."""
+        now = time.perf_counter()
+        if self.last is not None and abs(ts - self.last) / self.speed > self.max_gap:
+            self.jumps += 1
+            self.origin = None
+        self.last = ts
+        if self.origin is None:
+            self.origin = (ts, now)
+        return self.origin[1] + (ts - self.origin[0]) / self.speed
+
+
+def wait_until(due: float) -> None:
+    """Sleep, then spin the last 0.2 ms, until perf_counter() >= `due`."""
+    while True:
+        left = due - time.perf_counter()
+        if left <= 0:
+            return
+        time.sleep(min(left, 0.05) if left > 2e-4 else 0)
+
+
 def run(args: argparse.Namespace) -> int:
     from bench.bus import bus_settings, close_bus, connect, find_bus
-    from bench.bus.logs import read_log, report_issues
+    from bench.bus.logs import report_issues
 
-    if args.speed < 0:
-        raise BenchError("--speed must be >= 0")
+    path = check_arguments(args)
     found = find_bus(bus_settings(args))
     if found is None:
         raise BenchError("no bus to play onto: no python-can configuration, no vcan0 and no "
@@ -39,20 +118,13 @@ def run(args: argparse.Namespace) -> int:
     issues: list = []
     bus = connect(cfg)
     n = 0
-    t0_log = t0_wall = None
+    pacer = Pacer(args.speed, args.max_gap) if args.speed > 0 else None
     try:
-        for msg in read_log(args.file, issues):
+        for msg in frames(path, issues):
             if msg.is_error_frame:
                 continue
-            if args.speed > 0:
-                if t0_log is None:
-                    t0_log, t0_wall = msg.timestamp, time.perf_counter()
-                due = t0_wall + (msg.timestamp - t0_log) / args.speed
-                while True:
-                    left = due - time.perf_counter()
-                    if left <= 0:
-                        break
-                    time.sleep(min(left, 0.05) if left > 2e-4 else 0)
+            if pacer is not None:
+                wait_until(pacer.due(msg.timestamp))
             msg.channel = None
             try:
                 bus.send(msg)
@@ -63,6 +135,12 @@ def run(args: argparse.Namespace) -> int:
         close_bus(bus)
     for line in report_issues(issues):
         print(f"{args.file}: {line}", file=sys.stderr)
+    notes = []
+    if issues:
+        notes.append(f"{len(issues)} bad line{'s' if len(issues) != 1 else ''} skipped")
+    if pacer is not None and pacer.jumps:
+        notes.append(f"{pacer.jumps} jump{'s' if pacer.jumps != 1 else ''} in time of more "
+                     f"than {args.max_gap:g} s (either way) played without waiting")
     print(f"{n} frames played onto {cfg.get('interface')}:{cfg.get('channel')} ({source})"
-          + (f"; {len(issues)} bad lines skipped" if issues else ""))
+          + "".join(f"; {x}" for x in notes))
     return 0 if not issues or args.skip_bad else 1

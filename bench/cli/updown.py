@@ -6,6 +6,7 @@ import argparse
 import math
 import sys
 import time
+from contextlib import contextmanager
 
 from bench import BenchError
 
@@ -46,46 +47,73 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     dn.set_defaults(func=cmd_down)
 
 
+LOCK_TIMEOUT_S = 150.0   # a `bench up` holding the lock may compile the plant (90 s at most)
+
+
+@contextmanager
+def _locked(what: str):
+    """The state directory's lock around a check-and-start or a stop (BenchError after
+    LOCK_TIMEOUT_S); says so when another `bench up`/`bench down` makes it wait."""
+    from plant_rt.transport import StateLocked, state_dir, state_lock
+
+    def waiting() -> None:
+        print(f"{what}: waiting for another `bench up`/`bench down` on {state_dir()}",
+              file=sys.stderr, flush=True)
+
+    try:
+        with state_lock(LOCK_TIMEOUT_S, waiting):
+            yield
+    except StateLocked as exc:
+        raise BenchError(str(exc)) from None
+
+
 def cmd_up(args: argparse.Namespace) -> int:
-    from bench.bus import bus_settings, find_bus
-    from bench.bus.procs import start_hub, start_plant
     from plant_rt.params import ParameterError, PlantParams
-    from plant_rt.transport import PLANT_FILE, read_state, state_dir, write_state
 
     try:
         PlantParams().with_assignments(args.assignments)
     except ParameterError as exc:
         raise BenchError(str(exc)) from None
+    if not 0 <= args.rt_priority <= 99:
+        raise BenchError("--rt-priority must be within 0..99")
+    with _locked("up"):
+        return _up(args)
+
+
+def _up(args: argparse.Namespace) -> int:
+    """Check-and-start, under the state lock."""
+    from bench.bus import bus_settings, find_bus
+    from bench.bus.procs import start_hub, start_plant
+    from plant_rt.pacing import use_normal_priority, use_realtime_priority
+    from plant_rt.transport import PLANT_FILE, read_state, state_dir, write_state
+
     plant = read_state(PLANT_FILE)
     if plant:
         print(f"already up: plant pid {plant['pid']} on {plant['bus']} "
               f"(`bench down` first to restart)")
         return 0
-    from plant_rt.pacing import use_normal_priority, use_realtime_priority
-    if not 0 <= args.rt_priority <= 99:
-        raise BenchError("--rt-priority must be within 0..99")
     found = find_bus(bus_settings(args))
     started = []
     if args.rt_priority:     # the hub and the plant started below inherit the policy
         print(f"scheduling: {use_realtime_priority(args.rt_priority)}")
-    if found is None:
-        hub = start_hub(persistent=True)
-        started.append(hub)
-        cfg, source = {"interface": "remote", "channel": hub.info["url"]}, "loopback hub"
-        print(f"hub: pid {hub.pid}, {hub.info['url']} (127.0.0.1 only)")
-    else:
-        cfg, source = found
     try:
+        if found is None:
+            hub = start_hub(persistent=True)
+            started.append(hub)
+            cfg, source = {"interface": "remote", "channel": hub.info["url"]}, "loopback hub"
+            print(f"hub: pid {hub.pid}, {hub.info['url']} (127.0.0.1 only)")
+        else:
+            cfg, source = found
         child = start_plant(cfg, pace=args.pace, assignments=args.assignments,
                             persistent=True, node_id=args.node_id)
-    except BenchError:
+    except BaseException:
         for c in started:
             c.stop()
         raise
     finally:
         use_normal_priority()
     bus = f"{cfg.get('interface')}:{cfg.get('channel')}"
-    write_state(PLANT_FILE, {"pid": child.pid, "bus": bus, "source": source,
+    write_state(PLANT_FILE, {"pid": child.pid, "bus": bus, "source": source,   # + "start"
                              "pace": args.pace, "log": str(child.log_path),
                              "started": time.time()})
     print(f"plant: pid {child.pid}, node 0x{(args.node_id or 0x10):02X} on {bus} ({source}), "
@@ -116,7 +144,7 @@ def cmd_status(args: argparse.Namespace) -> int:
     print(f"bus: {cfg.get('interface')}:{cfg.get('channel')} ({source})"
           + (f", hub pid {hub['pid']}" if hub else ""))
     if plant:
-        print(f"plant process: pid {plant['pid']}, log {plant['log']}")
+        print(f"plant process: pid {plant['pid']}, log {plant.get('log', '?')}")
     bus = connect(cfg, timeout=2.0)
     ecu = None
     try:
@@ -157,17 +185,18 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 
 def cmd_down(args: argparse.Namespace) -> int:  # noqa: ARG001
-    from bench.bus.procs import stop_pid
+    from bench.bus.procs import MODULES, stop_pid
     from plant_rt.transport import HUB_FILE, PLANT_FILE, read_state, remove_state, state_dir
 
     did = False
-    for name, label in ((PLANT_FILE, "plant"), (HUB_FILE, "hub")):
-        st = read_state(name)
-        if st:
-            stop_pid(int(st["pid"]))
-            print(f"stopped {label} (pid {st['pid']})")
-            did = True
-        remove_state(name)
+    with _locked("down"):
+        for name, label in ((PLANT_FILE, "plant"), (HUB_FILE, "hub")):
+            st = read_state(name)      # None for a stale or corrupt record (reported)
+            if st:
+                stop_pid(st["pid"], token=st.get("start"), module=MODULES[label])
+                print(f"stopped {label} (pid {st['pid']})")
+                did = True
+                remove_state(name, st["pid"])
     if not did:
         print(f"nothing to stop (no bench running from {state_dir()})", file=sys.stderr)
     return 0

@@ -1,0 +1,68 @@
+"""Output paths checked before the work that fills them (issue 9 item 13): a command that
+runs for minutes must not find out at the end that it cannot write its result.
+
+`check_output_file` and `check_output_dir` raise a one-line BenchError naming the flag
+when the suffix is unknown, the target is of the wrong kind, or the directory does not
+exist or cannot take a new file (probed by creating and removing a temporary file there,
+which also catches read-only file systems and works for root). They create nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+from bench import BenchError
+
+
+def _probe(directory: Path) -> bool:
+    """True when a new file can be created in `directory` (tried, then removed)."""
+    try:
+        with tempfile.NamedTemporaryFile(dir=directory, prefix=".bench-probe-"):
+            return True
+    except OSError:
+        return False
+
+
+def check_output_file(path: str | Path, flag: str, suffixes: Iterable[str] | None = None,
+                      stdout_ok: bool = False) -> Path:
+    """`path` as a file the command can write (BenchError `flag: ...` if not).
+
+    `suffixes`: the known ones, lower case with the dot; `stdout_ok`: "-" means stdout."""
+    p = Path(path)
+    if stdout_ok and str(path) == "-":
+        return p
+    known = tuple(suffixes or ())
+    if p.is_dir():
+        raise BenchError(f"{flag}: cannot write {p}: it is a directory")
+    if known and p.suffix.lower() not in known:
+        raise BenchError(f"{flag}: {p}: unknown suffix {p.suffix!r} (use {', '.join(known)})")
+    parent = p.parent
+    if not parent.is_dir():
+        raise BenchError(f"{flag}: cannot write {p}: directory {parent} does not exist")
+    if p.exists():
+        if not os.access(p, os.W_OK):
+            raise BenchError(f"{flag}: cannot write {p}: permission denied")
+    elif not _probe(parent):
+        raise BenchError(f"{flag}: cannot write {p}: directory {parent} is not writable")
+    return p
+
+
+def check_output_dir(path: str | Path, flag: str) -> Path:
+    """`path` as a directory the command can create (with its parents) and write into."""
+    p = Path(path)
+    if p.exists():
+        if not p.is_dir():
+            raise BenchError(f"{flag}: cannot write into {p}: it is not a directory")
+        base = p
+    else:
+        base = p.parent
+        while not base.exists() and base != base.parent:
+            base = base.parent
+        if not base.is_dir():
+            raise BenchError(f"{flag}: cannot write into {p}: {base} is not a directory")
+    if not _probe(base):
+        raise BenchError(f"{flag}: cannot write into {p}: directory {base} is not writable")
+    return p

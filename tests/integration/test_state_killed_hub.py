@@ -1,0 +1,71 @@
+"""Clients of a hub that is killed under them (issue 9 item 15a): one `error:` line, exit
+code != 0, and no `BusABC.__del__` traceback or "was not properly shut down" at exit."""
+
+from __future__ import annotations
+
+import os
+import select
+import sys
+import time
+
+import pytest
+from bus_helpers import spawn
+
+from bench.bus.procs import start_hub
+
+NOISE = ("Traceback", "Exception ignored", "not properly shut down")
+
+
+def _wait_for_line(stream, needle: str, timeout: float) -> str:
+    """Read `stream` line by line until one contains `needle` (bounded)."""
+    end = time.monotonic() + timeout
+    seen = ""
+    while time.monotonic() < end:
+        ready, _, _ = select.select([stream], [], [], 0.1)
+        if ready:
+            line = stream.readline()
+            seen += line
+            if needle in line or not line:
+                return seen
+    raise AssertionError(f"no {needle!r} within {timeout} s: {seen!r}")
+
+
+@pytest.fixture
+def hub(tmp_path, monkeypatch):
+    monkeypatch.setenv("BENCH_STATE_DIR", str(tmp_path / "state"))
+    h = start_hub(persistent=False)
+    yield h
+    h.stop()
+
+
+def test_bench_log_when_the_hub_is_killed(hub, tmp_path):
+    env = {**os.environ, "BENCH_STATE_DIR": str(tmp_path / "state")}
+    p = spawn(sys.executable, "-m", "bench", "log", str(tmp_path / "x.log"), "-i", "remote",
+              "-c", hub.info["url"], "--duration", "60", env=env)
+    try:
+        _wait_for_line(p.stderr, "recording", 60)
+        hub.proc.kill()
+        out, err = p.communicate(timeout=30)
+    finally:
+        p.kill()
+        p.wait(5)
+    assert p.returncode == 2, err
+    assert err.strip().startswith("error: the bus failed after 0 frames"), err
+    assert len(err.strip().splitlines()) == 1, err
+    assert not any(n in err for n in NOISE), err
+
+
+def test_plant_when_the_hub_is_killed(hub, tmp_path):
+    env = {**os.environ, "BENCH_STATE_DIR": str(tmp_path / "state")}
+    p = spawn(sys.executable, "-m", "plant_rt", "--pace", "sync", "-i", "remote",
+              "-c", hub.info["url"], env=env)
+    try:
+        _wait_for_line(p.stderr, "plant: node", 120)
+        hub.proc.kill()
+        out, err = p.communicate(timeout=30)
+    finally:
+        p.kill()
+        p.wait(5)
+    assert p.returncode != 0, err
+    assert err.strip().startswith("error:"), err
+    assert not any(n in err for n in NOISE), err
