@@ -221,7 +221,13 @@ def test_bench_log_records_the_bus(bus_env, tmp_path):
                 *bus_env.flags, env=bus_env.env)
     bus = bus_env.bus()
     try:
-        time.sleep(2.5)
+        # the recorder says "recording ..." once its bus is open (start-up takes seconds
+        # on a loaded machine: a fixed sleep lost the frames)
+        line = ""
+        end = time.monotonic() + 60
+        while "recording" not in line and time.monotonic() < end and rec.poll() is None:
+            line = rec.stderr.readline()
+        assert "recording" in line, line
         for k in range(20):
             bus.send(can.Message(arbitration_id=0x555, data=bytes([k]), is_extended_id=False))
         o, e = rec.communicate(timeout=20)
