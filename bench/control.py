@@ -2,8 +2,9 @@
 
 The current loop lives in the drive (plant_rt), so the ECU sends a current demand; see
 design.md "Control partition". The same compiled `controller_step` runs in the live ECU
-(bench.ecu, one call per SYNC) and in the in-process harness (bench.harness, inside the
-compiled run loop), so both give the same demand for the same measurements.
+(bench.ecu, one call per SYNC) and in the one compiled closed loop (`bench.loop`, used by
+the harness, the gap re-simulation and the monitoring model), so all give the same demand
+for the same measurements. Its speed PI is the drive's clamped PI law (`plant_rt.pi`).
 
 Gains are designed here, since the thesis does not print them:
 - position P: 6 Hz position bandwidth, K = 2 pi 6 / (tau p / 2 pi) (rad/s)/m, i.e. the
@@ -23,6 +24,7 @@ from numba import njit
 
 from bench import BenchError
 from bench.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
+from plant_rt.pi import clamped_pi
 
 # controller state vector: [speed PI integrator (A), last demand (A)]
 C_INT, C_LAST = 0, 1
@@ -97,17 +99,9 @@ def controller_step(c: np.ndarray, k: np.ndarray, sp_pos: float, sp_speed: float
         w_dem = lim
     elif w_dem < -lim:
         w_dem = -lim
-    e = w_dem - speed
-    i_un = k[K_SPD_KP] * e + c[C_INT]
-    ilim = k[K_CUR_LIM]
-    i_dem = i_un
-    if i_dem > ilim:
-        i_dem = ilim
-    elif i_dem < -ilim:
-        i_dem = -ilim
-    # clamping: stop integrating while saturated and the error pushes further out
-    if not (i_dem != i_un and e * i_un > 0.0):
-        c[C_INT] += k[K_SPD_KI] * e * k[K_TS]
+    # speed PI, output the current demand saturated at i_max (the drive's law, plant_rt.pi)
+    i_dem, c[C_INT] = clamped_pi(w_dem - speed, c[C_INT], k[K_SPD_KP], k[K_SPD_KI], k[K_TS],
+                                 k[K_CUR_LIM])
     c[C_LAST] = i_dem
     return i_dem
 

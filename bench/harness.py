@@ -1,9 +1,11 @@
-"""In-process harness: the compiled plant step and the ECU controller in one compiled loop.
+"""In-process harness: a profile run on the full plant with the ECU in the one compiled
+closed loop (`bench.loop.ecu_on_plant`), with the bus timing.
 
-The coupling is the bus's: at SYNC k the plant's sensors are sampled (TPDOs), the ECU
-computes a demand from them, and that demand is applied by the drive during period k+1
-(RPDO applied at the next SYNC): one period of delay plus sample-and-hold. A lockstep bus
-run of the same scenario gives the same trace (tests/integration).
+This module prepares the per-period inputs (set-points, degradation schedule, noise,
+external force) and names the outputs; the loop itself, with its timing (the demand of
+SYNC k applied during period k+1, the sensor delay, the stop on a non-finite state), is
+`bench.loop`. A lockstep bus run of the same scenario gives the same trace
+(tests/integration).
 """
 
 from __future__ import annotations
@@ -13,19 +15,25 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from bench import BenchError
 from bench.control import NC as CTRL_NC
-from bench.control import ControllerParams, controller_step
+from bench.control import ControllerParams
+from bench.loop import (
+    NT,
+    TRUTH_FROM_STATE,
+    delay_periods,
+    ecu_on_plant,
+    ecu_reference,
+    measured_columns,
+    no_columns,
+    run_chunks,
+)
 from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K
 from plant_rt.model import Plant, load_noise_seed, schedule_at
 from plant_rt.params import PlantParams
-
-TRUTH_FROM_STATE = ("true_position_m", "true_current_a", "true_motor_speed_rad_s",
-                    "motor_torque_nm", "temperature_k")
 
 
 @dataclass
@@ -98,52 +106,51 @@ def simulate(profile: Profile, params: PlantParams | None = None,
     meas = np.zeros((n, K.NM))
     dem = np.zeros(n)
     diag = np.zeros((n, K.NO))
-    st = np.zeros((n, len(TRUTH_FROM_STATE)))
-    kvec = cparams.vector()
-    cstate = np.zeros(CTRL_NC)
-    ndelay = int(round(params.effects.sensor_delay_s / params.sim.sync_period_s))
-    chunk = max(1, int(round(chunk_s / params.sim.sync_period_s)))
+    st = np.zeros((n, NT))
+    ndelay = delay_periods(params)
     bar = None
+    on_chunk = None
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=round(n * params.sim.sync_period_s, 3), unit="sim s",
                    desc=profile.name, leave=False)
-    done = 0
-    applied_carry = 0.0
+
+        def on_chunk(periods: int) -> None:
+            bar.update(round(periods * params.sim.sync_period_s, 3))
     # chunks keep the progress bar moving; the loop state (x, controller, applied
     # demand) carries across chunk boundaries so chunking does not change the result.
-    while done < n:
-        k1 = min(n, done + chunk)
-        sl = slice(done, k1)
-        got = _run_chunk(plant.x, plant.param_vector, plant._s, ri, sl, kvec, cstate,
-                         ndelay, meas, dem, diag, st, applied_carry)
-        applied_carry = dem[k1 - 1]
-        if bar is not None:
-            bar.update(round((k1 - done) * params.sim.sync_period_s, 3))
-        if got < k1 - done:
-            n = done + got
-            break
-        done = k1
+    # The loop writes the applied demand and noise into the rows of ri.u.
+    n = run_chunks(ecu_on_plant, plant.x, plant.param_vector, plant.sensor_vector,
+                   no_columns(n), ri.u, ri.noise, ecu_reference(ri.sp_pos, ri.sp_spd, ri.mode),
+                   cparams.vector(), np.zeros(CTRL_NC), ndelay, meas, dem, diag, st,
+                   chunk=max(1, int(round(chunk_s / params.sim.sync_period_s))),
+                   on_chunk=on_chunk)
     if bar is not None:
         bar.close()
+    meta = {"source": "in-process", "profile": profile.name, "profile_kwargs": profile.kwargs,
+            "fundamental_hz": profile.fundamental_hz,
+            "params": params.to_dict(), "controller": cparams.__dict__,
+            "complete": bool(n == len(ri.t))}
+    return Trace(_columns(ri, n, meas, dem, diag, st, ndelay), meta)
+
+
+def _columns(ri: RunInputs, n: int, meas: np.ndarray, dem: np.ndarray, diag: np.ndarray,
+             st: np.ndarray, ndelay: int) -> dict[str, np.ndarray]:
+    """The trace's columns over the first `n` periods (the bus's names and timing)."""
+    mc = measured_columns(meas[:n], dem[:n], ndelay)
     cols = {
         "t_s": ri.t[:n],
         "setpoint_position_m": ri.sp_pos[:n],
         "setpoint_speed_rad_s": ri.sp_spd[:n],
         "mode": ri.mode[:n],
         "current_demand_a": dem[:n],
-        "current_a": meas[:n, K.M_CUR],
-        "motor_speed_rad_s": meas[:n, K.M_SPEED],
-        "motor_angle_rad": meas[:n, K.M_ANGLE],
-        "position_m": meas[:n, K.M_POS],
+        "current_a": mc["current_a"],
+        "motor_speed_rad_s": mc["motor_speed_rad_s"],
+        "motor_angle_rad": mc["motor_angle_rad"],
+        "position_m": mc["position_m"],
         # the load cell sampled at SYNC k reads the force averaged over period k - 1
         "load_force_n": np.concatenate([[0.0], diag[:n - 1, K.O_FEXT]]) + ri.noise_load[:n],
     }
-    if ndelay:
-        idx = np.maximum(np.arange(n) - ndelay, 0)
-        for c, j in (("motor_speed_rad_s", K.M_SPEED), ("motor_angle_rad", K.M_ANGLE),
-                     ("position_m", K.M_POS)):
-            cols[c] = meas[idx, j]
     for j, name in enumerate(TRUTH_FROM_STATE):
         cols[name] = st[:n, j]
     cols["friction_torque_nm"] = diag[:n, K.O_FRIC_T]
@@ -153,51 +160,4 @@ def simulate(profile: Profile, params: PlantParams | None = None,
     cols["voltage_v"] = diag[:n, K.O_VOLT]
     cols["current_limited"] = diag[:n, K.O_ILIM]
     cols["preload_n"], cols["backlash_m"], cols["friction_scale"] = ri.sched[:n].T
-    meta = {"source": "in-process", "profile": profile.name, "profile_kwargs": profile.kwargs,
-            "fundamental_hz": profile.fundamental_hz,
-            "params": params.to_dict(), "controller": cparams.__dict__,
-            "complete": bool(n == len(ri.t))}
-    return Trace(cols, meta)
-
-
-def _run_chunk(x, p, s, ri: RunInputs, sl: slice, kvec, cstate, ndelay, meas, dem, diag, st,
-               applied: float) -> int:
-    """Run periods `sl` in the compiled loop, the first one with the carried demand.
-
-    The output arrays are whole-run arrays, so the sensor delay reads history across
-    chunk boundaries exactly."""
-    k0, k1 = sl.start, sl.stop
-    u = ri.u[k0:k1].copy()
-    got = _closed_loop_from(x, p, s, u, ri.noise[k0:k1], ri.sp_pos[k0:k1], ri.sp_spd[k0:k1],
-                            ri.mode[k0:k1], kvec, cstate, ndelay, meas, dem, diag, st,
-                            applied, k0)
-    return got
-
-
-@njit(cache=True, error_model="numpy")
-def _closed_loop_from(x, p, s, u_seq, noise, sp_pos, sp_spd, mode, kvec, cstate, ndelay,
-                      meas_out, dem_out, diag_out, state_out, applied, k0):  # pragma: no cover
-    n = sp_pos.shape[0]
-    m = np.zeros(K.NM)
-    for kk in range(n):
-        k = k0 + kk
-        K.measure(x, s, noise[kk], m)
-        for j in range(K.NM):
-            meas_out[k, j] = m[j]
-        kd = k - ndelay if k >= ndelay else 0
-        d = controller_step(cstate, kvec, sp_pos[kk], sp_spd[kk], mode[kk],
-                            meas_out[kd, K.M_POS], meas_out[kd, K.M_SPEED])
-        dem_out[k] = d
-        state_out[k, 0] = 0.5 * (x[K.X1] + x[K.X2])
-        state_out[k, 1] = x[K.I]
-        state_out[k, 2] = x[K.OM] / p[K.P_TAU]
-        state_out[k, 3] = x[K.TQ]
-        state_out[k, 4] = x[K.TEMP]
-        u = u_seq[kk]
-        u[K.U_IDEM] = applied
-        u[K.U_INOISE] = noise[kk, 0]
-        K.advance(x, p, u, diag_out[k])
-        applied = d
-        if not np.isfinite(x[K.OM]):
-            return kk + 1
-    return n
+    return cols

@@ -21,6 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
+from plant_rt.pi import clamped_pi
+
 # --- state vector x -------------------------------------------------------------------
 (I, CI, IM, TQ, TEMP, TH, OM, X1, V1, X2, V2, ZB1, VB1, ZB2, VB2,
  LY, LYD, EY, EYD, STS, STN1, STN2, T,
@@ -138,6 +140,7 @@ def _ext_force(p: np.ndarray, t: float) -> float:
 @njit(cache=True, error_model="numpy", fastmath=FM)
 def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
     """Integrate one SYNC period (p[P_NSUB] sub-steps of p[P_DT]) holding inputs u."""
+    # long: one sub-step of every coupled block (drive to sensors) on shared locals, in order
     dt = p[P_DT]
     nsub = int(p[P_NSUB])
     R0, L, KE, KT = p[P_R], p[P_L], p[P_KE], p[P_KT]
@@ -197,15 +200,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         w_m = om / tau                             # motor speed (eq. 5.8)
         # ---- drive: current PI with clamping anti-windup, measured current ----------
         i_fb = igain * x[IM] + ioff + inoise
-        e = idem - i_fb
-        v_un = kpi * e + x[CI]
-        vset = v_un
-        if vset > VDC:
-            vset = VDC
-        elif vset < -VDC:
-            vset = -VDC
-        if not (vset != v_un and e * v_un > 0.0):
-            x[CI] += kii * e * dt
+        vset, x[CI] = clamped_pi(idem - i_fb, x[CI], kpi, kii, dt, VDC)
         # ---- PWM and inverter (section 5.3) --------------------------------------------
         if switching:
             m = vset / VDC

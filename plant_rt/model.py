@@ -59,11 +59,10 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_ALPHA_R] = m.resistance_tempco_per_k
     tau = r.ratio
     p[K.P_TAU], p[K.P_ETA] = tau, r.efficiency
-    p[K.P_JEQ] = (m.inertia_kg_m2 + r.inertia_kg_m2) / tau**2 + s.screw_inertia_kg_m2  # eq. 5.12
-    p[K.P_CS] = (m.static_friction_nm + r.static_friction_nm) / tau \
-        + s.support_static_friction_nm                                                # eq. 5.14
+    p[K.P_JEQ] = equivalent_inertia(params)                                           # eq. 5.12
+    p[K.P_CS] = static_friction(params)                                               # eq. 5.14
     p[K.P_STRA], p[K.P_STRV] = s.stribeck_amplitude, s.stribeck_velocity_rad_s
-    p[K.P_CVISC] = m.viscous_friction_nm_s + r.viscous_friction_nm_s                  # eq. 5.13
+    p[K.P_CVISC] = viscous_friction(params)                                           # eq. 5.13
     alpha = math.radians(s.helix_angle_deg)
     beta = math.radians(s.contact_angle_deg)
     p[K.P_Z], p[K.P_LEAD] = s.balls_active, s.lead_m
@@ -71,7 +70,7 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_LEVER_V] = math.sin(alpha) * math.sin(beta) * s.lever_m                     # eq. 5.10/15
     p[K.P_LEVER_R] = math.cos(alpha) * s.lever_m                                      # eq. 5.13
     p[K.P_FV], p[K.P_FS] = s.rolling_friction, s.nut_static_friction_n
-    p[K.P_CN] = (m.viscous_friction_nm_s + r.viscous_friction_nm_s) / tau             # eq. 5.32
+    p[K.P_CN] = viscous_friction(params) / tau                                        # eq. 5.32
     p[K.P_MN], p[K.P_MB] = s.nut_mass_kg, s.ball_mass_kg
     p[K.P_KSTAR], p[K.P_MSLOPE] = s.contact_stiffness_n_per_m, s.stiffness_preload_slope_per_m
     p[K.P_CDAMP] = s.contact_damping_n_s_per_m
@@ -92,6 +91,27 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_LOAD_RATE], p[K.P_LOAD_FREQ] = ld.rate_n_per_s, ld.frequency_hz
     p[K.P_TRAVEL] = s.travel_limit_m
     return p
+
+
+def equivalent_inertia(params: PlantParams) -> float:
+    """I_eq, the inertia at the screw (kg m^2): (I_m + I_r) / tau^2 + I_s (eq. 5.12).
+    The plant's screw shaft and the monitoring model's rigid screw (eq. 6.1) both use it."""
+    m, r, s = params.motor, params.reducer, params.screw
+    return (m.inertia_kg_m2 + r.inertia_kg_m2) / r.ratio**2 + s.screw_inertia_kg_m2
+
+
+def static_friction(params: PlantParams) -> float:
+    """C_s, the static friction torque at the screw (N m): (C_fm + C_fr) / tau + C_fs
+    (eq. 5.14), the Coulomb level of the friction law eq. 5.13 (plant and monitor)."""
+    m, r, s = params.motor, params.reducer, params.screw
+    return (m.static_friction_nm + r.static_friction_nm) / r.ratio \
+        + s.support_static_friction_nm
+
+
+def viscous_friction(params: PlantParams) -> float:
+    """c_sm + c_sr (N m s/rad), the viscous coefficient of eq. 5.13 (divided by tau there
+    with the screw speed; plant and monitor)."""
+    return params.motor.viscous_friction_nm_s + params.reducer.viscous_friction_nm_s
 
 
 def ball_substeps(params: PlantParams, dt: float) -> int:
@@ -199,7 +219,13 @@ class Plant:
 
     @property
     def param_vector(self) -> np.ndarray:
+        """The kernel's parameter vector (`plant_rt.kernel`'s P_* layout)."""
         return self._p
+
+    @property
+    def sensor_vector(self) -> np.ndarray:
+        """The kernel's sensor vector for `kernel.measure` (S_* layout)."""
+        return self._s
 
     # -- stepping ------------------------------------------------------------------
     def inputs(self, current_demand_a: float) -> np.ndarray:

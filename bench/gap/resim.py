@@ -2,11 +2,13 @@
 
 Everything here is driven by logged signals only (never by simulation truth):
 
-- `closed_loop`: the same loop as the bench (set-point -> ECU -> plant), driven by the
-  logged set-points and mode, and by the logged axial load when the log has a load cell. The ECU demand computed at SYNC k is applied by the drive
-  during period k+1, exactly as over the bus and in `bench.harness`.
+- `closed_loop`: the bench's own loop (set-point -> ECU -> plant, the compiled
+  `bench.loop.ecu_on_plant` that `bench.harness` runs), driven by the logged set-points
+  and mode, and by the logged axial load when the log has a load cell. The ECU demand
+  computed at SYNC k is applied by the drive during period k+1, exactly as over the bus.
 - `open_loop`: the logged ECU demand replayed into the plant with the same one-period
-  hold (isolates current demand -> current: the drive path).
+  hold (the same loop with the demand from a table; isolates current demand -> current:
+  the drive path).
 - `mechanics_replay`: the logged demand replayed in short segments, the mechanical state
   re-synchronised at each segment start from the measured motor speed (isolates
   current -> motor speed: the mechanics path, without the drift of a long open-loop run).
@@ -21,13 +23,28 @@ currents A, time s. Sign conventions are the plant's (`plant_rt.kernel`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from bench.control import NC as CTRL_NC
-from bench.control import ControllerParams, controller_step
+from bench.control import ControllerParams
+from bench.loop import (
+    NT,
+    delay_periods,
+    ecu_on_plant,
+    ecu_reference,
+    kernel_advance,
+    kernel_measure,
+    kernel_truth,
+    measured_columns,
+    no_columns,
+    run_chunks,
+    run_loop,
+    table_control,
+)
 from plant_rt import kernel as K
 from plant_rt.model import Plant
 from plant_rt.params import PlantParams
@@ -81,19 +98,19 @@ def initial_plant(params: PlantParams, x0_true_m: float) -> Plant:
     return plant
 
 
-def _plant_inputs(params: PlantParams) -> np.ndarray:
-    """The kernel input vector held over every period (no schedule, no noise)."""
-    u = np.zeros(K.NU)
+def _plant_inputs(params: PlantParams, drive: Drive, n: int) -> np.ndarray:
+    """The kernel inputs of the first `n` periods: `params`' effects held (no schedule, no
+    noise) and the logged load replayed."""
+    u0 = np.zeros(K.NU)
     e = params.effects
-    u[K.U_PRELOAD], u[K.U_BACKLASH], u[K.U_FSCALE] = e.preload_n, e.backlash_m, e.friction_scale
-    u[K.U_VSCALE] = e.viscous_scale
-    u[K.U_IGAIN] = params.sensors.current_gain
-    u[K.U_IOFF] = params.sensors.current_offset_a
+    u0[K.U_PRELOAD], u0[K.U_BACKLASH], u0[K.U_FSCALE] = e.preload_n, e.backlash_m, e.friction_scale
+    u0[K.U_VSCALE] = e.viscous_scale
+    u0[K.U_IGAIN] = params.sensors.current_gain
+    u0[K.U_IOFF] = params.sensors.current_offset_a
+    u = np.empty((n, K.NU))
+    u[:] = u0
+    u[:, K.U_FEXT] = drive.applied_load(n)
     return u
-
-
-def _delay_periods(params: PlantParams) -> int:
-    return int(round(params.effects.sensor_delay_s / params.sim.sync_period_s))
 
 
 def _x0_true(params: PlantParams, drive: Drive) -> float:
@@ -103,6 +120,22 @@ def _x0_true(params: PlantParams, drive: Drive) -> float:
         return drive.x0_true_m
     se = params.sensors
     return (drive.x0_m - se.lvdt_offset_m) / se.lvdt_gain
+
+
+def _run(entry: Callable[..., int], params: PlantParams, drive: Drive, n: int, aux: np.ndarray,
+         noise: np.ndarray, ref: np.ndarray, kvec: np.ndarray, cstate: np.ndarray,
+         ndelay: int) -> tuple[np.ndarray, np.ndarray]:
+    """Run `entry` (a `bench.loop` entry point) on the plant at rest at the log's start;
+    after a non-finite state the remaining periods are NaN. Returns (meas, demand)."""
+    plant = initial_plant(params, _x0_true(params, drive))
+    meas = np.zeros((n, K.NM))
+    dem = np.zeros(n)
+    got = run_chunks(entry, plant.x.copy(), plant.param_vector, plant.sensor_vector, aux,
+                     _plant_inputs(params, drive, n), noise, ref, kvec, cstate, ndelay, meas,
+                     dem, np.zeros((n, K.NO)), np.zeros((n, NT)))
+    meas[got:] = np.nan
+    dem[got:] = np.nan
+    return meas, dem
 
 
 def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
@@ -116,67 +149,77 @@ def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
     """
     n = len(drive.t) if n is None else min(n, len(drive.t))
     cparams = cparams or ControllerParams(sample_period_s=params.sim.sync_period_s)
-    plant = initial_plant(params, _x0_true(params, drive))
-    x = plant.x.copy()
-    meas = np.zeros((n, K.NM))
-    dem = np.zeros(n)
     nz = np.zeros((n, 3)) if noise is None else np.ascontiguousarray(noise[:n])
-    _closed(x, plant.param_vector, plant._s, _plant_inputs(params), nz,
-            drive.sp_pos[:n], drive.sp_spd[:n], drive.mode[:n], cparams.vector(),
-            np.zeros(CTRL_NC), _delay_periods(params), meas, dem, drive.applied_load(n))
-    return _columns(meas, dem, _delay_periods(params))
+    nd = delay_periods(params)
+    meas, dem = _run(ecu_on_plant, params, drive, n, no_columns(n), nz,
+                     ecu_reference(drive.sp_pos[:n], drive.sp_spd[:n], drive.mode[:n]),
+                     cparams.vector(), np.zeros(CTRL_NC), nd)
+    return _columns(meas, dem, nd)
 
 
 def _columns(meas: np.ndarray, dem: np.ndarray, ndelay: int) -> dict[str, np.ndarray]:
-    n = len(dem)
-    out = {"current_a": meas[:, K.M_CUR].copy(), "current_demand_a": dem}
-    idx = np.maximum(np.arange(n) - ndelay, 0) if ndelay else np.arange(n)
-    out["motor_speed_rad_s"] = meas[idx, K.M_SPEED]
-    out["motor_angle_rad"] = meas[idx, K.M_ANGLE]
-    out["position_m"] = meas[idx, K.M_POS]
+    out = measured_columns(meas, dem, ndelay)
+    out["current_a"] = out["current_a"].copy()
     return out
 
 
+# --- demand replayed from the log ------------------------------------------------------
+# aux rows of the replay: re-synchronise now (1/0), the motor speed to set (rad/s)
+A_SYNC, A_W = 0, 1
+
+
+@njit(inline="always", error_model="numpy")
+def resync(x, p, aux, kk):  # pragma: no cover - compiled
+    """Set the screw speed (and encoder filter) to the motor speed aux[kk, A_W] where
+    aux[kk, A_SYNC] says so: moving (> 0.5 rad/s) frees the stiction states, else the
+    screw is held."""
+    if aux[kk, A_SYNC] > 0.0:
+        tau = p[K.P_TAU]
+        kin = p[K.P_LEAD] / (2.0 * math.pi)
+        om = aux[kk, A_W] * tau
+        x[K.OM] = om
+        x[K.V1] = kin * om
+        x[K.V2] = kin * om
+        if abs(aux[kk, A_W]) > 0.5:
+            x[K.STS] = 0.0
+            x[K.STN1] = 0.0
+            x[K.STN2] = 0.0
+        else:
+            x[K.OM] = 0.0
+            x[K.V1] = 0.0
+            x[K.V2] = 0.0
+            x[K.STS] = 1.0
+            x[K.STN1] = 1.0
+            x[K.STN2] = 1.0
+        x[K.EY] = x[K.OM] / tau
+        x[K.EYD] = 0.0
+
+
 @njit(cache=True, error_model="numpy")
-def _closed(x, p, s, u0, noise, sp_pos, sp_spd, mode, kvec, cstate, ndelay, meas_out,
-            dem_out, fext):  # pragma: no cover - compiled
-    n = sp_pos.shape[0]
-    m = np.zeros(K.NM)
-    u = u0.copy()
-    diag = np.zeros(K.NO)
-    applied = 0.0
-    for k in range(n):
-        K.measure(x, s, noise[k], m)
-        for j in range(K.NM):
-            meas_out[k, j] = m[j]
-        kd = k - ndelay if k >= ndelay else 0
-        d = controller_step(cstate, kvec, sp_pos[k], sp_spd[k], mode[k],
-                            meas_out[kd, K.M_POS], meas_out[kd, K.M_SPEED])
-        dem_out[k] = d
-        u[K.U_IDEM] = applied
-        u[K.U_INOISE] = noise[k, 0]
-        u[K.U_FEXT] = fext[k]
-        K.advance(x, p, u, diag)
-        applied = d
-        if not np.isfinite(x[K.OM]):
-            for kk in range(k + 1, n):
-                for j in range(K.NM):
-                    meas_out[kk, j] = np.nan
-                dem_out[kk] = np.nan
-            return
+def table_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
+                   diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
+    """The logged demand (`bench.loop.table_control`) on the full plant, re-synchronised
+    where aux says so."""
+    return run_loop(resync, kernel_measure, kernel_truth, kernel_advance, table_control,
+                    x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
+                    diag_out, truth_out, applied, k0)
+
+
+def _replay(params: PlantParams, drive: Drive, n: int, aux: np.ndarray
+            ) -> dict[str, np.ndarray]:
+    """The logged demand of SYNC k held over period k + 1 (NaN: 0), sensors without noise."""
+    table = np.nan_to_num(np.asarray(drive.demand[:n], float)).reshape(n, 1)
+    meas, _ = _run(table_on_plant, params, drive, n, aux, np.zeros((n, 3)), table,
+                   np.zeros(0), np.zeros(0), 0)
+    applied = np.zeros(n)
+    applied[1:] = np.nan_to_num(drive.demand[:n - 1])
+    return _columns(meas, applied, delay_periods(params))
 
 
 def open_loop(params: PlantParams, drive: Drive, n: int | None = None) -> dict[str, np.ndarray]:
     """Replay the logged ECU demand (held one period, as the bus does) into the plant."""
     n = len(drive.t) if n is None else min(n, len(drive.t))
-    plant = initial_plant(params, _x0_true(params, drive))
-    x = plant.x.copy()
-    meas = np.zeros((n, K.NM))
-    applied = np.zeros(n)
-    applied[1:] = np.nan_to_num(drive.demand[:n - 1])
-    _replay(x, plant.param_vector, plant._s, _plant_inputs(params), applied, meas,
-            np.zeros(n), np.zeros(n), 0, drive.applied_load(n))
-    return _columns(meas, applied, _delay_periods(params))
+    return _replay(params, drive, n, np.zeros((n, 2)))
 
 
 def mechanics_replay(params: PlantParams, drive: Drive, speed_meas: np.ndarray,
@@ -189,62 +232,17 @@ def mechanics_replay(params: PlantParams, drive: Drive, speed_meas: np.ndarray,
     smoothed (noise enters at each re-synchronisation).
     """
     n = len(drive.t) if n is None else min(n, len(drive.t))
-    plant = initial_plant(params, _x0_true(params, drive))
-    x = plant.x.copy()
-    meas = np.zeros((n, K.NM))
-    applied = np.zeros(n)
-    applied[1:] = np.nan_to_num(drive.demand[:n - 1])
     # the measured speed is sensor_delay old: re-synchronise on the sample that describes now
-    nd = _delay_periods(params)
+    nd = delay_periods(params)
     sync = np.empty(n)
     sync[:n - nd] = speed_meas[nd:n] if nd else speed_meas[:n]
     if nd:
         sync[n - nd:] = speed_meas[n - 1]
-    _replay(x, plant.param_vector, plant._s, _plant_inputs(params), applied, meas,
-            sync / params.sensors.encoder_gain, np.ones(n), segment, drive.applied_load(n))
-    return _columns(meas, applied, nd)
-
-
-@njit(cache=True, error_model="numpy")
-def _replay(x, p, s, u0, applied, meas_out, w_sync, w_ok, segment, fext):  # pragma: no cover
-    n = applied.shape[0]
-    m = np.zeros(K.NM)
-    u = u0.copy()
-    diag = np.zeros(K.NO)
-    zero = np.zeros(3)
-    tau = p[K.P_TAU]
-    kin = p[K.P_LEAD] / (2.0 * math.pi)
-    for k in range(n):
-        if segment > 0 and k % segment == 0 and w_ok[k] > 0.0:
-            om = w_sync[k] * tau
-            x[K.OM] = om
-            x[K.V1] = kin * om
-            x[K.V2] = kin * om
-            moving = 1.0 if abs(w_sync[k]) > 0.5 else 0.0
-            if moving > 0.0:
-                x[K.STS] = 0.0
-                x[K.STN1] = 0.0
-                x[K.STN2] = 0.0
-            else:
-                x[K.OM] = 0.0
-                x[K.V1] = 0.0
-                x[K.V2] = 0.0
-                x[K.STS] = 1.0
-                x[K.STN1] = 1.0
-                x[K.STN2] = 1.0
-            x[K.EY] = x[K.OM] / tau
-            x[K.EYD] = 0.0
-        K.measure(x, s, zero, m)
-        for j in range(K.NM):
-            meas_out[k, j] = m[j]
-        u[K.U_IDEM] = applied[k]
-        u[K.U_FEXT] = fext[k]
-        K.advance(x, p, u, diag)
-        if not np.isfinite(x[K.OM]):
-            for kk in range(k + 1, n):
-                for j in range(K.NM):
-                    meas_out[kk, j] = np.nan
-            return
+    aux = np.zeros((n, 2))
+    if segment > 0:
+        aux[::segment, A_SYNC] = 1.0
+    aux[:, A_W] = sync / params.sensors.encoder_gain
+    return _replay(params, drive, n, aux)
 
 
 # --- kinematic paths -----------------------------------------------------------------

@@ -1,16 +1,16 @@
 """The monitoring model of thesis section 6.1 (eq. 6.1-6.2): the nominal actuator.
 
 What it keeps from the plant (`plant_rt`, chapter 5), with the same parameter values:
-- the drive's current PI (same gains, same clamping anti-windup), without PWM: the
-  inverter gives the set voltage, saturated at the DC bus (the thesis' "carrier with an
-  infinite frequency");
+- the drive's current PI (same gains, the same clamped PI law `plant_rt.pi`), without
+  PWM: the inverter gives the set voltage, saturated at the DC bus (the thesis' "carrier
+  with an infinite frequency");
 - the motor winding (eq. 5.3, Crank-Nicolson as in the plant), the current limit, the
   torque demodulation filter tau_h (eq. 5.4) and the reducer C_m = eta T_M / tau (eq. 5.7);
 - the sensors (eq. 5.1-5.2): LVDT and encoder second order, current sensor first order,
   encoder angle quantised to the same counts, so its outputs are the measured columns;
 - the ECU controller (`bench.control.controller_step`, same speed PI gains) at the SYNC
-  rate with the bus timing of `bench.harness`: the demand computed at SYNC k is applied
-  by the drive during period k+1.
+  rate in the bench's one closed loop (`bench.loop`, as the harness): the demand computed
+  at SYNC k is applied by the drive during period k+1.
 
 What it replaces: the whole screw (balls, contacts, backlash, preload, double nut) by a
 rigid screw-nut coupling (eq. 6.1-6.2):
@@ -26,6 +26,8 @@ the eq. 5.10 lever (0.906 of p/2pi), so the plant's friction at the screw is 1.9
 cruise and 2.006 C_s near zero speed against the monitor's 2 C_s and 2.2 C_s (5 % and 9 %
 lower); the reaction torque and the finite contact stiffness are absent (thesis section
 6.1 says the same).
+
+I_eq, C_s and the viscous coefficient are the plant's own (`plant_rt.model`).
 
 Units SI: nut position m, screw angle rad, motor speed rad/s, current A, time s.
 The monitor never reads simulation truth; it is driven by set-points and mode only.
@@ -43,10 +45,14 @@ from numba import njit
 
 from bench import BenchError
 from bench.control import NC as CTRL_NC
-from bench.control import THESIS_SET_GAIN_V_PER_M, ControllerParams, controller_step
+from bench.control import THESIS_SET_GAIN_V_PER_M, ControllerParams
+from bench.loop import ecu_control, ecu_reference, no_columns, no_prepare, run_chunks, run_loop
 from bench.profiles import Profile
 from bench.trace import Trace
+from plant_rt import kernel as K
+from plant_rt.model import equivalent_inertia, static_friction, viscous_friction
 from plant_rt.params import PlantParams
+from plant_rt.pi import clamped_pi
 
 # --- state vector ------------------------------------------------------------------------
 (S_I, S_CI, S_IM, S_TQ, S_OM, S_TH, S_LY, S_LYD, S_EY, S_EYD, S_STUCK, S_T) = range(12)
@@ -57,6 +63,7 @@ NXM = 12
  Q_COUNTS, Q_FFAC) = range(26)
 NQM = 26
 TWO_PI = 2.0 * math.pi
+_NO_SENSORS = np.zeros(0)   # the monitor's measure reads its gains from q
 
 THESIS_START_GAIN = 20.0
 """The first attempt of the thesis' fminsearch (thesis units, (rad/s)/V)."""
@@ -112,12 +119,11 @@ class MonitorParams:
             demod_time_constant_s=m.demod_time_constant_s,
             current_sensor_time_constant_s=se.current_time_constant_s,
             ratio=tau, efficiency=r.efficiency,
-            inertia_kg_m2=(m.inertia_kg_m2 + r.inertia_kg_m2) / tau**2 + s.screw_inertia_kg_m2,
-            static_friction_nm=(m.static_friction_nm + r.static_friction_nm) / tau
-            + s.support_static_friction_nm,
+            inertia_kg_m2=equivalent_inertia(p),                       # eq. 5.12
+            static_friction_nm=static_friction(p),                     # eq. 5.14
             stribeck_amplitude=s.stribeck_amplitude,
             stribeck_velocity_rad_s=s.stribeck_velocity_rad_s,
-            viscous_friction_nm_s=m.viscous_friction_nm_s + r.viscous_friction_nm_s,
+            viscous_friction_nm_s=viscous_friction(p),                 # eq. 5.13
             lead_m=s.lead_m, lvdt_damping=se.lvdt_damping,
             lvdt_natural_rad_s=se.lvdt_natural_rad_s, encoder_damping=se.encoder_damping,
             encoder_natural_rad_s=se.encoder_natural_rad_s,
@@ -186,15 +192,7 @@ def monitor_advance(x: np.ndarray, q: np.ndarray, idem: float) -> None:
         om = x[S_OM]
         w_m = om / tau
         # drive: current PI on the measured current, clamping anti-windup, no PWM
-        e = idem - x[S_IM]
-        v_un = kpi * e + x[S_CI]
-        va = v_un
-        if va > VDC:
-            va = VDC
-        elif va < -VDC:
-            va = -VDC
-        if not (va != v_un and e * v_un > 0.0):
-            x[S_CI] += kii * e * dt
+        va, x[S_CI] = clamped_pi(idem - x[S_IM], x[S_CI], kpi, kii, dt, VDC)
         # winding (eq. 5.3), Crank-Nicolson as the plant; current limit
         hr = 0.5 * dt * R / L
         i_new = (i * (1.0 - hr) + dt * (va - KE * w_m) / L) / (1.0 + hr)
@@ -232,33 +230,42 @@ def monitor_advance(x: np.ndarray, q: np.ndarray, idem: float) -> None:
         x[S_T] += dt
 
 
-@njit(cache=True, error_model="numpy")
-def monitor_run(x, q, cstate, kvec, sp_pos, sp_spd, mode, noise, applied, out):
-    """Run len(sp_pos) SYNC periods with the ECU in the loop; returns the last demand.
+# --- the monitor's parts for the one closed loop (bench.loop) ---------------------------
 
-    out[k] = (current_a, motor_speed_rad_s, motor_angle_rad, position_m, demand_a,
-    true position m) sampled at SYNC k before the period is integrated, as the harness.
-    `noise` (n, 3): white noise (A, m, rad/s) added to the sensors, zeros for the nominal.
-    """
-    n = sp_pos.shape[0]
-    tau = q[Q_TAU]
+@njit(inline="always", error_model="numpy")
+def monitor_measure(x, q, s, noise, kk, m):  # pragma: no cover - compiled
+    """The sensors of eq. 5.1-5.2 in the plant's M_* layout, noise[kk] = (A, m, rad/s):
+    current sensor, encoder speed, encoder angle quantised to counts, LVDT (no thermal
+    model: M_TEMP is NaN)."""
+    m[K.M_CUR] = x[S_IM] + noise[kk, 0]
+    m[K.M_SPEED] = x[S_EY] + noise[kk, 2]
     counts = q[Q_COUNTS]
-    kin = q[Q_LEAD] / TWO_PI
-    for k in range(n):
-        cur = x[S_IM] + noise[k, 0]
-        spd = x[S_EY] + noise[k, 2]
-        pos = x[S_LY] + noise[k, 1]
-        ang = x[S_TH] / tau
-        out[k, 0] = cur
-        out[k, 1] = spd
-        out[k, 2] = math.floor(ang / TWO_PI * counts) * TWO_PI / counts
-        out[k, 3] = pos
-        d = controller_step(cstate, kvec, sp_pos[k], sp_spd[k], mode[k], pos, spd)
-        out[k, 4] = d
-        out[k, 5] = kin * x[S_TH]
-        monitor_advance(x, q, applied)
-        applied = d
-    return applied
+    ang = x[S_TH] / q[Q_TAU]
+    m[K.M_ANGLE] = math.floor(ang / TWO_PI * counts) * TWO_PI / counts
+    m[K.M_POS] = x[S_LY] + noise[kk, 1]
+    m[K.M_TEMP] = math.nan
+
+
+@njit(inline="always", error_model="numpy")
+def monitor_truth(x, q, out, k):  # pragma: no cover - compiled
+    """The true nut position x_n = p / 2 pi Omega (eq. 6.2) into out[k, 0]."""
+    out[k, 0] = q[Q_LEAD] / TWO_PI * x[S_TH]
+
+
+@njit(inline="always", error_model="numpy")
+def monitor_step(x, q, u, kk, applied, noise, diag, k):  # pragma: no cover - compiled
+    """One SYNC period holding `applied` (the monitor never stops the loop)."""
+    monitor_advance(x, q, applied)
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def ecu_on_monitor(x, q, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
+                   diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
+    """The ECU (`bench.loop.ecu_control`) on the monitoring model, with the bus timing."""
+    return run_loop(no_prepare, monitor_measure, monitor_truth, monitor_step, ecu_control,
+                    x, q, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
+                    diag_out, truth_out, applied, k0)
 
 
 # --- Python API -----------------------------------------------------------------------------
@@ -300,17 +307,25 @@ class Monitor:
 
     def run(self, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
             noise: np.ndarray | None = None) -> np.ndarray:
-        """Advance len(sp_pos) periods; returns (n, 6) rows as `monitor_run` documents."""
-        sp_pos = np.ascontiguousarray(sp_pos, dtype=float)
+        """Advance len(sp_pos) periods with the ECU in the loop (`bench.loop`'s timing: the
+        demand of SYNC k applied over period k + 1, carried across calls).
+
+        Returns (n, 6) rows (current_a, motor_speed_rad_s, motor_angle_rad, position_m,
+        demand_a, true position m) sampled at SYNC k before the period is integrated.
+        `noise` (n, 3): white noise (A, m, rad/s) added to the sensors, zeros for the nominal.
+        """
         n = len(sp_pos)
-        out = np.zeros((n, 6))
         nz = np.zeros((n, 3)) if noise is None else np.ascontiguousarray(noise[:n], float)
-        self._applied = monitor_run(self.x, self._q, self._c, self._k, sp_pos,
-                                    np.ascontiguousarray(sp_spd, dtype=float),
-                                    np.ascontiguousarray(mode, dtype=float), nz,
-                                    self._applied, out)
+        meas = np.zeros((n, K.NM))      # M_CUR, M_SPEED, M_ANGLE, M_POS: out's first four
+        dem = np.zeros(n)
+        truth = np.zeros((n, 1))
+        run_chunks(ecu_on_monitor, self.x, self._q, _NO_SENSORS, no_columns(n), no_columns(n),
+                   nz, ecu_reference(sp_pos, sp_spd, mode), self._k, self._c, 0, meas, dem,
+                   no_columns(n), truth, applied=self._applied)
+        if n:
+            self._applied = float(dem[-1])
         self.k += n
-        return out
+        return np.concatenate([meas[:, :4], dem[:, None], truth], axis=1)
 
 
 def _columns(t: np.ndarray, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
