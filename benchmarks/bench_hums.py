@@ -43,7 +43,7 @@ print(json.dumps({{"wall_s": time.perf_counter() - t0, "runs": len(res.points)}}
 RUL = """
 import time, json
 t0 = time.perf_counter()
-from bench.hums import rul as R
+from bench.hums import rul_run as R
 res = R.run_rul(fused=False, workers=1, progress=False)
 print(json.dumps({"wall_s": time.perf_counter() - t0, "periods": len(res.record.t_s),
                   "rul_s": res.thesis.rul_s if res.thesis else None}))
@@ -52,7 +52,7 @@ print(json.dumps({"wall_s": time.perf_counter() - t0, "periods": len(res.record.
 PARTS = """
 import time, json
 import numpy as np
-from bench.hums import monitor as M, indexes as I, rul as R
+from bench.hums import monitor as M, indexes as I, fusion as R
 from bench.harness import simulate
 from bench.profiles import make_profile
 from plant_rt.params import PlantParams

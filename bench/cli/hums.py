@@ -202,7 +202,7 @@ def run_sweep(args: argparse.Namespace) -> int:
 
 
 def run_rul(args: argparse.Namespace) -> int:
-    from bench.hums import rul as R
+    from bench.hums import rul_run as R
     from bench.hums.table import replace_section
     _check_workers(args)
     res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
@@ -222,7 +222,7 @@ def run_rul(args: argparse.Namespace) -> int:
 
 
 def run_campaign(args: argparse.Namespace) -> int:
-    from bench.hums import rul as R
+    from bench.hums import campaign as R
     from bench.hums.table import replace_section
     _check_workers(args)
     if args.runs < 1 or args.healthy < 0:

@@ -32,6 +32,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -39,6 +40,7 @@ import numpy as np
 from bench.gap.maneuvers import excitation
 from bench.harness import simulate
 from bench.trace import MEASURED, Trace
+from bench.workers import run_all
 from plant_rt.params import PlantParams
 
 LOG_S = 10.0
@@ -367,35 +369,11 @@ def run(n: int, seed: int, workers: int = 2, fidelity: str = "full",
     unchanged, so a restricted library scores lower)."""
     cases = make_cases(n, seed)
     ref = reference(fidelity, duration_s, seed + 7919)
-    results: list[dict[str, Any]] = []
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(cases), unit="case", desc="gap-bench")
     t0 = time.perf_counter()
-    if workers <= 1:
-        _init(ref)
-        for c in cases:
-            results.append(run_case(c, fidelity, duration_s, ref, effects))
-            if on_result:
-                on_result(results[-1])
-            if bar is not None:
-                bar.update(1)
-    else:
-        from bench.workers import make_pool
-        with make_pool(workers, _init, (ref,)) as ex:
-            futs = [ex.submit(run_case, c, fidelity, duration_s, None, effects)
-                    for c in cases]
-            from concurrent.futures import as_completed
-            for fu in as_completed(futs):
-                results.append(fu.result())
-                if on_result:
-                    on_result(results[-1])
-                if bar is not None:
-                    bar.update(1)
-    if bar is not None:
-        bar.close()
-    results.sort(key=lambda r: r["index"])
+    job = partial(run_case, fidelity=fidelity, duration_s=duration_s, ref=None,
+                  effects=effects)
+    results = run_all(job, cases, workers, progress, desc="gap-bench", unit="case",
+                      initializer=_init, initargs=(ref,), on_result=on_result, leave=True)
     return {"seed": seed, "cases": n, "fidelity": fidelity, "log_s": duration_s,
             "library": effects or "all",
             "wall_s": time.perf_counter() - t0, "workers": workers,

@@ -8,8 +8,16 @@
   (6.3) with harmonic features, lost motion and reversal dead time, whole-trace and per
   command period (online).
 - `bench.hums.sweep`: the 11-point degradation sweep (rows H2-H6) with figures.
-- `bench.hums.rul`: the thesis' prognosis (R1-R2), a bootstrap band, fused health index,
-  and the run-to-failure campaign scored with progpy's prognostic metrics.
+- `bench.hums.rul`: the thesis' RUL algorithm (section 6.5): Ci levels, the cubic trend
+  fit extrapolated to failure with a bootstrap band, and the `Prediction` every predictor
+  returns.
+- `bench.hums.records`: a run's per-period indexes with truth (the degradation-schedule
+  run) and its true failure time.
+- `bench.hums.fusion`: the fused backlash estimate and its predictor (beyond the thesis);
+  `bench.hums.calibration` builds its calibration from runs.
+- `bench.hums.metrics`: prognostic metrics with progpy.
+- `bench.hums.rul_run`: rows R1-R2 (the 120 s run), figures and text;
+  `bench.hums.campaign`: the run-to-failure campaign, its table, JSON and figure.
 - `bench.hums.report`: self-contained HTML report of one or more logs.
 
 Every computation reads a `bench.trace.Trace` (in-process run, live bus run, decoded

@@ -98,7 +98,7 @@ def _cache_dir() -> Path:
 def cached_calibration(params: PlantParams, kp: float, progress: bool = False) -> Any:
     """The fused predictor's calibration for `params`, cached on disk by parameter hash
     (building it runs ~20 short simulations)."""
-    from bench.hums import rul as R
+    from bench.hums import calibration as R
     key = hashlib.sha256((params.to_json() + f"{kp:.6f}v{R.CALIBRATION_VERSION}").encode()
                          ).hexdigest()[:16]
     path = _cache_dir() / f"calibration-{key}.json"
@@ -143,7 +143,7 @@ def analyse(trace: Trace, name: str, params: PlantParams | None = None,
         rows = list(I.period_indexes(meas, nom, 1.0 / f0, kin=None))
         out.period_table = I.as_table(rows)
     if rul and n_periods >= MIN_PERIODS_FOR_TREND and out.period_table:
-        from bench.hums import rul as R
+        from bench.hums import fusion as R
         cal = cached_calibration(M.nominal_plant(params), kp, progress)
         t_end = out.period_table["t_start_s"] + 1.0 / f0
         out.fused = (R.FusedPredictor(cal).run(t_end, out.period_table), cal, t_end)

@@ -11,7 +11,7 @@ torques and forces x(1 + 3 d) (section 5.7.4); no external load, no preload (sec
 each without and with sensor noise (H6). Every point runs the high-fidelity plant
 (`bench.harness.simulate`: 10 kHz switching PWM, dynamic balls) and compares its
 measured columns with the monitoring model's nominal (`bench.hums.monitor`, position gain
-fitted by Nelder-Mead: row H1). Points run on both cores (`bench.hums.pool`).
+fitted by Nelder-Mead: row H1). Points run on both cores (`bench.workers.run_all`).
 """
 
 from __future__ import annotations
@@ -24,10 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from bench import BenchError
+from bench import BenchError, machine_description
+from bench.harness import simulate
 from bench.hums import indexes as I
 from bench.hums import monitor as M
-from bench.hums.table import Row
+from bench.hums.table import Row, figure_links
+from bench.hums.table import markdown as table
+from bench.profiles import make_profile
+from bench.workers import run_all
 from plant_rt.params import PlantParams
 
 MANEUVERS: dict[str, str] = {"H2": "velocity-step", "H3": "velocity-cosine", "H4": "sine"}
@@ -92,8 +96,6 @@ def _get(ix: dict[str, Any], key: str) -> float:
 
 def _point(job: tuple[str, str, bool, float, int, float, str]) -> Point:
     """Worker: one sweep point (picklable arguments, small result)."""
-    from bench.harness import simulate
-    from bench.profiles import make_profile
     group, name, noise, d, seed, kp, params_json = job
     base = PlantParams.from_json(params_json)
     prof = make_profile(name)
@@ -117,7 +119,6 @@ def _point(job: tuple[str, str, bool, float, int, float, str]) -> Point:
 def run(params: PlantParams | None = None, noise: str = "both", points: int = 11,
         workers: int | None = None, progress: bool = True) -> SweepResult:
     """The whole sweep: H1 fit, then `points` levels x 3 maneuvers x noise settings."""
-    from bench import machine_description
     if points < 2:
         raise BenchError("the sweep needs at least 2 degradation points")
     noises = {"off": (False,), "on": (True,), "both": (False, True)}.get(noise)
@@ -139,7 +140,6 @@ def run(params: PlantParams | None = None, noise: str = "both", points: int = 11
     jobs = [(g, name, nz, d, NOISE_SEED0 + k, fit.gain_rad_s_per_m, pj)
             for g, name in MANEUVERS.items() for nz in noises
             for k, d in enumerate(levels)]
-    from bench.hums.pool import run_all
     pts = run_all(_point, jobs, workers, progress, desc="hums sweep", unit="point")
     res = SweepResult(fit, fit_series, pts, noises, levels, time.perf_counter() - t0,
                       machine_description())
@@ -149,8 +149,6 @@ def run(params: PlantParams | None = None, noise: str = "both", points: int = 11
 
 def _step_check(base: PlantParams, kp: float) -> dict[str, Any]:
     """Fig. 6.3-6.4: a 10 mm position step on the nominal plant and on the monitor."""
-    from bench.harness import simulate
-    from bench.profiles import make_profile
     prof = make_profile("step", amplitude_m=0.01, duration_s=0.4)
     real = simulate(prof, M.nominal_plant(base)).measured()
     nom = M.nominal_for(real, kp, M.MonitorParams.from_plant(base))
@@ -182,9 +180,25 @@ def _monotonic(y: np.ndarray, increasing: bool) -> bool:
 def rows(res: SweepResult) -> list[Row]:
     """Rows H1-H6 of seed-targets.md with the thesis value, the project value and why
     they differ."""
-    out: list[Row] = []
+    noiseless = False in res.noise
+    nz = False if noiseless else True
+    tag = "" if noiseless else " (with noise)"
+    out = _h1_rows(res)
+    if any(p.group == "H2" for p in res.points):
+        out += _h2_rows(res, nz, tag)
+    if any(p.group == "H3" for p in res.points):
+        out += _h3_rows(res, nz, tag)
+    if any(p.group == "H4" for p in res.points):
+        out += _h4_rows(res, nz, tag) + _h5_rows(res, nz)
+    if res.noise == (False, True):
+        out += _h6_rows(res)
+    return out
+
+
+def _h1_rows(res: SweepResult) -> list[Row]:
+    """H1: the monitor's fitted position gain and how well it matches the plant."""
     f = res.fit
-    out += [
+    out = [
         Row("H1", "monitor position gain k_p after Nelder-Mead from 20 (thesis units, "
             "(rad/s)/V with K_SET 285.7 V/m)", "(rad/s)/V", M.THESIS_FITTED_GAIN,
             round(f.gain_thesis_units, 2)),
@@ -205,78 +219,87 @@ def rows(res: SweepResult) -> list[Row]:
                        "um", "low differences (fig. 6.3)",
                        f"{st['max_position_diff_m'] * 1e6:.1f} / "
                        f"{st['rms_position_diff_m'] * 1e6:.1f}"))
-    noiseless = False in res.noise
-    nz = False if noiseless else True
-    tag = "" if noiseless else " (with noise)"
-    x = np.asarray(res.levels)
-    if any(p.group == "H2" for p in res.points):
-        cpv = res.curve("H2", nz, "cp")
-        e = res.curve("H2", nz, "mean_error_m")
-        out += [
-            Row("H2", f"Cp - 1 at 100 %{tag}", "%", 8.4, round(100 * (cpv[-1] - 1), 2),
-                _why_h2_cp(cpv[-1])),
-            Row("H2", f"mean error |e| at 100 %{tag}", "um", 77.0, round(e[-1] * 1e6, 1),
-                _why_h2_e(e[-1])),
-            Row("H2", "Cp monotonic in degradation", "-", "monotonic",
-                _monotonic(cpv, True)),
-            Row("H2", "Cp shape: R^2 of a straight line over the 11 points", "-",
-                "substantially linear", round(_r2(x, cpv, 1), 4)),
-        ]
-    if any(p.group == "H3" for p in res.points):
-        cpv = res.curve("H3", nz, "cp")
-        e = res.curve("H3", nz, "mean_error_m")
-        q = np.polyfit(x, cpv - 1.0, 2)
-        out += [
-            Row("H3", f"Cp - 1 at 100 %{tag}", "%", 7.8, round(100 * (cpv[-1] - 1), 2),
-                _why_h3_cp(cpv[-1])),
-            Row("H3", f"mean error |e| at 100 %{tag}", "um", 70.0, round(e[-1] * 1e6, 1), ""),
-            Row("H3", "Cp monotonic in degradation", "-", "monotonic", _monotonic(cpv, True)),
-            Row("H3", "Cp shape: R^2 line / R^2 parabola; parabola a d^2 + b d (a, b in %)",
-                "-", "roughly quadratic",
-                f"{_r2(x, cpv, 1):.4f} / {_r2(x, cpv, 2):.4f}; a = {100 * q[0]:.2f}, "
-                f"b = {100 * q[1]:.2f}"),
-        ]
-    if any(p.group == "H4" for p in res.points):
-        civ = res.curve("H4", nz, "ci")
-        pr = res.curve("H4", nz, "peak_ratio")
-        spr = res.curve("H4", nz, "steady_peak_ratio")
-        out += [
-            Row("H4", f"Ci fall at 100 % (1 - Ci){tag}", "%", 46.0,
-                round(100 * (1 - civ[-1]), 1), ""),
-            Row("H4", "Ci monotonic (falling) in degradation", "-", "monotonic",
-                _monotonic(civ, False)),
-            Row("H4", f"peak-current ratio at 100 %, eq. 6.7 over the whole run{tag}", "-",
-                2.7, round(pr[-1], 3), _why_peak(res, nz)),
-            Row("H4", f"peak-current ratio at 100 % after the start-up (t >= 0.25 s){tag}",
-                "-", 2.7, round(spr[-1], 3),
-                "" if abs(spr[-1] / 2.7 - 1) <= 0.1 else
-                "the reversal peaks are the backlash impacts; their height depends on the "
-                "speed-loop gains and the contact damping, which the thesis does not give "
-                "(the speed loop here is 30 Hz, not 60 Hz, because of the bus delay)"),
-            Row("H4", "max |current| at 100 % / nominal in the time plot, after start-up",
-                "-", "~2", round(spr[-1], 2), ""),
-        ]
-        h = {d: res.select("H4", nz)[int(round(d * (len(res.levels) - 1)))]
-             for d in SHOWN}
-        h0, h5, h1 = (np.asarray(h[d].indexes["harmonics_a"]) for d in SHOWN)
-        hn = np.asarray(h[0.0].indexes["nominal_harmonics_a"])
-        out += [
-            Row("H5", "nominal (monitor) 2 Hz current line", "A", "slightly above 1",
-                round(float(hn[0]), 3)),
-            Row("H5", "nominal: largest other line (4-10 Hz) / 2 Hz line", "%", "negligible",
-                round(100 * float(np.nanmax(hn[1:]) / hn[0]), 2)),
-            Row("H5", "2 Hz line, plant at 0 / 50 / 100 %", "A", "grows with degradation",
-                f"{h0[0]:.3f} / {h5[0]:.3f} / {h1[0]:.3f}"),
-            Row("H5", "6 Hz (3rd harmonic) line at 0 / 50 / 100 %", "A", "harmonics grow",
-                f"{h0[2]:.3f} / {h5[2]:.3f} / {h1[2]:.3f}"),
-            Row("H5", "10 Hz (5th harmonic) line at 0 / 50 / 100 %", "A", "harmonics grow",
-                f"{h0[4]:.3f} / {h5[4]:.3f} / {h1[4]:.3f}"),
-            Row("H5", "even harmonics (4, 8 Hz) at 100 %", "A", "-",
-                f"{h1[1]:.4f} / {h1[3]:.4f}"),
-        ]
-    if res.noise == (False, True):
-        out += _h6_rows(res)
     return out
+
+
+def _h2_rows(res: SweepResult, nz: bool, tag: str) -> list[Row]:
+    """H2: Cp and |e| (eq. 6.4-6.5) of the open-loop velocity step."""
+    x = np.asarray(res.levels)
+    cpv = res.curve("H2", nz, "cp")
+    e = res.curve("H2", nz, "mean_error_m")
+    return [
+        Row("H2", f"Cp - 1 at 100 %{tag}", "%", 8.4, round(100 * (cpv[-1] - 1), 2),
+            _why_h2_cp(cpv[-1])),
+        Row("H2", f"mean error |e| at 100 %{tag}", "um", 77.0, round(e[-1] * 1e6, 1),
+            _why_h2_e(e[-1])),
+        Row("H2", "Cp monotonic in degradation", "-", "monotonic",
+            _monotonic(cpv, True)),
+        Row("H2", "Cp shape: R^2 of a straight line over the 11 points", "-",
+            "substantially linear", round(_r2(x, cpv, 1), 4)),
+    ]
+
+
+def _h3_rows(res: SweepResult, nz: bool, tag: str) -> list[Row]:
+    """H3: Cp and |e| (eq. 6.4-6.5) of the open-loop velocity cosine."""
+    x = np.asarray(res.levels)
+    cpv = res.curve("H3", nz, "cp")
+    e = res.curve("H3", nz, "mean_error_m")
+    q = np.polyfit(x, cpv - 1.0, 2)
+    return [
+        Row("H3", f"Cp - 1 at 100 %{tag}", "%", 7.8, round(100 * (cpv[-1] - 1), 2),
+            _why_h3_cp(cpv[-1])),
+        Row("H3", f"mean error |e| at 100 %{tag}", "um", 70.0, round(e[-1] * 1e6, 1), ""),
+        Row("H3", "Cp monotonic in degradation", "-", "monotonic", _monotonic(cpv, True)),
+        Row("H3", "Cp shape: R^2 line / R^2 parabola; parabola a d^2 + b d (a, b in %)",
+            "-", "roughly quadratic",
+            f"{_r2(x, cpv, 1):.4f} / {_r2(x, cpv, 2):.4f}; a = {100 * q[0]:.2f}, "
+            f"b = {100 * q[1]:.2f}"),
+    ]
+
+
+def _h4_rows(res: SweepResult, nz: bool, tag: str) -> list[Row]:
+    """H4: Ci (eq. 6.6) and the peak-current ratio (eq. 6.7) of the closed-loop sine."""
+    civ = res.curve("H4", nz, "ci")
+    pr = res.curve("H4", nz, "peak_ratio")
+    spr = res.curve("H4", nz, "steady_peak_ratio")
+    return [
+        Row("H4", f"Ci fall at 100 % (1 - Ci){tag}", "%", 46.0,
+            round(100 * (1 - civ[-1]), 1), ""),
+        Row("H4", "Ci monotonic (falling) in degradation", "-", "monotonic",
+            _monotonic(civ, False)),
+        Row("H4", f"peak-current ratio at 100 %, eq. 6.7 over the whole run{tag}", "-",
+            2.7, round(pr[-1], 3), _why_peak(res, nz)),
+        Row("H4", f"peak-current ratio at 100 % after the start-up (t >= 0.25 s){tag}",
+            "-", 2.7, round(spr[-1], 3),
+            "" if abs(spr[-1] / 2.7 - 1) <= 0.1 else
+            "the reversal peaks are the backlash impacts; their height depends on the "
+            "speed-loop gains and the contact damping, which the thesis does not give "
+            "(the speed loop here is 30 Hz, not 60 Hz, because of the bus delay)"),
+        Row("H4", "max |current| at 100 % / nominal in the time plot, after start-up",
+            "-", "~2", round(spr[-1], 2), ""),
+    ]
+
+
+def _h5_rows(res: SweepResult, nz: bool) -> list[Row]:
+    """H5: the current spectrum's lines (eq. 6.3) at 0, 50 and 100 %."""
+    h = {d: res.select("H4", nz)[int(round(d * (len(res.levels) - 1)))]
+         for d in SHOWN}
+    h0, h5, h1 = (np.asarray(h[d].indexes["harmonics_a"]) for d in SHOWN)
+    hn = np.asarray(h[0.0].indexes["nominal_harmonics_a"])
+    return [
+        Row("H5", "nominal (monitor) 2 Hz current line", "A", "slightly above 1",
+            round(float(hn[0]), 3)),
+        Row("H5", "nominal: largest other line (4-10 Hz) / 2 Hz line", "%", "negligible",
+            round(100 * float(np.nanmax(hn[1:]) / hn[0]), 2)),
+        Row("H5", "2 Hz line, plant at 0 / 50 / 100 %", "A", "grows with degradation",
+            f"{h0[0]:.3f} / {h5[0]:.3f} / {h1[0]:.3f}"),
+        Row("H5", "6 Hz (3rd harmonic) line at 0 / 50 / 100 %", "A", "harmonics grow",
+            f"{h0[2]:.3f} / {h5[2]:.3f} / {h1[2]:.3f}"),
+        Row("H5", "10 Hz (5th harmonic) line at 0 / 50 / 100 %", "A", "harmonics grow",
+            f"{h0[4]:.3f} / {h5[4]:.3f} / {h1[4]:.3f}"),
+        Row("H5", "even harmonics (4, 8 Hz) at 100 %", "A", "-",
+            f"{h1[1]:.4f} / {h1[3]:.4f}"),
+    ]
 
 
 def _why_h2_cp(cp: float) -> str:
@@ -347,24 +370,34 @@ def _h6_rows(res: SweepResult) -> list[Row]:
 
 def figures(res: SweepResult, out_dir: str | Path) -> list[Path]:
     """PNG figures like thesis figs. 6.2-6.10 into `out_dir`."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # matplotlib only when figures are asked for
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    plots: list[tuple[str, tuple[int, int], tuple[float, float], Any, tuple[Any, ...]]] = [
+        ("h1_fit.png", (2, 2), (11, 6.5), _h1_figure, ())]
+    for g, title in (("H2", "velocity step, open loop (fig. 6.8)"),
+                     ("H3", "velocity cosine, open loop (fig. 6.9)")):
+        if any(p.group == g for p in res.points):
+            plots.append((f"{g.lower()}_cp_error.png", (1, 2), (11, 3.8), _h23_figure,
+                          (g, title)))
+    if any(p.group == "H4" for p in res.points):
+        plots += [("h4_ci_ratio.png", (1, 2), (11, 3.8), _h4_figure, ()),
+                  ("h5_spectrum.png", (1, 3), (14, 3.8), _h5_figure, ())]
     paths: list[Path] = []
-
-    def save(fig: Any, name: str) -> None:
+    for name, grid, size, draw, args in plots:
+        fig = Figure(figsize=size)
+        draw(fig.subplots(*grid), res, *args)
         p = out / name
         fig.tight_layout()
         fig.savefig(p, dpi=90)
-        plt.close(fig)
         paths.append(p)
+    return paths
 
-    # H1 (figs. 6.2-6.5)
+
+def _h1_figure(ax: Any, res: SweepResult) -> None:
+    """H1: the Nelder-Mead fit on the sine and the 10 mm step (figs. 6.2-6.5)."""
     fs = res.fit_series
     t = np.asarray(fs["t_s"])
-    fig, ax = plt.subplots(2, 2, figsize=(11, 6.5))
     ax[0, 0].plot(t, 1e3 * np.asarray(fs["real_position_m"]), "k", lw=2, label="plant (nominal)")
     ax[0, 0].plot(t, 1e3 * np.asarray(fs["start_position_m"]), "C1--",
                   label=f"monitor, k_p = {res.fit.start_thesis_units:g}")
@@ -389,84 +422,79 @@ def figures(res: SweepResult, out_dir: str | Path) -> list[Path]:
         ax[1, 1].plot(ts, st["nominal_current_a"], "C0:", lw=2, label="monitor")
         ax[1, 1].set(title="current, step (fig. 6.4)", xlabel="t (s)", ylabel="current (A)")
         ax[1, 1].legend(fontsize=8)
-    save(fig, "h1_fit.png")
 
-    nz = False if False in res.noise else True
+
+def _h23_figure(ax: Any, res: SweepResult, g: str, title: str) -> None:
+    """H2 / H3: Cp and |e| over the sweep (figs. 6.8-6.9)."""
     x = 100 * np.asarray(res.levels)
-    # H2 / H3 (figs. 6.8-6.9)
-    for g, title in (("H2", "velocity step, open loop (fig. 6.8)"),
-                     ("H3", "velocity cosine, open loop (fig. 6.9)")):
-        if not any(p.group == g for p in res.points):
+    for noise in res.noise:
+        lab = "noise" if noise else "no noise"
+        sty = "o--" if noise else "s-"
+        ax[0].plot(x, res.curve(g, noise, "cp"), sty, label=lab)
+        ax[1].plot(x, 1e6 * res.curve(g, noise, "mean_error_m"), sty, label=lab)
+    ax[0].set(title=f"{g}: Cp, {title}", xlabel="degradation (%)", ylabel="Cp (-)")
+    ax[1].set(title=f"{g}: mean error |e|", xlabel="degradation (%)", ylabel="|e| (um)")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
+
+
+def _h4_figure(ax: Any, res: SweepResult) -> None:
+    """H4: Ci and the peak-current ratio over the sweep (fig. 6.10)."""
+    x = 100 * np.asarray(res.levels)
+    for noise in res.noise:
+        lab = "noise" if noise else "no noise"
+        sty = "o--" if noise else "s-"
+        ax[0].plot(x, res.curve("H4", noise, "ci"), sty, label=f"Ci, {lab}")
+        ax[0].plot(x, res.curve("H4", noise, "ci_harmonic"), sty, alpha=0.5,
+                   label=f"Ci 15 harmonics, {lab}")
+        ax[1].plot(x, res.curve("H4", noise, "peak_ratio"), sty,
+                   label=f"eq. 6.7 whole run, {lab}")
+        ax[1].plot(x, res.curve("H4", noise, "steady_peak_ratio"), sty, alpha=0.5,
+                   label=f"after start-up, {lab}")
+    ax[0].set(title="H4: Ci, closed-loop sine (fig. 6.10)", xlabel="degradation (%)",
+              ylabel="Ci (-)")
+    ax[1].set(title="H4: peak-current ratio", xlabel="degradation (%)", ylabel="ratio (-)")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+
+
+def _h5_figure(ax: Any, res: SweepResult) -> None:
+    """H5: current spectra (figs. 6.6-6.7, eq. 6.3) and time plots (fig. 5.49)."""
+    nz = False if False in res.noise else True
+    pts = {round(p.d, 6): p for p in res.select("H4", nz) if p.series}
+    first = True
+    for d in SHOWN:
+        p = pts.get(round(d, 6))
+        if p is None or p.series is None:
             continue
-        fig, ax = plt.subplots(1, 2, figsize=(11, 3.8))
-        for noise in res.noise:
-            lab = "noise" if noise else "no noise"
-            sty = "o--" if noise else "s-"
-            ax[0].plot(x, res.curve(g, noise, "cp"), sty, label=lab)
-            ax[1].plot(x, 1e6 * res.curve(g, noise, "mean_error_m"), sty, label=lab)
-        ax[0].set(title=f"{g}: Cp, {title}", xlabel="degradation (%)", ylabel="Cp (-)")
-        ax[1].set(title=f"{g}: mean error |e|", xlabel="degradation (%)", ylabel="|e| (um)")
-        for a in ax:
-            a.grid(alpha=0.3)
-            a.legend(fontsize=8)
-        save(fig, f"{g.lower()}_cp_error.png")
-    if any(p.group == "H4" for p in res.points):
-        # H4 (fig. 6.10)
-        fig, ax = plt.subplots(1, 2, figsize=(11, 3.8))
-        for noise in res.noise:
-            lab = "noise" if noise else "no noise"
-            sty = "o--" if noise else "s-"
-            ax[0].plot(x, res.curve("H4", noise, "ci"), sty, label=f"Ci, {lab}")
-            ax[0].plot(x, res.curve("H4", noise, "ci_harmonic"), sty, alpha=0.5,
-                       label=f"Ci 15 harmonics, {lab}")
-            ax[1].plot(x, res.curve("H4", noise, "peak_ratio"), sty,
-                       label=f"eq. 6.7 whole run, {lab}")
-            ax[1].plot(x, res.curve("H4", noise, "steady_peak_ratio"), sty, alpha=0.5,
-                       label=f"after start-up, {lab}")
-        ax[0].set(title="H4: Ci, closed-loop sine (fig. 6.10)", xlabel="degradation (%)",
-                  ylabel="Ci (-)")
-        ax[1].set(title="H4: peak-current ratio", xlabel="degradation (%)", ylabel="ratio (-)")
-        for a in ax:
-            a.grid(alpha=0.3)
-            a.legend(fontsize=7)
-        save(fig, "h4_ci_ratio.png")
-        # H5 spectra (figs. 6.6-6.7) and time plots (fig. 5.49)
-        fig, ax = plt.subplots(1, 3, figsize=(14, 3.8))
-        pts = {round(p.d, 6): p for p in res.select("H4", nz) if p.series}
-        first = True
-        for d in SHOWN:
-            p = pts.get(round(d, 6))
-            if p is None or p.series is None:
-                continue
-            s = p.series
-            ts = np.asarray(s["t_s"])
-            dt = float(np.median(np.diff(ts)))
-            if first:
-                fr, a_n = I.amplitude_spectrum(np.asarray(s["nominal_current_a"]), dt)
-                ax[0].plot(fr, a_n, "k", lw=2, label="monitor (nominal)")
-                ax[1].plot(fr, a_n, "k", lw=2, label="monitor (nominal)")
-                ax[2].plot(ts, s["nominal_current_a"], "k", lw=2, label="monitor")
-                first = False
-            fr, a = I.amplitude_spectrum(np.asarray(s["current_a"]), dt)
-            ax[0].plot(fr, a, label=f"plant {100 * d:.0f} %")
-            ax[1].plot(fr, a, label=f"plant {100 * d:.0f} %")
-            ax[2].plot(ts, s["current_a"], lw=1, label=f"plant {100 * d:.0f} %")
-        ax[0].set(xlim=(0, 40), title="H5: current spectrum, Hann (fig. 6.6)",
-                  xlabel="f (Hz)", ylabel="amplitude (A)")
-        ax[1].set(xlim=(1, 3), title="H5: 2 Hz line (fig. 6.7)", xlabel="f (Hz)",
-                  ylabel="amplitude (A)")
-        ax[2].set(title="H4: current (fig. 5.49)", xlabel="t (s)", ylabel="current (A)")
-        for a in ax:
-            a.grid(alpha=0.3)
-            a.legend(fontsize=7)
-        save(fig, "h5_spectrum.png")
-    return paths
+        s = p.series
+        ts = np.asarray(s["t_s"])
+        dt = float(np.median(np.diff(ts)))
+        if first:
+            fr, a_n = I.amplitude_spectrum(np.asarray(s["nominal_current_a"]), dt)
+            ax[0].plot(fr, a_n, "k", lw=2, label="monitor (nominal)")
+            ax[1].plot(fr, a_n, "k", lw=2, label="monitor (nominal)")
+            ax[2].plot(ts, s["nominal_current_a"], "k", lw=2, label="monitor")
+            first = False
+        fr, a = I.amplitude_spectrum(np.asarray(s["current_a"]), dt)
+        ax[0].plot(fr, a, label=f"plant {100 * d:.0f} %")
+        ax[1].plot(fr, a, label=f"plant {100 * d:.0f} %")
+        ax[2].plot(ts, s["current_a"], lw=1, label=f"plant {100 * d:.0f} %")
+    ax[0].set(xlim=(0, 40), title="H5: current spectrum, Hann (fig. 6.6)",
+              xlabel="f (Hz)", ylabel="amplitude (A)")
+    ax[1].set(xlim=(1, 3), title="H5: 2 Hz line (fig. 6.7)", xlabel="f (Hz)",
+              ylabel="amplitude (A)")
+    ax[2].set(title="H4: current (fig. 5.49)", xlabel="t (s)", ylabel="current (A)")
+    for a in ax:
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
 
 
 def markdown(res: SweepResult, figure_paths: list[Path] | None = None,
              doc_dir: Path | None = None) -> str:
-    from bench.hums.table import figure_links
-    from bench.hums.table import markdown as table
+    """The generated sweep section of docs/hums.md: header, rows H1-H6, figure links."""
     text = [f"Generated by `bench hums sweep --noise {_noise_word(res.noise)}` on "
             f"{res.machine}; wall time {res.elapsed_s:.1f} s for {len(res.points)} "
             "plant runs (10 kHz switching PWM, dynamic balls) plus the H1 fit. "

@@ -7,6 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from bench.hums import campaign as C
+from bench.hums import fusion as F
+from bench.hums import metrics as MX
+from bench.hums import records as REC
 from bench.hums import rul as R
 from plant_rt.params import PlantParams
 
@@ -50,15 +54,15 @@ def test_no_prediction_without_a_warning():
     assert math.isnan(partial.rul_s)
 
 
-def _cal(**kw) -> R.Calibration:
+def _cal(**kw) -> F.Calibration:
     b = [10.0 * k for k in range(11)]
-    curves = {f: [0.01 * x for x in b] for f in R.FEATURES}
+    curves = {f: [0.01 * x for x in b] for f in F.FEATURES}
     curves["lost_motion"] = [1.4 * x for x in b]
     base = dict(backlash_um=b, curves=curves, ci_curve=[1 - 0.0046 * x for x in b],
                 sigma_um={"lost_motion": 0.1}, offset_um={}, weights={"lost_motion": 100.0},
                 warn_um=1.0, floor_um=0.5, fail_um=90.0, lm_model=[])
     base.update(kw)
-    return R.Calibration(**base)
+    return F.Calibration(**base)
 
 
 def test_fused_exponential_recovers_a_known_failure_time():
@@ -69,7 +73,7 @@ def test_fused_exponential_recovers_a_known_failure_time():
     rng = np.random.default_rng(0)
     lm = 1.4 * b_true + 1.4 * 0.1 * rng.standard_normal(len(t))
     table = {"lost_motion_m": lm * 1e-6}
-    fr = R.FusedPredictor(_cal(), seed=3).run(t, table)
+    fr = F.FusedPredictor(_cal(), seed=3).run(t, table)
     assert fr.t_warning_s == pytest.approx(math.log(100 + 1) / 0.08, abs=3.0)
     late = [p for p in fr.predictions if p.t_pred_s >= 0.7 * t_fail]
     assert late
@@ -85,37 +89,37 @@ def test_fusion_uses_what_the_log_has():
     n = 5
     table = {"lost_motion_m": np.full(n, np.nan), "ci_harmonic": np.full(n, 1 - 0.2)}
     # no encoder angle in this log: lost motion is NaN, Ci carries the estimate (0.2 -> 20)
-    np.testing.assert_allclose(R.fused_backlash(table, cal), 20.0)
+    np.testing.assert_allclose(F.fused_backlash(table, cal), 20.0)
     table["lost_motion_m"] = np.full(n, 14e-6)     # 10 um
-    got = R.fused_backlash(table, cal)
+    got = F.fused_backlash(table, cal)
     np.testing.assert_allclose(got, (100 * 10 + 1 * 20) / 101)
 
 
 def test_metrics_of_a_perfect_and_of_a_useless_predictor():
     t_f = 100.0
     perfect = [R.Prediction(tp, np.full(50, t_f)) for tp in np.arange(30.0, 100.0, 0.5)]
-    s = R.score_run(perfect, 30.0, t_f)
+    s = MX.score_run(perfect, 30.0, t_f)
     assert s["ph_s"] == pytest.approx(70.0) and s["ph_life_frac"] == pytest.approx(0.7)
     assert s["alpha_lambda_0.5"] and s["alpha_lambda_0.9"]
     assert s["ra_0.5"] == pytest.approx(1.0)
     late = [R.Prediction(tp, np.full(50, t_f + 0.5 * (t_f - tp) + 5))
             for tp in np.arange(30.0, 100.0, 0.5)]
-    s = R.score_run(late, 30.0, t_f)
+    s = MX.score_run(late, 30.0, t_f)
     assert s["ph_s"] == 0.0 and not s["alpha_lambda_0.5"]
     assert s["ra_0.5"] < 0.6
     # a predictor that only starts after lambda cannot meet alpha-lambda there
-    s = R.score_run(perfect[-10:], 95.0, t_f)
+    s = MX.score_run(perfect[-10:], 95.0, t_f)
     assert not s["alpha_lambda_0.5"] and s["alpha_lambda_0.9"] is False
 
 
 def test_true_failure_time_and_campaign_parameters():
     t = np.arange(0.5, 10.01, 0.5)
-    assert R.true_failure_time(t, np.linspace(1, 0.5, len(t))) == pytest.approx(
+    assert REC.true_failure_time(t, np.linspace(1, 0.5, len(t))) == pytest.approx(
         t[np.flatnonzero(np.linspace(1, 0.5, len(t)) < 0.56)[0]])
-    assert math.isnan(R.true_failure_time(t, np.ones_like(t)))
-    p = R.campaign_params(PlantParams(), np.random.default_rng(0), 7)
+    assert math.isnan(REC.true_failure_time(t, np.ones_like(t)))
+    p = C.campaign_params(PlantParams(), np.random.default_rng(0), 7)
     assert p.schedule.kind == "rul" and p.sensors.noise and p.sensors.noise_seed == 7
-    for name, (lo, hi) in R.CAMPAIGN_RANGES.items():
+    for name, (lo, hi) in C.CAMPAIGN_RANGES.items():
         assert lo <= p.get(name) <= hi
 
 
@@ -126,8 +130,9 @@ def test_scoring_leaves_matplotlib_settings_alone():
     import sys
     code = ("import matplotlib as mpl, numpy as np\n"
             "before = dict(mpl.rcParams)\n"
+            "from bench.hums import metrics as MX\n"
             "from bench.hums import rul as R\n"
-            "R.score_run([R.Prediction(50.0, np.full(10, 100.0))], 50.0, 100.0)\n"
+            "MX.score_run([R.Prediction(50.0, np.full(10, 100.0))], 50.0, 100.0)\n"
             "import progpy\n"
             "print(sorted(k for k in before if before[k] != mpl.rcParams[k]))\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -1,0 +1,81 @@
+"""Prognostic metrics of one run-to-failure run, with NASA's progpy (beyond the thesis).
+
+Each `Prediction` (failure-time samples made at one time) becomes an `UnweightedSamples`
+in a `ToEPredictionProfile`; `prognostic_horizon` (criterion: at least `beta` of the
+samples within +-alpha of the true RUL), `alpha_lambda` at fractions of the true life,
+and the relative accuracy RA = 1 - |RUL_true - RUL_pred| / RUL_true of the median
+prediction (on the RUL: progpy's `relative_accuracy` is relative to the time of failure,
+which flatters late predictions). The true failure is the thesis' Ci < 0.56 (section 6.5)
+on the run's noise-free twin (`bench.hums.records.true_failure_time`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from bench.hums.rul import Prediction
+
+
+def score_run(preds: list[Prediction], t_warn: float, t_f: float, alpha: float = 0.2,
+              lambdas: tuple[float, ...] = (0.5, 0.7, 0.9), beta: float = 0.5
+              ) -> dict[str, Any]:
+    """Prognostic metrics of one run with progpy: prognostic horizon (first time at least
+    `beta` of the ToE samples lie within alpha of the true RUL), alpha-lambda at fractions
+    `lambdas` of the true life, and relative accuracy of the median RUL there."""
+    import matplotlib
+    with matplotlib.rc_context():   # importing progpy rewrites matplotlib's rcParams
+        from progpy.metrics import alpha_lambda, prognostic_horizon
+        from progpy.predictors import ToEPredictionProfile
+        from progpy.uncertain_data import UnweightedSamples
+    out: dict[str, Any] = {"t_warning_s": t_warn,
+                           "warning_life_frac": t_warn / t_f if math.isfinite(t_warn) else
+                           math.nan, "n_predictions": len(preds)}
+    gt = {"failure": t_f}
+    prof = ToEPredictionProfile()
+    for p in preds:
+        if p.t_pred_s >= t_f:
+            break
+        s = np.where(np.isfinite(p.toe_samples), p.toe_samples, 1e9)
+        prof.add_prediction(p.t_pred_s, UnweightedSamples([{"failure": float(x)} for x in s]))
+
+    def crit(tte: Any, gt_tte: dict[str, float]) -> dict[str, bool]:
+        b = {k: [v * (1 - alpha), v * (1 + alpha)] for k, v in gt_tte.items()}
+        pib = tte.percentage_in_bounds(b)
+        return {k: pib[k] >= beta for k in pib}
+
+    ph = prognostic_horizon(prof, crit, gt)["failure"] if len(prof) else None
+    out["ph_s"] = float(ph) if ph is not None else 0.0
+    out["ph_life_frac"] = out["ph_s"] / t_f
+    # stable horizon: from when the criterion holds at every later prediction, up to a
+    # true RUL of 5 % of life (past that, +-20 % of the RUL is below the 0.5 s period)
+    ok = []
+    for p in preds:
+        if p.t_pred_s >= 0.95 * t_f:
+            break
+        lo_b, hi_b = t_f - alpha * (t_f - p.t_pred_s), t_f + alpha * (t_f - p.t_pred_s)
+        s = p.toe_samples
+        ok.append((p.t_pred_s, float(np.mean((s > lo_b) & (s < hi_b))) >= beta))
+    stable = math.nan
+    for k in range(len(ok)):
+        if all(v for _, v in ok[k:]):
+            stable = ok[k][0]
+            break
+    out["stable_ph_life_frac"] = (t_f - stable) / t_f if math.isfinite(stable) else 0.0
+    for lam in lambdas:
+        t_l = lam * t_f
+        near = [p for p in preds if t_l - 1e-9 <= p.t_pred_s <= t_l + 0.75]
+        key = f"{lam:g}"
+        if not near or not len(prof):
+            out[f"alpha_lambda_{key}"] = False
+            out[f"ra_{key}"] = math.nan
+            continue
+        al = alpha_lambda(prof, gt, lambda_value=t_l - 1e-9, alpha=alpha, beta=beta)
+        out[f"alpha_lambda_{key}"] = bool(al and al.get("failure"))
+        p = near[0]
+        true_rul = t_f - p.t_pred_s
+        out[f"ra_{key}"] = 1.0 - abs(true_rul - p.rul_s) / true_rul if math.isfinite(
+            p.rul_s) else 0.0
+    return out
