@@ -6,8 +6,8 @@
 window (default 200 us) is left, a caller-supplied ``poll(timeout_s)`` blocks on input
 (e.g. ``bus.recv``) so frames are served while waiting; the last ``spin`` is a busy-wait,
 which on a 2-core machine brings the p99 lateness from about 120 us (plain sleep) to
-below 1 us (design.md, Bus). Never spin continuously under SCHED_FIFO: the kernel
-throttles a real-time task that takes a whole core (design.md).
+below 1 us (docs/bus.md, "Real time on this machine"). Never spin continuously under
+SCHED_FIFO: the kernel throttles a real-time task that takes a whole core.
 
 `use_realtime_priority(n)` (the `--rt-priority N` flag of `bench plant`, `bench up`,
 `bench run`) puts a process, and the processes it starts afterwards, under SCHED_FIFO.
