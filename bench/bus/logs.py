@@ -264,11 +264,14 @@ SIGNAL_COLUMNS = {
 
 ROW_FRAMES = ("ECU_Setpoint", "EMA_TPDO1", "EMA_TPDO2", "EMA_TPDO3", "EMA_RPDO1")
 """Frames that fill a SYNC period's row (one of each per period)."""
-OUT_OF_ORDER_S = 0.1
-"""A frame stamped more than this before an earlier line of the log is out of time order.
-Live logs interleave frames stamped by two clocks (the ECU stamps its own frames when it
-logs them, received ones carry the bus's time), which puts a TPDO up to ~1 ms before the
-set-point logged ahead of it; no logging latency reaches the ECU's 100 ms heartbeat."""
+OUT_OF_ORDER_S = 1.0
+"""A frame stamped more than this before an earlier line of the log is out of time order
+(and so is a SYNC stamped before an earlier SYNC: one producer, one clock). A live log
+interleaves two clocks' stamps: the ECU stamps its own frames as it logs them, received
+frames carry the bus's stamp and reach the log when the ECU's receive thread gets to
+them, which puts a TPDO ~1 ms before the set-point logged ahead of it and the plant's
+heartbeats up to 0.17 s (measured) behind the run's first frames. A frame 1 s late would
+have ended the run (the ECU gives up after 1 s without TPDO)."""
 MAX_EMCY_KEPT = 1000
 _MAX_SAME_TS = 4096
 

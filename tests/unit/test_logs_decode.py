@@ -87,8 +87,8 @@ def test_decode_prints_what_the_log_lost_and_repeated(tmp_path, capsys):
                           seq[i].timestamp + 3e-6))
     log = tmp_path / "damaged.log"
     write_log(log, seq)
-    with log.open("a") as fh:          # a heartbeat stamped 0.5 s before the end of the log
-        fh.write(f"({T0 - 0.5:.6f}) vcan0 {F.cob['EMA_Heartbeat']:03X}#05 R\n")
+    with log.open("a") as fh:          # a heartbeat stamped 2 s before the end of the log
+        fh.write(f"({T0 - 2.0:.6f}) vcan0 {F.cob['EMA_Heartbeat']:03X}#05 R\n")
     assert main(["decode", str(log)]) == 0
     out = capsys.readouterr().out
     assert "2 lost SYNCs (1 recovered from its frames)" in out, out

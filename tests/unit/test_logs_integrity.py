@@ -9,7 +9,7 @@ import random
 
 import numpy as np
 import pytest
-from log_frames import at, clone, run, where, write_log
+from log_frames import T0, F, at, clone, run, where, write_log
 
 from bench.bus.logs import trace_from_log, trace_from_messages
 
@@ -124,14 +124,18 @@ def test_a_time_shuffled_log_is_sorted_back_by_timestamp(tmp_path, intact):
 
 def test_local_disorder_of_a_live_log_is_not_reordered(tmp_path, intact):
     """The ECU stamps its own frames when it logs them and received ones at the hub, so a
-    TPDO may carry a time a little before the set-point logged ahead of it: that is not a
-    damaged log (no count, no sorting)."""
+    TPDO may carry a time a little before the set-point logged ahead of it, and a plant
+    heartbeat may reach the log 0.17 s late: that is not a damaged log (no count, no
+    sorting)."""
     seq = run()
     for k in range(20):
         m = seq[where(seq, k, "EMA_TPDO1")]
         m.timestamp = round(m.timestamp - 80e-6, 6)      # before ECU_Setpoint's stamp
     path = tmp_path / "live.log"
     write_log(path, seq)
+    lines = path.read_text().splitlines()
+    hb = f"({T0 - 0.17:.6f}) vcan0 {F.cob['EMA_Heartbeat']:03X}#7F R"   # logged 0.17 s late
+    path.write_text("\n".join(lines[:30] + [hb] + lines[30:]) + "\n")
     tr = trace_from_log(path)
     assert tr.meta["out_of_order"] == 0 and not tr.meta["sorted_by_time"]
     assert_same_table(tr, intact, skip=("bus_time_s",))
