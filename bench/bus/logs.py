@@ -611,9 +611,9 @@ def _n(count: int, word: str, plural: str | None = None) -> str:
 
 
 def integrity(meta: dict[str, Any]) -> list[str]:
-    """What a decoded log lost, repeated or had out of order, as short phrases (empty for
-    an intact log or a trace that is not a decoded log): for `bench decode`, the HUMS
-    report and the gap diagnosis."""
+    """What a decoded log lost, repeated or had out of order (and the NaN blocks of a
+    table from `bench import`), as short phrases, empty for an intact source: for
+    `bench decode`, `bench import`, the HUMS report and the gap diagnosis."""
     out = []
     gaps = int(meta.get("sync_gaps") or 0)
     if gaps:
@@ -634,6 +634,10 @@ def integrity(meta: dict[str, Any]) -> list[str]:
     if ooo:
         out.append(f"{_n(ooo, 'frame')} out of time order: decoded in "
                    + ("time-stamp order" if meta.get("sorted_by_time") else "log order"))
+    for b in meta.get("nan_blocks") or []:        # an imported table (bench import)
+        out.append(f"NaN block in {b['column']} ({b['signal']}): table rows "
+                   f"{b['first_row']}-{b['last_row']}, t = {b['t0_s']:.3f}-{b['t1_s']:.3f} s, "
+                   f"{_n(b['samples'], 'SYNC sample')} left empty")
     return out
 
 

@@ -323,9 +323,6 @@ def log_integrity(trace: Trace, holdout: Trace | None) -> dict[str, Any]:
         if tr is None:
             continue
         notes = integrity(tr.meta)
-        for b in tr.meta.get("nan_blocks") or []:
-            notes.append(f"NaN block in {b['column']}: {b['rows']} rows, t = "
-                         f"{b['t0_s']:.3f}-{b['t1_s']:.3f} s")
         bridged = {c: int(k) for c, k in (tr.meta.get("bridged") or {}).items()}
         if bridged:
             notes.append("short gaps bridged by interpolation: " + ", ".join(
