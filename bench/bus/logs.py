@@ -15,6 +15,7 @@ SYNC period (0x1006) and the encoder resolution needed to turn counts into radia
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from array import array
@@ -403,7 +404,7 @@ class _Decoder:
         if len(msg.data) not in (0, 1):
             self.count["bad_frames"] += 1
             return
-        lost = 0
+        lost = None
         if len(msg.data) == 1:
             counter = int(msg.data[0])
             if self.last_counter is not None:
@@ -419,21 +420,32 @@ class _Decoder:
         self.syncs_in_run += 1
         self.open = _Period(ts - self.first_ts, self.run)
 
-    def _close(self, lost: int) -> None:
-        """Write the open period's rows: its own, then one per lost SYNC (filled with the
-        frames that followed the missing SYNC line when the log has them)."""
-        self.count["sync_gaps"] += lost
+    def _close(self, lost: int | None) -> None:
+        """Write the open period's rows: its own, then one per lost SYNC, filled with the
+        frames that followed the missing SYNC line when the log has them. `lost` None: no
+        SYNC counter tells (end of the log, a run's end, SYNCs without counter); then a
+        group led by the ECU's set-point (sent right after each SYNC, never late) is the
+        period of a lost SYNC line, and other groups are late frames."""
         p = self.open
         self.open = None
         if p is None:
-            for _ in range(lost):
+            self.count["sync_gaps"] += lost or 0
+            for _ in range(lost or 0):
                 self.rows.add(math.nan, self.run, None)
             return
         main, extra = p.groups[0], p.groups[1:]
-        own = extra[:lost]
-        last = own[-1] if own else main
-        for g in extra[lost:]:               # no lost SYNC explains them: the later wins
-            for name, v in g.frames.items():
+        if lost is None:
+            own = [g for g in extra if next(iter(g.frames)) == "ECU_Setpoint"]
+            lost = len(own)
+        else:
+            own = extra[:lost]
+        self.count["sync_gaps"] += lost
+        last = main
+        for g in extra:
+            if any(g is o for o in own):
+                last = g
+                continue
+            for name, v in g.frames.items():     # no lost SYNC explains them: the later wins
                 if name in last.frames:
                     self.count["replaced_frames"] += 1
                 last.frames[name] = v
@@ -466,7 +478,7 @@ class _Decoder:
     def _nmt(self, sig: dict[str, Any]) -> None:
         if (sig["NMT_Command"] == NMTCommand.START
                 and sig["NMT_NodeId"] in (0, self.f.node_id)):
-            self._close(0)
+            self._close(None)
             if self.run == 0 or self.syncs_in_run:     # a repeated start is the same run
                 self.run += 1
             self.syncs_in_run = 0
@@ -494,8 +506,20 @@ class _Decoder:
                                           SIGNAL_COLUMNS[name] if s in sig})
 
     def finish(self) -> _Rows:
-        self._close(0)
+        self._close(None)
         return self.rows
+
+
+@functools.lru_cache(maxsize=4)
+def _codec(node_id: int | None) -> tuple[Frames, Any, ParamObjects]:
+    """The DBC frames, object dictionary and parameter objects of node `node_id` (parsed
+    once: the EDS takes ~20 ms). BenchError for an id CANopen does not allow."""
+    try:
+        frames = Frames(node_id)
+    except ValueError as exc:
+        raise BenchError(str(exc)) from None
+    od = load_od(frames.node_id)
+    return frames, od, ParamObjects(od)
 
 
 def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = None,
@@ -508,7 +532,9 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
     - ``sync_gaps``: lost SYNCs (counter jumps); each leaves a row so time stays aligned.
       When only the SYNC line is missing, the frames that followed it come again with
       other content in the previous period: they fill the lost SYNC's row
-      (``sync_recovered``) instead of overwriting the previous one.
+      (``sync_recovered``) instead of overwriting the previous one. Where no counter
+      tells (the log's last period, SYNCs without counter), frames led by a new ECU
+      set-point are taken as such a period.
     - ``missing_frames``: per row frame (set-point, RPDO1, TPDO1-3) seen in the log, the
       SYNC periods without it (their columns are NaN there).
     - ``duplicate_frames``: a frame logged twice (same stamp), the same row frame twice in
@@ -520,9 +546,7 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
       and SYNCs stamped before an earlier SYNC. With `sort_by_time` the frames are
       decoded in time-stamp order (a stable sort) instead of log order.
     """
-    frames = Frames(node_id)
-    od = load_od(frames.node_id)
-    pobj = ParamObjects(od)
+    frames, od, pobj = _codec(node_id)
     dec = _Decoder(frames, int(od[0x1019].default))
     if sort_by_time:
         msgs = list(messages)

@@ -139,3 +139,25 @@ def test_local_disorder_of_a_live_log_is_not_reordered(tmp_path, intact):
     tr = trace_from_log(path)
     assert tr.meta["out_of_order"] == 0 and not tr.meta["sorted_by_time"]
     assert_same_table(tr, intact, skip=("bus_time_s",))
+
+
+def test_the_last_sync_line_lost_is_found_by_the_new_set_point(intact):
+    """No later SYNC counter tells that the last SYNC line is missing: the frames led by
+    a new ECU set-point (sent right after each SYNC) are that period's."""
+    seq = run()
+    del seq[where(seq, 19, "SYNC")]
+    tr = trace_from_messages(seq)
+    assert tr.meta["sync_gaps"] == tr.meta["sync_recovered"] == 1
+    assert_same_table(tr, intact, skip=("bus_time_s",))
+
+
+def test_syncs_without_counter_and_a_lost_sync_line(intact):
+    seq = run()
+    for m in seq:
+        if m.arbitration_id == F.cob["SYNC"]:
+            m.data = bytearray()
+            m.dlc = 0
+    del seq[where(seq, 7, "SYNC")]
+    tr = trace_from_messages(seq)
+    assert tr.meta["sync_gaps"] == tr.meta["sync_recovered"] == 1
+    assert_same_table(tr, intact, skip=("bus_time_s",))
