@@ -1,16 +1,21 @@
 """candump logs: tolerant reading, replay and decoding into a `Trace` through the DBC.
 
 The format is ``candump -L`` (python-can's `CanutilsLogWriter`/`CanutilsLogReader`):
-``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` reads it line by line and,
+``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` streams it line by line and,
 unlike `CanutilsLogReader` (which stops at the first bad line), reports each truncated
-or corrupted line with its number and keeps the rest.
+or corrupted line with its number and keeps the rest; bad lines are counted and only the
+first ones kept (`LogIssues`), and a line is read MAX_LINE characters at most, so memory
+stays bounded whatever the file holds.
 
 `trace_from_log` rebuilds the signal table: one row per SYNC (the control period), the
 TPDOs (sensors at that SYNC), the ECU's set-point frame and its RPDO (the demand it
-computed from them) that follow it. Missing SYNCs (counter jumps) leave NaN rows so
-time stays aligned. The plant parameters the ECU read or wrote by SDO are recovered
-from the SDO traffic in the log (expedited and segmented transfers), which gives the
-SYNC period (0x1006) and the encoder resolution needed to turn counts into radians.
+computed from them) that follow it. Missing SYNCs (counter jumps) leave rows so time
+stays aligned, filled with their frames when only the SYNC line is gone; frames missing
+from a period, duplicates (never an extra row) and frames out of time order (the log is
+then decoded in time-stamp order) are counted in the trace's metadata and `integrity`
+words them. The plant parameters the ECU read or wrote by SDO are recovered from the SDO
+traffic in the log (expedited and segmented transfers), which gives the SYNC period
+(0x1006) and the encoder resolution needed to turn counts into radians.
 """
 
 from __future__ import annotations
