@@ -278,6 +278,10 @@ frames carry the bus's stamp and reach the log when the ECU's receive thread get
 them, which puts a TPDO ~1 ms before the set-point logged ahead of it and the plant's
 heartbeats up to 0.17 s (measured) behind the run's first frames. A frame 1 s late would
 have ended the run (the ECU gives up after 1 s without TPDO)."""
+MAX_LOST_SYNCS = (2.0, 1000)
+"""Lost SYNCs believed at most: twice the SYNCs read plus 1000. Each counter jump adds
+up to 239 empty rows, so a log of garbage counters would otherwise grow the table 239
+times its SYNC lines; a log that lost more than that is refused (BenchError)."""
 MAX_EMCY_KEPT = 1000
 _MAX_SAME_TS = 4096
 
@@ -347,7 +351,7 @@ class _Decoder:
         self.first_ts: float | None = None
         self.last_counter: int | None = None
         self.run = 0
-        self.syncs_in_run = 0
+        self.syncs_in_run = self.syncs_read = 0
         self.seen: set[str] = set()
         self.emcy: list[dict[str, Any]] = []
         self.count = dict(frames=0, bad_frames=0, short_frames=0, sync_gaps=0,
@@ -424,6 +428,7 @@ class _Decoder:
             self.last_counter = counter
         if self.first_ts is None:
             self.first_ts = ts
+        self.syncs_read += 1
         self._close(lost)
         self.syncs_in_run += 1
         self.open = _Period(ts - self.first_ts, self.run)
@@ -438,6 +443,7 @@ class _Decoder:
         self.open = None
         if p is None:
             self.count["sync_gaps"] += lost or 0
+            self._check_lost()
             for _ in range(lost or 0):
                 self.rows.add(math.nan, self.run, None)
             return
@@ -448,6 +454,7 @@ class _Decoder:
         else:
             own = extra[:lost]
         self.count["sync_gaps"] += lost
+        self._check_lost()
         last = main
         for g in extra:
             if any(g is o for o in own):
@@ -463,6 +470,12 @@ class _Decoder:
         self.count["sync_recovered"] += len(own)
         for _ in range(lost - len(own)):
             self.rows.add(math.nan, p.run, None)
+
+    def _check_lost(self) -> None:
+        factor, slack = MAX_LOST_SYNCS
+        if self.count["sync_gaps"] > factor * self.syncs_read + slack:
+            raise BenchError(f"the SYNC counters make no sense: {self.count['sync_gaps']} "
+                             f"SYNCs lost for {self.syncs_read} read (a corrupted log?)")
 
     def _data(self, msg: can.Message, cid: int) -> None:
         try:
@@ -600,6 +613,9 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
       decoded in time-stamp order (a stable sort, `time_ordered`) instead of log order;
       `stop_on_disorder` raises _OutOfOrder at the first such frame instead (a shuffled
       log read in its order would only make rows of garbage).
+
+    BenchError when the SYNC counters claim more lost SYNCs than MAX_LOST_SYNCS allows
+    (or `node_id` is not a CANopen node id); nothing else is raised for any frames.
     """
     frames, od, pobj = _codec(node_id)
     dec = _Decoder(frames, int(od[0x1019].default))

@@ -95,3 +95,17 @@ def test_decode_prints_what_the_log_lost_and_repeated(tmp_path, capsys):
     assert "1 duplicate frame dropped" in out
     assert "missing: ECU_Setpoint in 1 period, EMA_TPDO1 in 2 periods" in out
     assert "1 frame out of time order: decoded in time-stamp order" in out
+
+
+def test_garbage_sync_counters_are_refused_not_grown_into_rows(tmp_path, capsys):
+    """Each SYNC counter jump stands for up to 239 lost SYNCs (empty rows): 5000 SYNC
+    lines of random counters would make ~600,000 rows; they are refused instead."""
+    r = random.Random(2)
+    log = tmp_path / "syncs.log"
+    log.write_text("".join(f"({T0 + k * 1e-3:.6f}) vcan0 080#{r.randint(1, 240):02X} T\n"
+                           for k in range(5000)))
+    assert _peak_bytes(lambda: pytest.raises(BenchError, trace_from_log, log)) < 2_000_000
+    assert main(["decode", str(log)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: the SYNC counters make no sense: ") and \
+        len(err.splitlines()) == 1
