@@ -14,8 +14,11 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                        description="Decode a candump log through dbc/ema.dbc into one row per "
                        "SYNC period (set-points, demand, current, encoder, LVDT, temperature, "
                        "status). The SYNC period and encoder resolution come from the SDO "
-                       "traffic in the log when present. Bad lines are reported with their "
-                       "line numbers; the rest is kept.")
+                       "traffic in the log when present. Bad lines are counted and the first "
+                       "ones reported with their line numbers; the rest is kept. Lost SYNCs, "
+                       "frames missing from a period, duplicates and frames out of time order "
+                       "are counted and printed. Exit status 2 when nothing can be decoded "
+                       "(no SYNC period).")
     p.add_argument("file", metavar="FILE.log", help="candump log")
     p.add_argument("-o", "--output", metavar="OUT",
                    help="write the table (.csv, .parquet or .npz); default: print a summary")
@@ -31,20 +34,23 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from bench.bus.logs import report_issues, trace_from_log
+    from bench.bus.logs import LogIssues, integrity, report_issues, trace_from_log
 
     if args.output and Path(args.output).suffix.lower() not in (".csv", ".parquet", ".npz"):
         raise BenchError(f"unknown table format {Path(args.output).suffix!r} "
                          "(use .csv, .parquet or .npz)")
-    issues: list = []
+    issues = LogIssues(20)
     tr = trace_from_log(args.file, args.node_id, args.period, args.counts_per_rev, issues)
     for line in report_issues(issues):
         print(f"{args.file}: {line}", file=sys.stderr)
     m = tr.meta
     print(f"{args.file}: {m['frames']} frames, {len(tr)} SYNC periods of {m['period_s'] * 1e3:g} "
           f"ms, {m['runs']} run(s), {m['bad_frames']} bad frames, {m['sync_gaps']} lost SYNCs, "
-          f"{len(issues)} bad lines, {len(m['emcy'])} EMCY, "
+          f"{len(issues)} bad lines, {m['emcy_count']} EMCY, "
           f"{len(m['params_from_sdo'])} parameters from SDO")
+    found = integrity(m)
+    print(f"{args.file}: " + ("; ".join(found) if found else
+                              "no lost, missing, duplicate or out-of-order frame"))
     if m.get("short_frames"):
         print(f"{args.file}: {m['short_frames']} frames shorter than dbc/ema.dbc describes "
               "(an older frame layout): their signals that fit were decoded, the columns "
@@ -52,8 +58,9 @@ def run(args: argparse.Namespace) -> int:
     if args.output:
         tr.save(args.output)
         print(f"wrote {args.output} ({len(tr)} rows, {len(tr.columns)} columns)")
-    elif len(tr):
-        pos = tr["position_m"]
-        print(f"position {np.nanmin(pos) * 1e3:.3f} .. {np.nanmax(pos) * 1e3:.3f} mm, "
-              f"current {np.nanmin(tr['current_a']):.2f} .. {np.nanmax(tr['current_a']):.2f} A")
+    else:
+        pos, cur = tr["position_m"], tr["current_a"]
+        if np.isfinite(pos).any() and np.isfinite(cur).any():
+            print(f"position {np.nanmin(pos) * 1e3:.3f} .. {np.nanmax(pos) * 1e3:.3f} mm, "
+                  f"current {np.nanmin(cur):.2f} .. {np.nanmax(cur):.2f} A")
     return 0

@@ -87,7 +87,14 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     q = s.add_parser("report", help="HTML health report of logs",
                      description="A self-contained HTML report (figures, indexes, verdict, "
                      "RUL with band) of candump logs (decoded through the DBC) or trace "
-                     "files (.npz, .csv, .parquet).")
+                     "files (.npz, .csv, .parquet). Short gaps in a log (lost SYNCs, missing "
+                     "frames, NaN rows: up to 5 samples in a row, 2 %% in all) are bridged "
+                     "and reported; longer ones make the indexes that need the signal 'not "
+                     "available'. A log whose verdict index (Ci in position mode, Cp in "
+                     "speed mode) is not available, that is shorter than 0.1 s or in which "
+                     "nothing was commanded gets the verdict UNKNOWN. Exit status: 0 when "
+                     "every log has a verdict, 3 when one has none (UNKNOWN; the report is "
+                     "still written), 2 on bad input.")
     q.add_argument("logs", nargs="+", metavar="LOG", help="candump .log or trace file")
     q.add_argument("--out", default="hums-report", metavar="DIR",
                    help="output directory (default: %(default)s)")
@@ -252,7 +259,16 @@ def run_report(args: argparse.Namespace) -> int:
                                   period_s=args.period)
     for a in analyses:
         print(f"{a.name}: {a.verdict}; " + "; ".join(a.reasons))
+        if a.notes:
+            print(f"{a.name}: log: " + "; ".join(a.notes))
     print(f"wrote {page}")
+    unknown = [a for a in analyses if a.verdict == "UNKNOWN"]
+    if unknown:
+        import sys
+        print(f"error: no verdict for {', '.join(a.name for a in unknown)} ("
+              + "; ".join(a.reasons[0] for a in unknown) + f"); the report is in {page}",
+              file=sys.stderr)
+        return 3
     return 0
 
 

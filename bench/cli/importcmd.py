@@ -52,4 +52,7 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         print("not mapped (bench gap needs a set-point, mode and the four sensors): "
               + ", ".join(missing))
+    from bench.bus.logs import integrity
+    for line in integrity(tr.meta):
+        print(f"{out}: {line}")
     return 0

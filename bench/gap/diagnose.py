@@ -250,6 +250,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     say("localising the gap (signals, paths, regimes, frequency bands)")
     loc = LZ.localise(p, nominal_sim, log_cols, p.info["noisy_cols"], p.info["nominal_cols"],
                       f0)
+    loc["log"] = log_integrity(trace, holdout)
     loc["significance"] = {
         "significant": sig, "threshold": thresholds(p),
         "energy": raw, "energy_smoothed": sm,
@@ -312,6 +313,22 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
                                  f"of it and its BIC is lower by > {PAIR_BIC:g}; "
                                  f"'unexplained' if the held-out shrink < {MIN_SHRINK_PCT:.0f} %")}
     return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties)
+
+
+def log_integrity(trace: Trace, holdout: Trace | None) -> dict[str, Any]:
+    """What the log (and the held-out log) lost or repeated and what was bridged."""
+    from bench.bus.logs import integrity
+    out: dict[str, Any] = {}
+    for key, tr in (("log", trace), ("holdout", holdout)):
+        if tr is None:
+            continue
+        notes = integrity(tr.meta)
+        bridged = {c: int(k) for c, k in (tr.meta.get("bridged") or {}).items()}
+        if bridged:
+            notes.append("short gaps bridged by interpolation: " + ", ".join(
+                f"{c} {k} sample{'s' if k > 1 else ''}" for c, k in bridged.items()))
+        out[key] = {"notes": notes, "bridged": bridged}
+    return out
 
 
 def not_representable(p: Problem, names: Sequence[str], n: int = 1000) -> list[str]:

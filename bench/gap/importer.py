@@ -16,7 +16,11 @@ table's fixed rate (``source_rate_hz``). Resampling onto the SYNC grid (the over
 all mapped columns): linear interpolation, except ``mode`` (previous value); each
 column's own blank/NaN rows are skipped, so channels logged at different rates in one
 table are fine. Points are interpolated, not averaged: a table much faster than the
-SYNC rate is sampled, as the bench's own sensors are.
+SYNC rate is sampled, as the bench's own sensors are. A NaN block (a run of rows where a
+column that usually has a value has none, `nan_blocks`) is not interpolated over: its
+SYNC samples are left empty, as the lost samples of a decoded log, and the block is
+listed in ``meta["nan_blocks"]`` (table rows, time span); the HUMS and the gap diagnosis
+bridge short ones and refuse or leave out what longer ones hold.
 """
 
 from __future__ import annotations
@@ -220,11 +224,13 @@ def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: floa
     out: dict[str, np.ndarray] = {}
     spans = []
     series = {}
+    holes: dict[str, list[tuple[int, int, float, float]]] = {}
     for sig, e in by_sig.items():
         if sig == "t_s":
             continue
         y = raw[e.column] * e.factor
         ok = np.isfinite(y) & np.isfinite(t)
+        holes[sig] = nan_blocks(ok, t)
         ts, ys = t[ok], y[ok]
         if len(ts) < 2:
             raise BenchError(f"column {e.column!r} ({sig}) has fewer than 2 values")
@@ -253,8 +259,34 @@ def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: floa
             out[sig] = np.round(ys[idx])
         else:
             out[sig] = np.interp(grid, ts, ys)
+    blocks = []
+    for sig, found in holes.items():
+        for first, rows, ta, tb in found:
+            inside = (grid > ta) & (grid < tb)
+            if not inside.any():
+                continue
+            out[sig][inside] = np.nan
+            blocks.append({"signal": sig, "column": by_sig[sig].column,
+                           "first_row": first + 1, "last_row": first + rows, "rows": rows,
+                           "t0_s": float(ta - t0), "t1_s": float(tb - t0),
+                           "samples": int(inside.sum())})
     out["t_s"] = grid - grid[0]
     meta = {"source": str(table), "imported": True, "sync_period_s": sync_period_s,
             "time_offset_s": float(t0),
-            "map": [e.__dict__ for e in mapping]}
+            "map": [e.__dict__ for e in mapping], "nan_blocks": blocks}
     return Trace(out, meta)
+
+
+def nan_blocks(ok: np.ndarray, t: np.ndarray) -> list[tuple[int, int, float, float]]:
+    """Runs of rows where a column has no value although it usually has one: its valid
+    rows more than twice their median row spacing apart (a channel logged at a lower
+    rate, or one missing row now and then, is no block). Each as (first missing data row,
+    0-based; rows; time of the valid sample before; time of the one after)."""
+    rows = np.flatnonzero(ok)
+    if len(rows) < 3:
+        return []
+    d = np.diff(rows)
+    med = float(np.median(d))
+    return [(int(rows[k] + 1), int(d[k] - 1), float(t[rows[k]]), float(t[rows[k + 1]]))
+            for k in np.flatnonzero(d > 2 * med)]
+

@@ -5,7 +5,8 @@
 - ``*.npz`` / ``*.csv`` / ``*.parquet``: a `bench.trace.Trace` file (e.g. from
   `bench import` or a saved run).
 Only measured columns are kept (simulation truth is dropped), and metadata is reduced
-to what a real log could carry (the command fundamental, if recorded).
+to what a real log could carry (the command fundamental, if recorded) and what the
+decoder or the importer found missing or repeated in it (LOG_INTEGRITY).
 """
 
 from __future__ import annotations
@@ -18,12 +19,17 @@ from bench import BenchError
 from bench.trace import Trace
 from plant_rt.params import ParameterError, PlantParams
 
+LOG_INTEGRITY = ("sync_gaps", "sync_recovered", "missing_frames", "duplicate_frames",
+                 "replaced_frames", "out_of_order", "sorted_by_time", "nan_blocks")
+"""Metadata kept from a decoded log or an imported table: what it lost or repeated."""
+
 
 def load_log(path: str | Path) -> Trace:
     """A log or trace file as a Trace of measured columns (BenchError if unreadable)."""
     from bench.bus.logs import load_trace
     tr = load_trace(path)
     meta: dict[str, Any] = {"source": str(path)}
+    meta.update({k: v for k, v in (tr.meta or {}).items() if k in LOG_INTEGRITY})
     f0 = (tr.meta or {}).get("fundamental_hz")
     if isinstance(f0, (int, float)):
         meta["fundamental_hz"] = float(f0)

@@ -154,39 +154,36 @@ def noise_std(y: np.ndarray) -> float:
 
 
 MAX_GAP_FRACTION = 0.02   # lost SYNC rows (NaN) tolerated and interpolated
+GAP_COLUMNS = ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
+               "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m",
+               "load_force_n")
 
 
 def fill_gaps(trace: Trace, purpose: str = "gap diagnosis") -> Trace:
-    """A copy with isolated missing rows (lost SYNCs: NaN) interpolated (mode: previous
-    value); BenchError when more than MAX_GAP_FRACTION of a signal is missing or the log
-    holds several runs (NMT restarts: the plant state does not carry over)."""
+    """A copy with short runs of missing rows (lost SYNCs, missing frames: NaN)
+    interpolated (mode: previous value), counted in ``meta["bridged"]`` (signal ->
+    samples); BenchError when more than MAX_GAP_FRACTION of a signal is missing, when a
+    run is longer than `bench.hums.indexes.BRIDGE_MAX_SAMPLES` (the re-simulation
+    compares every SYNC period: a longer bridge, in the set-points or in a sensor, would
+    itself be a gap), or when the log holds several runs (NMT restarts: the plant state
+    does not carry over)."""
+    from bench.hums.indexes import BRIDGE_MAX_SAMPLES, bridge, signal_gaps
     if "run" in trace and len(np.unique(trace["run"][np.isfinite(trace["run"])])) > 1:
         raise BenchError(f"{purpose}: the log holds "
                          f"{len(np.unique(trace['run'][np.isfinite(trace['run'])]))} runs "
                          "(the node was restarted); diagnose one run at a time")
-    cols = dict(trace.columns)
-    n = len(trace)
-    idx = np.arange(n)
-    for c in ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
-              "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m", "load_force_n"):
-        if c not in cols:
-            continue
-        y = np.asarray(cols[c], float)
-        ok = np.isfinite(y)
-        if ok.all() or not ok.any():
-            continue
-        if (~ok).mean() > MAX_GAP_FRACTION:
-            raise BenchError(f"{purpose}: {100 * (~ok).mean():.1f} % of {c} is missing "
+    gaps = signal_gaps(trace, GAP_COLUMNS)
+    for c, g in gaps.items():
+        if g.missing > MAX_GAP_FRACTION * g.n:
+            raise BenchError(f"{purpose}: {100 * g.missing / g.n:.1f} % of {c} is missing "
                              f"(lost frames); at most {100 * MAX_GAP_FRACTION:.0f} % can be "
                              "interpolated")
-        if c == "mode":
-            last = np.maximum.accumulate(np.where(ok, idx, 0))
-            y = y[last]
-            y[~np.isfinite(y)] = 0.0
-        else:
-            y = np.interp(idx, idx[ok], y[ok])
-        cols[c] = y
-    out = Trace(cols, dict(trace.meta))
+        if g.longest[1] > BRIDGE_MAX_SAMPLES:
+            raise BenchError(f"{purpose}: {g.describe(trace.t)}: the re-simulation "
+                             "compares every SYNC period; diagnose the part of the log "
+                             "before or after the gap")
+    out = bridge(trace, gaps)
+    out.meta["bridged"] = {c: g.missing for c, g in gaps.items()}
     return out
 
 

@@ -44,6 +44,10 @@ def text(js: dict[str, Any], top: int = 8) -> str:
     loc = js["localisation"]
     sig = loc["significance"]
     out = []
+    for key, d in (loc.get("log") or {}).items():
+        if d.get("notes"):
+            out.append(f"{'log' if key == 'log' else 'held-out log'}: "
+                       + "; ".join(d["notes"]))
     m = loc.get("model", {})
     out.append(f"model: {m.get('name', '?')} ({m.get('fidelity', '')})")
     if m.get("load"):

@@ -27,7 +27,7 @@ import numpy as np
 from bench import BenchError
 from bench.hums import indexes as I
 from bench.hums import monitor as M
-from bench.trace import MODE_POSITION, MODE_SPEED, Trace
+from bench.trace import MEASURED, MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
 
 MIN_PERIODS_FOR_TREND = 6
@@ -88,6 +88,8 @@ class LogAnalysis:
     period_table: dict[str, np.ndarray] = field(default_factory=dict)
     fused: Any = None
     missing: list[str] = field(default_factory=list)
+    bridged: dict[str, int] = field(default_factory=dict)   # signal -> samples bridged
+    notes: list[str] = field(default_factory=list)          # what the log lost / repeated
 
 
 def _cache_dir() -> Path:
@@ -116,10 +118,23 @@ def cached_calibration(params: PlantParams, kp: float, progress: bool = False) -
     return cal
 
 
+MIN_VERDICT_S = 0.1
+"""Shortest log given a verdict: a tenth of a second (100 SYNC periods at 1 kHz). The
+shortest profile, the 0.3 s velocity step, is three times that; over a shorter window
+the start transient of the loops (tens of ms) outweighs what the indexes integrate."""
+UNKNOWN = "UNKNOWN"
+LEVELS = ["HEALTHY", "DEGRADED", "WARNING", "FAILURE"]
+
+
 def analyse(trace: Trace, name: str, params: PlantParams | None = None,
             rul: bool = True, period_s: float | None = None,
             progress: bool = False) -> LogAnalysis:
-    """Indexes, verdict and (long periodic logs) trend and RUL of one trace."""
+    """Indexes, verdict and (long periodic logs) trend and RUL of one trace.
+
+    Missing samples (lost SYNCs, missing frames, NaN rows) are bridged by interpolation
+    when the gaps are short (`bench.hums.indexes.BRIDGE_MAX_SAMPLES`); longer ones make
+    the indexes that read the signal unavailable, with the reason. A log shorter than
+    MIN_VERDICT_S gets no index and no verdict (UNKNOWN)."""
     params = params or PlantParams()
     trace.require(M.NOMINAL_DRIVE, f"{name}: the HUMS report (set-points drive the "
                   "monitoring model)")
@@ -131,15 +146,31 @@ def analyse(trace: Trace, name: str, params: PlantParams | None = None,
                          "this log does not have")
     missing = [c for c in ("current_a", "position_m", "motor_speed_rad_s", "motor_angle_rad")
                if c not in meas or not np.isfinite(meas[c]).any()]
+    notes = _log_notes(meas.meta)
+    short = _too_short(meas)
+    if short:
+        return _unjudged(meas, name, short, missing, notes)
+    gaps = I.signal_gaps(meas, MEASURED[1:])
+    meas = I.bridge(meas, gaps)
+    bridged = {c: g.missing for c, g in gaps.items() if g.bridgeable}
+    blocked = {c: g.describe(meas.t) for c, g in gaps.items() if not g.bridgeable}
+    if bridged:
+        notes.append("short gaps bridged by interpolation: " + ", ".join(
+            f"{c} {k} sample{'s' if k > 1 else ''}" for c, k in bridged.items()))
     fit, _ = M.fitted(params)
     kp = fit.gain_rad_s_per_m
     nom = M.nominal_for(meas, kp, M.MonitorParams.from_plant(params))
     f0 = 1.0 / period_s if period_s else command_frequency(meas)
     meas.meta["fundamental_hz"] = f0
     ix = I.compare(meas, nom, f0_hz=f0 if math.isfinite(f0) else None, need=())
-    out = LogAnalysis(name, meas, nom, f0, ix, "", [], missing=missing)
+    I.mark_unavailable(ix, blocked, M.NOMINAL_DRIVE)
+    out = LogAnalysis(name, meas, nom, f0, ix, "", [], missing=missing, bridged=bridged,
+                      notes=notes)
     n_periods = int(len(meas) * meas.dt * f0) if math.isfinite(f0) else 0
-    if have_i and have_x and n_periods >= 1:
+    trend_blocked = set(blocked) & {"current_a", "position_m", *M.NOMINAL_DRIVE}
+    if trend_blocked:
+        notes.append("no trend or RUL: " + "; ".join(blocked[c] for c in sorted(trend_blocked)))
+    elif have_i and have_x and n_periods >= 1:
         rows = list(I.period_indexes(meas, nom, 1.0 / f0, kin=None))
         out.period_table = I.as_table(rows)
     if rul and n_periods >= MIN_PERIODS_FOR_TREND and out.period_table:
@@ -151,15 +182,57 @@ def analyse(trace: Trace, name: str, params: PlantParams | None = None,
     return out
 
 
+def _log_notes(meta: dict[str, Any]) -> list[str]:
+    """What the decoder found wrong with the log (lost SYNCs, missing frames, ...)."""
+    try:
+        from bench.bus.logs import integrity
+    except ImportError:        # the bus part is not installed: no decoded logs either
+        return []
+    return integrity(meta)
+
+
+def _too_short(meas: Trace) -> str | None:
+    """Why `meas` is too short for a verdict (None when it is long enough)."""
+    n = len(meas)
+    dt = meas.dt if n > 1 else float(meas.meta.get("period_s") or 1e-3)
+    need = math.ceil(MIN_VERDICT_S / dt - 1e-9)
+    if n >= 2 and n >= need:
+        return None
+    return f"({n} row{'s' if n != 1 else ''}, at least {need} needed)"
+
+
+def _unjudged(meas: Trace, name: str, why: str, missing: list[str],
+              notes: list[str]) -> LogAnalysis:
+    """The analysis of a log too short for any index: nothing computed, no verdict."""
+    t = meas.t
+    ix = I.Indexes(float(t[0]) if len(t) else 0.0, float(t[-1]) if len(t) else 0.0)
+    ix.unavailable = {k: f"not available {why}" for k in I.INDEX_SIGNALS}
+    nom = Trace({"t_s": t.copy(), **{c: np.full(len(t), np.nan)
+                                      for c in ("position_m", "current_a")}})
+    out = LogAnalysis(name, meas, nom, math.nan, ix, "", [], missing=missing, notes=notes)
+    out.verdict, out.reasons = verdict(out)
+    return out
+
+
 def verdict(a: LogAnalysis) -> tuple[str, list[str]]:
     """HEALTHY / DEGRADED / WARNING / FAILURE and the reasons, from the thesis' Ci levels
-    (0.93 / 0.80 / 0.56) and the fused backlash estimate against its warning level."""
+    (0.93 / 0.80 / 0.56) in position mode, Cp in speed mode, and the fused backlash
+    estimate against its warning level; UNKNOWN (first reason: what is missing) when
+    nothing was commanded or the index the mode's level rests on is not available."""
     from bench.hums import rul as R
     ix = a.indexes
     reasons = []
     level = 0
     ci = ix.ci_harmonic if math.isfinite(ix.ci_harmonic) else ix.ci
     mode = _mode(a.trace)
+    if mode not in (MODE_POSITION, MODE_SPEED):
+        return UNKNOWN, ["the ECU is idle (mode 0) through the log: nothing was commanded, "
+                         "so there is no index to judge"]
+    key, value = ("Ci", ci) if mode == MODE_POSITION else ("Cp", ix.cp)
+    unknown = None
+    if not math.isfinite(value):
+        why = ix.unavailable.get(key.lower()) or "not available (not computable from this log)"
+        unknown = f"{key} {why}"
     if math.isfinite(ci) and mode == MODE_POSITION:
         if ci < R.FAILURE:
             level = max(level, 3)
@@ -196,8 +269,9 @@ def verdict(a: LogAnalysis) -> tuple[str, list[str]]:
             level = max(level, 1)
             reasons.append(f"lost motion between motor and nut {lm:.1f} um (nominal "
                            f"{ix.nominal_lost_motion_m * 1e6:.1f} um)")
-    words = ["HEALTHY", "DEGRADED", "WARNING", "FAILURE"]
-    return words[level], reasons
+    if unknown is not None:
+        return UNKNOWN, [unknown] + reasons
+    return LEVELS[level], reasons
 
 
 # --- rendering -----------------------------------------------------------------------------
@@ -310,7 +384,8 @@ def render(analyses: list[LogAnalysis]) -> str:
              "padding:3px 8px;text-align:right}th{background:#eee}td.l{text-align:left}",
              ".v{display:inline-block;padding:4px 12px;border-radius:4px;color:#fff;"
              "font-weight:bold}.HEALTHY{background:#2a7}.DEGRADED{background:#c90}"
-             ".WARNING{background:#d60}.FAILURE{background:#c22}img{max-width:100%}",
+             ".WARNING{background:#d60}.FAILURE{background:#c22}.UNKNOWN{background:#777}"
+             "img{max-width:100%}",
              "</style></head><body>",
              "<h1>EMA ball-screw health report</h1>",
              "<p>Each log is compared with the <b>monitoring model</b>: the nominal "
@@ -342,6 +417,11 @@ def render(analyses: list[LogAnalysis]) -> str:
         if a.missing:
             parts.append(f"<p>Signals missing from this log: {e(', '.join(a.missing))}; "
                          "the indexes that need them are left out.</p>")
+        if a.notes:
+            parts.append("<p>The log: " + e("; ".join(a.notes)) + ".</p>")
+        if ix.unavailable:
+            parts.append("<p>Indexes not available:</p><ul>" + "".join(
+                f"<li>{e(k)}: {e(v)}</li>" for k, v in ix.unavailable.items()) + "</ul>")
         rows = [("Cp", ix.cp, 1.0, 4), ("|e| (um)", ix.mean_error_m, 1e6, 3),
                 ("Ci", ix.ci, 1.0, 3), ("Ci (15 harmonics)", ix.ci_harmonic, 1.0, 3),
                 ("peak ratio", ix.peak_ratio, 1.0, 3),
@@ -410,7 +490,8 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
     out.mkdir(parents=True, exist_ok=True)
     page = out / "report.html"
     page.write_text(render(analyses))
-    js = [{"log": a.name, "verdict": a.verdict, "reasons": a.reasons,
+    js = [{"log": a.name, "verdict": a.verdict, "reasons": a.reasons, "log_notes": a.notes,
+           "bridged_samples": a.bridged,
            "fundamental_hz": a.f0_hz if math.isfinite(a.f0_hz) else None,
            "indexes": _clean(a.indexes.to_json()), "rul": _rul_text(a)} for a in analyses]
     (out / "indexes.json").write_text(json.dumps(js, indent=2))
