@@ -28,9 +28,12 @@ from __future__ import annotations
 import gc
 import logging
 import math
+import signal
 import threading
 import time
-from collections.abc import Callable
+from collections import Counter
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -44,7 +47,7 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from bench import BenchError
 from bench.control import Controller, ControllerParams
 from bench.profiles import Profile
-from bench.trace import Trace
+from bench.trace import Trace, max_rows, probe_output
 from plant_rt.busdef import (
     ControlWord,
     FrameError,
@@ -73,6 +76,76 @@ class BusLost(BenchError):
     """The bus connection itself failed."""
 
 
+class PlantFault(BenchError):
+    """The plant reported a condition that changes its behaviour: the run is not valid."""
+
+
+class ForeignEcu(BenchError):
+    """Another ECU (another SYNC, set-point or heartbeat producer) drives the node."""
+
+
+class LogWriteError(BenchError):
+    """The candump log could not be written (disk full, file too large, ...)."""
+
+
+class Interrupted(BenchError):
+    """The run was stopped by a signal (SIGINT, SIGTERM)."""
+
+    def __init__(self, signum: int, where: str = "") -> None:
+        self.signum = int(signum)
+        super().__init__(f"interrupted by {signal.Signals(signum).name}{where}")
+
+
+# Plant conditions that change what the plant does with the ECU's demand (docs/bus.md):
+# a run that sees one is not a valid run. Status word bit -> EMCY label (dbc value table).
+FAILING_BITS: dict[StatusWord, str] = {
+    StatusWord.COMMAND_TIMEOUT: "heartbeat_lost",
+    StatusWord.PLANT_FAULT: "plant_fault",
+    StatusWord.DEMAND_CLAMPED: "demand_invalid",
+}
+FAILING_TEXT = {
+    "heartbeat_lost": "a command timeout (its heartbeat consumer lost the ECU: demand "
+                      "forced to 0)",
+    "plant_fault": "a plant fault (non-finite state: the plant stopped integrating)",
+    "demand_invalid": "an invalid demand (NaN or beyond its current limit: replaced or "
+                      "clamped)",
+    "pdo_length": "an RPDO of the wrong length (a demand was not applied)",
+}
+# EMCYs that only report (the plant does the same with the demand): over-current (the
+# drive at its current limit, normal in a step), end of stroke and over-temperature (flags
+# only: no end stop, no derating), and the all-clear. Any other code fails the run.
+REPORTING_EMCY = ("no_error", "overcurrent", "end_of_stroke", "overtemperature")
+# frames only the ECU sends: seen from another producer, another ECU drives the node
+ECU_FRAMES = ("SYNC", "EMA_RPDO1", "ECU_Setpoint", "ECU_Heartbeat")
+
+
+class StopSignal:
+    """SIGINT/SIGTERM for a bus run. Outside the control loop a signal raises
+    `Interrupted` at once; inside it (`defer` set) it only records `signum`, which the
+    loop checks every period, so a signal never cuts a frame, the log or the trace."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.defer = False
+
+    def _handler(self, signum: int, frame: Any) -> None:  # noqa: ARG002
+        self.signum = signum
+        if not self.defer:
+            raise Interrupted(signum)
+
+    @contextmanager
+    def installed(self) -> Iterator[StopSignal]:
+        """Handle SIGINT and SIGTERM here for the duration of the block."""
+        old = {s: signal.signal(s, self._handler) for s in self.SIGNALS}
+        try:
+            yield self
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+
+
 @dataclass
 class EcuStats:
     """What the ECU measured about the run."""
@@ -87,29 +160,59 @@ class EcuStats:
 
 
 class _Log(can.Listener):
-    """Every frame into a candump log (python-can's CanutilsLogWriter)."""
+    """Every frame into a candump log (python-can's CanutilsLogWriter).
+
+    A write that fails (disk full, file too large) is kept in `error` and ends the
+    logging, never the thread that delivered the frame: the ECU reports it
+    (`raise_error`) at its next check instead of losing its receive thread."""
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.writer = can.CanutilsLogWriter(self.path)
         self.count = 0
+        self.error: Exception | None = None
+        self.closed = False
         self._last_flush = time.monotonic()
         self._lock = threading.Lock()     # set-up: notifier thread and main thread
 
     def on_message_received(self, msg: can.Message) -> None:
         with self._lock:
-            self.writer.on_message_received(msg)
-            self.count += 1
-            now = time.monotonic()
-            if now - self._last_flush > 0.5:
-                self.writer.file.flush()
-                self._last_flush = now
+            if self.error is not None or self.closed:
+                return
+            try:
+                self.writer.on_message_received(msg)
+                self.count += 1
+                now = time.monotonic()
+                if now - self._last_flush > 0.5:
+                    self.writer.file.flush()
+                    self._last_flush = now
+            except (OSError, ValueError) as exc:
+                self.error = exc
+
+    def raise_error(self, where: str = "") -> None:
+        """LogWriteError if a write has failed (`where`: when, for the message)."""
+        exc = self.error
+        if exc is not None:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            raise LogWriteError(f"cannot write the log {self.path}: {reason}{where}")
 
     def close(self) -> None:
-        try:
-            self.writer.stop()
-        except Exception:  # noqa: BLE001 - closing must not mask the run's error
-            pass
+        """Flush and close; a failing last flush is kept in `error` like any write."""
+        with self._lock:
+            if self.closed:
+                return
+            self.closed = True
+            try:
+                self.writer.stop()
+            except (OSError, ValueError) as exc:
+                if self.error is None:
+                    self.error = exc
+                try:
+                    self.writer.file.close()
+                except (OSError, ValueError):
+                    pass
+            except Exception:  # noqa: BLE001 - closing must not mask the run's error
+                pass
 
 
 class Ecu:
@@ -145,10 +248,25 @@ class Ecu:
         self._emcy_cob = self._cob["EMA_EMCY"]
         self._clock = time.monotonic
         self._t0_wall = time.time()
+        # issue 9: claim on the node, foreign producers, receive errors, abort
+        self.partial: Trace | None = None
+        self._ecu_cobs = {self._cob[n]: n for n in ECU_FRAMES}
+        self._own_echo: Counter[tuple[int, bytes]] = Counter()   # sent, echo not yet seen
+        self.foreign: tuple[str, float] | None = None   # (frame name, ECU time seen)
+        self.foreign_seen: dict[str, float] = {}         # every kind seen, first time
+        self.rx_error: Exception | None = None           # a receive-thread failure
+        self._listen_t0: float | None = None
+        self._claimed = False      # the node is ours (claim() passed): abort() may act
+        self._started = False      # run() sent NMT START
+        self._aborted = False
+        self._setup_hb: tuple[threading.Thread, threading.Event] | None = None
+        self._stop: StopSignal | None = None
 
     # -- frames ---------------------------------------------------------------------------
     def send(self, msg: can.Message) -> None:
         self._log_sent(msg)
+        if self.echo and msg.arbitration_id in self._ecu_cobs:
+            self._own_echo[(msg.arbitration_id, bytes(msg.data))] += 1
         try:
             self.bus.send(msg)
         except (can.CanError, OSError) as exc:
@@ -176,6 +294,8 @@ class Ecu:
                 self.plant_state = NMTState(state)
             except ValueError:
                 pass
+        elif cid in self._ecu_cobs:
+            self._on_ecu_frame(msg)
         elif cid == self._emcy_cob:
             try:
                 decoded = self.frames.decode(msg)
@@ -191,12 +311,33 @@ class Ecu:
                     "status_word": int(sig["EMCY_StatusWord"]),
                     "cycle": int(sig["EMCY_Cycle"])})
 
+    def _on_ecu_frame(self, msg: can.Message) -> None:
+        """A frame only an ECU sends: our own echo, or another ECU on the bus."""
+        key = (msg.arbitration_id, bytes(msg.data))
+        if self.echo and self._own_echo[key] > 0:
+            self._own_echo[key] -= 1
+        else:
+            name = self._ecu_cobs[msg.arbitration_id]
+            if name not in self.foreign_seen:
+                self.foreign_seen[name] = self._clock()
+            if self.foreign is None:
+                self.foreign = (name, self._clock())
+
+    def _on_rx_error(self, exc: Exception) -> None:
+        """A frame that could not be handled (or a failing bus) on the receive thread:
+        kept for the main thread to report; the thread goes on."""
+        if self.rx_error is None:
+            self.rx_error = exc
+        time.sleep(0.01)    # a bus that fails at every recv must not spin a core
+
     def listen(self) -> None:
         """Start the receive thread (SDO, heartbeat, EMCY, log) for set-up and queries."""
         if self._notifier is None:
-            mon = _Callback(self._monitor)
-            self._notifier = can.Notifier(self.bus, [MessageListener(self.network), mon],
+            mon = _Callback(self._monitor, self._on_rx_error)
+            self._notifier = can.Notifier(self.bus, [mon, MessageListener(self.network)],
                                           timeout=0.02)
+            if self._listen_t0 is None:
+                self._listen_t0 = self._clock()
 
     def unlisten(self) -> None:
         if self._notifier is not None:
@@ -204,6 +345,7 @@ class Ecu:
             self._notifier = None
 
     def close(self) -> None:
+        self.stop_heartbeat()
         self.unlisten()
         if self.log is not None:
             self.log.close()
@@ -213,11 +355,106 @@ class Ecu:
         self.send(self.frames.encode("NMT", {"NMT_Command": int(command),
                                              "NMT_NodeId": self.node_id}))
 
-    def heartbeat(self, state: NMTState = NMTState.OPERATIONAL) -> None:
+    def heartbeat(self, state: NMTState = NMTState.OPERATIONAL, force: bool = False) -> None:
+        """The ECU's heartbeat when one is due on the wall clock (every 0.1 s, the DBC's
+        cycle time), or at once with `force` (the lockstep SYNC grid)."""
         now = self._clock()
-        if now >= self._hb_next:
+        if force or now >= self._hb_next:
             self.send(self.frames.encode("ECU_Heartbeat", {"ECU_NMTState": int(state)}))
             self._hb_next = now + self._hb_period
+
+    def start_heartbeat(self) -> None:
+        """Heartbeat from a thread on the wall clock while the ECU sets the node up (SDO
+        waits), so another ECU sees this one and the consumer is never starved."""
+        if self._setup_hb is not None:
+            return
+        done = threading.Event()
+
+        def beat() -> None:
+            while not done.is_set():
+                try:
+                    self.heartbeat()
+                except BenchError:
+                    return          # the bus is gone: the main thread will say so
+                done.wait(self._hb_period / 4)
+
+        th = threading.Thread(target=beat, daemon=True, name="ecu-heartbeat")
+        self._setup_hb = (th, done)
+        th.start()
+
+    def stop_heartbeat(self) -> None:
+        if self._setup_hb is not None:
+            th, done = self._setup_hb
+            done.set()
+            th.join(1.0)
+            self._setup_hb = None
+
+    # -- claim, checks and abort (issue 9) -------------------------------------------------
+    def _consumer(self, on: bool) -> None:
+        """The node's heartbeat consumer (0x1016 sub 1): off during set-up, where the ECU's
+        heartbeat goes on (another ECU must see it) but nothing moves, so that a stall of
+        a loaded machine there cannot latch a command timeout into the run; on (its EDS
+        default) right before NMT START."""
+        value = int(self.od[0x1016][1].default) if on else 0
+        try:
+            self.remote.sdo[0x1016][1].raw = value
+        except SdoAbortedError as exc:
+            raise BenchError(f"the plant refused its heartbeat consumer time 0x1016 = "
+                             f"0x{value:X}: {exc}") from None
+        except SdoCommunicationError as exc:
+            raise PlantLost(f"no SDO answer writing the heartbeat consumer time 0x1016: "
+                            f"{exc}") from None
+
+    def claim(self, announce: Callable[[str], None] | None = None) -> None:
+        """Make sure no other ECU drives the node, before this one sends any NMT command
+        or SDO write: listen for two heartbeat periods (the plant's and an ECU's); a SYNC,
+        RPDO1, set-point or ECU heartbeat from another producer means another ECU is
+        there (ForeignEcu). A node left OPERATIONAL with no SYNC (an ECU killed in
+        lockstep) is taken over, and `announce` says so."""
+        self.listen()
+        window = 2 * max(self._hb_period,
+                         self.frames.cycle_time_ms("EMA_Heartbeat") / 1000.0)
+        end = (self._listen_t0 or self._clock()) + window
+        while self.foreign is None and self._clock() < end:
+            time.sleep(0.01)
+        if self.foreign is not None:     # name the most telling frame: wait for a SYNC
+            settle = self._clock() + 0.05
+            while "SYNC" not in self.foreign_seen and self._clock() < settle:
+                time.sleep(0.005)
+        self.check_foreign()
+        self.check_receive()
+        if self.plant_state == NMTState.OPERATIONAL and announce is not None:
+            announce(f"node 0x{self.node_id:02X} is OPERATIONAL with no SYNC on the bus "
+                     f"(an ECU stopped without setting it PRE-OPERATIONAL): taking it over")
+        self._claimed = True
+
+    def check_foreign(self, where: str = "") -> None:
+        if self.foreign is not None:
+            seen = dict(self.foreign_seen)
+            name = next((n for n in ECU_FRAMES if n in seen), self.foreign[0])
+            raise ForeignEcu(f"another ECU is driving node 0x{self.node_id:02X} "
+                             f"({name} from another producer{where}); stop it first")
+
+    def check_receive(self, where: str = "") -> None:
+        """The log's and the receive thread's failures, as errors of the run."""
+        if self.log is not None:
+            self.log.raise_error(where)
+        if self.rx_error is not None:
+            exc = self.rx_error
+            raise BusLost(f"receiving from the bus failed{where}: {type(exc).__name__}: "
+                          f"{exc}")
+
+    def abort(self) -> None:
+        """After a failed or interrupted run, best effort: NMT enter-pre-operational, so
+        the node does not stay OPERATIONAL without its ECU. Never raises."""
+        self.stop_heartbeat()
+        if self._aborted or not (self._claimed or self._started):
+            return
+        self._aborted = True
+        try:
+            self.nmt(NMTCommand.ENTER_PRE_OPERATIONAL)
+        except Exception:  # noqa: BLE001 - best effort: the bus may be what failed
+            pass
 
     def wait_for_plant(self, timeout: float = 0.5) -> NMTState:
         """The plant's NMT state from its heartbeat, else from an SDO read (the heartbeat
@@ -237,13 +474,15 @@ class Ecu:
                         f"(no heartbeat within {timeout:g} s, no SDO answer)")
 
     def reset_node(self, timeout: float = 3.0) -> None:
-        """NMT reset node and wait for the boot-up frame."""
+        """NMT reset node and wait for the boot-up frame; then the node's heartbeat
+        consumer is switched off for the set-up (`_consumer`, on again at NMT START)."""
         self.listen()
         before = self.bootups
         self.nmt(NMTCommand.RESET_NODE)
         end = self._clock() + timeout
         while self._clock() < end:
             if self.bootups > before:
+                self._consumer(False)
                 return
             time.sleep(0.005)
         raise PlantLost(f"actuator node 0x{self.node_id:02X} did not boot up within "
@@ -321,18 +560,21 @@ class Ecu:
 
     def run(self, profile: Profile, params: PlantParams, cparams: ControllerParams | None = None,
             pace: Pace = Pace.SYNC, duration_s: float | None = None, progress: bool = False,
-            spin_us: int = 200, on_period: Callable[[int], None] | None = None) -> Trace:
+            spin_us: int = 200, on_period: Callable[[int], None] | None = None,
+            stop: StopSignal | None = None) -> Trace:
         """Run `profile` on the prepared plant; returns the trace (partial on error: the
-        error is raised after the trace is stored in `self.partial`)."""
+        error is raised after the trace is stored in `self.partial`, and the node is set
+        PRE-OPERATIONAL). The run fails (`PlantFault`) as soon as the plant reports a
+        condition that changes its behaviour (FAILING_BITS, any EMCY outside
+        REPORTING_EMCY), another ECU shows up (`ForeignEcu`), the log cannot be written
+        (`LogWriteError`) or `stop` records a signal (`Interrupted`)."""
         ts = params.sim.sync_period_s
         cparams = cparams or ControllerParams(sample_period_s=ts)
         if not math.isclose(cparams.sample_period_s, ts):
             raise BenchError(f"controller period {cparams.sample_period_s} s differs from the "
                              f"plant's SYNC period {ts} s")
         dur = profile.duration_s if duration_s is None else duration_s
-        n = int(round(dur / ts))
-        if n < 1:
-            raise BenchError(f"a run of {dur} s is shorter than one SYNC period")
+        n = run_periods(dur, ts)
         t = np.arange(n) * ts
         sp_pos, sp_spd = profile.setpoints(t)
         mode = int(profile.mode)
@@ -345,7 +587,8 @@ class Ecu:
             "position_m", "winding_temperature_k", "load_force_n", "status_word",
             "bus_time_s")}
         stats = EcuStats()
-        self.partial: Trace | None = None
+        self.partial = None
+        self._stop = stop
         k = 0
         bar = None
         if progress:
@@ -355,9 +598,17 @@ class Ecu:
         fresh: set[str] = set()
         frames = self.frames
         bus = self.bus
+        log = self.log
         tpdo_names = self._tpdo_names
         monitor = self._monitor
         pacer = RealtimePacer(ts, spin_us * 1e-6) if pace == Pace.REALTIME else None
+        # lockstep: the heartbeat on the SYNC grid (the plant counts its consumer time in
+        # SYNC periods), and on the wall clock as well (while waiting, or a slow run)
+        hb_every = max(1, round(self._hb_period / ts)) if pacer is None else 0
+        fail_bits = 0
+        for bit in FAILING_BITS:
+            fail_bits |= int(bit)
+        limit_a = _float32_limit(params.motor.current_max_a)
         enc_rpdo = frames.by_name["EMA_RPDO1"]
         enc_sp = frames.by_name["ECU_Setpoint"]
         cob_rpdo, cob_sp = self._cob["EMA_RPDO1"], self._cob["ECU_Setpoint"]
@@ -385,15 +636,24 @@ class Ecu:
                 latest[name] = decoded[1]  # type: ignore[index]
                 fresh.add(name)
 
-        self.unlisten()
         # keep full garbage collections (tens of ms with numba and scipy loaded) out of
         # the control loop: what exists now is not scanned again until the run ends
         gc.collect()
         gc.freeze()
+        if stop is not None:
+            stop.defer = True
         try:
+            self.listen()
+            self._consumer(True)
+            self.unlisten()
+            self.stop_heartbeat()
+            self.check_foreign()
+            self.check_receive()
             self._hb_next = 0.0
             self.heartbeat()
+            self._started = True
             self.nmt(NMTCommand.START)
+            emcy_seen = len(self.emcy)
             if pacer is not None:
                 pacer.start(5 * ts)
             for k in range(n):
@@ -426,28 +686,46 @@ class Ecu:
                         stats.late_tpdo += 1
                         if k % 50 == 0:
                             self._check_alive(k, ts)
-                    if len(latest) < 3:
-                        pacer.done()
-                        continue
+                # what happened during the period, before its row is recorded
+                if self.foreign is not None:
+                    self.check_foreign(f" at t = {k * ts:.3f} s, SYNC {k}")
+                if stop is not None and stop.signum is not None:
+                    raise Interrupted(stop.signum, _at(k, ts))
+                if log is not None and log.error is not None:
+                    log.raise_error("; stopped" + _at(k, ts))
+                if pacer is not None and len(latest) < 3:
+                    pacer.done()
+                    continue
                 t1, t2, t3 = latest["EMA_TPDO1"], latest["EMA_TPDO2"], latest["EMA_TPDO3"]
                 pos = float(t3["LvdtPosition"])
                 spd = float(t2["EncoderSpeed"])
                 demand = ctrl.step(sp_pos[k], sp_spd[k], mode, pos, spd)
+                # within the plant's own current limit (read back), so that a demand the
+                # plant clamps (status bit 5, EMCY demand_invalid) is always a real fault
+                if demand > limit_a:
+                    demand = limit_a
+                elif demand < -limit_a:
+                    demand = -limit_a
                 demand32 = float(np.float32(demand))
                 self.send(can.Message(arbitration_id=cob_rpdo, is_extended_id=False,
                                       data=enc_rpdo.encode({"CurrentDemand": demand32,
                                                             "ControlWord": enable},
                                                            strict=True)))
+                word = int(t1["StatusWord"])
                 rows["current_demand_a"][k] = demand32
                 rows["current_a"][k] = t1["MotorCurrent"]
-                rows["status_word"][k] = t1["StatusWord"]
+                rows["status_word"][k] = word
                 rows["motor_speed_rad_s"][k] = spd
                 rows["motor_angle_rad"][k] = t2["EncoderAngle"] * TWO_PI / cpr
                 rows["position_m"][k] = pos
                 rows["winding_temperature_k"][k] = t3["WindingTemperature"]
                 rows["load_force_n"][k] = t3["LoadForce"]
                 stats.periods = k + 1
-                self.heartbeat()
+                if word & fail_bits:
+                    raise self._status_fault(word, k, ts)
+                if len(self.emcy) != emcy_seen:
+                    emcy_seen = self._check_emcy(emcy_seen, k, ts)
+                self.heartbeat(force=bool(hb_every) and (k + 1) % hb_every == 0)
                 if pacer is not None:
                     pacer.done()
                 if on_period is not None:
@@ -460,6 +738,8 @@ class Ecu:
         except BaseException as exc:  # noqa: BLE001 - stored, re-raised below
             error = exc
         finally:
+            if stop is not None:
+                stop.defer = False
             gc.unfreeze()
             stats.wall_s = time.perf_counter() - t_wall0
             if bar is not None:
@@ -477,15 +757,38 @@ class Ecu:
         meta = {"source": "bus", "pace": Pace(pace).name.lower(), "profile": profile.name,
                 "profile_kwargs": profile.kwargs, "fundamental_hz": profile.fundamental_hz,
                 "params": params.to_dict(), "controller": asdict(cparams),
-                "complete": m == n, "node_id": self.node_id, "ecu": asdict(stats)}
+                "complete": m == n, "node_id": self.node_id, "ecu": asdict(stats),
+                "emcy": list(self.emcy)}
         trace = Trace(cols, meta)
         self.partial = trace
         if error is not None:
+            trace.meta["error"] = str(error) or type(error).__name__
             if self.log is not None:
                 stats.frames_logged = self.log.count
+            trace.meta["ecu"] = asdict(stats)
+            self.abort()
             raise error
         self._finish(trace, stats)
         return trace
+
+    def _status_fault(self, word: int, k: int, ts: float) -> PlantFault:
+        """The error for a status word with a FAILING_BITS bit set at SYNC k."""
+        label = next(lb for bit, lb in FAILING_BITS.items() if word & bit)
+        return PlantFault(f"the plant reported {FAILING_TEXT[label]}{_at(k, ts)}: status "
+                          f"word 0x{word:04X} ({', '.join(status_names(word))}); the run "
+                          f"is not valid")
+
+    def _check_emcy(self, seen: int, k: int, ts: float) -> int:
+        """PlantFault for the first EMCY since index `seen` outside REPORTING_EMCY;
+        returns the new count of EMCYs checked."""
+        for e in self.emcy[seen:]:
+            name = e["name"]
+            if name not in REPORTING_EMCY:
+                what = FAILING_TEXT.get(name, f"an emergency {name} unknown to the bench")
+                raise PlantFault(f"the plant reported {what}{_at(k, ts)}: EMCY "
+                                 f"0x{e['code']:04X} {name} (plant cycle {e['cycle']}); the "
+                                 f"run is not valid")
+        return len(self.emcy)
 
     def _finish(self, trace: Trace, stats: EcuStats) -> None:
         """Orderly end: drive to PRE-OPERATIONAL, stop heartbeat monitoring, counters."""
@@ -515,14 +818,21 @@ class Ecu:
                             f"no TPDO, last heartbeat {seen}")
 
     def _wait_tpdos(self, poll, fresh: set[str], k: int, ts: float) -> None:
-        """Lockstep: wait for TPDO1-3 of this SYNC (the plant answers every SYNC)."""
+        """Lockstep: wait for TPDO1-3 of this SYNC (the plant answers every SYNC), with the
+        heartbeat on the wall clock; a signal or a failed log ends a long wait."""
         start = self._clock()
+        stop, log = self._stop, self.log
         while len(fresh) < 3:
             poll(0.1)
             self.heartbeat()
             waited = self._clock() - start
-            if len(fresh) < 3 and waited > 1.0:
-                self._check_alive(k, ts)
+            if len(fresh) < 3 and waited > 0.05:
+                if stop is not None and stop.signum is not None:
+                    raise Interrupted(stop.signum, _at(k, ts))
+                if log is not None and log.error is not None:
+                    log.raise_error("; stopped" + _at(k, ts))
+                if waited > 1.0:
+                    self._check_alive(k, ts)
                 if waited > 10.0:
                     raise PlantLost(f"the plant sent no TPDO for SYNC {k} (t = {k * ts:.3f} s) "
                                     f"within 10 s although its heartbeat continues")
@@ -543,18 +853,65 @@ class _TeeBus:
 
 
 class _Callback(can.Listener):
-    def __init__(self, fn: Callable[[can.Message], None]) -> None:
+    """A function as a python-can listener; `on_error` handles what any listener of the
+    notifier raised (python-can then keeps its thread running)."""
+
+    def __init__(self, fn: Callable[[can.Message], None],
+                 on_error: Callable[[Exception], None] | None = None) -> None:
         self.fn = fn
+        self._on_error = on_error
 
     def on_message_received(self, msg: can.Message) -> None:
         self.fn(msg)
+
+    def on_error(self, exc: Exception) -> None:
+        if self._on_error is not None:
+            self._on_error(exc)
+
+
+def _at(k: int, ts: float) -> str:
+    return f" at t = {k * ts:.3f} s (SYNC {k})"
+
+
+def _float32_limit(limit: float) -> float:
+    """The largest float32 not above `limit` (a demand sent as float32 within it)."""
+    v = np.float32(limit)
+    if float(v) > limit:
+        v = np.nextafter(v, np.float32(0.0))
+    return float(v)
+
+
+RUN_COLUMNS = 13     # float64 columns of a bus run's trace (Ecu.run)
+
+
+def run_periods(duration_s: float, period_s: float) -> int:
+    """The SYNC periods of a run of `duration_s`; BenchError, before anything starts, when
+    that is less than one period or more than the trace can hold in memory (the ECU
+    keeps the whole trace in memory: `bench.trace.max_rows`)."""
+    from bench.trace import ROW_COPIES, memory_available
+    n = int(round(duration_s / period_s))
+    if n < 1:
+        raise BenchError(f"a run of {duration_s:g} s is shorter than one SYNC period "
+                         f"({period_s * 1e3:g} ms)")
+    avail = memory_available()
+    limit = max_rows(RUN_COLUMNS, avail)
+    if n > limit:
+        per = 8 * RUN_COLUMNS * ROW_COPIES
+        raise BenchError(
+            f"a run of {duration_s:g} s (--duration, or the profile's own length) is "
+            f"{n:,} SYNC periods, and the ECU keeps the "
+            f"trace in memory ({per} bytes a period with the copies made to save it): half "
+            f"the memory available now ({avail / 1e9:.1f} GB) holds {limit:,} periods, "
+            f"{limit * period_s:,.0f} s; make shorter runs")
+    return n
 
 
 def status_names(word: int) -> list[str]:
     return [f.name.lower() for f in StatusWord if f and f.name and int(word) & f]
 
 
-__all__ = ["Ecu", "EcuStats", "PlantLost", "BusLost", "status_names"]
+__all__ = ["Ecu", "EcuStats", "PlantLost", "BusLost", "PlantFault", "ForeignEcu", "LogWriteError",
+           "Interrupted", "StopSignal", "run_periods", "status_names"]
 
 
 def plant_values(profile: Profile, assignments: list[str] | None = None,
@@ -581,19 +938,28 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                  progress: bool = False, settings: dict[str, Any] | None = None,
                  start_plant: bool = True, cparams: ControllerParams | None = None,
                  node_id: int | None = None, announce: Callable[[str], None] | None = None,
-                 echo: bool = False, spin_us: int = 200) -> Trace:
+                 echo: bool = False, spin_us: int = 200,
+                 stop: StopSignal | None = None) -> Trace:
     """Run `profile` against the plant over the bus and return the trace.
 
     The bus is the configured one (flags in `settings`, environment, config file,
     vcan0, the hub of `bench up`), else a private loopback hub started for this run.
     When no plant answers on a simulated bus (hub, virtual, vcan) and `start_plant`,
     a plant process is started for the run. Everything started here is stopped here.
-    On error the partial trace is in the exception's ``trace`` attribute."""
+
+    Before anything starts: the run's length (`run_periods`) and the log path are
+    checked. Before any NMT command or SDO write: `Ecu.claim` (no other ECU on the node).
+    On error the partial trace is in the exception's ``trace`` attribute, the log is
+    closed and the node, once claimed, is set PRE-OPERATIONAL (`Ecu.abort`)."""
     from bench.bus import close_bus, connect, is_simulated, session
     from bench.bus.procs import start_plant as _start_plant
 
     pace = Pace[pace.upper()] if isinstance(pace, str) else Pace(pace)
     vals = plant_values(profile, assignments, values)
+    run_periods(profile.duration_s if duration_s is None else duration_s,
+                PlantParams().with_dict(vals).sim.sync_period_s)
+    if log_path:
+        probe_output(log_path, "log")
     say = announce or (lambda s: None)
     with session(settings) as sess:
         bus = connect(sess.cfg, receive_own_messages=echo)
@@ -603,6 +969,7 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
             try:
                 ecu.wait_for_plant(1.0 if sess.children else 0.6)
             except PlantLost:
+                ecu.check_receive()
                 if not (start_plant and is_simulated(sess.cfg)):
                     raise PlantLost(f"no actuator node 0x{ecu.node_id:02X} answering on "
                                     f"{sess.description}") from None
@@ -610,20 +977,26 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                 sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
                                                   node_id=node_id))
             say(f"bus {sess.description}")
+            ecu.claim(say)
+            ecu.start_heartbeat()
             params = ecu.prepare(pace, vals, spin_us if pace == Pace.REALTIME else None)
-            try:
-                trace = ecu.run(profile, params, cparams, pace, duration_s, progress,
-                                spin_us=spin_us)
-            except BenchError as exc:
-                exc.trace = ecu.partial  # type: ignore[attr-defined]
-                raise
-            except KeyboardInterrupt as exc:
-                exc.trace = ecu.partial  # type: ignore[attr-defined]
-                raise
+            ecu.check_foreign(" during set-up")
+            ecu.check_receive(" during set-up")
+            trace = ecu.run(profile, params, cparams, pace, duration_s, progress,
+                            spin_us=spin_us, stop=stop)
+            if ecu.log is not None:     # the last frames reach the disk, or the run fails
+                ecu.log.close()
+                ecu.log.raise_error(" at the end of the run")
             trace.meta["bus"] = sess.description
             if log_path:
                 trace.meta["log"] = str(log_path)
             return trace
+        except BaseException as exc:
+            if ecu is not None:
+                ecu.abort()
+                if isinstance(exc, (BenchError, KeyboardInterrupt)):
+                    exc.trace = ecu.partial  # type: ignore[attr-defined]
+            raise
         finally:
             if ecu is not None:
                 ecu.close()
