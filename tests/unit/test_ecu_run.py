@@ -170,6 +170,53 @@ def test_a_stall_during_set_up_does_not_latch_a_timeout_into_the_run(rig):
     assert tr.meta["complete"] and tr.meta["plant_counters"]["heartbeat_timeouts"] == 0
 
 
+def test_reporting_conditions_keep_the_run_valid(rig):
+    """Over-current (the drive at its current limit, normal in a 40 mm step) is reported
+    in the status word and by EMCY, and the run stays a success."""
+    ecu, params = prepared(rig)
+    tr = ecu.run(make_profile("step", duration_s=0.3), params, pace=Pace.SYNC)
+    words = tr["status_word"].astype(int)
+    assert tr.meta["complete"] and (words & int(StatusWord.OVERCURRENT)).any()
+    assert "overcurrent" in [e["name"] for e in tr.meta["emcy"]]
+
+
+@pytest.mark.parametrize("label, expect", [
+    ("plant_fault", r"plant fault .*EMCY 0x6200 plant_fault"),
+    ("pdo_length", r"RPDO of the wrong length .*EMCY 0x8210 pdo_length"),
+    (0x5432, r"emergency 0x5432 unknown to the bench"),
+])
+def test_an_emcy_that_changes_the_plant_behaviour_fails_the_run(rig, label, expect):
+    """An EMCY outside over-current, end of stroke, over-temperature and the all-clear
+    (here injected on the plant's EMCY id) fails the run, whatever the status word."""
+    ecu, params = prepared(rig)
+    other = rig.bus()
+    f = rig.frames
+    code = label if isinstance(label, int) else f.choice("EMA_EMCY", "EMCY_ErrorCode", label)
+
+    def on_period(k: int) -> None:
+        if k == 30:
+            other.send(f.encode("EMA_EMCY", {"EMCY_ErrorCode": code, "EMCY_ErrorRegister": 1,
+                                             "EMCY_StatusWord": 0, "EMCY_Cycle": k}))
+
+    with pytest.raises(BenchError, match=expect):
+        ecu.run(make_profile("step", duration_s=0.3), params, pace=Pace.SYNC,
+                on_period=on_period)
+    assert 30 <= len(ecu.partial) <= 34
+    assert code in [e["code"] for e in ecu.partial.meta["emcy"]]
+
+
+def test_the_demand_stays_within_the_plants_current_limit(rig):
+    """`--set motor.current_max_a=10`: the ECU sends its demand saturated at the limit it
+    read back, so the plant never has to clamp it (status bit 5 would fail the run)."""
+    ecu = rig.new_ecu()
+    params = ecu.prepare(Pace.SYNC, {"motor.current_max_a": 10.3})
+    tr = ecu.run(make_profile("step", duration_s=0.2), params, pace=Pace.SYNC)
+    words = tr["status_word"].astype(int)
+    assert tr.meta["complete"] and not (words & int(StatusWord.DEMAND_CLAMPED)).any()
+    assert np.max(np.abs(tr["current_demand_a"])) == pytest.approx(10.3, abs=1e-5)
+    assert tr.meta["plant_counters"]["demands_invalid"] == 0
+
+
 def test_lockstep_heartbeat_follows_the_sync_grid(rig):
     """In lockstep the ECU's heartbeat goes out every heartbeat period's worth of SYNCs
     (100), whatever the wall clock says: here the ECU's clock runs 100 times slow, as a
