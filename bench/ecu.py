@@ -390,21 +390,6 @@ class Ecu:
             self._setup_hb = None
 
     # -- claim, checks and abort (issue 9) -------------------------------------------------
-    def _consumer(self, on: bool) -> None:
-        """The node's heartbeat consumer (0x1016 sub 1): off during set-up, where the ECU's
-        heartbeat goes on (another ECU must see it) but nothing moves, so that a stall of
-        a loaded machine there cannot latch a command timeout into the run; on (its EDS
-        default) right before NMT START."""
-        value = int(self.od[0x1016][1].default) if on else 0
-        try:
-            self.remote.sdo[0x1016][1].raw = value
-        except SdoAbortedError as exc:
-            raise BenchError(f"the plant refused its heartbeat consumer time 0x1016 = "
-                             f"0x{value:X}: {exc}") from None
-        except SdoCommunicationError as exc:
-            raise PlantLost(f"no SDO answer writing the heartbeat consumer time 0x1016: "
-                            f"{exc}") from None
-
     def claim(self, announce: Callable[[str], None] | None = None) -> None:
         """Make sure no other ECU drives the node, before this one sends any NMT command
         or SDO write: listen for two heartbeat periods (the plant's and an ECU's); a SYNC,
@@ -474,15 +459,13 @@ class Ecu:
                         f"(no heartbeat within {timeout:g} s, no SDO answer)")
 
     def reset_node(self, timeout: float = 3.0) -> None:
-        """NMT reset node and wait for the boot-up frame; then the node's heartbeat
-        consumer is switched off for the set-up (`_consumer`, on again at NMT START)."""
+        """NMT reset node and wait for the boot-up frame."""
         self.listen()
         before = self.bootups
         self.nmt(NMTCommand.RESET_NODE)
         end = self._clock() + timeout
         while self._clock() < end:
             if self.bootups > before:
-                self._consumer(False)
                 return
             time.sleep(0.005)
         raise PlantLost(f"actuator node 0x{self.node_id:02X} did not boot up within "
@@ -613,6 +596,11 @@ class Ecu:
         enc_sp = frames.by_name["ECU_Setpoint"]
         cob_rpdo, cob_sp = self._cob["EMA_RPDO1"], self._cob["ECU_Setpoint"]
         enable = int(ControlWord.ENABLE)
+        # the first RPDO also carries a fault-reset edge: it clears a command timeout the
+        # node latched before the run (a stall during set-up, when no demand of this run
+        # was in force), so that it is gone at SYNC 1, where the first demand applies
+        first_control = enable | int(ControlWord.FAULT_RESET)
+        timeout_bit = int(StatusWord.COMMAND_TIMEOUT)
         t_wall0 = time.perf_counter()
         t_first_sync: float | None = None
         last_bar = time.monotonic()
@@ -636,6 +624,7 @@ class Ecu:
                 latest[name] = decoded[1]  # type: ignore[index]
                 fresh.add(name)
 
+        self.unlisten()
         # keep full garbage collections (tens of ms with numba and scipy loaded) out of
         # the control loop: what exists now is not scanned again until the run ends
         gc.collect()
@@ -643,9 +632,6 @@ class Ecu:
         if stop is not None:
             stop.defer = True
         try:
-            self.listen()
-            self._consumer(True)
-            self.unlisten()
             self.stop_heartbeat()
             self.check_foreign()
             self.check_receive()
@@ -708,9 +694,10 @@ class Ecu:
                     demand = -limit_a
                 demand32 = float(np.float32(demand))
                 self.send(can.Message(arbitration_id=cob_rpdo, is_extended_id=False,
-                                      data=enc_rpdo.encode({"CurrentDemand": demand32,
-                                                            "ControlWord": enable},
-                                                           strict=True)))
+                                      data=enc_rpdo.encode({
+                                          "CurrentDemand": demand32,
+                                          "ControlWord": enable if k else first_control},
+                                          strict=True)))
                 word = int(t1["StatusWord"])
                 rows["current_demand_a"][k] = demand32
                 rows["current_a"][k] = t1["MotorCurrent"]
@@ -721,7 +708,7 @@ class Ecu:
                 rows["winding_temperature_k"][k] = t3["WindingTemperature"]
                 rows["load_force_n"][k] = t3["LoadForce"]
                 stats.periods = k + 1
-                if word & fail_bits:
+                if word & fail_bits and (k or word & fail_bits != timeout_bit):
                     raise self._status_fault(word, k, ts)
                 if len(self.emcy) != emcy_seen:
                     emcy_seen = self._check_emcy(emcy_seen, k, ts)
@@ -783,6 +770,8 @@ class Ecu:
         returns the new count of EMCYs checked."""
         for e in self.emcy[seen:]:
             name = e["name"]
+            if name == "heartbeat_lost" and e["cycle"] == 0:
+                continue    # latched before the plant's first period: cleared at SYNC 1
             if name not in REPORTING_EMCY:
                 what = FAILING_TEXT.get(name, f"an emergency {name} unknown to the bench")
                 raise PlantFault(f"the plant reported {what}{_at(k, ts)}: EMCY "
