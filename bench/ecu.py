@@ -21,6 +21,14 @@ Every frame goes to the candump log: received frames as they arrive, the ECU's o
 as it sends them (with ``echo=True``, as the bus returns them through
 ``receive_own_messages``, at the cost of one more frame per send to receive). The log is
 flushed and closed whatever ends the run.
+
+A run is a success only when nothing spoilt it (issue 9): the plant reporting a
+condition that changes what it does with the demand (`FAILING_BITS`, any EMCY outside
+`REPORTING_EMCY`), another ECU on the bus (`claim` before anything is sent, any foreign
+SYNC/RPDO/set-point/heartbeat during the run), a log that cannot be written, or a
+signal (`StopSignal`) end it with an error, the partial trace kept and the node set
+PRE-OPERATIONAL. In lockstep the heartbeat follows the SYNC grid (the plant counts its
+consumer time in SYNC periods) and the wall clock while waiting.
 """
 
 from __future__ import annotations
