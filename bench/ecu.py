@@ -21,6 +21,14 @@ Every frame goes to the candump log: received frames as they arrive, the ECU's o
 as it sends them (with ``echo=True``, as the bus returns them through
 ``receive_own_messages``, at the cost of one more frame per send to receive). The log is
 flushed and closed whatever ends the run.
+
+A run is a success only when nothing spoilt it (issue 9): the plant reporting a
+condition that changes what it does with the demand (`FAILING_BITS`, any EMCY outside
+`REPORTING_EMCY`), another ECU on the bus (`claim` before anything is sent, any foreign
+SYNC/RPDO/set-point/heartbeat during the run), a log that cannot be written, or a
+signal (`StopSignal`) end it with an error, the partial trace kept and the node set
+PRE-OPERATIONAL. In lockstep the heartbeat follows the SYNC grid (the plant counts its
+consumer time in SYNC periods) and the wall clock while waiting.
 """
 
 from __future__ import annotations
@@ -28,9 +36,12 @@ from __future__ import annotations
 import gc
 import logging
 import math
+import signal
 import threading
 import time
-from collections.abc import Callable
+from collections import Counter
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,7 +55,7 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from bench import BenchError
 from bench.control import Controller, ControllerParams
 from bench.profiles import Profile
-from bench.trace import Trace
+from bench.trace import Trace, max_rows, probe_output
 from plant_rt.busdef import (
     ControlWord,
     FrameError,
@@ -84,6 +95,76 @@ class BusLost(BenchError):
     """The bus connection itself failed."""
 
 
+class PlantFault(BenchError):
+    """The plant reported a condition that changes its behaviour: the run is not valid."""
+
+
+class ForeignEcu(BenchError):
+    """Another ECU (another SYNC, set-point or heartbeat producer) drives the node."""
+
+
+class LogWriteError(BenchError):
+    """The candump log could not be written (disk full, file too large, ...)."""
+
+
+class Interrupted(BenchError):
+    """The run was stopped by a signal (SIGINT, SIGTERM)."""
+
+    def __init__(self, signum: int, where: str = "") -> None:
+        self.signum = int(signum)
+        super().__init__(f"interrupted by {signal.Signals(signum).name}{where}")
+
+
+# Plant conditions that change what the plant does with the ECU's demand (docs/bus.md):
+# a run that sees one is not a valid run. Status word bit -> EMCY label (dbc value table).
+FAILING_BITS: dict[StatusWord, str] = {
+    StatusWord.COMMAND_TIMEOUT: "heartbeat_lost",
+    StatusWord.PLANT_FAULT: "plant_fault",
+    StatusWord.DEMAND_CLAMPED: "demand_invalid",
+}
+FAILING_TEXT = {
+    "heartbeat_lost": "a command timeout (its heartbeat consumer lost the ECU: demand "
+                      "forced to 0)",
+    "plant_fault": "a plant fault (non-finite state: the plant stopped integrating)",
+    "demand_invalid": "an invalid demand (NaN or beyond its current limit: replaced or "
+                      "clamped)",
+    "pdo_length": "an RPDO of the wrong length (a demand was not applied)",
+}
+# EMCYs that only report (the plant does the same with the demand): over-current (the
+# drive at its current limit, normal in a step), end of stroke and over-temperature (flags
+# only: no end stop, no derating), and the all-clear. Any other code fails the run.
+REPORTING_EMCY = ("no_error", "overcurrent", "end_of_stroke", "overtemperature")
+# frames only the ECU sends: seen from another producer, another ECU drives the node
+ECU_FRAMES = ("SYNC", "EMA_RPDO1", "ECU_Setpoint", "ECU_Heartbeat")
+
+
+class StopSignal:
+    """SIGINT/SIGTERM for a bus run. Outside the control loop a signal raises
+    `Interrupted` at once; inside it (`defer` set) it only records `signum`, which the
+    loop checks every period, so a signal never cuts a frame, the log or the trace."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.defer = False
+
+    def _handler(self, signum: int, frame: Any) -> None:  # noqa: ARG002
+        self.signum = signum
+        if not self.defer:
+            raise Interrupted(signum)
+
+    @contextmanager
+    def installed(self) -> Iterator[StopSignal]:
+        """Handle SIGINT and SIGTERM here for the duration of the block."""
+        old = {s: signal.signal(s, self._handler) for s in self.SIGNALS}
+        try:
+            yield self
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+
+
 @dataclass
 class EcuStats:
     """What the ECU measured about the run."""
@@ -112,29 +193,59 @@ class NodeInfo:
 
 
 class _Log(can.Listener):
-    """Every frame into a candump log (python-can's CanutilsLogWriter)."""
+    """Every frame into a candump log (python-can's CanutilsLogWriter).
+
+    A write that fails (disk full, file too large) is kept in `error` and ends the
+    logging, never the thread that delivered the frame: the ECU reports it
+    (`raise_error`) at its next check instead of losing its receive thread."""
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.writer = can.CanutilsLogWriter(self.path)
         self.count = 0
+        self.error: Exception | None = None
+        self.closed = False
         self._last_flush = time.monotonic()
         self._lock = threading.Lock()     # set-up: notifier thread and main thread
 
     def on_message_received(self, msg: can.Message) -> None:
         with self._lock:
-            self.writer.on_message_received(msg)
-            self.count += 1
-            now = time.monotonic()
-            if now - self._last_flush > 0.5:
-                self.writer.file.flush()
-                self._last_flush = now
+            if self.error is not None or self.closed:
+                return
+            try:
+                self.writer.on_message_received(msg)
+                self.count += 1
+                now = time.monotonic()
+                if now - self._last_flush > 0.5:
+                    self.writer.file.flush()
+                    self._last_flush = now
+            except (OSError, ValueError) as exc:
+                self.error = exc
+
+    def raise_error(self, where: str = "") -> None:
+        """LogWriteError if a write has failed (`where`: when, for the message)."""
+        exc = self.error
+        if exc is not None:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            raise LogWriteError(f"cannot write the log {self.path}: {reason}{where}")
 
     def close(self) -> None:
-        try:
-            self.writer.stop()
-        except Exception:  # noqa: BLE001 - closing must not mask the run's error
-            pass
+        """Flush and close; a failing last flush is kept in `error` like any write."""
+        with self._lock:
+            if self.closed:
+                return
+            self.closed = True
+            try:
+                self.writer.stop()
+            except (OSError, ValueError) as exc:
+                if self.error is None:
+                    self.error = exc
+                try:
+                    self.writer.file.close()
+                except (OSError, ValueError):
+                    pass
+            except Exception:  # noqa: BLE001 - closing must not mask the run's error
+                pass
 
 
 class Ecu:
@@ -156,6 +267,7 @@ class Ecu:
         self.log = _Log(Path(log_path)) if log_path else None
         self.echo = echo               # the bus returns our own frames (for the log)
         self.emcy: list[dict[str, Any]] = []
+        self._emcy_seen = 0        # EMCYs already checked by the run (_check_emcy)
         self.plant_state: NMTState | None = None
         self.plant_hb: float | None = None
         self.bootups = 0
@@ -174,10 +286,25 @@ class Ecu:
         self._present: dict[tuple[int, int], bool] = {}   # (index, sub) -> the node has it
         self._absent_index: set[int] = set()                # whole objects it does not have
         self._missing: dict[str, None] = {}                 # labels of objects it lacks
+        # issue 9: claim on the node, foreign producers, receive errors, abort
+        self.partial: Trace | None = None
+        self._ecu_cobs = {self._cob[n]: n for n in ECU_FRAMES}
+        self._own_echo: Counter[tuple[int, bytes]] = Counter()   # sent, echo not yet seen
+        self.foreign: tuple[str, float] | None = None   # (frame name, ECU time seen)
+        self.foreign_seen: dict[str, float] = {}         # every kind seen, first time
+        self.rx_error: Exception | None = None           # a receive-thread failure
+        self._listen_t0: float | None = None
+        self._claimed = False      # the node is ours (claim() passed): abort() may act
+        self._started = False      # run() sent NMT START
+        self._aborted = False
+        self._setup_hb: tuple[threading.Thread, threading.Event] | None = None
+        self._stop: StopSignal | None = None
 
     # -- frames ---------------------------------------------------------------------------
     def send(self, msg: can.Message) -> None:
         self._log_sent(msg)
+        if self.echo and msg.arbitration_id in self._ecu_cobs:
+            self._own_echo[(msg.arbitration_id, bytes(msg.data))] += 1
         try:
             self.bus.send(msg)
         except (can.CanError, OSError) as exc:
@@ -205,6 +332,8 @@ class Ecu:
                 self.plant_state = NMTState(state)
             except ValueError:
                 pass
+        elif cid in self._ecu_cobs:
+            self._on_ecu_frame(msg)
         elif cid == self._emcy_cob:
             try:
                 decoded = self.frames.decode(msg)
@@ -220,12 +349,33 @@ class Ecu:
                     "status_word": int(sig["EMCY_StatusWord"]),
                     "cycle": int(sig["EMCY_Cycle"])})
 
+    def _on_ecu_frame(self, msg: can.Message) -> None:
+        """A frame only an ECU sends: our own echo, or another ECU on the bus."""
+        key = (msg.arbitration_id, bytes(msg.data))
+        if self.echo and self._own_echo[key] > 0:
+            self._own_echo[key] -= 1
+        else:
+            name = self._ecu_cobs[msg.arbitration_id]
+            if name not in self.foreign_seen:
+                self.foreign_seen[name] = self._clock()
+            if self.foreign is None:
+                self.foreign = (name, self._clock())
+
+    def _on_rx_error(self, exc: Exception) -> None:
+        """A frame that could not be handled (or a failing bus) on the receive thread:
+        kept for the main thread to report; the thread goes on."""
+        if self.rx_error is None:
+            self.rx_error = exc
+        time.sleep(0.01)    # a bus that fails at every recv must not spin a core
+
     def listen(self) -> None:
         """Start the receive thread (SDO, heartbeat, EMCY, log) for set-up and queries."""
         if self._notifier is None:
-            mon = _Callback(self._monitor)
-            self._notifier = can.Notifier(self.bus, [MessageListener(self.network), mon],
+            mon = _Callback(self._monitor, self._on_rx_error)
+            self._notifier = can.Notifier(self.bus, [mon, MessageListener(self.network)],
                                           timeout=0.02)
+            if self._listen_t0 is None:
+                self._listen_t0 = self._clock()
 
     def unlisten(self) -> None:
         if self._notifier is not None:
@@ -233,6 +383,7 @@ class Ecu:
             self._notifier = None
 
     def close(self) -> None:
+        self.stop_heartbeat()
         self.unlisten()
         if self.log is not None:
             self.log.close()
@@ -242,11 +393,91 @@ class Ecu:
         self.send(self.frames.encode("NMT", {"NMT_Command": int(command),
                                              "NMT_NodeId": self.node_id}))
 
-    def heartbeat(self, state: NMTState = NMTState.OPERATIONAL) -> None:
+    def heartbeat(self, state: NMTState = NMTState.OPERATIONAL, force: bool = False) -> None:
+        """The ECU's heartbeat when one is due on the wall clock (every 0.1 s, the DBC's
+        cycle time), or at once with `force` (the lockstep SYNC grid)."""
         now = self._clock()
-        if now >= self._hb_next:
+        if force or now >= self._hb_next:
             self.send(self.frames.encode("ECU_Heartbeat", {"ECU_NMTState": int(state)}))
             self._hb_next = now + self._hb_period
+
+    def start_heartbeat(self) -> None:
+        """Heartbeat from a thread on the wall clock while the ECU sets the node up (SDO
+        waits), so another ECU sees this one and the consumer is never starved."""
+        if self._setup_hb is not None:
+            return
+        done = threading.Event()
+
+        def beat() -> None:
+            while not done.is_set():
+                try:
+                    self.heartbeat()
+                except BenchError:
+                    return          # the bus is gone: the main thread will say so
+                done.wait(self._hb_period / 4)
+
+        th = threading.Thread(target=beat, daemon=True, name="ecu-heartbeat")
+        self._setup_hb = (th, done)
+        th.start()
+
+    def stop_heartbeat(self) -> None:
+        if self._setup_hb is not None:
+            th, done = self._setup_hb
+            done.set()
+            th.join(1.0)
+            self._setup_hb = None
+
+    # -- claim, checks and abort (issue 9) -------------------------------------------------
+    def claim(self, announce: Callable[[str], None] | None = None) -> None:
+        """Make sure no other ECU drives the node, before this one sends any NMT command
+        or SDO write: listen for two heartbeat periods (the plant's and an ECU's); a SYNC,
+        RPDO1, set-point or ECU heartbeat from another producer means another ECU is
+        there (ForeignEcu). A node left OPERATIONAL with no SYNC (an ECU killed in
+        lockstep) is taken over, and `announce` says so."""
+        self.listen()
+        window = 2 * max(self._hb_period,
+                         self.frames.cycle_time_ms("EMA_Heartbeat") / 1000.0)
+        end = (self._listen_t0 or self._clock()) + window
+        while self.foreign is None and self._clock() < end:
+            time.sleep(0.01)
+        if self.foreign is not None:     # name the most telling frame: wait for a SYNC
+            settle = self._clock() + 0.05
+            while "SYNC" not in self.foreign_seen and self._clock() < settle:
+                time.sleep(0.005)
+        self.check_foreign()
+        self.check_receive()
+        if self.plant_state == NMTState.OPERATIONAL and announce is not None:
+            announce(f"node 0x{self.node_id:02X} is OPERATIONAL with no SYNC on the bus "
+                     f"(an ECU stopped without setting it PRE-OPERATIONAL): taking it over")
+        self._claimed = True
+
+    def check_foreign(self, where: str = "") -> None:
+        if self.foreign is not None:
+            seen = dict(self.foreign_seen)
+            name = next((n for n in ECU_FRAMES if n in seen), self.foreign[0])
+            raise ForeignEcu(f"another ECU is driving node 0x{self.node_id:02X} "
+                             f"({name} from another producer{where}); stop it first")
+
+    def check_receive(self, where: str = "") -> None:
+        """The log's and the receive thread's failures, as errors of the run."""
+        if self.log is not None:
+            self.log.raise_error(where)
+        if self.rx_error is not None:
+            exc = self.rx_error
+            raise BusLost(f"receiving from the bus failed{where}: {type(exc).__name__}: "
+                          f"{exc}")
+
+    def abort(self) -> None:
+        """After a failed or interrupted run, best effort: NMT enter-pre-operational, so
+        the node does not stay OPERATIONAL without its ECU. Never raises."""
+        self.stop_heartbeat()
+        if self._aborted or not (self._claimed or self._started):
+            return
+        self._aborted = True
+        try:
+            self.nmt(NMTCommand.ENTER_PRE_OPERATIONAL)
+        except Exception:  # noqa: BLE001 - best effort: the bus may be what failed
+            pass
 
     def wait_for_plant(self, timeout: float = 0.5) -> NMTState:
         """The plant's NMT state from its heartbeat, else from an SDO read (the heartbeat
@@ -557,18 +788,21 @@ class Ecu:
 
     def run(self, profile: Profile, params: PlantParams, cparams: ControllerParams | None = None,
             pace: Pace = Pace.SYNC, duration_s: float | None = None, progress: bool = False,
-            spin_us: int = 200, on_period: Callable[[int], None] | None = None) -> Trace:
+            spin_us: int = 200, on_period: Callable[[int], None] | None = None,
+            stop: StopSignal | None = None) -> Trace:
         """Run `profile` on the prepared plant; returns the trace (partial on error: the
-        error is raised after the trace is stored in `self.partial`)."""
+        error is raised after the trace is stored in `self.partial`, and the node is set
+        PRE-OPERATIONAL). The run fails (`PlantFault`) as soon as the plant reports a
+        condition that changes its behaviour (FAILING_BITS, any EMCY outside
+        REPORTING_EMCY), another ECU shows up (`ForeignEcu`), the log cannot be written
+        (`LogWriteError`) or `stop` records a signal (`Interrupted`)."""
         ts = params.sim.sync_period_s
         cparams = cparams or ControllerParams(sample_period_s=ts)
         if not math.isclose(cparams.sample_period_s, ts):
             raise BenchError(f"controller period {cparams.sample_period_s} s differs from the "
                              f"plant's SYNC period {ts} s")
         dur = profile.duration_s if duration_s is None else duration_s
-        n = int(round(dur / ts))
-        if n < 1:
-            raise BenchError(f"a run of {dur} s is shorter than one SYNC period")
+        n = run_periods(dur, ts)
         t = np.arange(n) * ts
         sp_pos, sp_spd = profile.setpoints(t)
         mode = int(profile.mode)
@@ -581,7 +815,8 @@ class Ecu:
             "position_m", "winding_temperature_k", "load_force_n", "status_word",
             "bus_time_s")}
         stats = EcuStats()
-        self.partial: Trace | None = None
+        self.partial = None
+        self._stop = stop
         k = 0
         bar = None
         if progress:
@@ -591,13 +826,26 @@ class Ecu:
         fresh: set[str] = set()
         frames = self.frames
         bus = self.bus
+        log = self.log
         tpdo_names = self._tpdo_names
         monitor = self._monitor
         pacer = RealtimePacer(ts, spin_us * 1e-6) if pace == Pace.REALTIME else None
+        # lockstep: the heartbeat on the SYNC grid (the plant counts its consumer time in
+        # SYNC periods), and on the wall clock as well (while waiting, or a slow run)
+        hb_every = max(1, round(self._hb_period / ts)) if pacer is None else 0
+        fail_bits = 0
+        for bit in FAILING_BITS:
+            fail_bits |= int(bit)
+        limit_a = _float32_limit(params.motor.current_max_a)
         enc_rpdo = frames.by_name["EMA_RPDO1"]
         enc_sp = frames.by_name["ECU_Setpoint"]
         cob_rpdo, cob_sp = self._cob["EMA_RPDO1"], self._cob["ECU_Setpoint"]
         enable = int(ControlWord.ENABLE)
+        # the first RPDO also carries a fault-reset edge: it clears a command timeout the
+        # node latched before the run (a stall during set-up, when no demand of this run
+        # was in force), so that it is gone at SYNC 1, where the first demand applies
+        first_control = enable | int(ControlWord.FAULT_RESET)
+        timeout_bit = int(StatusWord.COMMAND_TIMEOUT)
         t_wall0 = time.perf_counter()
         t_first_sync: float | None = None
         last_bar = time.monotonic()
@@ -626,10 +874,17 @@ class Ecu:
         # the control loop: what exists now is not scanned again until the run ends
         gc.collect()
         gc.freeze()
+        if stop is not None:
+            stop.defer = True
         try:
+            self.stop_heartbeat()
+            self.check_foreign()
+            self.check_receive()
             self._hb_next = 0.0
             self.heartbeat()
+            self._started = True
             self.nmt(NMTCommand.START)
+            emcy_seen = self._emcy_seen = len(self.emcy)
             if pacer is not None:
                 pacer.start(5 * ts)
             for k in range(n):
@@ -662,28 +917,47 @@ class Ecu:
                         stats.late_tpdo += 1
                         if k % 50 == 0:
                             self._check_alive(k, ts)
-                    if len(latest) < 3:
-                        pacer.done()
-                        continue
+                # what happened during the period, before its row is recorded
+                if self.foreign is not None:
+                    self.check_foreign(f" at t = {k * ts:.3f} s, SYNC {k}")
+                if stop is not None and stop.signum is not None:
+                    raise Interrupted(stop.signum, _at(k, ts))
+                if log is not None and log.error is not None:
+                    log.raise_error("; stopped" + _at(k, ts))
+                if pacer is not None and len(latest) < 3:
+                    pacer.done()
+                    continue
                 t1, t2, t3 = latest["EMA_TPDO1"], latest["EMA_TPDO2"], latest["EMA_TPDO3"]
                 pos = float(t3["LvdtPosition"])
                 spd = float(t2["EncoderSpeed"])
                 demand = ctrl.step(sp_pos[k], sp_spd[k], mode, pos, spd)
+                # within the plant's own current limit (read back), so that a demand the
+                # plant clamps (status bit 5, EMCY demand_invalid) is always a real fault
+                if demand > limit_a:
+                    demand = limit_a
+                elif demand < -limit_a:
+                    demand = -limit_a
                 demand32 = float(np.float32(demand))
                 self.send(can.Message(arbitration_id=cob_rpdo, is_extended_id=False,
-                                      data=enc_rpdo.encode({"CurrentDemand": demand32,
-                                                            "ControlWord": enable},
-                                                           strict=True)))
+                                      data=enc_rpdo.encode({
+                                          "CurrentDemand": demand32,
+                                          "ControlWord": enable if k else first_control},
+                                          strict=True)))
+                word = int(t1["StatusWord"])
                 rows["current_demand_a"][k] = demand32
                 rows["current_a"][k] = t1["MotorCurrent"]
-                rows["status_word"][k] = t1["StatusWord"]
+                rows["status_word"][k] = word
                 rows["motor_speed_rad_s"][k] = spd
                 rows["motor_angle_rad"][k] = t2["EncoderAngle"] * TWO_PI / cpr
                 rows["position_m"][k] = pos
                 rows["winding_temperature_k"][k] = t3["WindingTemperature"]
                 rows["load_force_n"][k] = t3["LoadForce"]
                 stats.periods = k + 1
-                self.heartbeat()
+                if word & fail_bits and (k or word & fail_bits != timeout_bit):
+                    raise self._status_fault(word, k, ts)
+                if len(self.emcy) != emcy_seen:
+                    emcy_seen = self._emcy_seen = self._check_emcy(emcy_seen, k, ts)
+                self.heartbeat(force=bool(hb_every) and (k + 1) % hb_every == 0)
                 if pacer is not None:
                     pacer.done()
                 if on_period is not None:
@@ -696,6 +970,8 @@ class Ecu:
         except BaseException as exc:  # noqa: BLE001 - stored, re-raised below
             error = exc
         finally:
+            if stop is not None:
+                stop.defer = False
             gc.unfreeze()
             stats.wall_s = time.perf_counter() - t_wall0
             if bar is not None:
@@ -713,15 +989,40 @@ class Ecu:
         meta = {"source": "bus", "pace": Pace(pace).name.lower(), "profile": profile.name,
                 "profile_kwargs": profile.kwargs, "fundamental_hz": profile.fundamental_hz,
                 "params": params.to_dict(), "controller": asdict(cparams),
-                "complete": m == n, "node_id": self.node_id, "ecu": asdict(stats)}
+                "complete": m == n, "node_id": self.node_id, "ecu": asdict(stats),
+                "emcy": list(self.emcy)}
         trace = Trace(cols, meta)
         self.partial = trace
         if error is not None:
+            trace.meta["error"] = str(error) or type(error).__name__
             if self.log is not None:
                 stats.frames_logged = self.log.count
+            trace.meta["ecu"] = asdict(stats)
+            self.abort()
             raise error
         self._finish(trace, stats)
         return trace
+
+    def _status_fault(self, word: int, k: int, ts: float) -> PlantFault:
+        """The error for a status word with a FAILING_BITS bit set at SYNC k."""
+        label = next(lb for bit, lb in FAILING_BITS.items() if word & bit)
+        return PlantFault(f"the plant reported {FAILING_TEXT[label]}{_at(k, ts)}: status "
+                          f"word 0x{word:04X} ({', '.join(status_names(word))}); the run "
+                          f"is not valid")
+
+    def _check_emcy(self, seen: int, k: int, ts: float) -> int:
+        """PlantFault for the first EMCY since index `seen` outside REPORTING_EMCY;
+        returns the new count of EMCYs checked."""
+        for e in self.emcy[seen:]:
+            name = e["name"]
+            if name == "heartbeat_lost" and e["cycle"] == 0:
+                continue    # latched before the plant's first period: cleared at SYNC 1
+            if name not in REPORTING_EMCY:
+                what = FAILING_TEXT.get(name, f"an emergency {name} unknown to the bench")
+                raise PlantFault(f"the plant reported {what}{_at(k, ts)}: EMCY "
+                                 f"0x{e['code']:04X} {name} (plant cycle {e['cycle']}); the "
+                                 f"run is not valid")
+        return len(self.emcy)
 
     def _finish(self, trace: Trace, stats: EcuStats) -> None:
         """Orderly end: drive to PRE-OPERATIONAL, stop heartbeat monitoring, counters."""
@@ -751,14 +1052,24 @@ class Ecu:
                             f"no TPDO, last heartbeat {seen}")
 
     def _wait_tpdos(self, poll, fresh: set[str], k: int, ts: float) -> None:
-        """Lockstep: wait for TPDO1-3 of this SYNC (the plant answers every SYNC)."""
+        """Lockstep: wait for TPDO1-3 of this SYNC (the plant answers every SYNC), with the
+        heartbeat on the wall clock; a signal or a failed log ends a long wait."""
         start = self._clock()
+        stop, log = self._stop, self.log
         while len(fresh) < 3:
             poll(0.1)
             self.heartbeat()
             waited = self._clock() - start
-            if len(fresh) < 3 and waited > 1.0:
-                self._check_alive(k, ts)
+            if len(fresh) < 3 and waited > 0.05:
+                if stop is not None and stop.signum is not None:
+                    raise Interrupted(stop.signum, _at(k, ts))
+                if log is not None and log.error is not None:
+                    log.raise_error("; stopped" + _at(k, ts))
+                # a plant that stopped answering because of a condition (a command timeout
+                # sends its EMCY, then no TPDO) says so: fail with it, not with silence
+                self._emcy_seen = self._check_emcy(self._emcy_seen, k, ts)
+                if waited > 1.0:
+                    self._check_alive(k, ts)
                 if waited > 10.0:
                     raise PlantLost(f"the plant sent no TPDO for SYNC {k} (t = {k * ts:.3f} s) "
                                     f"within 10 s although its heartbeat continues")
@@ -779,18 +1090,65 @@ class _TeeBus:
 
 
 class _Callback(can.Listener):
-    def __init__(self, fn: Callable[[can.Message], None]) -> None:
+    """A function as a python-can listener; `on_error` handles what any listener of the
+    notifier raised (python-can then keeps its thread running)."""
+
+    def __init__(self, fn: Callable[[can.Message], None],
+                 on_error: Callable[[Exception], None] | None = None) -> None:
         self.fn = fn
+        self._on_error = on_error
 
     def on_message_received(self, msg: can.Message) -> None:
         self.fn(msg)
+
+    def on_error(self, exc: Exception) -> None:
+        if self._on_error is not None:
+            self._on_error(exc)
+
+
+def _at(k: int, ts: float) -> str:
+    return f" at t = {k * ts:.3f} s (SYNC {k})"
+
+
+def _float32_limit(limit: float) -> float:
+    """The largest float32 not above `limit` (a demand sent as float32 within it)."""
+    v = np.float32(limit)
+    if float(v) > limit:
+        v = np.nextafter(v, np.float32(0.0))
+    return float(v)
+
+
+RUN_COLUMNS = 13     # float64 columns of a bus run's trace (Ecu.run)
+
+
+def run_periods(duration_s: float, period_s: float) -> int:
+    """The SYNC periods of a run of `duration_s`; BenchError, before anything starts, when
+    that is less than one period or more than the trace can hold in memory (the ECU
+    keeps the whole trace in memory: `bench.trace.max_rows`)."""
+    from bench.trace import ROW_COPIES, memory_available
+    n = int(round(duration_s / period_s))
+    if n < 1:
+        raise BenchError(f"a run of {duration_s:g} s is shorter than one SYNC period "
+                         f"({period_s * 1e3:g} ms)")
+    avail = memory_available()
+    limit = max_rows(RUN_COLUMNS, avail)
+    if n > limit:
+        per = 8 * RUN_COLUMNS * ROW_COPIES
+        raise BenchError(
+            f"a run of {duration_s:g} s (--duration, or the profile's own length) is "
+            f"{n:,} SYNC periods, and the ECU keeps the "
+            f"trace in memory ({per} bytes a period with the copies made to save it): half "
+            f"the memory available now ({avail / 1e9:.1f} GB) holds {limit:,} periods, "
+            f"{limit * period_s:,.0f} s; make shorter runs")
+    return n
 
 
 def status_names(word: int) -> list[str]:
     return [f.name.lower() for f in StatusWord if f and f.name and int(word) & f]
 
 
-__all__ = ["Ecu", "EcuStats", "NodeInfo", "PlantLost", "BusLost", "status_names"]
+__all__ = ["Ecu", "EcuStats", "NodeInfo", "PlantLost", "BusLost", "PlantFault", "ForeignEcu",
+           "LogWriteError", "Interrupted", "StopSignal", "run_periods", "status_names"]
 
 
 def plant_values(profile: Profile, assignments: list[str] | None = None,
@@ -848,14 +1206,13 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                  start_plant: bool = True, cparams: ControllerParams | None = None,
                  node_id: int | None = None, announce: Callable[[str], None] | None = None,
                  echo: bool = False, spin_us: int = 200, encoder_counts: int | None = None,
-                 sync_driven: bool = False) -> Trace:
+                 sync_driven: bool = False, stop: StopSignal | None = None) -> Trace:
     """Run `profile` against the plant over the bus and return the trace.
 
     The bus is the configured one (flags in `settings`, environment, config file,
     vcan0, the hub of `bench up`), else a private loopback hub started for this run.
     When no plant answers on a simulated bus (hub, virtual, vcan) and `start_plant`,
     a plant process is started for the run. Everything started here is stopped here.
-    On error the partial trace is in the exception's ``trace`` attribute.
 
     A node without the simulated plant's optional objects (a real actuator,
     docs/node-contract.md) is run with what it has: `announce` is told what is missing
@@ -863,7 +1220,12 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
     ``meta["params"]`` is then left out, since the ECU does not know the node's
     parameters. `encoder_counts` (counts/rev) stands in for a missing encoder
     resolution object; `sync_driven` vouches that a node without the lockstep object
-    steps one period per SYNC, so that `pace` "sync" may run against it."""
+    steps one period per SYNC, so that `pace` "sync" may run against it.
+
+    Before anything starts: the run's length (`run_periods`) and the log path are
+    checked. Before any NMT command or SDO write: `Ecu.claim` (no other ECU on the node).
+    On error the partial trace is in the exception's ``trace`` attribute, the log is
+    closed and the node, once claimed, is set PRE-OPERATIONAL (`Ecu.abort`)."""
     from bench.bus import close_bus, connect, is_simulated, session
     from bench.bus.procs import start_plant as _start_plant
 
@@ -875,6 +1237,10 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
             check_value(resolve("sensors.encoder_counts_per_rev"), encoder_counts)
         except ParameterError as exc:
             raise BenchError(f"--encoder-counts: {exc}") from None
+    run_periods(profile.duration_s if duration_s is None else duration_s,
+                PlantParams().with_dict(vals).sim.sync_period_s)
+    if log_path:
+        probe_output(log_path, "log")
     say = announce or (lambda s: None)
     with session(settings) as sess:
         bus = connect(sess.cfg, receive_own_messages=echo)
@@ -884,6 +1250,7 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
             try:
                 ecu.wait_for_plant(1.0 if sess.children else 0.6)
             except PlantLost:
+                ecu.check_receive()
                 if not (start_plant and is_simulated(sess.cfg)):
                     raise PlantLost(f"no actuator node 0x{ecu.node_id:02X} answering on "
                                     f"{sess.description}") from None
@@ -891,25 +1258,31 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                 sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
                                                   node_id=node_id))
             say(f"bus {sess.description}")
+            ecu.claim(say)
+            ecu.start_heartbeat()
             params = ecu.prepare(pace, vals, spin_us if pace == Pace.REALTIME else None,
                                  origin=origin, encoder_counts=encoder_counts,
                                  sync_driven=sync_driven)
             for note in ecu.node_info.notes:
                 say(note)
-            try:
-                trace = ecu.run(profile, params, cparams, pace, duration_s, progress,
-                                spin_us=spin_us)
-            except BenchError as exc:
-                exc.trace = _with_node(ecu.partial, ecu.node_info)  # type: ignore[attr-defined]
-                raise
-            except KeyboardInterrupt as exc:
-                exc.trace = _with_node(ecu.partial, ecu.node_info)  # type: ignore[attr-defined]
-                raise
+            ecu.check_foreign(" during set-up")
+            ecu.check_receive(" during set-up")
+            trace = ecu.run(profile, params, cparams, pace, duration_s, progress,
+                            spin_us=spin_us, stop=stop)
+            if ecu.log is not None:     # the last frames reach the disk, or the run fails
+                ecu.log.close()
+                ecu.log.raise_error(" at the end of the run")
             _with_node(trace, ecu.node_info)
             trace.meta["bus"] = sess.description
             if log_path:
                 trace.meta["log"] = str(log_path)
             return trace
+        except BaseException as exc:
+            if ecu is not None:
+                ecu.abort()
+                if isinstance(exc, (BenchError, KeyboardInterrupt)):
+                    exc.trace = _with_node(ecu.partial, ecu.node_info)  # type: ignore[attr-defined]
+            raise
         finally:
             if ecu is not None:
                 ecu.close()

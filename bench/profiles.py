@@ -141,12 +141,36 @@ def make_profile(name: str, **kwargs: Any) -> Profile:
         if k not in sig.parameters:
             raise BenchError(f"profile {name!r} has no parameter {k!r} (it has "
                              f"{', '.join(sig.parameters)})")
-        if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)):
-            raise BenchError(f"profile parameter {k} must be a finite number, got {v!r}")
+        if v is not None:
+            check_parameter(name, k, v)
     prof = factory(**{k: v for k, v in kwargs.items() if v is not None})
     if not (math.isfinite(prof.duration_s) and prof.duration_s > 0):
-        raise BenchError(f"profile {name!r}: duration must be > 0 s")
+        raise BenchError(f"profile {name!r}: duration_s must be > 0 s, got {prof.duration_s}")
     return prof
+
+
+# keyword -> (lowest value, whether the lowest value itself is allowed, unit); every
+# other numeric keyword (amplitudes, speeds, loads: a sign is a direction) only has to
+# be finite
+DOMAINS: dict[str, tuple[float, bool, str]] = {
+    "frequency_hz": (0.0, False, "Hz"), "f0_hz": (0.0, False, "Hz"),
+    "f1_hz": (0.0, False, "Hz"), "cycles": (0.0, False, ""),
+    "duration_s": (0.0, False, "s"), "start_s": (0.0, True, "s"), "stop_s": (0.0, True, "s"),
+}
+
+
+def check_parameter(profile: str, name: str, value: Any) -> None:
+    """BenchError unless `value` is a finite number within the domain of keyword `name`
+    (DOMAINS): the one check of every profile parameter, whichever the profile."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(value):
+        raise BenchError(f"profile {profile!r}: {name} must be a finite number, got {value!r}")
+    if name in DOMAINS:
+        low, closed, unit = DOMAINS[name]
+        if value < low or (value == low and not closed):
+            op = ">=" if closed else ">"
+            raise BenchError(f"profile {profile!r}: {name} must be {op} {low:g}"
+                             f"{' ' + unit if unit else ''}, got {value:g}")
 
 
 def profile_args(name: str) -> dict[str, float]:

@@ -19,8 +19,10 @@ Truth columns (only from a simulated plant; never used by the HUMS or the diagno
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
+import os
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +40,11 @@ TRUTH = ("true_position_m", "true_current_a", "true_motor_speed_rad_s", "motor_t
 
 # ECU modes published on the bus (also a DBC value table)
 MODE_IDLE, MODE_POSITION, MODE_SPEED = 0, 1, 2
+TABLE_FORMATS = (".csv", ".parquet", ".npz")
+# a trace held in memory: 8-byte values, and up to 3 copies alive at once (the columns,
+# the temporaries of the set-point functions, the table built to save it)
+ROW_COPIES = 3
+MEMORY_SHARE = 0.5    # of the memory available when the run starts
 
 
 @dataclass
@@ -142,6 +149,59 @@ class Trace:
             return cls({n: table.column(n).to_numpy().astype(float)
                         for n in table.column_names}, meta)
         raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
+
+
+def memory_available() -> int:
+    """Bytes of memory available to a new allocation now (Linux ``MemAvailable``, else
+    the free physical pages)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return 1 << 33
+
+
+def max_rows(n_columns: int, available: int | None = None) -> int:
+    """How many rows of `n_columns` float64 columns a trace may have: MEMORY_SHARE of the
+    memory available, counting ROW_COPIES copies of every row."""
+    avail = memory_available() if available is None else available
+    return int(avail * MEMORY_SHARE) // (8 * n_columns * ROW_COPIES)
+
+
+def probe_output(path: str | Path, what: str) -> Path:
+    """Check, before a run starts, that `path` can be written: not a directory, its
+    folder exists, one byte can be written and flushed (``/dev/full`` fails here). The
+    file is left as it was: a new one is removed, an existing one cut back to its size.
+    BenchError ``cannot write the {what} {path}: {reason}`` otherwise."""
+    p = Path(path)
+    try:
+        if p.is_dir():
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR))
+        existed = p.exists()
+        with open(p, "ab", buffering=0) as fh:
+            size = fh.tell()
+            fh.write(b"\n")
+            if p.is_file():
+                fh.truncate(size)
+        if not existed and p.is_file():
+            p.unlink()
+    except OSError as exc:
+        raise BenchError(f"cannot write the {what} {p}: {exc.strerror or exc}") from None
+    return p
+
+
+def check_save_path(path: str | Path) -> Path:
+    """A table path for `Trace.save`: known format and writable (checked before a run)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in TABLE_FORMATS:
+        raise BenchError(f"--save: unknown table format {suffix!r} (use .csv, .parquet or .npz)")
+    return probe_output(path, "trace")
 
 
 def read_csv_columns(text: str) -> dict[str, np.ndarray]:

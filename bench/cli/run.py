@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import inspect
 import math
+import signal
 import sys
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 
@@ -79,9 +79,12 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """`bench run`: every input checked before anything starts; SIGINT/SIGTERM end the
+    run with its partial trace saved and its log closed (exit 128 + signal number)."""
     from bench.bus import bus_settings
-    from bench.ecu import run_over_bus
+    from bench.ecu import Interrupted, StopSignal, run_over_bus
     from bench.profiles import make_profile, profile_args
+    from bench.trace import check_save_path, probe_output
 
     kwargs = {k[3:]: v for k, v in vars(args).items() if k.startswith("pf_") and v is not None}
     if args.duration is not None:
@@ -90,9 +93,10 @@ def run(args: argparse.Namespace) -> int:
         if "duration_s" in profile_args(args.profile):
             kwargs["duration_s"] = args.duration
     profile = make_profile(args.profile, **kwargs)
-    if args.save and Path(args.save).suffix.lower() not in (".csv", ".parquet", ".npz"):
-        raise BenchError(f"--save: unknown table format {Path(args.save).suffix!r} "
-                         "(use .csv, .parquet or .npz)")
+    if args.save:
+        check_save_path(args.save)
+    if args.log:
+        probe_output(args.log, "log")
     if not 0 <= args.spin_us <= 1000:
         raise BenchError("--spin-us must be within 0..1000 us")
     if not 0 <= args.rt_priority <= 99:
@@ -109,29 +113,56 @@ def run(args: argparse.Namespace) -> int:
     sched = use_realtime_priority(args.rt_priority)
     if args.rt_priority:
         say(f"scheduling: {sched}")
-    try:
-        trace = run_over_bus(profile, assignments=args.assignments, pace=args.pace,
-                             duration_s=args.duration, log_path=args.log, progress=progress,
-                             settings=bus_settings(args), start_plant=not args.no_plant,
-                             node_id=args.node_id, announce=say, spin_us=args.spin_us,
-                             encoder_counts=args.encoder_counts)
-    except BenchError as exc:
-        partial = getattr(exc, "trace", None)
-        if partial is not None and len(partial):
-            if args.save:
-                partial.save(args.save)
-            msg = f"{exc}; {len(partial)} periods done"
-            if args.log:
-                msg += f", log up to there in {args.log}"
+    stop = StopSignal()
+    with stop.installed():
+        try:
+            trace = run_over_bus(profile, assignments=args.assignments, pace=args.pace,
+                                 duration_s=args.duration, log_path=args.log,
+                                 progress=progress, settings=bus_settings(args),
+                                 start_plant=not args.no_plant, node_id=args.node_id,
+                                 announce=say, spin_us=args.spin_us, stop=stop,
+                                 encoder_counts=args.encoder_counts)
+        except BenchError as exc:
+            stop.defer = True       # a second signal must not cut the partial trace's save
+            msg = _ended(exc, args)
+            if isinstance(exc, Interrupted):
+                print(f"error: {msg}", file=sys.stderr)
+                return 128 + exc.signum
             raise BenchError(msg) from None
-        raise
-    finally:
-        use_normal_priority()
-    trace.meta["scheduling"] = sched
-    if args.save:
-        trace.save(args.save)
-    print(summary(trace, args.save))
+        finally:
+            use_normal_priority()
+        stop.defer = True
+        trace.meta["scheduling"] = sched
+        if args.save:
+            try:
+                trace.save(args.save)
+            except OSError as exc:
+                raise BenchError(f"cannot write the trace {args.save}: "
+                                 f"{exc.strerror or exc}; the run itself completed") from None
+        print(summary(trace, args.save))
+        if stop.signum is not None:    # the signal came as the run ended: it is complete
+            print(f"error: interrupted by {signal.Signals(stop.signum).name} at the end of "
+                  f"a complete run ({len(trace)} periods)", file=sys.stderr)
+            return 128 + stop.signum
     return 0
+
+
+def _ended(exc: BenchError, args: argparse.Namespace) -> str:
+    """Save the partial trace of a failed run (`--save`); the one-line message saying
+    how far it went and where the partial results are."""
+    partial = getattr(exc, "trace", None)
+    if partial is None or not len(partial):
+        return f"{exc}; no period done" if getattr(exc, "signum", None) else str(exc)
+    msg = f"{exc}; {len(partial)} periods done"
+    if args.log:
+        msg += f", log up to there in {args.log}"
+    if args.save:
+        try:
+            partial.save(args.save)
+            msg += f", partial trace in {args.save}"
+        except (OSError, BenchError) as err:
+            msg += f", partial trace NOT saved ({err})"
+    return msg
 
 
 def summary(trace, save: str | None = None) -> str:
@@ -170,6 +201,15 @@ def summary(trace, save: str | None = None) -> str:
                      f"{ecu.get('sync_jitter_max_us', 0):.0f} us, "
                      f"{ecu.get('sync_deadline_misses', 0)} deadline misses, "
                      f"{ecu.get('late_tpdo', 0)} late TPDO sets")
+    if n and "status_word" in trace:
+        from plant_rt.busdef import StatusWord
+        words = np.nan_to_num(trace["status_word"]).astype(np.int64)
+        seen = [f"{b.name.lower()} in {int(np.count_nonzero(words & int(b)))} periods"
+                for b in (StatusWord.OVERCURRENT, StatusWord.END_OF_STROKE,
+                          StatusWord.OVERTEMPERATURE) if (words & int(b)).any()]
+        if seen:
+            lines.append("  plant conditions (reported, the run stays valid): "
+                         + ", ".join(seen))
     em = m.get("emcy", [])
     if em:
         c = Counter(e["name"] for e in em)
