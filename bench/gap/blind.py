@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.gap.diagnose import Options, diagnose
 from bench.gap.maneuvers import excitation
 from bench.harness import simulate
 from bench.trace import MEASURED, Trace
@@ -307,7 +308,6 @@ def run_case(case: Case, fidelity: str = "full", duration_s: float = LOG_S,
              ref: dict[str, Any] | None = None,
              effects: list[str] | None = None) -> dict[str, Any]:
     """Generate, diagnose (seeing only the measured log) and score one case."""
-    from bench.gap.diagnose import Options, diagnose
     ref = ref or _REF
     log = generate(case, fidelity=fidelity, duration_s=duration_s)
     t0 = time.perf_counter()
