@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-import control
 import numpy as np
 
 from bench.control import ControllerParams
@@ -71,6 +70,7 @@ class FreqResponse:
         first |L| = 1 crossing, the gain margin is read at the first phase crossing of
         -180 deg (mod 360) at or above half the crossover (a phase wrap well below the
         crossover is the integrator's, not a margin). PM is in [-180, 180)."""
+        import control  # ~1-3 s to import, and it imports pyplot: only when margins are asked for
         w = 2 * math.pi * self.f_hz
         frd = control.frd(self.L, w, smooth=True)
         gms, pms, _, w180, wc, _ = control.stability_margins(frd, returnall=True)

@@ -225,6 +225,7 @@ def p8(res: Result, params: PlantParams) -> None:
     ratio = d3 / d0
     s = params.screw
     m_needed = s.contact_stiffness_n_per_m / 3e3
+    rise = s.stiffness_preload_slope_per_m * 3e3 / s.contact_stiffness_n_per_m   # eq. 5.21
     res.extra["P8"] = {"deflection_0_um": abs(d0) * 1e6, "deflection_3kN_um": abs(d3) * 1e6,
                        "analytic_0_um": 9e3 / analytic_axial_stiffness(params, 0) * 1e6,
                        "analytic_3kN_um": 9e3 / analytic_axial_stiffness(params, 3e3) * 1e6}
@@ -233,7 +234,7 @@ def p8(res: Result, params: PlantParams) -> None:
         Row("P8", "axial deflection at 9 kN, 3 kN preload", "um", "-", round(abs(d3) * 1e6, 3)),
         Row("P8", "deflection ratio preloaded / unpreloaded", "-", 0.5, round(ratio, 3),
             f"with eq. 5.21 as printed (k* = 100 N/um, m = 820.5 1/m) a 3 kN preload "
-            f"raises k by m F_pr / k* = {s.stiffness_preload_slope_per_m * 3e3 / s.contact_stiffness_n_per_m:.1%}; "
+            f"raises k by m F_pr / k* = {rise:.1%}; "
             "the thesis' linear, two-sided contacts leave no other path for preload into "
             f"stiffness, so halving the deflection would need m = k*/F_pr = {m_needed:.0f} "
             "1/m. The model keeps the thesis' m and reports the ratio it gives"),

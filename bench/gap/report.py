@@ -99,7 +99,16 @@ def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
     fig.savefig(out / "traces_before_after.png", dpi=110)
     figs.append(("traces_before_after.png", "Traces and residuals before and after the "
                  "chosen effect"))
-    # -- path residuals with regimes -----------------------------------------------------------
+    if _fig_paths(loc, t, out):
+        figs.append(("path_residuals.png", "Path residuals over time, regimes shaded"))
+    (out / "gap.json").write_text(json.dumps(js, indent=1))
+    idx = out / "index.html"
+    idx.write_text(_html(js, figs))
+    return idx
+
+
+def _fig_paths(loc: dict[str, Any], t: np.ndarray, out: Path) -> bool:
+    """The path residuals over time with the regimes shaded (False: none to draw)."""
     pr = loc.get("_path_residuals", {})
     reg = loc.get("_regimes")
     if pr:
@@ -119,11 +128,8 @@ def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
             f"{r} {c}" for r, c in REGIME_COLOURS.items()) + ")", fontsize=9)
         fig.tight_layout()
         fig.savefig(out / "path_residuals.png", dpi=110)
-        figs.append(("path_residuals.png", "Path residuals over time, regimes shaded"))
-    (out / "gap.json").write_text(json.dumps(js, indent=1))
-    idx = out / "index.html"
-    idx.write_text(_html(js, figs))
-    return idx
+        return True
+    return False
 
 
 def _shade(ax, t: np.ndarray, reg: np.ndarray) -> None:
@@ -137,11 +143,15 @@ def _shade(ax, t: np.ndarray, reg: np.ndarray) -> None:
         ax.axvspan(t[a], t[min(b, len(t) - 1)], color=REGIME_COLOURS[name], alpha=0.15, lw=0)
 
 
+def _shrink(pct: float | None) -> float | None:
+    return pct if pct is None else round(pct, 1)
+
+
 def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
     rows = "".join(
         f"<tr><td>{i}</td><td>{html.escape(c['effect'])}</td>"
         f"<td>{html.escape(fmt_params(c['params']))}</td>"
-        f"<td>{c['heldout_shrink_pct'] if c['heldout_shrink_pct'] is None else round(c['heldout_shrink_pct'], 1)}</td>"
+        f"<td>{_shrink(c['heldout_shrink_pct'])}</td>"
         f"<td>{c['gap_before']['normalised']:.3g} &rarr; {c['gap_after']['normalised']:.3g}</td>"
         f"<td>{c['score']['bic']:.1f}</td></tr>"
         for i, c in enumerate(js["ranking"], 1))
