@@ -17,13 +17,15 @@ Gains are designed here, since the thesis does not print them:
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
-from bench import BenchError
+from bench.paramset import ParamSet
 from bench.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
+from plant_rt.params import THESIS, P
 from plant_rt.pi import clamped_pi
 
 # controller state vector: [speed PI integrator (A), last demand (A)]
@@ -36,29 +38,34 @@ NK = 6
 THESIS_SET_GAIN_V_PER_M = 285.7   # K_SET of table 5.1: thesis position units are volts
 
 
-def position_gain_for_bandwidth(bandwidth_hz: float, ratio: float = 0.25,
-                                lead_m: float = 5e-3) -> float:
-    """Position P gain (motor rad/s per m) giving `bandwidth_hz` with a rigid screw."""
+def position_gain_for_bandwidth(bandwidth_hz: float, ratio: float = THESIS.reducer.ratio,
+                                lead_m: float = THESIS.screw.lead_m) -> float:
+    """Position P gain (motor rad/s per m) giving `bandwidth_hz` with a rigid screw:
+    K = 2 pi f_bw / (tau p / 2 pi) (the nut speed per motor speed, eq. 5.33)."""
     return 2 * math.pi * bandwidth_hz / (ratio * lead_m / (2 * math.pi))
 
 
 @dataclass(frozen=True)
-class ControllerParams:
-    """ECU gains and limits (SI; thesis units are volts for position)."""
-    position_kp_rad_s_per_m: float = position_gain_for_bandwidth(6.0)
-    speed_kp_a_s_per_rad: float = 0.5
-    speed_ki_a_per_rad: float = 12.0
-    speed_limit_rad_s: float = 251.0     # motor speed saturation (section 5.7.1)
-    current_limit_a: float = 25.0        # i_max (table 5.2)
-    sample_period_s: float = 1e-3        # SYNC period
-
-    def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v)) or v < 0:
-                raise BenchError(f"controller parameter {k} must be a finite number >= 0, "
-                                 f"got {v!r}")
-        if self.sample_period_s <= 0:
-            raise BenchError("controller sample_period_s must be > 0")
+class ControllerParams(ParamSet):
+    """ECU gains and limits (SI; thesis units are volts for position), with units, ranges
+    and sources as the plant's (`bench.paramset`)."""
+    _group: ClassVar[str] = "controller"
+    position_kp_rad_s_per_m: float = P(position_gain_for_bandwidth(6.0), "(rad/s)/m", 0.0, 1e7,
+                                       "position P gain: 6 Hz position bandwidth",
+                                       "chosen (section 5.2.2 requirement; thesis gain "
+                                       "not given)")
+    speed_kp_a_s_per_rad: float = P(0.5, "A s/rad", 0.0, 1e3,
+                                    "speed PI proportional gain: 30 Hz crossover, "
+                                    "2 pi 30 J / k_t", "chosen (docs/model.md)")
+    speed_ki_a_per_rad: float = P(12.0, "A/rad", 0.0, 1e6,
+                                  "speed PI integral gain: zero at 1/8 of the crossover",
+                                  "chosen (docs/model.md)")
+    speed_limit_rad_s: float = P(251.0, "rad/s", 0.0, 1e4, "motor speed saturation",
+                                 "section 5.7.1")
+    current_limit_a: float = P(25.0, "A", 0.0, 1000.0, "current demand limit i_max",
+                               "table 5.2")
+    sample_period_s: float = P(1e-3, "s", 1e-4, 0.1, "ECU sample (SYNC) period",
+                               "design.md (as sim.sync_period_s)")
 
     @property
     def position_kp_thesis_units(self) -> float:

@@ -38,7 +38,10 @@ class FreqResponse:
         return self.T / (1.0 - self.T)
 
     def bandwidth_hz(self) -> float:
-        """First frequency where |T| falls 3 dB below its low-frequency value."""
+        """First frequency where |T| falls 3 dB below its low-frequency value.
+
+        Kept here: python-control's `bandwidth()` takes a parametric model (its DC gain),
+        not measured points."""
         mag = 20 * np.log10(np.abs(self.T))
         ref = mag[0]
         below = np.where(mag < ref - 3.0)[0]
@@ -53,49 +56,45 @@ class FreqResponse:
         return float(np.exp(f0 + (f1 - f0) * m0 / (m0 - m1)))
 
     def resonance(self) -> tuple[float, float]:
-        """(frequency Hz, peak dB) of the largest |T| above its low-frequency value."""
+        """(frequency Hz, peak dB) of the largest |T| above its low-frequency value (an argmax
+        over measured points: nothing for a library to do)."""
         mag = 20 * np.log10(np.abs(self.T))
         i = int(np.argmax(mag))
         return float(self.f_hz[i]), float(mag[i] - mag[0])
 
     def margins(self) -> tuple[float, float, float]:
-        """(phase margin deg, gain margin dB, crossover Hz) of L = T/(1-T)."""
-        L = self.L
-        mag = np.abs(L)
-        ph = np.unwrap(np.angle(L))
-        # crossover: last |L| = 1 crossing from above
+        """(phase margin deg, gain margin dB, crossover Hz) of L = T/(1-T).
+
+        Crossings come from python-control's `stability_margins` on the measured FRD
+        (cubic-spline interpolation between the measured points); the crossover is the
+        first |L| = 1 crossing, the gain margin is read at the first phase crossing of
+        -180 deg (mod 360) at or above half the crossover (a phase wrap well below the
+        crossover is the integrator's, not a margin). PM is in [-180, 180)."""
+        import control  # ~1-3 s to import, and it imports pyplot: only when margins are asked for
+        w = 2 * math.pi * self.f_hz
+        frd = control.frd(self.L, w, smooth=True)
+        gms, pms, _, w180, wc, _ = control.stability_margins(frd, returnall=True)
         pm, fc = float("nan"), float("nan")
-        idx = np.where((mag[:-1] >= 1.0) & (mag[1:] < 1.0))[0]
-        if len(idx):
-            i = idx[0]
-            a = (0.0 - np.log(mag[i])) / (np.log(mag[i + 1]) - np.log(mag[i]))
-            phc = ph[i] + a * (ph[i + 1] - ph[i])
-            fc = float(np.exp(np.log(self.f_hz[i]) + a * (np.log(self.f_hz[i + 1])
-                                                          - np.log(self.f_hz[i]))))
-            pm = float(180.0 + math.degrees(phc))
-            # unwrap ambiguity: express in (-180, 180]
-            pm = (pm + 180.0) % 360.0 - 180.0
-        gm = float("inf")
-        # phase crossing -180 deg (mod 360) above the crossover
-        phd = np.degrees(ph)
-        for i in range(len(phd) - 1):
-            for target in (-180.0, -540.0):
-                if (phd[i] - target) * (phd[i + 1] - target) < 0 and (
-                        math.isnan(fc) or self.f_hz[i] >= fc * 0.5):
-                    a = (target - phd[i]) / (phd[i + 1] - phd[i])
-                    m = np.exp(np.log(mag[i]) + a * (np.log(mag[i + 1]) - np.log(mag[i])))
-                    gm = float(-20 * np.log10(m))
-                    return pm, gm, fc
-        return pm, gm, fc
+        if len(wc):
+            pm, fc = float(pms[0]), float(wc[0] / (2 * math.pi))
+        for g, w_ in zip(gms, w180, strict=True):
+            if math.isnan(fc) or w_ / (2 * math.pi) >= fc * 0.5:
+                return pm, float(20 * np.log10(g)), fc
+        return pm, float("inf"), fc
 
 
 def lockin(y: np.ndarray, t: np.ndarray, f: float) -> complex:
-    """Complex amplitude of y at frequency f (y ~ Re(A e^{j 2 pi f t}))."""
+    """Complex amplitude of y at frequency f (y ~ Re(A e^{j 2 pi f t})).
+
+    Kept here: a one-bin DFT at an arbitrary frequency over whole periods (the test
+    frequency is not an FFT bin, so numpy.fft / scipy.signal have no call for it)."""
     e = np.exp(-2j * math.pi * f * t)
     return complex(2.0 * np.mean(y * e))
 
 
 def _window(t: np.ndarray, f: float, settle_cycles: float, cycles: float) -> np.ndarray:
+    """Samples of whole periods after the transient: a time selection (rectangular over
+    whole periods), not a spectral taper, so not a `scipy.signal.get_window` window."""
     t0 = settle_cycles / f
     return (t >= t0) & (t < t0 + cycles / f)
 

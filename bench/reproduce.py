@@ -225,6 +225,7 @@ def p8(res: Result, params: PlantParams) -> None:
     ratio = d3 / d0
     s = params.screw
     m_needed = s.contact_stiffness_n_per_m / 3e3
+    rise = s.stiffness_preload_slope_per_m * 3e3 / s.contact_stiffness_n_per_m   # eq. 5.21
     res.extra["P8"] = {"deflection_0_um": abs(d0) * 1e6, "deflection_3kN_um": abs(d3) * 1e6,
                        "analytic_0_um": 9e3 / analytic_axial_stiffness(params, 0) * 1e6,
                        "analytic_3kN_um": 9e3 / analytic_axial_stiffness(params, 3e3) * 1e6}
@@ -233,7 +234,7 @@ def p8(res: Result, params: PlantParams) -> None:
         Row("P8", "axial deflection at 9 kN, 3 kN preload", "um", "-", round(abs(d3) * 1e6, 3)),
         Row("P8", "deflection ratio preloaded / unpreloaded", "-", 0.5, round(ratio, 3),
             f"with eq. 5.21 as printed (k* = 100 N/um, m = 820.5 1/m) a 3 kN preload "
-            f"raises k by m F_pr / k* = {s.stiffness_preload_slope_per_m * 3e3 / s.contact_stiffness_n_per_m:.1%}; "
+            f"raises k by m F_pr / k* = {rise:.1%}; "
             "the thesis' linear, two-sided contacts leave no other path for preload into "
             f"stiffness, so halving the deflection would need m = k*/F_pr = {m_needed:.0f} "
             "1/m. The model keeps the thesis' m and reports the ratio it gives"),
@@ -283,7 +284,7 @@ def run(params: PlantParams | None = None, cparams: ControllerParams | None = No
     items = [(k, f) for k, f in ROWS.items() if not only or k in only]
     it: Any = items
     if progress:
-        from tqdm import tqdm
+        from tqdm import tqdm  # only for the interactive progress bar
         it = tqdm(items, desc="reproduce", unit="group")
     for name, fn in it:
         if name == "P5-P7":
@@ -340,93 +341,109 @@ def markdown(res: Result, machine: str = "") -> str:
 
 def figures(res: Result, outdir: str | Path) -> list[Path]:
     """PNG figures like the thesis' (position, velocity, current, torque, friction, Bode)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    if "P1" in res.traces:
-        tr = res.traces["P1"]
-        fig, ax = plt.subplots(2, 2, figsize=(10, 6.5), sharex=True)
-        ax[0, 0].plot(tr.t, tr["setpoint_position_m"] * 1e3, "k--", lw=1, label="set-point")
-        ax[0, 0].plot(tr.t, tr["true_position_m"] * 1e3, label="nut")
-        ax[0, 0].set_ylabel("position [mm]")
-        ax[0, 0].legend()
-        ax[0, 1].plot(tr.t, np.gradient(tr["true_position_m"], tr.t) * 1e3)
-        ax[0, 1].set_ylabel("nut speed [mm/s]")
-        ax[1, 0].plot(tr.t, tr["true_motor_speed_rad_s"], label="motor")
-        ax[1, 0].plot(tr.t, tr["true_motor_speed_rad_s"] * 0.25, label="screw")
-        ax[1, 0].set_ylabel("speed [rad/s]")
-        ax[1, 0].legend()
-        ax[1, 1].plot(tr.t, tr["current_a"], label="current sensor")
-        ax[1, 1].plot(tr.t, tr["motor_torque_nm"], label="torque [N m]", alpha=0.7)
-        ax[1, 1].set_ylabel("current [A] / torque [N m]")
-        ax[1, 1].legend()
-        for a in ax[1]:
-            a.set_xlabel("time [s]")
-        fig.suptitle("P1-P3: 40 mm position step, no load (thesis figs. 5.23-5.27)")
-        fig.tight_layout()
-        paths.append(out / "p1_step.png")
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
-    if "P4+" in res.traces:
-        fig, ax = plt.subplots(2, 2, figsize=(10, 6.5), sharex=True)
-        for key, lab in (("P40", "no load"), ("P4+", "+15 kN"), ("P4-", "-15 kN")):
-            tr = res.traces[key]
-            ax[0, 0].plot(tr.t, tr["true_position_m"] * 1e3, label=lab)
-            ax[0, 1].plot(tr.t, tr["motor_torque_nm"], label=lab)
-            ax[1, 0].plot(tr.t, tr["friction_torque_nm"], label=lab)
-            ax[1, 1].plot(tr.t, tr["friction_force_n"], label=lab)
-        ax[0, 0].set_ylabel("nut position [mm]")
-        ax[0, 1].set_ylabel("motor torque [N m]")
-        ax[1, 0].set_ylabel("screw friction torque [N m]")
-        ax[1, 1].set_ylabel("nut friction force [N]")
-        for a in ax.flat:
-            a.legend(fontsize=8)
-        for a in ax[1]:
-            a.set_xlabel("time [s]")
-        fig.suptitle("P4: 10 mm step with a +-15 kN load ramp (thesis figs. 5.28-5.32)")
-        fig.tight_layout()
-        paths.append(out / "p4_load.png")
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
-    if res.responses:
-        fig, ax = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-        for name, r in res.responses.items():
-            ax[0].semilogx(r.f_hz, 20 * np.log10(np.abs(r.T)), "o-", ms=3, label=name)
-            ax[1].semilogx(r.f_hz, np.degrees(np.unwrap(np.angle(r.T))), "o-", ms=3)
-        ax[0].axhline(-3, color="k", lw=0.6, ls=":")
-        ax[0].set_ylabel("|T| [dB]")
-        ax[0].set_ylim(-30, 6)
-        ax[0].legend(fontsize=8)
-        ax[1].set_ylabel("phase [deg]")
-        ax[1].set_xlabel("frequency [Hz]")
-        fig.suptitle("P5-P7: measured closed-loop responses (reference -> sensor)")
-        fig.tight_layout()
-        paths.append(out / "p5_p7_bode.png")
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
-    if "P9 F_pr=0kN" in res.traces:
-        fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-        for key in ("P9 F_pr=0kN", "P9 F_pr=1kN", "P9 F_pr=3.5kN"):
-            tr = res.traces[key]
-            m = (tr.t > 0.9) & (tr.t < 1.3)
-            ax[0].plot(tr.t[m], (tr["true_position_m"] - tr["setpoint_position_m"])[m] * 1e6,
-                       label=key[3:])
-            ax[1].plot(tr.t, tr["friction_torque_nm"], label=key[3:], lw=0.8)
-        ax[0].set_ylabel("position error [um]")
-        ax[0].set_xlabel("time [s]")
-        ax[1].set_ylabel("screw friction torque [N m]")
-        ax[1].set_xlabel("time [s]")
-        ax[0].legend()
-        fig.suptitle("P9: 3 Hz sine, 10 kN load step at 1 s, three preloads (figs. 5.38-5.40)")
-        fig.tight_layout()
-        paths.append(out / "p9_preload.png")
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
+    for name, draw in (("p1_step.png", _fig_step), ("p4_load.png", _fig_load),
+                       ("p5_p7_bode.png", _fig_bode), ("p9_preload.png", _fig_preload)):
+        fig = draw(res)
+        if fig is not None:
+            fig.tight_layout()
+            paths.append(out / name)
+            fig.savefig(paths[-1], dpi=110)
     return paths
+
+
+def _figure(width_in: float, height_in: float) -> Any:
+    from matplotlib.figure import Figure  # matplotlib only when figures are asked for
+    return Figure(figsize=(width_in, height_in))
+
+
+def _fig_step(res: Result) -> Any:
+    if "P1" not in res.traces:
+        return None
+    tr = res.traces["P1"]
+    fig = _figure(10, 6.5)
+    ax = fig.subplots(2, 2, sharex=True)
+    ax[0, 0].plot(tr.t, tr["setpoint_position_m"] * 1e3, "k--", lw=1, label="set-point")
+    ax[0, 0].plot(tr.t, tr["true_position_m"] * 1e3, label="nut")
+    ax[0, 0].set_ylabel("position [mm]")
+    ax[0, 0].legend()
+    ax[0, 1].plot(tr.t, np.gradient(tr["true_position_m"], tr.t) * 1e3)
+    ax[0, 1].set_ylabel("nut speed [mm/s]")
+    ax[1, 0].plot(tr.t, tr["true_motor_speed_rad_s"], label="motor")
+    ax[1, 0].plot(tr.t, tr["true_motor_speed_rad_s"] * 0.25, label="screw")
+    ax[1, 0].set_ylabel("speed [rad/s]")
+    ax[1, 0].legend()
+    ax[1, 1].plot(tr.t, tr["current_a"], label="current sensor")
+    ax[1, 1].plot(tr.t, tr["motor_torque_nm"], label="torque [N m]", alpha=0.7)
+    ax[1, 1].set_ylabel("current [A] / torque [N m]")
+    ax[1, 1].legend()
+    for a in ax[1]:
+        a.set_xlabel("time [s]")
+    fig.suptitle("P1-P3: 40 mm position step, no load (thesis figs. 5.23-5.27)")
+    return fig
+
+
+def _fig_load(res: Result) -> Any:
+    if "P4+" not in res.traces:
+        return None
+    fig = _figure(10, 6.5)
+    ax = fig.subplots(2, 2, sharex=True)
+    for key, lab in (("P40", "no load"), ("P4+", "+15 kN"), ("P4-", "-15 kN")):
+        tr = res.traces[key]
+        ax[0, 0].plot(tr.t, tr["true_position_m"] * 1e3, label=lab)
+        ax[0, 1].plot(tr.t, tr["motor_torque_nm"], label=lab)
+        ax[1, 0].plot(tr.t, tr["friction_torque_nm"], label=lab)
+        ax[1, 1].plot(tr.t, tr["friction_force_n"], label=lab)
+    ax[0, 0].set_ylabel("nut position [mm]")
+    ax[0, 1].set_ylabel("motor torque [N m]")
+    ax[1, 0].set_ylabel("screw friction torque [N m]")
+    ax[1, 1].set_ylabel("nut friction force [N]")
+    for a in ax.flat:
+        a.legend(fontsize=8)
+    for a in ax[1]:
+        a.set_xlabel("time [s]")
+    fig.suptitle("P4: 10 mm step with a +-15 kN load ramp (thesis figs. 5.28-5.32)")
+    return fig
+
+
+def _fig_bode(res: Result) -> Any:
+    if not res.responses:
+        return None
+    fig = _figure(9, 7)
+    ax = fig.subplots(2, 1, sharex=True)
+    for name, r in res.responses.items():
+        ax[0].semilogx(r.f_hz, 20 * np.log10(np.abs(r.T)), "o-", ms=3, label=name)
+        ax[1].semilogx(r.f_hz, np.degrees(np.unwrap(np.angle(r.T))), "o-", ms=3)
+    ax[0].axhline(-3, color="k", lw=0.6, ls=":")
+    ax[0].set_ylabel("|T| [dB]")
+    ax[0].set_ylim(-30, 6)
+    ax[0].legend(fontsize=8)
+    ax[1].set_ylabel("phase [deg]")
+    ax[1].set_xlabel("frequency [Hz]")
+    fig.suptitle("P5-P7: measured closed-loop responses (reference -> sensor)")
+    return fig
+
+
+def _fig_preload(res: Result) -> Any:
+    if "P9 F_pr=0kN" not in res.traces:
+        return None
+    fig = _figure(11, 4)
+    ax = fig.subplots(1, 2)
+    for key in ("P9 F_pr=0kN", "P9 F_pr=1kN", "P9 F_pr=3.5kN"):
+        tr = res.traces[key]
+        m = (tr.t > 0.9) & (tr.t < 1.3)
+        ax[0].plot(tr.t[m], (tr["true_position_m"] - tr["setpoint_position_m"])[m] * 1e6,
+                   label=key[3:])
+        ax[1].plot(tr.t, tr["friction_torque_nm"], label=key[3:], lw=0.8)
+    ax[0].set_ylabel("position error [um]")
+    ax[0].set_xlabel("time [s]")
+    ax[1].set_ylabel("screw friction torque [N m]")
+    ax[1].set_xlabel("time [s]")
+    ax[0].legend()
+    fig.suptitle("P9: 3 Hz sine, 10 kN load step at 1 s, three preloads (figs. 5.38-5.40)")
+    return fig
 
 
 __all__ = ["run", "markdown", "figures", "Row", "Result", "make_profile",

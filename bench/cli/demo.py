@@ -21,8 +21,10 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from bench import BenchError
+from bench.bus import add_bus_arguments, bus_settings
 
 # name, degradation d (0..1; backlash 100 d um, friction x(1 + 3 d)), noise seed
 CASES: tuple[tuple[str, float, int], ...] = (("healthy", 0.0, 11), ("worn", 0.5, 12),
@@ -30,7 +32,6 @@ CASES: tuple[tuple[str, float, int], ...] = (("healthy", 0.0, 11), ("worn", 0.5,
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    from bench.bus import add_bus_arguments
     p = sub.add_parser(
         "demo", help="the main job on embedded defaults: healthy, worn and failing "
         "actuator over the bus, HUMS report, gap diagnosis",
@@ -49,39 +50,42 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _assignments(d: float, seed: int) -> list[str]:
-    """`bench run --set` values of degradation d, the sweep's definition (chapter 6)."""
-    from bench.hums.sweep import degraded
-    from plant_rt.params import PlantParams
+def _values(d: float, seed: int) -> dict[str, Any]:
+    """Plant parameter values of degradation d, the sweep's definition (chapter 6): what
+    the degraded set changes from the defaults, by dotted name."""
+    from bench.hums.sweep import degraded  # heavy (numba): imported when the demo runs
+    from plant_rt.params import PlantParams  # imports the compiled plant: as above
     p = degraded(PlantParams(), d, noise=True, seed=seed)
-    return [f"{k}={v}" for k, (v, _) in p.diff(PlantParams()).items()]
+    return {k: v for k, (v, _) in p.diff(PlantParams()).items()}
 
 
-def _run_case(name: str, d: float, seed: int, cycles: float, out: Path,
+def _shown(values: dict[str, Any]) -> list[str]:
+    """``NAME=VALUE`` as `bench run --set` would take them (for the screen and summary)."""
+    return [f"{k}={v}" for k, v in values.items()]
+
+
+def _run_case(name: str, values: dict[str, Any], cycles: float, out: Path,
               args: argparse.Namespace, say) -> Path:
+    # the imports below are heavy (numba): made when the demo runs, not at `bench --help`
     from bench.profiles import make_profile
+    from plant_rt.params import PlantParams
     profile = make_profile("sine", cycles=cycles)
-    sets = _assignments(d, seed)
+    params = PlantParams().with_dict(values)
     if args.in_process:
         from bench.harness import simulate
-        from plant_rt.params import PlantParams
-        params = PlantParams().with_assignments(sets)
         trace = simulate(profile, params)
         path = out / f"{name}.npz"
         trace.save(path)
         return path
-    from bench.bus import bus_settings
     from bench.ecu import run_over_bus
     path = out / f"{name}.log"
-    trace = run_over_bus(profile, assignments=sets, pace=args.pace, log_path=path,
+    trace = run_over_bus(profile, values=values, pace=args.pace, log_path=path,
                          progress=sys.stderr.isatty(), settings=bus_settings(args),
                          announce=say if name == CASES[0][0] else None)
     trace.save(out / f"{name}.npz")
     # a plant already on the bus (`bench up --set ...`) keeps its own start-up values for
     # what the demo does not set: say so rather than pass them off as the defaults
-    from plant_rt.params import PlantParams
-    ran = PlantParams.from_dict(trace.meta["params"])
-    other = ran.diff(PlantParams().with_assignments(sets))
+    other = PlantParams.from_dict(trace.meta["params"]).diff(params)
     if other:
         say(f"warning: the plant on this bus ran {name} with non-default "
             f"{', '.join(sorted(other))}; restart it without --set for the embedded defaults")
@@ -100,7 +104,7 @@ def _finite(v):
 
 
 def run(args: argparse.Namespace) -> int:
-    from plant_rt.params import PlantParams
+    from plant_rt.params import PlantParams  # the compiled plant: not at `bench --help`
     if not (math.isfinite(args.cycles) and 1 <= args.cycles <= 1000):
         raise BenchError("--cycles must be within 1..1000")
     out = Path(args.out)
@@ -118,14 +122,14 @@ def run(args: argparse.Namespace) -> int:
     logs: list[Path] = []
     for i, (name, d, seed) in enumerate(CASES, 1):
         t0 = time.perf_counter()
-        sets = _assignments(d, seed)
-        shown = ", ".join(s for s in sets if not s.startswith("sensors.noise_seed"))
+        values = _values(d, seed)
+        shown = ", ".join(s for s in _shown(values) if not s.startswith("sensors.noise_seed"))
         print(f"[{i}/{len(CASES)}] {name}: {shown or 'nominal'}", flush=True)
-        logs.append(_run_case(name, d, seed, args.cycles, out, args, say))
+        logs.append(_run_case(name, values, args.cycles, out, args, say))
         print(f"      {logs[-1]} ({time.perf_counter() - t0:.1f} s)", flush=True)
 
     print("HUMS: indexes against the monitoring model, verdicts, report", flush=True)
-    from bench.hums.report import write_report
+    from bench.hums.report import write_report  # heavy, as above
     t0 = time.perf_counter()
     page, analyses = write_report([str(p) for p in logs], out / "hums", PlantParams(),
                                   rul=False, progress=False)
@@ -146,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
     gap = None
     if not args.no_gap:
         print("gap diagnosis of the worn log against the nominal model", flush=True)
+        # heavy, and skipped with --no-gap
         from bench.gap.diagnose import Options, diagnose
         from bench.gap.inputs import load_log
         from bench.gap.report import write_report as gap_report
@@ -160,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  report: {idx} ({time.perf_counter() - t0:.1f} s)")
 
     (out / "summary.json").write_text(json.dumps(_finite(
-        {"cases": [{"name": n, "degradation": d, "assignments": _assignments(d, s)}
+        {"cases": [{"name": n, "degradation": d, "assignments": _shown(_values(d, s))}
                    for n, d, s in CASES],
          "hums": rows, "gap": gap, "wall_s": time.perf_counter() - t_all}),
         indent=1, allow_nan=False))

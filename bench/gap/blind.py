@@ -13,11 +13,11 @@ balls) with sensor noise on, while the diagnosis re-simulates in the fast mode: 
               logged current)
 
 Every log is the diagnosis maneuver (`bench.gap.maneuvers.excitation`, with its axial sine
-load measured by the load cell). Effects act in the plant (parameters, inside the loop) or, for sensor-side effects, on
-the logged columns after the run (a first-order LVDT lag, a time skew of the
-measurements). Their magnitudes are drawn here from physical ranges (thesis section
-5.7.4 where it gives one) with code and ranges independent of the candidate library;
-the diagnosis receives only the measured columns, without metadata.
+load measured by the load cell). Effects act in the plant (parameters, inside the loop)
+or, for sensor-side effects, on the logged columns after the run (a first-order LVDT lag,
+a time skew of the measurements). Their magnitudes are drawn here from physical ranges
+(thesis section 5.7.4 where it gives one) with code and ranges independent of the
+candidate library; the diagnosis receives only the measured columns, without metadata.
 
 Whether an effect is "above the noise floor" is decided here from simulation truth the
 diagnosis never sees: the noise-free log with the effect against the noise-free
@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.gap.diagnose import Options, diagnose
 from bench.gap.maneuvers import excitation
 from bench.harness import simulate
 from bench.trace import MEASURED, Trace
@@ -72,6 +73,7 @@ class Truth:
 
 def draw(name: str, rng: np.random.Generator) -> Truth:
     """A random magnitude of effect `name` (generator-side ranges)."""
+    # long: one flat branch per generated effect, each a range and its expected values
     n = NOMINAL
     if name == "backlash":
         v = rng.uniform(5e-6, 100e-6)
@@ -307,7 +309,6 @@ def run_case(case: Case, fidelity: str = "full", duration_s: float = LOG_S,
              ref: dict[str, Any] | None = None,
              effects: list[str] | None = None) -> dict[str, Any]:
     """Generate, diagnose (seeing only the measured log) and score one case."""
-    from bench.gap.diagnose import Options, diagnose
     ref = ref or _REF
     log = generate(case, fidelity=fidelity, duration_s=duration_s)
     t0 = time.perf_counter()

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from bench.gap import effects as E
+from bench.gap.autocorr import corr_length
 from bench.gap.problem import Problem
 
 DIFF_STEP = 0.01     # finite-difference step in [0, 1] coordinates
@@ -69,26 +70,6 @@ class Fit:
                 lo, hi = ci.get(p.name, (float("nan"), float("nan")))
                 out[p.name] = {"value": th[p.name], "ci95": [lo, hi], "unit": p.unit}
         return out
-
-
-def corr_length(r: np.ndarray, max_lag: int = 400) -> float:
-    """Integrated autocorrelation time of a residual series (samples, >= 1): 1 + 2 sum of
-    the autocorrelation up to its first non-positive value."""
-    r = np.asarray(r, float)
-    r = r - r.mean()
-    n = len(r)
-    if n < 4 or not np.any(r):
-        return 1.0
-    m = min(max_lag, n // 4)
-    f = np.fft.rfft(r, 2 * n)
-    ac = np.fft.irfft(f * np.conj(f))[:m + 1]
-    ac = ac / ac[0]
-    s = 0.0
-    for k in range(1, m + 1):
-        if ac[k] <= 0.0:
-            break
-        s += ac[k]
-    return float(max(1.0, 1.0 + 2.0 * s))
 
 
 def residual_corr_length(p: Problem, sim: dict[str, np.ndarray], lo: int, hi: int) -> float:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.gap.effects import Effect, Param
+from bench.gap.candidate import Effect, Param
 from bench.gap.resim import first_order
 from plant_rt import kernel as K
 from plant_rt.model import param_vector
@@ -220,3 +220,11 @@ class Lead(_Single):
     doc = "screw lead (pitch) error"
     params = (Param("lead_m", "m", 4.0e-3, 6.0e-3, "lead (5e-3 nominal)"),)
     target = "screw.lead_m"
+
+
+# The built-in candidates in the diagnosis' order (`bench.gap.effects.EFFECTS` is built
+# from this tuple, keyed by each class's `name`).
+BUILTIN: tuple[type[Effect], ...] = (
+    Backlash, Friction, Viscous, Stribeck, Stiffness, Preload, SensorDelay, LvdtLag, LogSkew,
+    LvdtGain, LvdtOffset, EncoderGain, CurrentOffset, Resistance, ThermalDrift,
+    TorqueConstant, Inertia, Lead)

@@ -26,6 +26,8 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d, uniform_filter1d
+from scipy.signal import get_window
 
 from bench.gap import resim as R
 from bench.gap.problem import Problem
@@ -48,17 +50,18 @@ PATH_DOC = {
 
 
 def _smooth(y: np.ndarray, w: int) -> np.ndarray:
+    """Centred moving average over `w` samples, ends padded with the end values (scipy's
+    "nearest"); a copy when `y` is shorter than `w`."""
     if w <= 1 or len(y) < w:
         return y.copy()
-    k = np.ones(w) / w
-    return np.convolve(np.pad(y, (w // 2, w - 1 - w // 2), mode="edge"), k, mode="valid")
+    return uniform_filter1d(np.asarray(y, float), w, mode="nearest")
 
 
 def _dilate(mask: np.ndarray, half: int) -> np.ndarray:
+    """`mask` widened by `half` samples on each side (a binary dilation)."""
     if half <= 0 or not mask.any():
         return mask.copy()
-    c = np.convolve(mask.astype(float), np.ones(2 * half + 1), mode="same")
-    return c > 0.5
+    return maximum_filter1d(mask, 2 * half + 1, mode="constant", cval=False)
 
 
 def _change(y: np.ndarray, w: int) -> np.ndarray:
@@ -131,7 +134,7 @@ def fundamental_hz(p: Problem, meta_hz: float | None = None) -> float:
     if not np.any(sp):
         return float("nan")
     f = np.fft.rfftfreq(len(sp), p.dt)
-    a = np.abs(np.fft.rfft(sp * np.hanning(len(sp))))
+    a = np.abs(np.fft.rfft(sp * get_window("hann", len(sp), fftbins=False)))
     keep = f > 2.0 / (len(sp) * p.dt)
     if not keep.any():
         return float("nan")
@@ -143,7 +146,7 @@ def band_shares(r: np.ndarray, dt: float, f0: float) -> dict[str, float]:
     each band; sums to 1, or all 0 when nothing exceeds the floor."""
     if not (math.isfinite(f0) and f0 > 0) or len(r) < 8:
         return {b[0]: float("nan") for b in BANDS}
-    w = np.hanning(len(r))
+    w = get_window("hann", len(r), fftbins=False)       # symmetric Hann
     spec = np.abs(np.fft.rfft(r * w)) ** 2
     tot = float(spec.sum())
     if tot <= 0:

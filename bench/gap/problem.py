@@ -20,9 +20,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from bench import BenchError
 from bench.gap import resim as R
+from bench.gap.autocorr import corr_length
 from bench.gap.effects import Effect
 from bench.trace import MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
@@ -346,7 +348,6 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     p.info["bootstrap"] = boot
     p.info["bootstrap_energy"] = [
         {s: float(np.mean(b[s] ** 2)) / p.sigma[s] ** 2 for s in R.SIGNALS} for b in boot]
-    from bench.gap.fit import corr_length
     p.info["corr_smooth"] = {s: float(np.mean([corr_length(smooth(b[s]), max_lag=2000)
                                                for b in boot])) for s in R.SIGNALS}
     p.info["bootstrap_energy_smooth"] = [
@@ -363,5 +364,4 @@ def smooth(y: np.ndarray, w: int = 10) -> np.ndarray:
     slow part of a residual and divides white noise's energy by about `w`."""
     if w <= 1 or len(y) < w:
         return np.asarray(y, float).copy()
-    k = np.ones(w) / w
-    return np.convolve(np.pad(y, (w // 2, w - 1 - w // 2), mode="edge"), k, mode="valid")
+    return uniform_filter1d(np.asarray(y, float), w, mode="nearest")

@@ -25,11 +25,9 @@ REGIME_COLOURS = {"reversal": "#d62728", "load_change": "#9467bd", "acceleration
                   "cruise": "#2ca02c", "dwell": "#c7c7c7"}
 
 
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+def _figure(width_in: float, height_in: float) -> Any:
+    from matplotlib.figure import Figure  # matplotlib only when a report is asked for
+    return Figure(figsize=(width_in, height_in))
 
 
 def _bars(ax, table: dict[str, dict[str, float]], keys: list[str], title: str) -> None:
@@ -47,13 +45,13 @@ def _bars(ax, table: dict[str, dict[str, float]], keys: list[str], title: str) -
 
 def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
     """Write the figures and index.html into `out`; returns the index path."""
-    plt = _plt()
     out.mkdir(parents=True, exist_ok=True)
     loc = res.localisation
     p = res.problem
     figs: list[tuple[str, str]] = []
     # -- regimes and bands ------------------------------------------------------------------
-    fig, axes = plt.subplots(2, 2, figsize=(12, 7.5))
+    fig = _figure(12, 7.5)
+    axes = fig.subplots(2, 2)
     sig = loc["signals"]
     _bars(axes[0, 0], {s: {r: sig[s]["by_regime"][r]["energy_share"] for r in REGIMES}
                        for s in sig}, list(REGIMES), "signals: residual by regime")
@@ -67,7 +65,6 @@ def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
               "paths: residual by band")
     fig.tight_layout()
     fig.savefig(out / "residual_regime_band.png", dpi=110)
-    plt.close(fig)
     figs.append(("residual_regime_band.png", "Residual energy by regime and frequency band"))
     # -- traces before / after -----------------------------------------------------------------
     nominal = p.info.get("nominal") or p.simulate()
@@ -75,8 +72,8 @@ def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
     if res.chosen is not None:
         after = p.simulate([E.get(n) for n in res.chosen.fit.effects], res.chosen.fit.theta)
     t = p.drive.t
-    fig, axes = plt.subplots(len(R.SIGNALS), 2, figsize=(13, 2.6 * len(R.SIGNALS)),
-                             sharex=True)
+    fig = _figure(13, 2.6 * len(R.SIGNALS))
+    axes = fig.subplots(len(R.SIGNALS), 2, sharex=True)
     for i, s in enumerate(R.SIGNALS):
         k, u = SIGNAL_UNITS[s]
         ax = axes[i, 0]
@@ -100,14 +97,23 @@ def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
     axes[-1, 1].set_xlabel("t (s)")
     fig.tight_layout()
     fig.savefig(out / "traces_before_after.png", dpi=110)
-    plt.close(fig)
     figs.append(("traces_before_after.png", "Traces and residuals before and after the "
                  "chosen effect"))
-    # -- path residuals with regimes -----------------------------------------------------------
+    if _fig_paths(loc, t, out):
+        figs.append(("path_residuals.png", "Path residuals over time, regimes shaded"))
+    (out / "gap.json").write_text(json.dumps(js, indent=1))
+    idx = out / "index.html"
+    idx.write_text(_html(js, figs))
+    return idx
+
+
+def _fig_paths(loc: dict[str, Any], t: np.ndarray, out: Path) -> bool:
+    """The path residuals over time with the regimes shaded (False: none to draw)."""
     pr = loc.get("_path_residuals", {})
     reg = loc.get("_regimes")
     if pr:
-        fig, axes = plt.subplots(len(pr), 1, figsize=(13, 2.2 * len(pr)), sharex=True)
+        fig = _figure(13, 2.2 * len(pr))
+        axes = fig.subplots(len(pr), 1, sharex=True)
         axes = np.atleast_1d(axes)
         for ax, name in zip(axes, [q for q in PATHS if q in pr], strict=False):
             r = pr[name]
@@ -122,12 +128,8 @@ def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
             f"{r} {c}" for r, c in REGIME_COLOURS.items()) + ")", fontsize=9)
         fig.tight_layout()
         fig.savefig(out / "path_residuals.png", dpi=110)
-        plt.close(fig)
-        figs.append(("path_residuals.png", "Path residuals over time, regimes shaded"))
-    (out / "gap.json").write_text(json.dumps(js, indent=1))
-    idx = out / "index.html"
-    idx.write_text(_html(js, figs))
-    return idx
+        return True
+    return False
 
 
 def _shade(ax, t: np.ndarray, reg: np.ndarray) -> None:
@@ -141,11 +143,15 @@ def _shade(ax, t: np.ndarray, reg: np.ndarray) -> None:
         ax.axvspan(t[a], t[min(b, len(t) - 1)], color=REGIME_COLOURS[name], alpha=0.15, lw=0)
 
 
+def _shrink(pct: float | None) -> float | None:
+    return pct if pct is None else round(pct, 1)
+
+
 def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
     rows = "".join(
         f"<tr><td>{i}</td><td>{html.escape(c['effect'])}</td>"
         f"<td>{html.escape(fmt_params(c['params']))}</td>"
-        f"<td>{c['heldout_shrink_pct'] if c['heldout_shrink_pct'] is None else round(c['heldout_shrink_pct'], 1)}</td>"
+        f"<td>{_shrink(c['heldout_shrink_pct'])}</td>"
         f"<td>{c['gap_before']['normalised']:.3g} &rarr; {c['gap_after']['normalised']:.3g}</td>"
         f"<td>{c['score']['bic']:.1f}</td></tr>"
         for i, c in enumerate(js["ranking"], 1))

@@ -1,0 +1,107 @@
+"""What a candidate effect is: small, bounded, physically parameterised augmentations of a
+model (`Param`, `Effect`); the built-in ones are in `bench.gap.library`, found by name
+through `bench.gap.effects`.
+
+An `Effect` names a mechanism the nominal model lacks (backlash, friction growth, a
+sensor lag, ...) through a few parameters, each with a unit and bounds. It acts in one
+or both of two places:
+
+- in the plant (``plant_overrides``): plant parameters changed inside the closed loop,
+  so the ECU sees the consequences, as it would on hardware;
+- in the log (``post``): a transformation of the logged measured columns after the run
+  (a data-acquisition lag or time skew the ECU never saw).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from plant_rt.params import PlantParams
+
+
+@dataclass(frozen=True)
+class Param:
+    """One effect parameter: name (unit in the name), unit, bounds, scale and meaning.
+
+    `log`: fitted on a logarithmic scale (bounds must be > 0). `integer_step`: the
+    parameter only takes multiples of this step (a SYNC-period delay): grid-searched,
+    not fitted by least squares.
+    """
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    doc: str
+    log: bool = False
+    integer_step: float = 0.0
+
+    def to_unit(self, v: float) -> float:
+        """Value -> [0, 1] fitting coordinate."""
+        if self.log:
+            return (math.log(v) - math.log(self.lo)) / (math.log(self.hi) - math.log(self.lo))
+        return (v - self.lo) / (self.hi - self.lo)
+
+    def from_unit(self, u: float) -> float:
+        u = min(max(float(u), 0.0), 1.0)
+        if self.log:
+            return math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo)))
+        return self.lo + u * (self.hi - self.lo)
+
+    def dvalue_du(self, u: float) -> float:
+        """d value / d unit coordinate (to carry confidence intervals to units)."""
+        if self.log:
+            return self.from_unit(u) * (math.log(self.hi) - math.log(self.lo))
+        return self.hi - self.lo
+
+    def grid(self) -> list[float]:
+        """The values a discrete parameter takes."""
+        n = int(round((self.hi - self.lo) / self.integer_step))
+        return [self.lo + i * self.integer_step for i in range(n + 1)]
+
+
+class Effect:
+    """Base class of candidate effects. Subclasses set the class attributes and override
+    `plant_overrides` and/or `post`. Instances are stateless."""
+    name: ClassVar[str] = ""
+    doc: ClassVar[str] = ""
+    params: ClassVar[tuple[Param, ...]] = ()
+    where: ClassVar[str] = "plant"        # "plant" (in the loop) or "log" (after the run)
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        """The parameter values at which the effect is absent, given the nominal `base`."""
+        raise NotImplementedError
+
+    def plant_overrides(self, theta: Mapping[str, float],
+                        base: PlantParams) -> dict[str, Any]:
+        """Plant parameters (dotted names) to change for parameter values `theta`."""
+        return {}
+
+    def post(self, cols: dict[str, np.ndarray], theta: Mapping[str, float],
+             dt: float) -> dict[str, np.ndarray]:
+        """Logged measured columns after the effect (default: unchanged)."""
+        return cols
+
+    @property
+    def discrete(self) -> bool:
+        return all(p.integer_step > 0 for p in self.params)
+
+    def start_points(self, base: PlantParams) -> list[dict[str, float]]:
+        """Starting values of the fit: the nominal point moved inside the bounds plus a
+        few spread points (the fit keeps the best)."""
+        nom = self.nominal(base)
+        pts = []
+        for frac in (0.15, 0.5, 0.85):
+            pts.append({p.name: p.from_unit(frac) for p in self.params})
+        near = {p.name: p.from_unit(min(max(p.to_unit(nom[p.name]) + 0.05, 0.0), 1.0))
+                for p in self.params}
+        return [near] + pts
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "where": self.where, "doc": self.doc,
+                "params": [{"name": p.name, "unit": p.unit, "min": p.lo, "max": p.hi,
+                            "doc": p.doc} for p in self.params]}
