@@ -45,18 +45,10 @@ from bench import BenchError
 from bench.control import Controller, ControllerParams
 from bench.profiles import Profile
 from bench.trace import Trace
-from plant_rt.busdef import (
-    ControlWord,
-    FrameError,
-    Frames,
-    NMTCommand,
-    NMTState,
-    Pace,
-    ParamObjects,
-    StatusWord,
-    load_od,
-)
+from ema_contract.frames import FrameError, Frames, load_od
+from ema_contract.states import ControlWord, NMTCommand, NMTState, Pace, StatusWord
 from plant_rt.pacing import RealtimePacer
+from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams, check_value, resolve
 
 TWO_PI = 2.0 * math.pi

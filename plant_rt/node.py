@@ -45,19 +45,11 @@ import can
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError
 
-from plant_rt.busdef import (
-    ControlWord,
-    FrameError,
-    Frames,
-    NMTCommand,
-    NMTState,
-    Pace,
-    ParamObjects,
-    StatusWord,
-    load_od,
-)
-from plant_rt.model import Plant, Status
+from ema_contract.frames import FrameError, Frames, load_od
+from ema_contract.states import ControlWord, NMTCommand, NMTState, Pace, Status, StatusWord
+from plant_rt.model import Plant
 from plant_rt.pacing import LatenessStats, RealtimePacer
+from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams
 
 log = logging.getLogger("plant_rt.node")

@@ -22,7 +22,7 @@ import can
 import can.cli
 
 from bench import BenchError
-from plant_rt.transport import (
+from ema_contract.transport import (
     BusUnavailable,
     close_bus,
     describe,

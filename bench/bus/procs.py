@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import BenchError
-from plant_rt.transport import is_process, pid_alive, process_token, state_dir
+from ema_contract.transport import is_process, pid_alive, process_token, state_dir
 
 HUB_START_TIMEOUT_S = 10.0
 PLANT_START_TIMEOUT_S = 90.0   # first start compiles the plant (numba, cached on disk)

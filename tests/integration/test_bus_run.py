@@ -19,7 +19,8 @@ from bench.ecu import run_over_bus
 from bench.harness import simulate
 from bench.profiles import make_profile
 from bench.trace import Trace
-from plant_rt.busdef import NMTCommand, load_od
+from ema_contract.frames import load_od
+from ema_contract.states import NMTCommand
 from plant_rt.params import PARAMS, PlantParams
 
 # DBC quantisation: position 10 nm, current 0.1 mA, speed 0.1 mrad/s, angle 1 count,
@@ -136,7 +137,7 @@ def test_plain_canopen_remote_node_reads_and_writes_parameters(bus_env):
     finally:
         node.nmt.send_command(NMTCommand.RESET_NODE)
         network.notifier.stop(1.0)
-        from plant_rt.transport import close_bus
+        from ema_contract.transport import close_bus
         close_bus(network.bus)
 
 

@@ -1,4 +1,4 @@
-"""The ECU against a node that implements only CiA 301 and the PDOs of dbc/ema.dbc (the
+"""The ECU against a node that implements only CiA 301 and the PDOs of ema_contract/dbc/ema.dbc (the
 test double `minimal_node.py`, a vendor's actuator): optional objects read when there,
 reported missing when not, and the run goes on (issue 9 item 16, docs/node-contract.md).
 
