@@ -99,8 +99,8 @@ def test_python_can_logger_captures_and_cantools_decodes(bus_env, tmp_path):
     text = log.read_text()
     assert text.count(" 190#") == 50 and text.count(" 080#") == 50
     with log.open() as fh:
-        dec = spawn(sys.executable, "-m", "cantools", "decode", str(ROOT / "dbc" / "ema.dbc"),
-                    stdin=fh)
+        dec = spawn(sys.executable, "-m", "cantools", "decode",
+                    str(ROOT / "ema_contract" / "dbc" / "ema.dbc"), stdin=fh)
         out, err = dec.communicate(timeout=60)
     assert dec.returncode == 0, err
     assert "EMA_TPDO1(" in out and "MotorCurrent:" in out
@@ -112,7 +112,7 @@ def test_plain_canopen_remote_node_reads_and_writes_parameters(bus_env):
     network = canopen.Network(bus_env.bus())
     import can
     network.notifier = can.Notifier(network.bus, network.listeners, timeout=0.05)
-    node = canopen.RemoteNode(0x10, str(ROOT / "dbc" / "ema.eds"))
+    node = canopen.RemoteNode(0x10, str(ROOT / "ema_contract" / "dbc" / "ema.eds"))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 1.0
     try:

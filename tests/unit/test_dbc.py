@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import re
+import shutil
 from pathlib import Path
 
 import can
@@ -18,6 +19,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ema_contract.frames import (
+    DBC_DIR_ENV,
+    PACKAGE_DBC_DIR,
     FrameError,
     Frames,
     dbc_path,
@@ -245,3 +248,17 @@ def test_no_frame_layout_in_python_sources():
     for rel in ("plant_rt/node.py", "ema_contract/frames.py", "bench/ecu.py", "bench/bus/logs.py",
                 "bench/bus/__init__.py"):
         assert not pattern.search((ROOT / rel).read_text()), rel
+
+
+def test_dbc_dir_env_points_at_another_description(tmp_path, monkeypatch):
+    """$EMA_BENCH_DBC_DIR replaces the package's DBC and EDS (a real actuator's files)."""
+    for name in ("ema.dbc", "ema.eds"):
+        shutil.copy(PACKAGE_DBC_DIR / name, tmp_path / name)
+    monkeypatch.setenv(DBC_DIR_ENV, str(tmp_path))
+    assert (dbc_path(), eds_path()) == (tmp_path / "ema.dbc", tmp_path / "ema.eds")
+    assert Frames().node_id == 0x10 and 0x2000 in load_od()
+    monkeypatch.setenv(DBC_DIR_ENV, str(tmp_path / "missing"))
+    with pytest.raises(FileNotFoundError, match=DBC_DIR_ENV):
+        load_db()
+    monkeypatch.delenv(DBC_DIR_ENV)
+    assert dbc_path() == PACKAGE_DBC_DIR / "ema.dbc"
