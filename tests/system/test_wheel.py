@@ -7,6 +7,7 @@ no PYTHONPATH, so the checkout's files (the DBC, the EDS) cannot be found by acc
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -32,9 +33,15 @@ def venv(tmp_path_factory) -> tuple[Path, dict[str, str], Path]:
     env = {k: v for k, v in os.environ.items()
            if k not in ("PYTHONPATH", "PYTHONHOME", "EMA_BENCH_DBC_DIR")}
     env["BENCH_STATE_DIR"] = str(tmp / "state")
+    # build from a copy: setuptools leaves build/ and *.egg-info next to the sources, and
+    # a stale build/lib would put files deleted since into the wheel
+    src = tmp / "src"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(
+        ".git", "build", "dist", "*.egg-info", "out", ".bench", "__pycache__", ".*_cache",
+        ".hypothesis"))
     dist = tmp / "dist"
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(dist),
-          str(ROOT)], tmp, env, 600)
+          str(src)], tmp, env, 600)
     wheels = list(dist.glob("ema_hums_bench-*.whl"))
     assert len(wheels) == 1, wheels
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(tmp / "venv")],
