@@ -1,8 +1,8 @@
 """The ECU: a CANopen master that runs the bench's controller against the plant over the bus.
 
 It holds a python-can bus and nothing of the plant but what the bus carries: NMT, SYNC
-production, its own heartbeat, SDO (canopen `RemoteNode` from `dbc/ema.eds`) and the
-PDOs of `dbc/ema.dbc` (cantools). The same `bench.control.Controller` as the in-process
+production, its own heartbeat, SDO (canopen `RemoteNode` from `ema_contract/dbc/ema.eds`) and the
+PDOs of `ema_contract/dbc/ema.dbc` (cantools). The same `bench.control.Controller` as the in-process
 harness computes the current demand, so a lockstep bus run reproduces
 `bench.harness.simulate` within the DBC quantisation.
 
@@ -56,18 +56,10 @@ from bench import BenchError
 from bench.control import Controller, ControllerParams
 from bench.profiles import Profile
 from bench.trace import Trace, max_rows, probe_output
-from plant_rt.busdef import (
-    ControlWord,
-    FrameError,
-    Frames,
-    NMTCommand,
-    NMTState,
-    Pace,
-    ParamObjects,
-    StatusWord,
-    load_od,
-)
+from ema_contract.frames import FrameError, Frames, load_od
+from ema_contract.states import ControlWord, NMTCommand, NMTState, Pace, StatusWord
 from plant_rt.pacing import RealtimePacer
+from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams, check_value, resolve
 
 TWO_PI = 2.0 * math.pi

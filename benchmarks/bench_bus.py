@@ -36,7 +36,7 @@ SECTION = "## Bus (issue 3)"
 RECEIVER = r"""
 import sys, time, can
 sys.path.insert(0, sys.argv[2])
-from plant_rt.transport import open_bus
+from ema_contract.transport import open_bus
 bus = open_bus({"interface": "remote", "channel": sys.argv[1]})
 print("ready", flush=True)
 lat = []
@@ -63,8 +63,8 @@ def latency(server: str, n: int, period_s: float = 1e-3) -> dict:
     import can
 
     from bench.bus.procs import start_hub
+    from ema_contract.transport import close_bus, open_bus
     from plant_rt.pacing import RealtimePacer
-    from plant_rt.transport import close_bus, open_bus
 
     hub = start_hub(persistent=False, server=server)
     url = hub.info["url"]
@@ -166,7 +166,7 @@ def _bus_run(pace: str, seconds: float, server: str, spin_us: int) -> dict:
 
 def bus_load() -> dict:
     """Bits per SYNC period from the DBC (11-bit ids): nominal and worst-case stuffing."""
-    from plant_rt.busdef import load_db
+    from ema_contract.frames import load_db
     db = load_db()
     period_ms = db.get_message_by_name("SYNC").cycle_time
     rows = []

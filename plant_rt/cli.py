@@ -4,7 +4,7 @@
     python -m plant_rt --list-params
 
 The bus comes from python-can's flags, environment or config file, else vcan0, else a
-loopback hub started by `bench up` (see `plant_rt.transport`).
+loopback hub started by `bench up` (see `ema_contract.transport`).
 """
 
 from __future__ import annotations
@@ -21,10 +21,8 @@ from typing import Any
 
 import can.cli
 
-from plant_rt.busdef import Pace
-from plant_rt.pacing import use_realtime_priority
-from plant_rt.params import PARAMS, ParameterError, PlantParams
-from plant_rt.transport import (
+from ema_contract.states import Pace
+from ema_contract.transport import (
     BusUnavailable,
     close_bus,
     describe,
@@ -32,6 +30,8 @@ from plant_rt.transport import (
     pid_alive,
     resolve,
 )
+from plant_rt.pacing import use_realtime_priority
+from plant_rt.params import PARAMS, ParameterError, PlantParams
 
 BUS_KEYS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
 
@@ -53,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--list-params", action="store_true",
                         help="print every settable parameter with unit, default and range")
     parser.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
-                        help="CANopen node id (default 0x10, from dbc/ema.dbc)")
+                        help="CANopen node id (default 0x10, from ema_contract/dbc/ema.dbc)")
     parser.add_argument("--ecu-id", type=lambda s: int(s, 0), default=None,
                         help="node id of the ECU whose heartbeat is consumed (default 0x01)")
     parser.add_argument("--spin-us", type=int, default=200,
@@ -161,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
                          "`bench up`)")
     cfg, source = found
     warm_up(params)
-    from plant_rt.busdef import Frames, exclude_filters
+    from ema_contract.frames import Frames, exclude_filters
     from plant_rt.node import PlantNode
     try:
         frames = Frames(args.node_id, args.ecu_id)

@@ -14,23 +14,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from enum import IntFlag
 from typing import NamedTuple
 
 import numpy as np
 
+from ema_contract.states import Status
 from plant_rt import kernel as K
 from plant_rt.params import PlantParams
-
-
-class Status(IntFlag):
-    """Plant status bits (published in the status word)."""
-    NONE = 0
-    OVERCURRENT = 1       # the drive held the current at its limit in the last period
-    END_OF_STROKE = 2     # |nut position| beyond screw.travel_limit_m
-    OVERTEMPERATURE = 4   # winding temperature above OVERTEMPERATURE_K
-    FAULT = 8             # non-finite state: the plant stopped integrating
-
 
 OVERTEMPERATURE_K = 428.0  # class H insulation, 155 degC
 

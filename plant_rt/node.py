@@ -3,9 +3,9 @@
 One thread does everything (receive, SDO, PDOs, stepping), so there is no lock, no
 GIL hand-over between a receive thread and the pacer, and the lockstep mode is
 deterministic. canopen's `LocalNode` is used for what it does well, the object
-dictionary (imported from `dbc/ema.eds`) and the SDO server, fed frame by frame through
+dictionary (imported from `ema_contract/dbc/ema.eds`) and the SDO server, fed frame by frame through
 `Network.notify`; NMT, heartbeat, PDOs and EMCY are handled here with the frame layouts
-of `dbc/ema.dbc` (cantools). See docs/bus.md for why not `durand`.
+of `ema_contract/dbc/ema.dbc` (cantools). See docs/bus.md for why not `durand`.
 
 Timing (CiA 301 synchronous PDOs, transmission type 1):
 
@@ -45,19 +45,11 @@ import can
 import canopen
 from canopen.sdo.exceptions import SdoAbortedError
 
-from plant_rt.busdef import (
-    ControlWord,
-    FrameError,
-    Frames,
-    NMTCommand,
-    NMTState,
-    Pace,
-    ParamObjects,
-    StatusWord,
-    load_od,
-)
-from plant_rt.model import Plant, Status
+from ema_contract.frames import FrameError, Frames, load_od
+from ema_contract.states import ControlWord, NMTCommand, NMTState, Pace, Status, StatusWord
+from plant_rt.model import Plant
 from plant_rt.pacing import LatenessStats, RealtimePacer
+from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams
 
 log = logging.getLogger("plant_rt.node")

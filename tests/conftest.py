@@ -1,6 +1,7 @@
-"""Test layout by cost: tests/unit (fast, in-process) and tests/integration (processes,
-bus, long physics). Markers come from the path, so `-m unit` / `-m integration` select
-them (PyBaMM's conftest does the same)."""
+"""Test layout by cost: tests/unit (fast, in-process), tests/integration (processes,
+bus, long physics) and tests/system (the built wheel in a clean virtual environment).
+Markers come from the path, so `-m unit` / `-m integration` / `-m system` select them
+(PyBaMM's conftest does the same)."""
 
 from __future__ import annotations
 
@@ -19,3 +20,5 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.unit)
         elif "integration" in parts:
             item.add_marker(pytest.mark.integration)
+        elif "system" in parts:
+            item.add_marker(pytest.mark.system)

@@ -1,7 +1,7 @@
 """The bench's side of the CAN bus: transport selection, loopback hub, logs.
 
 The only thing the bench holds is a python-can ``BusABC``; which one comes from
-ordinary python-can configuration (see `plant_rt.transport` for the precedence: flags,
+ordinary python-can configuration (see `ema_contract.transport` for the precedence: flags,
 ``can.rc``/environment/config file, vcan0, the loopback hub of `bench up`). When none
 is found, commands that need a bus start a private loopback hub for their own run.
 
@@ -22,7 +22,7 @@ import can
 import can.cli
 
 from bench import BenchError
-from plant_rt.transport import (
+from ema_contract.transport import (
     BusUnavailable,
     close_bus,
     describe,

@@ -37,7 +37,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from plant_rt.transport import HUB_FILE, LOOPBACK_HOST, pid_alive, remove_state, write_state
+from ema_contract.transport import HUB_FILE, LOOPBACK_HOST, pid_alive, remove_state, write_state
 
 CHANNEL = "ema-bench"
 WS_GUID = b"258EAFA5-E914-47DA-95CA-C5AB0DC85B11"

@@ -34,7 +34,9 @@ import numpy as np
 
 from bench import BenchError
 from bench.trace import Trace
-from plant_rt.busdef import FrameError, Frames, NMTCommand, ParamObjects, load_od
+from ema_contract.frames import FrameError, Frames, load_od
+from ema_contract.states import NMTCommand
+from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams
 
 LINE = re.compile(r"^\((?P<ts>\d+(?:\.\d*)?)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})"

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import BenchError
-from plant_rt.transport import is_process, pid_alive, process_token, state_dir
+from ema_contract.transport import is_process, pid_alive, process_token, state_dir
 
 HUB_START_TIMEOUT_S = 10.0
 PLANT_START_TIMEOUT_S = 90.0   # first start compiles the plant (numba, cached on disk)
@@ -31,7 +31,7 @@ _RUN_SEQ = itertools.count(1)
 
 @dataclass
 class Child:
-    """A process the bench started (`token`: its identity, `plant_rt.transport.process_token`)."""
+    """A process the bench started (`token`: its identity, `ema_contract.transport.process_token`)."""
     name: str
     proc: subprocess.Popen | None = None
     pid: int = 0
@@ -65,7 +65,7 @@ def stop_pid(pid: int, timeout: float = 3.0, proc: subprocess.Popen | None = Non
     Nothing is signalled unless the process is known to be the one meant: `proc` (our own
     child, which Popen never lets us confuse with a reused pid), else a live process whose
     identity token equals `token` or, without a token, whose command line runs `module`
-    (`plant_rt.transport.is_process`). Each signal is preceded by that check."""
+    (`ema_contract.transport.is_process`). Each signal is preceded by that check."""
     if proc is not None:
         return _stop_child(proc, timeout)
     if not is_process(pid, token, module):

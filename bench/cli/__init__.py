@@ -2,8 +2,11 @@
 
 Each subcommand module defines ``add_subparser(subparsers)`` which registers its parser
 and sets ``func`` (called with the parsed namespace, returns an exit code or None).
-Modules are imported lazily by name so a broken optional dependency of one command does
-not break the others.
+Only the module of the command being run is imported: the others appear in
+``bench --help`` from the table below (name, module, one-line help), so `bench --help`
+and light commands such as `bench decode` do not pay for the heavy ones' imports (numba,
+scipy, matplotlib), and a broken optional dependency of one command does not break the
+others. A unit test checks the table's help lines against the modules' parsers.
 """
 
 from __future__ import annotations
@@ -15,27 +18,42 @@ import traceback
 
 from bench import BenchError, __version__
 
-# subcommand name -> module under bench.cli
-SUBCOMMANDS: dict[str, str] = {
-    "demo": "demo",
-    "reproduce": "reproduce",
-    "plant": "plant",
-    "up": "updown",
-    "status": "updown",
-    "down": "updown",
-    "run": "run",
-    "log": "logcmd",
-    "replay": "replay",
-    "decode": "decode",
-    "hums": "hums",
-    "gap": "gap",
-    "gap-bench": "gapbench",
-    "calibrate": "calibrate",
-    "import": "importcmd",
+# subcommand name -> (module under bench.cli, the help line its parser registers)
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("demo", "the main job on embedded defaults: healthy, worn and failing actuator "
+                     "over the bus, HUMS report, gap diagnosis"),
+    "reproduce": ("reproduce", "reproduce thesis chapter 5 (P1-P9) side by side"),
+    "plant": ("plant", "run the actuator plant as a CANopen node on the bus"),
+    "up": ("updown", "start the loopback bus and the plant in the background"),
+    "status": ("updown", "show the plant node's state, counters and parameters"),
+    "down": ("updown", "stop the background plant and loopback bus"),
+    "run": ("run", "run a profile against the plant over the CAN bus (the ECU)"),
+    "log": ("logcmd", "record the bus to a candump log (like candump -L)"),
+    "replay": ("replay", "play a candump log onto the bus (like canplayer)"),
+    "decode": ("decode", "decode a candump log into a signal table (CSV/Parquet)"),
+    "hums": ("hums", "health and usage monitoring (thesis chapter 6)"),
+    "gap": ("gap", "diagnose the gap between a log and the nominal model"),
+    "gap-bench": ("gapbench", "blind check of the gap diagnosis on generated logs"),
+    "calibrate": ("calibrate", "fit the nominal model to a healthy log"),
+    "import": ("importcmd", "import a CSV/Parquet table from another rig"),
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
+def selected_command(argv: list[str]) -> str | None:
+    """The subcommand `argv` runs: its first word that is not an option (the top-level
+    options take no value), None if there is none."""
+    for i, arg in enumerate(argv):
+        if arg == "--":
+            return argv[i + 1] if i + 1 < len(argv) else None
+        if not arg.startswith("-"):
+            return arg
+    return None
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The `bench` parser: the full parser of the command `argv` selects (its module
+    imported), a help-only entry for every other command (nothing imported).
+    `argv=None` means every module (what `bench --help` lists, fully built: tests)."""
     parser = argparse.ArgumentParser(
         prog="bench",
         description="EMA ball-screw HUMS test bench: plant over CAN, ECU, HUMS, gap diagnosis.",
@@ -43,23 +61,21 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     parser.add_argument("--debug", action="store_true", help="show a traceback on errors")
     sub = parser.add_subparsers(title="commands", dest="command", metavar="COMMAND")
-    seen: set[str] = set()
-    for module in SUBCOMMANDS.values():
-        if module in seen:
+    command = None if argv is None else selected_command(argv)
+    chosen = SUBCOMMANDS[command][0] if command in SUBCOMMANDS else None
+    for name, (module, help_line) in SUBCOMMANDS.items():
+        if name in sub.choices:          # registered with another command of its module
             continue
-        try:
-            mod = importlib.import_module(f"bench.cli.{module}")
-        except ModuleNotFoundError as exc:  # command not written yet, or missing dependency
-            if exc.name and exc.name.startswith("bench.cli."):
-                continue
-            raise
-        seen.add(module)
-        mod.add_subparser(sub)
+        if argv is None or module == chosen:
+            importlib.import_module(f"bench.cli.{module}").add_subparser(sub)
+        else:
+            sub.add_parser(name, help=help_line, add_help=False)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -11,7 +11,7 @@ from bench import BenchError
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("decode", help="decode a candump log into a signal table (CSV/Parquet)",
-                       description="Decode a candump log through dbc/ema.dbc into one row per "
+                       description="Decode a candump log through ema_contract/dbc/ema.dbc into one row per "
                        "SYNC period (set-points, demand, current, encoder, LVDT, temperature, "
                        "status). The SYNC period and encoder resolution come from the SDO "
                        "traffic in the log when present. Bad lines are counted and the first "
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.file}: " + ("; ".join(found) if found else
                               "no lost, missing, duplicate or out-of-order frame"))
     if m.get("short_frames"):
-        print(f"{args.file}: {m['short_frames']} frames shorter than dbc/ema.dbc describes "
+        print(f"{args.file}: {m['short_frames']} frames shorter than ema_contract/dbc/ema.dbc describes "
               "(an older frame layout): their signals that fit were decoded, the columns "
               "of the missing ones are empty")
     if args.output:

@@ -202,7 +202,7 @@ def summary(trace, save: str | None = None) -> str:
                      f"{ecu.get('sync_deadline_misses', 0)} deadline misses, "
                      f"{ecu.get('late_tpdo', 0)} late TPDO sets")
     if n and "status_word" in trace:
-        from plant_rt.busdef import StatusWord
+        from ema_contract.states import StatusWord
         words = np.nan_to_num(trace["status_word"]).astype(np.int64)
         seen = [f"{b.name.lower()} in {int(np.count_nonzero(words & int(b)))} periods"
                 for b in (StatusWord.OVERCURRENT, StatusWord.END_OF_STROKE,

@@ -54,7 +54,7 @@ LOCK_TIMEOUT_S = 150.0   # a `bench up` holding the lock may compile the plant (
 def _locked(what: str):
     """The state directory's lock around a check-and-start or a stop (BenchError after
     LOCK_TIMEOUT_S); says so when another `bench up`/`bench down` makes it wait."""
-    from plant_rt.transport import StateLocked, state_dir, state_lock
+    from ema_contract.transport import StateLocked, state_dir, state_lock
 
     def waiting() -> None:
         print(f"{what}: waiting for another `bench up`/`bench down` on {state_dir()}",
@@ -84,8 +84,8 @@ def _up(args: argparse.Namespace) -> int:
     """Check-and-start, under the state lock."""
     from bench.bus import bus_settings, find_bus
     from bench.bus.procs import start_hub, start_plant
+    from ema_contract.transport import PLANT_FILE, read_state, state_dir, write_state
     from plant_rt.pacing import use_normal_priority, use_realtime_priority
-    from plant_rt.transport import PLANT_FILE, read_state, state_dir, write_state
 
     plant = read_state(PLANT_FILE)
     if plant:
@@ -131,9 +131,9 @@ def _fmt(v) -> str:
 def cmd_status(args: argparse.Namespace) -> int:
     from bench.bus import bus_settings, close_bus, connect, find_bus
     from bench.ecu import MISSING, Ecu, status_names
-    from plant_rt.busdef import NMTState, Pace
+    from ema_contract.states import NMTState, Pace
+    from ema_contract.transport import HUB_FILE, PLANT_FILE, read_state
     from plant_rt.params import PlantParams
-    from plant_rt.transport import HUB_FILE, PLANT_FILE, read_state
 
     hub, plant = read_state(HUB_FILE), read_state(PLANT_FILE)
     found = find_bus(bus_settings(args))
@@ -186,7 +186,7 @@ def cmd_status(args: argparse.Namespace) -> int:
 
 def cmd_down(args: argparse.Namespace) -> int:  # noqa: ARG001
     from bench.bus.procs import MODULES, stop_pid
-    from plant_rt.transport import HUB_FILE, PLANT_FILE, read_state, remove_state, state_dir
+    from ema_contract.transport import HUB_FILE, PLANT_FILE, read_state, remove_state, state_dir
 
     did = False
     with _locked("down"):

@@ -22,7 +22,8 @@ import can
 from bench import BenchError
 from bench.bus.logs import SIGNAL_COLUMNS
 from bench.hums.indexes import Indexes, OnlineHums
-from plant_rt.busdef import FrameError, Frames, NMTCommand
+from ema_contract.frames import FrameError, Frames
+from ema_contract.states import NMTCommand
 from plant_rt.params import PlantParams
 
 TWO_PI = 2.0 * math.pi

@@ -34,7 +34,7 @@ class BusEnv:
         return {**os.environ, "BENCH_STATE_DIR": str(self.state)}
 
     def bus(self, **kw) -> can.BusABC:
-        from plant_rt.transport import open_bus
+        from ema_contract.transport import open_bus
         return open_bus(self.cfg, **kw)
 
     def stop(self) -> None:
@@ -107,6 +107,6 @@ class Collector(can.Listener):
         return [m.arbitration_id for m in self.msgs]
 
     def close(self) -> None:
-        from plant_rt.transport import close_bus
+        from ema_contract.transport import close_bus
         self.notifier.stop(1.0)
         close_bus(self.bus)

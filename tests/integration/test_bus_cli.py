@@ -116,7 +116,7 @@ def test_plant_list_params_and_no_bus():
 
 @pytest.mark.parametrize("cmd", [
     [sys.executable, "-m", "bench.bus.hub", "--help"],
-    [sys.executable, str(ROOT / "dbc" / "generate_eds.py"), "--help"],
+    [sys.executable, "-m", "plant_rt.eds", "--help"],
     [sys.executable, "-m", "plant_rt", "--help"],
     [sys.executable, str(ROOT / "benchmarks" / "bench_bus.py"), "--help"],
 ])

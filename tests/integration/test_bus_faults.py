@@ -14,8 +14,9 @@ from bus_helpers import BUS_KINDS, Collector, bench, make_env, module_bus_env, s
 
 from bench.bus.logs import read_log, trace_from_log
 from bench.trace import Trace
-from plant_rt.busdef import Frames, NMTCommand, NMTState, StatusWord, load_od
-from plant_rt.transport import close_bus
+from ema_contract.frames import Frames, load_od
+from ema_contract.states import NMTCommand, NMTState, StatusWord
+from ema_contract.transport import close_bus
 
 
 @pytest.fixture(scope="module", params=BUS_KINDS)

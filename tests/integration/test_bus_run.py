@@ -19,7 +19,8 @@ from bench.ecu import run_over_bus
 from bench.harness import simulate
 from bench.profiles import make_profile
 from bench.trace import Trace
-from plant_rt.busdef import NMTCommand, load_od
+from ema_contract.frames import load_od
+from ema_contract.states import NMTCommand
 from plant_rt.params import PARAMS, PlantParams
 
 # DBC quantisation: position 10 nm, current 0.1 mA, speed 0.1 mrad/s, angle 1 count,
@@ -98,8 +99,8 @@ def test_python_can_logger_captures_and_cantools_decodes(bus_env, tmp_path):
     text = log.read_text()
     assert text.count(" 190#") == 50 and text.count(" 080#") == 50
     with log.open() as fh:
-        dec = spawn(sys.executable, "-m", "cantools", "decode", str(ROOT / "dbc" / "ema.dbc"),
-                    stdin=fh)
+        dec = spawn(sys.executable, "-m", "cantools", "decode",
+                    str(ROOT / "ema_contract" / "dbc" / "ema.dbc"), stdin=fh)
         out, err = dec.communicate(timeout=60)
     assert dec.returncode == 0, err
     assert "EMA_TPDO1(" in out and "MotorCurrent:" in out
@@ -111,7 +112,7 @@ def test_plain_canopen_remote_node_reads_and_writes_parameters(bus_env):
     network = canopen.Network(bus_env.bus())
     import can
     network.notifier = can.Notifier(network.bus, network.listeners, timeout=0.05)
-    node = canopen.RemoteNode(0x10, str(ROOT / "dbc" / "ema.eds"))
+    node = canopen.RemoteNode(0x10, str(ROOT / "ema_contract" / "dbc" / "ema.eds"))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 1.0
     try:
@@ -136,7 +137,7 @@ def test_plain_canopen_remote_node_reads_and_writes_parameters(bus_env):
     finally:
         node.nmt.send_command(NMTCommand.RESET_NODE)
         network.notifier.stop(1.0)
-        from plant_rt.transport import close_bus
+        from ema_contract.transport import close_bus
         close_bus(network.bus)
 
 

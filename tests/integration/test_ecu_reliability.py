@@ -16,8 +16,9 @@ from bus_helpers import Collector, bench, make_env, spawn, wait_until
 
 from bench.bus.logs import read_log, trace_from_log
 from bench.trace import Trace
-from plant_rt.busdef import NMTCommand, NMTState, StatusWord, load_od
-from plant_rt.transport import close_bus
+from ema_contract.frames import load_od
+from ema_contract.states import NMTCommand, NMTState, StatusWord
+from ema_contract.transport import close_bus
 
 SYNC, NMT = 0x080, 0x000
 

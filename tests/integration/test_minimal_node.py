@@ -1,4 +1,4 @@
-"""The ECU against a node that implements only CiA 301 and the PDOs of dbc/ema.dbc (the
+"""The ECU against a node that implements only CiA 301 and the PDOs of ema_contract/dbc/ema.dbc (the
 test double `minimal_node.py`, a vendor's actuator): optional objects read when there,
 reported missing when not, and the run goes on (issue 9 item 16, docs/node-contract.md).
 
@@ -90,7 +90,7 @@ def test_the_double_has_only_cia301_objects(node_env):
     net = canopen.Network()
     net.connect(**node_env.cfg)
     try:
-        node = net.add_node(0x10, str(ROOT / "dbc" / "ema.eds"))
+        node = net.add_node(0x10, str(ROOT / "ema_contract" / "dbc" / "ema.eds"))
         node.sdo.RESPONSE_TIMEOUT = 1.0
         assert node.sdo[0x1000].raw == 0
         assert node.sdo[0x1018][2].raw == 1           # product code of the EDS
@@ -111,7 +111,7 @@ def test_the_double_consumes_the_ecu_heartbeat(node_env):
     net = canopen.Network()
     net.connect(**node_env.cfg)
     try:
-        node = net.add_node(0x10, str(ROOT / "dbc" / "ema.eds"))
+        node = net.add_node(0x10, str(ROOT / "ema_contract" / "dbc" / "ema.eds"))
         node.sdo.RESPONSE_TIMEOUT = 1.0
         bootups: list[int] = []
         node.nmt.add_heartbeat_callback(lambda state: state == 0 and bootups.append(state))

@@ -11,8 +11,9 @@ import canopen
 import pytest
 from bus_helpers import BUS_KINDS, Collector, module_bus_env, wait_until
 
-from plant_rt.busdef import Frames, NMTCommand, load_od
-from plant_rt.transport import close_bus
+from ema_contract.frames import Frames, load_od
+from ema_contract.states import NMTCommand
+from ema_contract.transport import close_bus
 
 PAIRS = 1000
 

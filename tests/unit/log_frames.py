@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import can
 
-from plant_rt.busdef import Frames, NMTCommand
+from ema_contract.frames import Frames
+from ema_contract.states import NMTCommand
 
 F = Frames()
 T0 = 1000.0

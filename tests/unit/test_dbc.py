@@ -1,12 +1,12 @@
-"""dbc/: the DBC and the EDS load strictly, round-trip, agree with each other and with the
-parameter table, and the codecs built on them keep values within the DBC quantisation."""
+"""ema_contract/dbc/: the DBC and the EDS load strictly, round-trip, agree with each other
+and with the parameter table, and the codecs built on them keep values within the DBC
+quantisation."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import re
-import sys
+import shutil
 from pathlib import Path
 
 import can
@@ -18,14 +18,11 @@ from canopen.objectdictionary.eds import export_eds
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from plant_rt.busdef import (
-    ControlWord,
+from ema_contract.frames import (
+    DBC_DIR_ENV,
+    PACKAGE_DBC_DIR,
     FrameError,
     Frames,
-    NMTCommand,
-    NMTState,
-    ParamObjects,
-    StatusWord,
     dbc_path,
     default_ids,
     eds_path,
@@ -33,23 +30,18 @@ from plant_rt.busdef import (
     load_db,
     load_od,
 )
+from ema_contract.states import ControlWord, NMTCommand, NMTState, StatusWord
+from plant_rt import eds
 from plant_rt.node import EMCY_CONDITIONS
+from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import PARAMS, PlantParams
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def generator():
-    spec = importlib.util.spec_from_file_location("generate_eds", ROOT / "dbc" / "generate_eds.py")
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["generate_eds"] = mod      # dataclasses need their module registered
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_committed_eds_is_the_generator_output():
-    assert eds_path().read_text() == generator().build(), \
-        "dbc/ema.eds is stale: run python dbc/generate_eds.py"
+    assert eds_path().read_text() == eds.build(), \
+        "ema_contract/dbc/ema.eds is stale: run python -m plant_rt.eds"
 
 
 def test_dbc_load_dump_load_round_trip():
@@ -246,13 +238,27 @@ def test_resolutions_are_far_below_sensor_noise():
 
 
 def test_generator_check_mode(capsys):
-    assert generator().main(["--check"]) == 0
+    assert eds.main(["--check"]) == 0
     assert "up to date" in capsys.readouterr().out
 
 
 def test_no_frame_layout_in_python_sources():
-    """Frame layouts live in dbc/ only: no struct formats in the bus code."""
+    """Frame layouts live in ema_contract/dbc/ only: no struct formats in the bus code."""
     pattern = re.compile(r"struct\.(pack|unpack|Struct)\(")
-    for rel in ("plant_rt/node.py", "plant_rt/busdef.py", "bench/ecu.py", "bench/bus/logs.py",
+    for rel in ("plant_rt/node.py", "ema_contract/frames.py", "bench/ecu.py", "bench/bus/logs.py",
                 "bench/bus/__init__.py"):
         assert not pattern.search((ROOT / rel).read_text()), rel
+
+
+def test_dbc_dir_env_points_at_another_description(tmp_path, monkeypatch):
+    """$EMA_BENCH_DBC_DIR replaces the package's DBC and EDS (a real actuator's files)."""
+    for name in ("ema.dbc", "ema.eds"):
+        shutil.copy(PACKAGE_DBC_DIR / name, tmp_path / name)
+    monkeypatch.setenv(DBC_DIR_ENV, str(tmp_path))
+    assert (dbc_path(), eds_path()) == (tmp_path / "ema.dbc", tmp_path / "ema.eds")
+    assert Frames().node_id == 0x10 and 0x2000 in load_od()
+    monkeypatch.setenv(DBC_DIR_ENV, str(tmp_path / "missing"))
+    with pytest.raises(FileNotFoundError, match=DBC_DIR_ENV):
+        load_db()
+    monkeypatch.delenv(DBC_DIR_ENV)
+    assert dbc_path() == PACKAGE_DBC_DIR / "ema.dbc"

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.bus.logs import SdoTracker, parse_line, read_log, trace_from_messages
-from plant_rt.busdef import Frames
+from ema_contract.frames import Frames
 
 frames_st = st.builds(
     lambda ext, ident, data, ts, rtr: can.Message(

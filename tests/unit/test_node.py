@@ -14,7 +14,8 @@ import canopen
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 
-from plant_rt.busdef import Frames, NMTCommand, NMTState, Pace, StatusWord, load_od
+from ema_contract.frames import Frames, load_od
+from ema_contract.states import NMTCommand, NMTState, Pace, StatusWord
 from plant_rt.model import Plant
 from plant_rt.node import PlantNode
 from plant_rt.params import PlantParams

@@ -20,7 +20,8 @@ import can
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 
-from plant_rt.busdef import NMTCommand, NMTState, Pace, StatusWord, load_od
+from ema_contract.frames import load_od
+from ema_contract.states import NMTCommand, NMTState, Pace, StatusWord
 from plant_rt.node import PlantNode
 from plant_rt.params import PlantParams
 

@@ -14,8 +14,9 @@ import pytest
 from bench.harness import simulate
 from bench.profiles import sine, step, velocity_cosine
 from bench.reproduce import analytic_axial_stiffness, stiffness_deflection
+from ema_contract.states import Status
 from plant_rt import kernel as K
-from plant_rt.model import Plant, Status
+from plant_rt.model import Plant
 from plant_rt.params import PlantParams
 
 VARIANTS = [("switching", "dynamic"), ("averaged", "dynamic"), ("switching", "quasistatic"),

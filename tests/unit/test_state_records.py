@@ -18,7 +18,7 @@ import time
 import can
 import pytest
 
-from plant_rt import transport as T
+from ema_contract import transport as T
 
 REAL_KILL = os.kill     # for the teardown of the test's own processes
 

@@ -14,7 +14,7 @@ import time
 import pytest
 
 from bench.bus.hub import SelectHub
-from plant_rt import transport as T
+from ema_contract import transport as T
 
 
 @pytest.fixture

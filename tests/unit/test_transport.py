@@ -12,7 +12,7 @@ import can
 import pytest
 
 from bench.bus.hub import SelectHub
-from plant_rt import transport as T
+from ema_contract import transport as T
 
 
 @pytest.fixture

@@ -1,21 +1,20 @@
-"""What crosses the bus, loaded from `dbc/` (the only place frame layouts live).
+"""What crosses the bus: the DBC and the EDS shipped in `ema_contract/dbc/` (the only
+place frame layouts live), bound to the node ids in use.
 
-`Frames` binds the DBC (`dbc/ema.dbc`, cantools, strict) to the node ids in use and
-encodes/decodes frames by message and signal name; `load_od` imports the EDS
-(`dbc/ema.eds`, canopen) for a node id; `ParamObjects` maps the EDS's parameter objects
-(0x2000-0x2008) to `plant_rt.params` and converts values both ways. Both the plant node
-and the ECU use these, so neither side holds a frame layout of its own.
+`Frames` binds the DBC (`ema.dbc`, cantools, strict) to the node ids in use and
+encodes/decodes frames by message and signal name; `load_od` imports the EDS (`ema.eds`,
+canopen) for a node id. Both the plant node and the ECU use these, so neither side holds
+a frame layout of its own. The enumerations (NMT, control and status words) are in
+`ema_contract.states`; the EDS's plant parameter objects in `plant_rt.paramobjects`.
 
-The enums below are CANopen's (CiA 301) and the actuator's status/control bits; a unit
-test checks them against the DBC's value tables and comments.
+The files are package data; `$EMA_BENCH_DBC_DIR` points at another directory holding
+`ema.dbc` and `ema.eds` (a real actuator's description).
 """
 
 from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
-from enum import IntEnum, IntFlag
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -23,55 +22,8 @@ from typing import Any
 import can
 import cantools
 
-from plant_rt.model import Status
-from plant_rt.params import PARAMS, ParameterError, ParamInfo, check_value
-
 DBC_DIR_ENV = "EMA_BENCH_DBC_DIR"
-
-
-class NMTState(IntEnum):
-    """CANopen NMT states as sent in the heartbeat (CiA 301)."""
-    BOOT_UP = 0
-    STOPPED = 4
-    OPERATIONAL = 5
-    PRE_OPERATIONAL = 127
-
-
-class NMTCommand(IntEnum):
-    """NMT module-control command specifiers (CiA 301)."""
-    START = 1
-    STOP = 2
-    ENTER_PRE_OPERATIONAL = 128
-    RESET_NODE = 129
-    RESET_COMMUNICATION = 130
-
-
-class ControlWord(IntFlag):
-    """RPDO1 ControlWord bits (dbc/ema.dbc, EMA_RPDO1)."""
-    NONE = 0
-    ENABLE = 0x1
-    FAULT_RESET = 0x80
-
-
-class StatusWord(IntFlag):
-    """TPDO1 StatusWord bits (dbc/ema.dbc, EMA_TPDO1): the plant's `Status` bits, then
-    the node's own."""
-    NONE = 0
-    OVERCURRENT = int(Status.OVERCURRENT)
-    END_OF_STROKE = int(Status.END_OF_STROKE)
-    OVERTEMPERATURE = int(Status.OVERTEMPERATURE)
-    PLANT_FAULT = int(Status.FAULT)
-    COMMAND_TIMEOUT = 0x10
-    DEMAND_CLAMPED = 0x20
-    ENABLED = 0x40
-    RPDO_MISSING = 0x80
-    DEADLINE_MISS = 0x100
-
-
-class Pace(IntEnum):
-    """Plant pacer (object 0x2200 sub 1)."""
-    REALTIME = 0
-    SYNC = 1
+PACKAGE_DBC_DIR = Path(__file__).resolve().parent / "dbc"   # ema.dbc, ema.eds (package data)
 
 
 class FrameError(ValueError):
@@ -79,9 +31,9 @@ class FrameError(ValueError):
 
 
 def dbc_dir() -> Path:
-    """Directory holding ema.dbc and ema.eds ($EMA_BENCH_DBC_DIR, else the checkout's)."""
+    """Directory holding ema.dbc and ema.eds ($EMA_BENCH_DBC_DIR, else the package's)."""
     env = os.environ.get(DBC_DIR_ENV)
-    return Path(env) if env else Path(__file__).resolve().parent.parent / "dbc"
+    return Path(env) if env else PACKAGE_DBC_DIR
 
 
 def dbc_path() -> Path:
@@ -236,57 +188,3 @@ def exclude_filters(ids: list[int]) -> list[dict[str, int]]:
         raise ValueError("exclude_filters supports one id")
     x = ids[0]
     return [{"can_id": (~x) & (1 << i), "can_mask": 1 << i} for i in range(11)]
-
-
-@dataclass(frozen=True)
-class ParamObject:
-    """One plant parameter as an SDO object."""
-    index: int
-    subindex: int
-    info: ParamInfo
-
-
-class ParamObjects:
-    """The EDS's parameter objects (record per group, sub-index per leaf) by name."""
-
-    def __init__(self, od) -> None:
-        by_name = {p.name: p for p in PARAMS}
-        self.by_key: dict[tuple[int, int], ParamObject] = {}
-        self.by_name: dict[str, ParamObject] = {}
-        for obj in od.values():
-            if not (0x2000 <= obj.index < 0x2100) or not hasattr(obj, "subindices"):
-                continue
-            for sub, var in obj.subindices.items():
-                name = f"{obj.name}.{var.name}"
-                if sub == 0 or name not in by_name:
-                    continue
-                po = ParamObject(obj.index, sub, by_name[name])
-                self.by_key[(obj.index, sub)] = po
-                self.by_name[name] = po
-        missing = set(by_name) - set(self.by_name)
-        if missing:
-            raise ValueError(f"the EDS lacks parameter objects for {sorted(missing)}; "
-                             "run python dbc/generate_eds.py")
-
-    @staticmethod
-    def to_od(info: ParamInfo, value: Any) -> Any:
-        """A checked parameter value as the object's raw value (choices by index)."""
-        v = check_value(info, value)
-        if info.type is str:
-            return (info.choices or ()).index(v)
-        if info.type is bool:
-            return bool(v)
-        if info.type is int:
-            return int(v)
-        return float(v)
-
-    @staticmethod
-    def from_od(info: ParamInfo, raw: Any) -> Any:
-        """The parameter value of an object's raw value (ParameterError if invalid)."""
-        if info.type is str:
-            choices = info.choices or ()
-            if not isinstance(raw, int) or not 0 <= raw < len(choices):
-                raise ParameterError(f"{info.name}: choice index {raw!r} is not one of "
-                                     f"0..{len(choices) - 1}")
-            return choices[raw]
-        return check_value(info, raw)

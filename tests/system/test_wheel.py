@@ -1,0 +1,85 @@
+"""The built wheel works on its own: `pip wheel` of the checkout, installed with --no-deps
+into a clean virtual environment (its dependencies from the system site-packages, so
+nothing is downloaded but pip's own build requirements from its configured indexes), then
+`bench demo --in-process` run from it with the working directory outside the checkout and
+no PYTHONPATH, so the checkout's files (the DBC, the EDS) cannot be found by accident."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(cmd: list[str], cwd: Path, env: dict[str, str], timeout: float
+         ) -> subprocess.CompletedProcess:
+    r = subprocess.run(cmd, cwd=str(cwd), env=env, capture_output=True, text=True,
+                       timeout=timeout)
+    assert r.returncode == 0, f"{cmd}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    return r
+
+
+@pytest.fixture(scope="module")
+def venv(tmp_path_factory) -> tuple[Path, dict[str, str], Path]:
+    """A virtual environment with the wheel built from this checkout installed."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "PYTHONHOME", "EMA_BENCH_DBC_DIR")}
+    env["BENCH_STATE_DIR"] = str(tmp / "state")
+    # build from a copy: setuptools leaves build/ and *.egg-info next to the sources, and
+    # a stale build/lib would put files deleted since into the wheel
+    src = tmp / "src"
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(
+        ".git", "build", "dist", "*.egg-info", "out", ".bench", "__pycache__", ".*_cache",
+        ".hypothesis"))
+    dist = tmp / "dist"
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(dist),
+          str(src)], tmp, env, 600)
+    wheels = list(dist.glob("ema_hums_bench-*.whl"))
+    assert len(wheels) == 1, wheels
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(tmp / "venv")],
+                   check=True, timeout=120)
+    py = tmp / "venv" / "bin" / "python"
+    # --ignore-installed: the system site-packages may hold an editable install of the
+    # checkout; the venv's own copy shadows it
+    _run([str(py), "-m", "pip", "install", "--no-deps", "--ignore-installed", "--quiet",
+          str(wheels[0])], tmp, env, 300)
+    return tmp / "venv", env, wheels[0]
+
+
+def test_wheel_holds_the_three_packages_and_the_bus_description(venv):
+    root, env, wheel = venv
+    names = zipfile.ZipFile(wheel).namelist()
+    top = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
+    assert top == {"bench", "plant_rt", "ema_contract"}, top
+    assert {"ema_contract/dbc/ema.dbc", "ema_contract/dbc/ema.eds"} <= set(names)
+    code = ("import bench, ema_contract; "
+            "from ema_contract.frames import dbc_path, eds_path, load_od, Frames; "
+            "print(bench.__file__); print(ema_contract.__file__); print(dbc_path()); "
+            "print(eds_path()); Frames(); load_od()")
+    out = _run([str(root / "bin" / "python"), "-c", code], root.parent, env,
+               120).stdout.split()
+    assert len(out) == 4, out
+    for path in out:
+        assert Path(path).resolve().is_relative_to(root.resolve()), out
+
+
+def test_bench_demo_runs_from_the_wheel(venv):
+    root, env, _ = venv
+    out = root.parent / "demo"
+    r = _run([str(root / "bin" / "bench"), "demo", "--in-process", "--cycles", "1",
+              "--no-gap", "--out", str(out)], root.parent, env, 900)
+    assert "verdict" in r.stdout and "lost motion um" in r.stdout, r.stdout
+    rows = [line.split() for line in r.stdout.splitlines()
+            if line.strip().startswith(("healthy", "worn", "end-of-life"))
+            and ".npz " in line]
+    assert [row[0] for row in rows] == ["healthy.npz", "worn.npz", "end-of-life.npz"], r.stdout
+    assert rows[0][1] == "HEALTHY"
+    assert (out / "hums" / "report.html").is_file() and (out / "summary.json").is_file()
