@@ -530,7 +530,10 @@ class SelectHub:
         if c is not None and len(c.outbuf) > self.client_outbuf_max:
             self._drop_slow(c, f"over {self.client_outbuf_max} bytes queued (not reading)")
         while self.outbuf_total > self.total_outbuf_max:
-            big = max(self.clients.values(), key=lambda k: len(k.outbuf))
+            big = max(self.clients.values(), key=lambda k: len(k.outbuf), default=None)
+            if big is None or not big.outbuf:    # cannot happen; never loop on it
+                self.outbuf_total = sum(len(k.outbuf) for k in self.clients.values())
+                return
             self._drop_slow(big, f"largest queue ({len(big.outbuf)} bytes) when all clients "
                                  f"had over {self.total_outbuf_max} bytes queued")
 
@@ -569,10 +572,10 @@ class SelectHub:
                 self._note(f"internal error: {what}")
                 return
             try:
-                self._fail(c, CLOSE_INTERNAL, "internal error", kind="dropped_internal")
+                self._fail(c, CLOSE_INTERNAL, f"internal error: {what}", kind="dropped_internal")
             except Exception:  # noqa: BLE001
                 c.closing = True
-            self._note(f"dropped client {c.addr} after an internal error: {what}")
+                self._note(f"dropped client {c.addr} after an internal error: {what}")
 
     # -- protocol -----------------------------------------------------------------------
     def _handshake(self, c: Client) -> bool:

@@ -494,3 +494,25 @@ def test_an_endless_handshake_is_closed():
             bad.recv_frame()
         h.assert_alive()
         assert served(a, b) == []
+
+
+def test_an_exception_in_one_clients_handling_drops_that_client_only(monkeypatch, caplog):
+    """A bug met by one client's input (here injected) costs that client its connection
+    (close 1011) and one log line, never the hub."""
+    real = hub_mod.message_from_json
+
+    def buggy(m):
+        if isinstance(m, dict) and m.get("arbitration_id") == 0x666:
+            raise RuntimeError("boom")
+        return real(m)
+
+    monkeypatch.setattr(hub_mod, "message_from_json", buggy)
+    with running_hub() as h, good_pair(h) as (a, b):
+        bad = RawClient(h.port)
+        bad.send_event("message", {**GOOD_MSG, "arbitration_id": 0x666})
+        assert bad.close_code() == 1011
+        h.assert_alive()
+        assert served(a, b) == []
+        lines = [r.getMessage() for r in caplog.records if r.name == "bench.bus.hub"]
+        assert len(lines) == 1 and "internal error: RuntimeError: boom" in lines[0]
+        assert h.hub.stats["dropped_internal"] == 1
