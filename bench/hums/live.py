@@ -80,7 +80,8 @@ class LiveHums:
         self.run = 0
         self.frames_seen = 0
         self.bad_frames = 0
-        self.last_sync: float | None = None
+        self.last_sync: float | None = None        # monotonic time it was fed
+        self.last_sync_stamp: float | None = None  # its bus timestamp
         self._online: OnlineHums | None = None
         self._row: dict[str, float] | None = None
         self._k = 0
@@ -117,6 +118,7 @@ class LiveHums:
         cid = msg.arbitration_id
         if cid == self._sync:
             self.last_sync = time.monotonic()
+            self.last_sync_stamp = msg.timestamp
             if self._online is None:      # joined mid-run: start here
                 self._new_run()
             out = self._flush_row()
@@ -169,18 +171,22 @@ def watch(bus: can.BusABC, hums: LiveHums, on_result: Callable[[PeriodResult], N
     t_end = None if duration_s is None else time.monotonic() + duration_s
     if ready is not None:
         ready()
+    # "no SYNC for idle_s" is judged on the bus's clock (frame timestamps) while frames
+    # come, and on the wall clock only when the bus is quiet: the watcher's own work (the
+    # first command period loads the compiled monitor) must not count as idle time
     while True:
-        now = time.monotonic()
-        if t_end is not None and now >= t_end:
-            break
-        if hums.last_sync is not None and now - hums.last_sync > idle_s:
+        if t_end is not None and time.monotonic() >= t_end:
             break
         try:
             msg = bus.recv(timeout=0.1)
         except (can.CanError, OSError) as exc:
             raise BenchError(f"the bus connection failed: {exc}") from None
         if msg is None:
+            if hums.last_sync is not None and time.monotonic() - hums.last_sync > idle_s:
+                break
             continue
+        if hums.last_sync_stamp is not None and msg.timestamp - hums.last_sync_stamp > idle_s:
+            break
         for r in hums.feed(msg):
             on_result(r)
             n += 1

@@ -45,7 +45,7 @@ def _wait_line(proc, needle: str, timeout: float) -> str:
 
 def test_watch_reports_every_period_like_the_log(bus_env, tmp_path):
     out = tmp_path / "live.csv"
-    proc = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "5",
+    proc = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "2",
                  "--out", str(out), *bus_env.flags, env=bus_env.env)
     try:
         _wait_line(proc, "listening", 60)
