@@ -25,7 +25,7 @@ import pytest
 
 from bench.bus import hub as hub_mod
 from bench.bus.hub import SelectHub
-from plant_rt import transport as T
+from ema_contract import transport as T
 
 OP_TEXT, OP_BINARY, OP_CLOSE, OP_PING, OP_PONG = 0x1, 0x2, 0x8, 0x9, 0xA
 WAIT_S = 5.0                     # bound of every wait on the hub (reached only on failure)

@@ -22,7 +22,7 @@ from test_hub_events import (
     served,
 )
 
-from plant_rt import transport as T
+from ema_contract import transport as T
 
 EXAMPLES = 250
 FLAG_BITS = {"is_extended_id": 0x1, "is_remote_frame": 0x2, "is_error_frame": 0x4,
