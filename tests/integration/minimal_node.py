@@ -200,7 +200,14 @@ class MinimalNode:
         sig = m.decode(bytes(data), decode_choices=False)
         demand = float(sig["CurrentDemand"])
         clamped = not math.isfinite(demand)
-        self.pending = (0.0 if clamped else demand, int(sig["ControlWord"]), clamped)
+        control = int(sig["ControlWord"])
+        # a fault-reset edge clears a command timeout while the ECU's heartbeat is current
+        # (node-contract.md, Heartbeat)
+        if (control & ControlWord.FAULT_RESET and not self.pending[1] & ControlWord.FAULT_RESET
+                and self.timed_out and self.ecu_hb is not None
+                and self.clock() - self.ecu_hb <= (self.consumer & 0xFFFF) / 1000.0):
+            self.timed_out = False
+        self.pending = (0.0 if clamped else demand, control, clamped)
 
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:  # noqa: ARG002
         if self.state != NMTState.OPERATIONAL:
