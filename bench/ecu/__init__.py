@@ -32,7 +32,8 @@ consumer time in SYNC periods) and the wall clock while waiting.
 
 Modules, one job each: `link` (sends, the frame monitor, NMT, heartbeat), `claim` (the claim
 on the node, the foreign-producer watch, abort), `sdo` (queries over SDO, `NodeInfo`),
-`prepare` (the node's set-up for a run), `runloop` (the control loop, `EcuStats`),
+`prepare` (the node's set-up for a run), `runloop` (`run`: the control loop and the run's end),
+`period` (the steps of one SYNC period, the loop's state, `EcuStats`),
 `master` (`Ecu`, the mixins put together), `logwriter`, `signals`, `errors`, `session`
 (`run_over_bus`, the session from bus to trace).
 """
@@ -51,7 +52,8 @@ from bench.ecu.errors import (
 )
 from bench.ecu.link import ECU_FRAMES
 from bench.ecu.master import Ecu
-from bench.ecu.runloop import RUN_COLUMNS, EcuStats, run_periods
+from bench.ecu.period import EcuStats
+from bench.ecu.runloop import RUN_COLUMNS, run_periods
 from bench.ecu.sdo import MISSING, NodeInfo
 from bench.ecu.session import plant_values, run_over_bus, setting_origins
 from bench.ecu.signals import StopSignal

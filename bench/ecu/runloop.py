@@ -6,49 +6,28 @@ import gc
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import asdict
 
-import can
-import numpy as np
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench import BenchError
-from bench.control import Controller, ControllerParams
+from bench.control import ControllerParams
 from bench.ecu.errors import (
     FAILING_BITS,
     FAILING_TEXT,
     REPORTING_EMCY,
-    BusLost,
     Interrupted,
     PlantFault,
     PlantLost,
     _at,
     status_names,
 )
+from bench.ecu.period import EcuStats, PeriodSteps
 from bench.ecu.signals import StopSignal
 from bench.profiles import Profile
 from bench.trace import Trace, max_rows
-from ema_contract.frames import FrameError
-from ema_contract.states import ControlWord, NMTCommand, Pace, StatusWord
-from plant_rt.pacing import RealtimePacer
+from ema_contract.states import NMTCommand, Pace
 from plant_rt.params import PlantParams
-
-TWO_PI = 2.0 * math.pi
-
-
-@dataclass
-class EcuStats:
-    """What the ECU measured about the run."""
-    periods: int = 0
-    late_tpdo: int = 0            # periods whose TPDOs missed their window (realtime)
-    wall_s: float = 0.0
-    sync_jitter_p50_us: float = 0.0
-    sync_jitter_p99_us: float = 0.0
-    sync_jitter_max_us: float = 0.0
-    sync_deadline_misses: int = 0
-    frames_logged: int = 0
-
 
 
 class RunLoop:
@@ -70,73 +49,13 @@ class RunLoop:
             raise BenchError(f"controller period {cparams.sample_period_s} s differs from the "
                              f"plant's SYNC period {ts} s")
         dur = profile.duration_s if duration_s is None else duration_s
-        n = run_periods(dur, ts)
-        t = np.arange(n) * ts
-        sp_pos, sp_spd = profile.setpoints(t)
-        mode = int(profile.mode)
-        cpr = float(params.sensors.encoder_counts_per_rev)
-        ctrl = Controller(cparams)
-        ctrl.step(0.0, 0.0, mode, 0.0, 0.0)   # load the compiled step before the clock runs
-        ctrl.reset()
-        rows = {k: np.full(n, np.nan) for k in (
-            "current_demand_a", "current_a", "motor_speed_rad_s", "motor_angle_rad",
-            "position_m", "winding_temperature_k", "load_force_n", "status_word",
-            "bus_time_s")}
         stats = EcuStats()
+        steps = PeriodSteps(self, profile, params, cparams, pace,
+                            run_periods(dur, ts), spin_us, stop, stats)
+        steps.on_period = on_period
         self.partial = None
         self._stop = stop
-        k = 0
-        bar = None
-        if progress:
-            from tqdm import tqdm
-            bar = tqdm(total=round(n * ts, 3), unit="sim s", desc=profile.name, leave=False)
-        latest: dict[str, dict[str, Any]] = {}
-        fresh: set[str] = set()
-        frames = self.frames
-        bus = self.bus
-        log = self.log
-        tpdo_names = self._tpdo_names
-        monitor = self._monitor
-        pacer = RealtimePacer(ts, spin_us * 1e-6) if pace == Pace.REALTIME else None
-        # lockstep: the heartbeat on the SYNC grid (the plant counts its consumer time in
-        # SYNC periods), and on the wall clock as well (while waiting, or a slow run)
-        hb_every = max(1, round(self._hb_period / ts)) if pacer is None else 0
-        fail_bits = 0
-        for bit in FAILING_BITS:
-            fail_bits |= int(bit)
-        limit_a = _float32_limit(params.motor.current_max_a)
-        enc_rpdo = frames.by_name["EMA_RPDO1"]
-        enc_sp = frames.by_name["ECU_Setpoint"]
-        cob_rpdo, cob_sp = self._cob["EMA_RPDO1"], self._cob["ECU_Setpoint"]
-        enable = int(ControlWord.ENABLE)
-        # the first RPDO also carries a fault-reset edge: it clears a command timeout the
-        # node latched before the run (a stall during set-up, when no demand of this run
-        # was in force), so that it is gone at SYNC 1, where the first demand applies
-        first_control = enable | int(ControlWord.FAULT_RESET)
-        timeout_bit = int(StatusWord.COMMAND_TIMEOUT)
-        t_wall0 = time.perf_counter()
-        t_first_sync: float | None = None
-        last_bar = time.monotonic()
-        error: BaseException | None = None
-
-        def poll(timeout: float) -> None:
-            try:
-                msg = bus.recv(timeout=max(0.0, timeout))
-            except (can.CanError, OSError, Exception) as exc:  # noqa: BLE001
-                raise BusLost(f"the bus connection failed: {type(exc).__name__}: {exc}") \
-                    from None
-            if msg is None:
-                return
-            monitor(msg)
-            name = tpdo_names.get(msg.arbitration_id)
-            if name is not None:
-                try:
-                    decoded = frames.decode(msg)
-                except FrameError:
-                    return
-                latest[name] = decoded[1]  # type: ignore[index]
-                fresh.add(name)
-
+        steps.setup(progress)
         self.unlisten()
         # keep full garbage collections (tens of ms with numba and scipy loaded) out of
         # the control loop: what exists now is not scanned again until the run ends
@@ -144,123 +63,27 @@ class RunLoop:
         gc.freeze()
         if stop is not None:
             stop.defer = True
+        error: BaseException | None = None
         try:
-            self.stop_heartbeat()
-            self.check_foreign()
-            self.check_receive()
-            self._hb_next = 0.0
-            self.heartbeat()
-            self._started = True
-            self.nmt(NMTCommand.START)
-            emcy_seen = self._emcy_seen = len(self.emcy)
-            if pacer is not None:
-                pacer.start(5 * ts)
-            for k in range(n):
-                if pacer is not None:
-                    pacer.wait(poll)
-                fresh.clear()
-                self._send_sync()
-                # the set-points of this period are known at its SYNC: send them while
-                # the plant answers (ECU TPDO, synchronous)
-                self.send(can.Message(arbitration_id=cob_sp, is_extended_id=False,
-                                      data=enc_sp.encode({
-                                          "SetpointPosition": frames.clamp(
-                                              "ECU_Setpoint", "SetpointPosition", sp_pos[k]),
-                                          "SetpointSpeed": frames.clamp(
-                                              "ECU_Setpoint", "SetpointSpeed", sp_spd[k]),
-                                          "Mode": mode}, strict=True)))
-                if t_first_sync is None:
-                    t_first_sync = time.perf_counter()
-                rows["bus_time_s"][k] = time.perf_counter() - t_first_sync
-                if pacer is None:
-                    self._wait_tpdos(poll, fresh, k, ts)
-                else:
-                    window = pacer.release_ns + int(0.8 * pacer.period_ns)
-                    while len(fresh) < 3:
-                        left = (window - time.perf_counter_ns()) / 1e9
-                        if left <= 0:
-                            break
-                        poll(left)
-                    if len(fresh) < 3:
-                        stats.late_tpdo += 1
-                        if k % 50 == 0:
-                            self._check_alive(k, ts)
-                # what happened during the period, before its row is recorded
-                if self.foreign is not None:
-                    self.check_foreign(f" at t = {k * ts:.3f} s, SYNC {k}")
-                if stop is not None and stop.signum is not None:
-                    raise Interrupted(stop.signum, _at(k, ts))
-                if log is not None and log.error is not None:
-                    log.raise_error("; stopped" + _at(k, ts))
-                if pacer is not None and len(latest) < 3:
+            self._start_run(steps)
+            pacer = steps.pacer
+            for k in range(steps.n):
+                steps.sync(k)
+                steps.collect(k)
+                steps.check(k)
+                if pacer is not None and len(steps.latest) < 3:
                     pacer.done()
                     continue
-                t1, t2, t3 = latest["EMA_TPDO1"], latest["EMA_TPDO2"], latest["EMA_TPDO3"]
-                pos = float(t3["LvdtPosition"])
-                spd = float(t2["EncoderSpeed"])
-                demand = ctrl.step(sp_pos[k], sp_spd[k], mode, pos, spd)
-                # within the plant's own current limit (read back), so that a demand the
-                # plant clamps (status bit 5, EMCY demand_invalid) is always a real fault
-                if demand > limit_a:
-                    demand = limit_a
-                elif demand < -limit_a:
-                    demand = -limit_a
-                demand32 = float(np.float32(demand))
-                self.send(can.Message(arbitration_id=cob_rpdo, is_extended_id=False,
-                                      data=enc_rpdo.encode({
-                                          "CurrentDemand": demand32,
-                                          "ControlWord": enable if k else first_control},
-                                          strict=True)))
-                word = int(t1["StatusWord"])
-                rows["current_demand_a"][k] = demand32
-                rows["current_a"][k] = t1["MotorCurrent"]
-                rows["status_word"][k] = word
-                rows["motor_speed_rad_s"][k] = spd
-                rows["motor_angle_rad"][k] = t2["EncoderAngle"] * TWO_PI / cpr
-                rows["position_m"][k] = pos
-                rows["winding_temperature_k"][k] = t3["WindingTemperature"]
-                rows["load_force_n"][k] = t3["LoadForce"]
-                stats.periods = k + 1
-                if word & fail_bits and (k or word & fail_bits != timeout_bit):
-                    raise self._status_fault(word, k, ts)
-                if len(self.emcy) != emcy_seen:
-                    emcy_seen = self._emcy_seen = self._check_emcy(emcy_seen, k, ts)
-                self.heartbeat(force=bool(hb_every) and (k + 1) % hb_every == 0)
-                if pacer is not None:
-                    pacer.done()
-                if on_period is not None:
-                    on_period(k)
-                if bar is not None and (k & 0xFF) == 0:
-                    now = time.monotonic()
-                    if now - last_bar > 0.25:
-                        bar.update(round(k * ts - bar.n, 3))
-                        last_bar = now
+                steps.control(k)
+                steps.end(k)
         except BaseException as exc:  # noqa: BLE001 - stored, re-raised below
             error = exc
         finally:
             if stop is not None:
                 stop.defer = False
             gc.unfreeze()
-            stats.wall_s = time.perf_counter() - t_wall0
-            if bar is not None:
-                bar.update(round(stats.periods * ts - bar.n, 3))
-                bar.close()
-            if pacer is not None:
-                stats.sync_jitter_p50_us = pacer.lateness.percentile_us(50)
-                stats.sync_jitter_p99_us = pacer.lateness.percentile_us(99)
-                stats.sync_jitter_max_us = pacer.lateness.max_us
-                stats.sync_deadline_misses = pacer.misses
-        m = stats.periods
-        cols = {"t_s": t[:m], "setpoint_position_m": sp_pos[:m],
-                "setpoint_speed_rad_s": sp_spd[:m], "mode": np.full(m, float(mode))}
-        cols.update({k_: v[:m] for k_, v in rows.items()})
-        meta = {"source": "bus", "pace": Pace(pace).name.lower(), "profile": profile.name,
-                "profile_kwargs": profile.kwargs, "fundamental_hz": profile.fundamental_hz,
-                "params": params.to_dict(), "controller": asdict(cparams),
-                "complete": m == n, "node_id": self.node_id, "ecu": asdict(stats),
-                "emcy": list(self.emcy)}
-        trace = Trace(cols, meta)
-        self.partial = trace
+            steps.close()
+        trace = self.partial = steps.trace()
         if error is not None:
             trace.meta["error"] = str(error) or type(error).__name__
             if self.log is not None:
@@ -270,6 +93,19 @@ class RunLoop:
             raise error
         self._finish(trace, stats)
         return trace
+
+    def _start_run(self, steps: PeriodSteps) -> None:
+        """The last checks, the ECU's heartbeat, NMT START, the pacer's first release."""
+        self.stop_heartbeat()
+        self.check_foreign()
+        self.check_receive()
+        self._hb_next = 0.0
+        self.heartbeat()
+        self._started = True
+        self.nmt(NMTCommand.START)
+        steps.emcy_seen = self._emcy_seen = len(self.emcy)
+        if steps.pacer is not None:
+            steps.pacer.start(5 * steps.ts)
 
     def _status_fault(self, word: int, k: int, ts: float) -> PlantFault:
         """The error for a status word with a FAILING_BITS bit set at SYNC k."""
@@ -341,14 +177,6 @@ class RunLoop:
                 if waited > 10.0:
                     raise PlantLost(f"the plant sent no TPDO for SYNC {k} (t = {k * ts:.3f} s) "
                                     f"within 10 s although its heartbeat continues")
-
-
-def _float32_limit(limit: float) -> float:
-    """The largest float32 not above `limit` (a demand sent as float32 within it)."""
-    v = np.float32(limit)
-    if float(v) > limit:
-        v = np.nextafter(v, np.float32(0.0))
-    return float(v)
 
 
 RUN_COLUMNS = 13     # float64 columns of a bus run's trace (Ecu.run)
