@@ -68,6 +68,38 @@ def _with_node(trace: Trace | None, info: NodeInfo) -> Trace | None:
     return trace
 
 
+def _check_run(profile: Profile, vals: dict[str, Any], duration_s: float | None,
+               log_path: str | Path | None, encoder_counts: int | None) -> None:
+    """Before anything starts: `encoder_counts`, the run's length and the log path."""
+    if encoder_counts is not None:
+        try:
+            check_value(resolve("sensors.encoder_counts_per_rev"), encoder_counts)
+        except ParameterError as exc:
+            raise BenchError(f"--encoder-counts: {exc}") from None
+    run_periods(profile.duration_s if duration_s is None else duration_s,
+                PlantParams().with_dict(vals).sim.sync_period_s)
+    if log_path:
+        probe_output(log_path, "log")
+
+
+def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace, node_id: int | None,
+                say: Callable[[str], None]) -> None:
+    """Wait for the node on the session's bus; when none answers on a simulated bus and
+    `start_plant`, start a plant process for the run (stopped with the session)."""
+    from bench.bus import is_simulated
+    from bench.bus.procs import start_plant as _start_plant
+    try:
+        ecu.wait_for_plant(1.0 if sess.children else 0.6)
+    except PlantLost:
+        ecu.check_receive()
+        if not (start_plant and is_simulated(sess.cfg)):
+            raise PlantLost(f"no actuator node 0x{ecu.node_id:02X} answering on "
+                            f"{sess.description}") from None
+        say("starting a plant for this run")
+        sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
+                                          node_id=node_id))
+
+
 def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                  assignments: list[str] | None = None, pace: Pace | str = Pace.SYNC,
                  duration_s: float | None = None, log_path: str | Path | None = None,
@@ -95,37 +127,19 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
     checked. Before any NMT command or SDO write: `Ecu.claim` (no other ECU on the node).
     On error the partial trace is in the exception's ``trace`` attribute, the log is
     closed and the node, once claimed, is set PRE-OPERATIONAL (`Ecu.abort`)."""
-    from bench.bus import close_bus, connect, is_simulated, session
-    from bench.bus.procs import start_plant as _start_plant
+    from bench.bus import close_bus, connect, session
 
     pace = Pace[pace.upper()] if isinstance(pace, str) else Pace(pace)
     vals = plant_values(profile, assignments, values)
     origin = setting_origins(profile, assignments, values)
-    if encoder_counts is not None:
-        try:
-            check_value(resolve("sensors.encoder_counts_per_rev"), encoder_counts)
-        except ParameterError as exc:
-            raise BenchError(f"--encoder-counts: {exc}") from None
-    run_periods(profile.duration_s if duration_s is None else duration_s,
-                PlantParams().with_dict(vals).sim.sync_period_s)
-    if log_path:
-        probe_output(log_path, "log")
+    _check_run(profile, vals, duration_s, log_path, encoder_counts)
     say = announce or (lambda s: None)
     with session(settings) as sess:
         bus = connect(sess.cfg, receive_own_messages=echo)
         ecu = None
         try:
             ecu = Ecu(bus, node_id=node_id, log_path=log_path, echo=echo)
-            try:
-                ecu.wait_for_plant(1.0 if sess.children else 0.6)
-            except PlantLost:
-                ecu.check_receive()
-                if not (start_plant and is_simulated(sess.cfg)):
-                    raise PlantLost(f"no actuator node 0x{ecu.node_id:02X} answering on "
-                                    f"{sess.description}") from None
-                say("starting a plant for this run")
-                sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
-                                                  node_id=node_id))
+            _find_plant(ecu, sess, start_plant, pace, node_id, say)
             say(f"bus {sess.description}")
             ecu.claim(say)
             ecu.start_heartbeat()
