@@ -150,8 +150,10 @@ def speed_loop(params: PlantParams | None = None, cparams: ControllerParams | No
         settle, cyc = max(2.0, 0.1 * f), max(4.0, 0.1 * f)
         dur = (settle + cyc) / f + 0.002
         w_ = 2 * math.pi * f
-        prof = Profile("speed-sine", MODE_SPEED, dur, lambda t: np.zeros_like(t),
-                       lambda t, w_=w_: bias_rad_s + amplitude_rad_s * np.sin(w_ * t))
+
+        def speed(t: np.ndarray, w_: float = w_) -> np.ndarray:
+            return bias_rad_s + amplitude_rad_s * np.sin(w_ * t)
+        prof = Profile("speed-sine", MODE_SPEED, dur, lambda t: np.zeros_like(t), speed)
         tr = simulate(prof, params, cparams)
         w = _window(tr.t, f, settle, cyc)
         y = lockin(tr["motor_speed_rad_s"][w], tr.t[w], f)
@@ -170,8 +172,10 @@ def position_loop(params: PlantParams | None = None, cparams: ControllerParams |
         settle, cyc = 2.0, 4.0
         dur = (settle + cyc) / f + 0.002
         w_ = 2 * math.pi * f
-        prof = Profile("pos-sine", MODE_POSITION, dur,
-                       lambda t, w_=w_: amplitude_m * np.sin(w_ * t), lambda t: np.zeros_like(t))
+
+        def position(t: np.ndarray, w_: float = w_) -> np.ndarray:
+            return amplitude_m * np.sin(w_ * t)
+        prof = Profile("pos-sine", MODE_POSITION, dur, position, lambda t: np.zeros_like(t))
         tr = simulate(prof, params, cparams)
         w = _window(tr.t, f, settle, cyc)
         y = lockin(tr["position_m"][w], tr.t[w], f)

@@ -265,11 +265,12 @@ def p9(res: Result, params: PlantParams) -> None:
                 f"{fb:.3f} / {fa:.3f}"),
         ]
     d = [out[f][0] for f in (0.0, 1e3, 3.5e3)]
-    fb = [out[f][1] for f in (0.0, 1e3, 3.5e3)]
-    fa = [out[f][2] for f in (0.0, 1e3, 3.5e3)]
+    before = [out[f][1] for f in (0.0, 1e3, 3.5e3)]
+    after = [out[f][2] for f in (0.0, 1e3, 3.5e3)]
     res.extra["P9"] = {"disturbance_shrinks": bool(d[0] > d[1] > d[2]),
-                       "friction_before_grows": bool(fb[0] < fb[1] < fb[2]),
-                       "friction_after_spread": float((max(fa) - min(fa)) / np.mean(fa))}
+                       "friction_before_grows": bool(before[0] < before[1] < before[2]),
+                       "friction_after_spread": float((max(after) - min(after))
+                                                      / np.mean(after))}
 
 
 ROWS: dict[str, Callable[..., None]] = {"P1-P3": p1_p3, "P4": p4, "P5-P7": p5_p7,

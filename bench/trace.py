@@ -107,8 +107,9 @@ class Trace:
         path = Path(path)
         suffix = path.suffix.lower()
         if suffix == ".npz":
-            np.savez_compressed(path, __meta__=json.dumps(self.meta, default=str),
-                                **self.columns)
+            arrays: dict[str, Any] = {"__meta__": json.dumps(self.meta, default=str),
+                                      **self.columns}
+            np.savez_compressed(path, **arrays)
         elif suffix == ".csv":
             names = list(self.columns)
             with path.open("w", newline="") as fh:

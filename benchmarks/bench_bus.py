@@ -189,48 +189,73 @@ def bus_load() -> dict:
 
 
 def write_section(path: Path, res: dict) -> None:
+    runs = [res["realtime"]] + ([res["realtime_fifo"]] if "realtime_fifo" in res else [])
     L = [SECTION, "",
          f"Measured by `python benchmarks/bench_bus.py --write docs/performance.md` on "
          f"{res['machine']}, hub, plant and ECU all on this machine (each its own process), "
          f"load average before the runs {res['load_before']:.2f}. Goals: p99 jitter < 200 us, "
          "< 1 deadline miss per 10,000 periods, lockstep faster than real time.", ""]
-    runs = [res["realtime"]] + ([res["realtime_fifo"]] if "realtime_fifo" in res else [])
+    L += _goals_table(res, runs)
+    L += _pacer_note(res, runs)
+    L += _latency_table(res)
+    L += _realtime_table(res, runs)
+    L += _lockstep_table(res)
+    L += _bus_load_table(res)
+    if res.get("notes"):
+        L += [res["notes"], ""]
+    perfdoc.write_section(path, "\n".join(L))
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "NOT met"
+
+
+def _label(r: dict) -> str:
+    return r.get("scheduling", "normal scheduling").split(" (")[0]
+
+
+def _goals_table(res: dict, runs: list[dict]) -> list[str]:
+    """The goals, each run's measure and whether it met them (and a refused SCHED_FIFO)."""
     lock = next((r for r in res["lockstep"] if r["server"] == "select"), res["lockstep"][0])
-
-    def met(ok: bool) -> str:
-        return "met" if ok else "NOT met"
-
-    def label(r: dict) -> str:
-        return r.get("scheduling", "normal scheduling").split(" (")[0]
-
-    L += ["| goal | run | measured | |", "|---|---|---|---|"]
+    L = ["| goal | run | measured | |", "|---|---|---|---|"]
     for r in runs:
         p99 = max(r["plant_jitter_us"][1], r["ecu_jitter_us"][1])
-        L.append(f"| real-time p99 jitter < 200 us | {label(r)} | plant "
+        L.append(f"| real-time p99 jitter < 200 us | {_label(r)} | plant "
                  f"{r['plant_jitter_us'][1]:.0f} us, ECU {r['ecu_jitter_us'][1]:.0f} us | "
-                 f"{met(p99 < 200)} |")
+                 f"{_met(p99 < 200)} |")
     for r in runs:
         miss = max(r["plant_misses_per_10k"], r["ecu_misses_per_10k"])
-        L.append(f"| < 1 deadline miss per 10,000 periods | {label(r)} | plant "
+        L.append(f"| < 1 deadline miss per 10,000 periods | {_label(r)} | plant "
                  f"{r['plant_misses_per_10k']:.1f}, ECU {r['ecu_misses_per_10k']:.1f} | "
-                 f"{met(miss < 1)} |")
+                 f"{_met(miss < 1)} |")
     L += [f"| lockstep faster than real time | | {lock['sim_per_wall']:.2f}x | "
-          f"{met(lock['sim_per_wall'] > 1)} |", ""]
+          f"{_met(lock['sim_per_wall'] > 1)} |", ""]
     if len(runs) > 1 and "refused" in runs[1].get("scheduling", ""):
         L += [f"The second run asked for real-time scheduling and got "
               f"{runs[1]['scheduling']}.", ""]
+    return L
+
+
+def _pacer_note(res: dict, runs: list[dict]) -> list[str]:
+    """Why the miss goal is not met on this machine (the pacer alone misses), if so."""
     worst_miss = min(max(r["plant_misses_per_10k"], r["ecu_misses_per_10k"]) for r in runs)
     base = res.get("baseline", [])
-    if base and worst_miss >= 1:
-        b = min(base, key=lambda x: x["misses_per_10k"])
-        L += [f"The pacer alone (one process stepping the plant, no bus, nothing else of the "
-              f"bench running, normal scheduling) misses {b['misses_per_10k']:.1f} deadlines "
-              f"per 10,000 periods here, with stalls up to {b['jitter_us'][2]:.0f} us: this "
-              "shared 2-vCPU VM stops processes for milliseconds now and then, so no pacer on "
-              "it can meet the miss goal. With hub, plant and ECU on two cores each frame "
-              "also waits for a process to be scheduled (see the latency table), which "
-              "SCHED_FIFO (`--rt-priority N` of `bench up`, `bench run`, `bench plant`) "
-              "shortens; a kernel bus (vcan0, a real CAN interface) removes the hub hop.", ""]
+    if not (base and worst_miss >= 1):
+        return []
+    b = min(base, key=lambda x: x["misses_per_10k"])
+    return [f"The pacer alone (one process stepping the plant, no bus, nothing else of the "
+            f"bench running, normal scheduling) misses {b['misses_per_10k']:.1f} deadlines "
+            f"per 10,000 periods here, with stalls up to {b['jitter_us'][2]:.0f} us: this "
+            "shared 2-vCPU VM stops processes for milliseconds now and then, so no pacer on "
+            "it can meet the miss goal. With hub, plant and ECU on two cores each frame "
+            "also waits for a process to be scheduled (see the latency table), which "
+            "SCHED_FIFO (`--rt-priority N` of `bench up`, `bench run`, `bench plant`) "
+            "shortens; a kernel bus (vcan0, a real CAN interface) removes the hub hop.", ""]
+
+
+def _latency_table(res: dict) -> list[str]:
+    """One-way frame latency through each hub."""
+    L: list[str] = []
     L += ["One-way frame latency between two processes through the loopback hub "
           f"({res['latency'][0]['frames']} frames at 1 kHz, send to receive, "
           "perf_counter_ns, normal scheduling):", "",
@@ -240,6 +265,13 @@ def write_section(path: Path, res: dict) -> None:
                 else "python-can-remote RemoteServer (virtual bus)")
         L.append(f"| {name} | {r['p50_us']:.0f} us | {r['p99_us']:.0f} us | "
                  f"{r['max_us']:.0f} us |")
+    return L
+
+
+def _realtime_table(res: dict, runs: list[dict]) -> list[str]:
+    """The real-time runs' jitter and misses (and the pacer-alone baseline), then each
+    run's late TPDOs, missing RPDOs and plant step time."""
+    L: list[str] = []
     rt = runs[0]
     L += ["", f"Real-time runs at 1 kHz ({rt['periods']} periods each, `--pace realtime`, "
           "sine profile, one after the other): release lateness of the absolute-deadline "
@@ -248,10 +280,10 @@ def write_section(path: Path, res: dict) -> None:
           "| | scheduling | p50 | p99 | max | deadline misses / 10,000 |",
           "|---|---|---|---|---|---|"]
     for r in runs:
-        L += [f"| plant (steps the model) | {label(r)} | {r['plant_jitter_us'][0]:.0f} us | "
+        L += [f"| plant (steps the model) | {_label(r)} | {r['plant_jitter_us'][0]:.0f} us | "
               f"{r['plant_jitter_us'][1]:.0f} us | {r['plant_jitter_us'][2]:.0f} us | "
               f"{r['plant_misses_per_10k']:.1f} |",
-              f"| ECU (SYNC producer) | {label(r)} | {r['ecu_jitter_us'][0]:.0f} us | "
+              f"| ECU (SYNC producer) | {_label(r)} | {r['ecu_jitter_us'][0]:.0f} us | "
               f"{r['ecu_jitter_us'][1]:.0f} us | {r['ecu_jitter_us'][2]:.0f} us | "
               f"{r['ecu_misses_per_10k']:.1f} |"]
     for b in res.get("baseline", []):
@@ -259,17 +291,29 @@ def write_section(path: Path, res: dict) -> None:
                  f"normal scheduling | {b['jitter_us'][0]:.0f} us | {b['jitter_us'][1]:.0f} us"
                  f" | {b['jitter_us'][2]:.0f} us | {b['misses_per_10k']:.1f} |")
     for r in runs:
-        L += ["", f"{label(r)}: TPDO sets that missed their window (0.8 period after the "
+        L += ["", f"{_label(r)}: TPDO sets that missed their window (0.8 period after the "
               f"SYNC, the ECU then uses the previous values): {r['late_tpdo_per_10k']:.1f} "
               f"per 10,000 periods; SYNCs the plant saw without a new RPDO: "
               f"{r['rpdo_missing_per_10k']:.1f} per 10,000; plant step p99 "
               f"{r['plant_step_p99_us']:.0f} us (switching PWM, dynamic balls)."]
+    return L
+
+
+def _lockstep_table(res: dict) -> list[str]:
+    """The lockstep runs' speed."""
+    L: list[str] = []
     L += ["", "Lockstep (`--pace sync`, one period per SYNC, sine profile):", "",
           "| hub | periods | wall | sim s / wall s |", "|---|---|---|---|"]
     for r in res["lockstep"]:
         name = "bench hub" if r["server"] == "select" else "python-can-remote RemoteServer"
         L.append(f"| {name} | {r['periods']} | {r['wall_s']:.2f} s | "
                  f"{r['sim_per_wall']:.2f}x |")
+    return L
+
+
+def _bus_load_table(res: dict) -> list[str]:
+    """The DBC's bus load per SYNC period."""
+    L: list[str] = []
     bl = res["bus_load"]
     L += ["", f"Bus load per SYNC period ({bl['period_ms']} ms) from the DBC, classic CAN, "
           "11-bit identifiers (47 + 8 DLC bits per frame; worst case adds bit stuffing):", "",
@@ -282,9 +326,7 @@ def write_section(path: Path, res: dict) -> None:
           f"{bl['capacity_bits']:.0f} a 1 Mbit/s bus carries in {bl['period_ms']} ms: "
           f"{100 * bl['load']:.0f} % ({100 * bl['load_worst']:.0f} % worst case). SDO, EMCY "
           "and NMT traffic is occasional and not counted.", ""]
-    if res.get("notes"):
-        L += [res["notes"], ""]
-    perfdoc.write_section(path, "\n".join(L))
+    return L
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -46,7 +46,10 @@ def eds_path() -> Path:
 
 @lru_cache(maxsize=4)
 def _load_db(path: str) -> cantools.database.can.Database:
-    return cantools.database.load_file(path, strict=True)
+    db = cantools.database.load_file(path, strict=True)
+    if not isinstance(db, cantools.database.can.Database):
+        raise TypeError(f"{path} is not a CAN database")
+    return db
 
 
 def load_db() -> cantools.database.can.Database:
@@ -151,8 +154,8 @@ class Frames:
         short = allow_truncated and 0 < len(msg.data) < m.length
         sig = None
         if len(msg.data) == m.length or short:
-            sig = m.decode(bytes(msg.data), decode_choices=False, scaling=True,
-                           allow_truncated=short)
+            sig = m.decode_simple(bytes(msg.data), decode_choices=False, scaling=True,
+                                  allow_truncated=short)
         if sig is None or (short and not sig):   # wrong length, or no signal fits
             raise FrameError(f"{m.name} (0x{msg.arbitration_id:03X}) with {len(msg.data)} "
                              f"bytes, expected {m.length}")
@@ -169,7 +172,7 @@ class Frames:
 
     def label(self, name: str, signal: str, value: int) -> str:
         s = self.by_name[name].get_signal_by_name(signal)
-        text = (s.choices or {}).get(int(value))
+        text = s.choices.get(int(value)) if s.choices else None
         return str(text) if text is not None else f"0x{int(value):04X}"
 
     def cycle_time_ms(self, name: str) -> int:

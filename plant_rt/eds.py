@@ -135,7 +135,10 @@ def variable(index: int, sub: int, name: str, dtype: int, access: str, default=N
     var = ODVariable(name, index, sub)
     var.data_type, var.access_type, var.pdo_mappable = dtype, access, pdo
     if isinstance(default, str):
-        var.default_raw, var.relative = default, True
+        # canopen keeps a $NODEID expression in `default_raw`, an attribute it sets and
+        # reads with getattr (not declared on ODVariable)
+        setattr(var, "default_raw", default)  # noqa: B010
+        var.relative = True
     elif default is not None:
         var.default = int(default) if dtype == BOOLEAN else default
     var.min, var.max = low, high
@@ -269,7 +272,8 @@ def _parameters(od: ObjectDictionary) -> None:
             desc = info.doc
             if info.source:
                 desc += f" [{info.source}]"
-            low = high = None
+            low: float | None = None
+            high: float | None = None
             default = info.default
             if info.type is bool:
                 dtype = BOOLEAN

@@ -138,7 +138,8 @@ def _ext_force(p: np.ndarray, t: float) -> float:
 
 
 @njit(cache=True, error_model="numpy", fastmath=FM)
-def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
+# noqa: C901 below: the compiled inner loop; helpers per branch cost speed in numba
+def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:  # noqa: C901
     """Integrate one SYNC period (p[P_NSUB] sub-steps of p[P_DT]) holding inputs u."""
     # long: one sub-step of every coupled block (drive to sensors) on shared locals, in order
     dt = p[P_DT]

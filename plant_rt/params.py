@@ -315,25 +315,36 @@ def resolve(name: str) -> ParamInfo:
 
 def check_value(info: ParamInfo, value: Any) -> Any:
     """`value` coerced to the parameter's type and checked against its range."""
-    name = info.name
     if info.type is bool:
-        if isinstance(value, str):
-            low = value.strip().lower()
-            if low in ("1", "true", "on", "yes"):
-                return True
-            if low in ("0", "false", "off", "no"):
-                return False
-            raise ParameterError(f"{name}: expected on/off, got {value!r}")
-        if isinstance(value, (bool, int)) and value in (0, 1):
-            return bool(value)
-        raise ParameterError(f"{name}: expected a boolean, got {value!r}")
+        return _check_bool(info.name, value)
     if info.type is str:
         if not isinstance(value, str) or (info.choices and value not in info.choices):
-            raise ParameterError(f"{name}: expected one of {', '.join(info.choices or ())}, "
+            raise ParameterError(f"{info.name}: expected one of {', '.join(info.choices or ())}, "
                                  f"got {value!r}")
         return value
+    return _check_number(info, value)
+
+
+def _check_bool(name: str, value: Any) -> bool:
+    """`check_value` of a boolean: on/off words, or 0/1."""
+    if isinstance(value, str):
+        low = value.strip().lower()
+        if low in ("1", "true", "on", "yes"):
+            return True
+        if low in ("0", "false", "off", "no"):
+            return False
+        raise ParameterError(f"{name}: expected on/off, got {value!r}")
+    if isinstance(value, (bool, int)) and value in (0, 1):
+        return bool(value)
+    raise ParameterError(f"{name}: expected a boolean, got {value!r}")
+
+
+def _check_number(info: ParamInfo, value: Any) -> float | int:
+    """`check_value` of an int or float parameter: finite (NaN only for the lever that
+    it selects) and within the range."""
+    name = info.name
     try:
-        num = float(value)
+        num: float | int = float(value)
     except (TypeError, ValueError):
         raise ParameterError(f"{name}: expected a number in {info.unit}, got {value!r}") from None
     if info.type is int:

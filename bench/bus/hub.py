@@ -58,6 +58,7 @@ import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
+from typing import Any
 
 from can.util import CAN_FD_DLC
 
@@ -242,11 +243,11 @@ class FilterSet:
             raise BadEvent(f"can_filters must be a list of filters, not {_short(raw)}")
         if len(raw) > MAX_FILTERS:
             raise BadEvent(f"can_filters: {len(raw)} filters, at most {MAX_FILTERS}")
-        out = []
+        out: list[tuple[int, int, bool | None]] = []
         for i, f in enumerate(raw):
             if not isinstance(f, dict):
                 raise BadEvent(f"can_filters[{i}] must be an object, not {_short(f)}")
-            vals = [f.get("can_id"), f.get("can_mask")]
+            vals: list[Any] = [f.get("can_id"), f.get("can_mask")]   # JSON values
             if not all(type(v) is int and 0 <= v <= 0xFFFFFFFF for v in vals):
                 raise BadEvent(f"can_filters[{i}]: can_id and can_mask must be integers "
                                f"0..0xFFFFFFFF, not {_short(vals)}")
@@ -311,7 +312,26 @@ def _parse_frame(buf: bytearray, limit: int = MAX_MESSAGE_BYTES
     never sends. The length header alone decides: nothing more is buffered."""
     if len(buf) < 2:
         return None
-    b1, b2 = buf[0], buf[1]
+    b1 = buf[0]
+    op = _client_opcode(b1, buf[1])
+    length = _payload_length(buf)
+    if length is None:
+        return None
+    n, pos = length
+    if op >= 8 and (n > 125 or not b1 & 0x80):
+        raise Violation(CLOSE_PROTOCOL, "control frames must be whole and <= 125 bytes")
+    if n > limit:
+        raise Violation(CLOSE_TOO_BIG, f"frame of {n} bytes over the {limit}-byte limit")
+    if len(buf) < pos + 4 + n:
+        return None
+    mask = bytes(buf[pos:pos + 4])
+    pos += 4
+    return op, _unmask(mask, bytes(buf[pos:pos + n])), pos + n
+
+
+def _client_opcode(b1: int, b2: int) -> int:
+    """The opcode of a client frame whose first two bytes are `b1`, `b2`; `Violation`
+    for reserved bits, fragments, an unknown opcode or a missing mask."""
     op = b1 & 0x0F
     if b1 & 0x70:
         raise Violation(CLOSE_PROTOCOL, "reserved bits set (no extension negotiated)")
@@ -321,31 +341,47 @@ def _parse_frame(buf: bytearray, limit: int = MAX_MESSAGE_BYTES
         raise Violation(CLOSE_PROTOCOL, f"unknown opcode {op:#x}")
     if not b2 & 0x80:
         raise Violation(CLOSE_PROTOCOL, "client frames must be masked (RFC 6455 5.1)")
-    n = b2 & 0x7F
-    pos = 2
+    return op
+
+
+def _payload_length(buf: bytearray) -> tuple[int, int] | None:
+    """(payload length, where the mask starts) from a frame's length header (7, 16 or
+    64 bits), None if the header is not complete yet."""
+    n = buf[1] & 0x7F
     if n == 126:
         if len(buf) < 4:
             return None
-        n = struct.unpack_from(">H", buf, 2)[0]
-        pos = 4
-    elif n == 127:
+        return struct.unpack_from(">H", buf, 2)[0], 4
+    if n == 127:
         if len(buf) < 10:
             return None
-        n = struct.unpack_from(">Q", buf, 2)[0]
-        pos = 10
-    if op >= 8 and (n > 125 or not b1 & 0x80):
-        raise Violation(CLOSE_PROTOCOL, "control frames must be whole and <= 125 bytes")
-    if n > limit:
-        raise Violation(CLOSE_TOO_BIG, f"frame of {n} bytes over the {limit}-byte limit")
-    if len(buf) < pos + 4 + n:
-        return None
-    mask = bytes(buf[pos:pos + 4])
-    pos += 4
-    data = bytes(buf[pos:pos + n])
-    if n:
-        m = (mask * (n // 4 + 1))[:n]
-        data = (int.from_bytes(data, "big") ^ int.from_bytes(m, "big")).to_bytes(n, "big")
-    return op, data, pos + n
+        return struct.unpack_from(">Q", buf, 2)[0], 10
+    return n, 2
+
+
+def _unmask(mask: bytes, data: bytes) -> bytes:
+    """`data` XORed with the repeated 4-byte `mask` (RFC 6455 5.3)."""
+    n = len(data)
+    if not n:
+        return data
+    m = (mask * (n // 4 + 1))[:n]
+    return (int.from_bytes(data, "big") ^ int.from_bytes(m, "big")).to_bytes(n, "big")
+
+
+def _decode_event(payload: bytes) -> tuple[Any, str | None]:
+    """(the JSON event, None) or (None-or-value, why it is malformed) of a text frame's
+    payload; `Violation` if it is not UTF-8."""
+    try:
+        text = payload.decode("utf-8")
+    except UnicodeDecodeError:
+        raise Violation(CLOSE_DATA, "text frame is not valid UTF-8") from None
+    try:
+        ev = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        return None, f"malformed event: not JSON ({type(exc).__name__})"
+    if isinstance(ev, dict) and type(ev.get("type")) is str:
+        return ev, None
+    return ev, "malformed event: not an object with a string 'type'"
 
 
 # -- the hub -----------------------------------------------------------------------------
@@ -619,16 +655,7 @@ class SelectHub:
         self._send_json(c, "error", reason.replace("\n", " ")[:300])
 
     def _event(self, c: Client, payload: bytes) -> None:
-        try:
-            text = payload.decode("utf-8")
-        except UnicodeDecodeError:
-            raise Violation(CLOSE_DATA, "text frame is not valid UTF-8") from None
-        try:
-            ev = json.loads(text)
-            bad = None if isinstance(ev, dict) and type(ev.get("type")) is str else \
-                "malformed event: not an object with a string 'type'"
-        except (ValueError, RecursionError) as exc:
-            bad = f"malformed event: not JSON ({type(exc).__name__})"
+        ev, bad = _decode_event(payload)
         if bad is not None:
             if not c.ready:
                 raise Violation(CLOSE_POLICY, f"{bad}, before bus_request")
@@ -639,24 +666,28 @@ class SelectHub:
             self._session(c, kind, payload)
             return
         try:
-            if kind == "message":
-                self._forward(c, *message_from_json(payload))
-            elif kind == "periodic_start":
-                self._periodic_start(c, payload)
-            elif kind == "periodic_stop":
-                if type(payload) is not int:
-                    raise BadEvent(f"payload must be an arbitration_id, not {_short(payload)}")
-                task = c.periodic.get(payload)
-                if task is not None:
-                    self._stop_task(task)
-            elif kind == "error":              # python-can-remote's client reporting one
-                self.stats["client_errors"] += 1
-            elif kind == "bus_request":
-                raise BadEvent("the bus is already set up for this connection")
-            else:
-                raise BadEvent("unknown event type")
+            self._dispatch(c, kind, payload)
         except BadEvent as exc:
             self._bad(c, f"{kind[:40]}: {exc}")
+
+    def _dispatch(self, c: Client, kind: str, payload: Any) -> None:
+        """Act on one well-formed event of a ready client; `BadEvent` if it is wrong."""
+        if kind == "message":
+            self._forward(c, *message_from_json(payload))
+        elif kind == "periodic_start":
+            self._periodic_start(c, payload)
+        elif kind == "periodic_stop":
+            if type(payload) is not int:
+                raise BadEvent(f"payload must be an arbitration_id, not {_short(payload)}")
+            task = c.periodic.get(payload)
+            if task is not None:
+                self._stop_task(task)
+        elif kind == "error":              # python-can-remote's client reporting one
+            self.stats["client_errors"] += 1
+        elif kind == "bus_request":
+            raise BadEvent("the bus is already set up for this connection")
+        else:
+            raise BadEvent("unknown event type")
 
     def _session(self, c: Client, kind: str, payload) -> None:
         """The first event must be a valid bus_request; anything else closes `c`."""

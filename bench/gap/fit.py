@@ -107,7 +107,7 @@ class Objective:
         self.prior = prior or {}
         self.nfev = 0
 
-    def thetas(self, u: Sequence[float]) -> list[dict[str, float]]:
+    def thetas(self, u: Sequence[float] | np.ndarray) -> list[dict[str, float]]:
         th = [dict(f) for f in self.fixed]
         for (i, prm), ui in zip(self.free, u, strict=True):
             th[i][prm.name] = prm.from_unit(ui)
@@ -162,7 +162,7 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
     `Objective`.
     """
     effs = resolve(names)
-    names = [e.name for e in effs]
+    effect_names = tuple(e.name for e in effs)
     k = sum(len(e.params) for e in effs)
     nom = [e.nominal(problem.base) for e in effs]
     # candidate starting points: every effect's own start points, in step; with `start`
@@ -212,7 +212,7 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
         th = [dict(f) for f in fixed]
         sim = obj.simulate(th)
         r = problem.residual(sim, 0, problem.n_fit)
-        return Fit(tuple(names), th, [dict(_exact(f)) for f in fixed], float(r @ r), len(r),
+        return Fit(effect_names, th, [dict(_exact(f)) for f in fixed], float(r @ r), len(r),
                    k, obj.nfev, residual_corr_length(problem, sim, 0, problem.n_fit),
                    extra={"discrete_only": True}, objs=list(effs))
     best_u = np.clip(np.array([prm.to_unit(best_st[i][prm.name]) for i, prm in obj.free]),
@@ -229,7 +229,7 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
     rss = float(r @ r)
     L = residual_corr_length(problem, sim, 0, problem.n_fit)
     ci = _intervals(obj, u, res.jac, rss, len(r), L, fixed)
-    return Fit(tuple(names), th, ci, rss, len(r), k, obj.nfev, L, bool(res.success),
+    return Fit(effect_names, th, ci, rss, len(r), k, obj.nfev, L, bool(res.success),
                str(res.message), objs=list(effs))
 
 

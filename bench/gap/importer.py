@@ -147,52 +147,68 @@ def read_table(path: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
         raise BenchError(f"no such table: {path}")
     suffix = path.suffix.lower()
     if suffix == ".parquet":
-        import pyarrow.parquet as pq
-        try:
-            table = pq.read_table(path)
-        except Exception as exc:  # noqa: BLE001 - pyarrow raises many types
-            raise BenchError(f"{path}: cannot read Parquet ({exc})") from None
-        have = table.column_names
-        _check_columns(path, columns, have)
-        out = {}
-        for c in columns:
-            try:
-                out[c] = table.column(c).to_numpy(zero_copy_only=False).astype(float)
-            except (ValueError, TypeError):
-                raise BenchError(f"{path}: column {c!r} is not numeric") from None
-        return out
+        return _read_parquet(path, columns)
     if suffix in (".csv", ".txt", ".tsv"):
-        text = path.read_text()
-        sample = text[:4096]
-        try:
-            dialect = csv.Sniffer().sniff(sample, delimiters=",;\t ")
-        except csv.Error:
-            dialect = csv.excel
-        rd = csv.reader(io.StringIO(text), dialect)
-        try:
-            header = [h.strip() for h in next(rd)]
-        except StopIteration:
-            raise BenchError(f"{path}: empty table") from None
-        _check_columns(path, columns, header)
-        idx = [header.index(c) for c in columns]
-        data: list[list[float]] = []
-        for lineno, row in enumerate(rd, start=2):
-            if not row or all(not x.strip() for x in row):
-                continue
-            vals = []
-            for i, c in zip(idx, columns, strict=True):
-                x = row[i].strip() if i < len(row) else ""
-                try:
-                    vals.append(float(x) if x else math.nan)
-                except ValueError:
-                    raise BenchError(f"{path} line {lineno}: column {c!r} is not a number: "
-                                     f"{x!r}") from None
-            data.append(vals)
-        if not data:
-            raise BenchError(f"{path}: the table has a header but no rows")
-        arr = np.array(data, float)
-        return {c: arr[:, j] for j, c in enumerate(columns)}
+        return _read_delimited(path, columns)
     raise BenchError(f"{path}: unknown table format {suffix!r} (use .csv or .parquet)")
+
+
+def _read_parquet(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
+    """`read_table` of a Parquet file."""
+    import pyarrow.parquet as pq
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises many types
+        raise BenchError(f"{path}: cannot read Parquet ({exc})") from None
+    have = table.column_names
+    _check_columns(path, columns, have)
+    out = {}
+    for c in columns:
+        try:
+            out[c] = table.column(c).to_numpy(zero_copy_only=False).astype(float)
+        except (ValueError, TypeError):
+            raise BenchError(f"{path}: column {c!r} is not numeric") from None
+    return out
+
+
+def _read_delimited(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
+    """`read_table` of a CSV-like text file (the delimiter sniffed: , ; tab or space)."""
+    text = path.read_text()
+    sample = text[:4096]
+    try:
+        dialect: type[csv.Dialect] = csv.Sniffer().sniff(sample, delimiters=",;\t ")
+    except csv.Error:
+        dialect = csv.excel
+    rd = csv.reader(io.StringIO(text), dialect)
+    try:
+        header = [h.strip() for h in next(rd)]
+    except StopIteration:
+        raise BenchError(f"{path}: empty table") from None
+    _check_columns(path, columns, header)
+    idx = [header.index(c) for c in columns]
+    data: list[list[float]] = []
+    for lineno, row in enumerate(rd, start=2):
+        if not row or all(not x.strip() for x in row):
+            continue
+        data.append(_row_values(path, lineno, row, idx, columns))
+    if not data:
+        raise BenchError(f"{path}: the table has a header but no rows")
+    arr = np.array(data, float)
+    return {c: arr[:, j] for j, c in enumerate(columns)}
+
+
+def _row_values(path: Path, lineno: int, row: list[str], idx: list[int],
+                columns: list[str]) -> list[float]:
+    """The floats of one text row's wanted cells (blank or missing -> NaN)."""
+    vals = []
+    for i, c in zip(idx, columns, strict=True):
+        x = row[i].strip() if i < len(row) else ""
+        try:
+            vals.append(float(x) if x else math.nan)
+        except ValueError:
+            raise BenchError(f"{path} line {lineno}: column {c!r} is not a number: "
+                             f"{x!r}") from None
+    return vals
 
 
 def _check_columns(path: Path, wanted: list[str], have: list[str]) -> None:
@@ -210,19 +226,7 @@ def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: floa
     by_sig = {e.signal: e for e in mapping}
     cols = sorted({e.column for e in mapping})
     raw = read_table(table, cols)
-    n = len(next(iter(raw.values())))
-    if "t_s" in by_sig:
-        e = by_sig["t_s"]
-        t = raw[e.column] * e.factor
-    elif source_rate_hz:
-        if source_rate_hz <= 0:
-            raise BenchError("the source rate must be > 0 Hz")
-        t = np.arange(n) / source_rate_hz
-    else:
-        raise BenchError("the map has no time signal t_s; map the table's time column or "
-                         "give the table's fixed rate (--source-rate)")
-    out: dict[str, np.ndarray] = {}
-    spans = []
+    t = _time_column(raw, by_sig, source_rate_hz)
     series = {}
     holes: dict[str, list[tuple[int, int, float, float]]] = {}
     for sig, e in by_sig.items():
@@ -231,34 +235,70 @@ def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: floa
         y = raw[e.column] * e.factor
         ok = np.isfinite(y) & np.isfinite(t)
         holes[sig] = nan_blocks(ok, t)
-        ts, ys = t[ok], y[ok]
-        if len(ts) < 2:
-            raise BenchError(f"column {e.column!r} ({sig}) has fewer than 2 values")
-        d = np.diff(ts)
-        if np.any(d < 0):
-            k = int(np.argmax(d < 0))
-            raise BenchError(f"time goes backwards in the table for {e.column!r} at row "
-                             f"{int(np.flatnonzero(ok)[k + 1]) + 2} (sort the table first)")
-        if np.any(d == 0):
-            keep = np.concatenate([[True], d > 0])
-            ts, ys = ts[keep], ys[keep]
-        if e.wrap:
-            ys = np.unwrap(ys, period=abs(e.wrap * e.factor))
-        series[sig] = (ts, ys)
-        spans.append((ts[0], ts[-1]))
+        series[sig] = _signal_series(sig, e, t, y, ok)
     if not series:
         raise BenchError("the map maps no signal besides time")
-    t0 = max(s[0] for s in spans)
-    t1 = min(s[1] for s in spans)
+    t0 = max(ts[0] for ts, _ in series.values())
+    t1 = min(ts[-1] for ts, _ in series.values())
     if t1 - t0 < sync_period_s:
         raise BenchError("the mapped columns do not overlap in time")
     grid = t0 + np.arange(int(math.floor((t1 - t0) / sync_period_s + 1e-9)) + 1) * sync_period_s
-    for sig, (ts, ys) in series.items():
-        if sig == "mode":
-            idx = np.clip(np.searchsorted(ts, grid, side="right") - 1, 0, len(ts) - 1)
-            out[sig] = np.round(ys[idx])
-        else:
-            out[sig] = np.interp(grid, ts, ys)
+    out = {sig: _resample(sig, ts, ys, grid) for sig, (ts, ys) in series.items()}
+    blocks = _blank_holes(out, holes, by_sig, grid, t0)
+    out["t_s"] = grid - grid[0]
+    meta = {"source": str(table), "imported": True, "sync_period_s": sync_period_s,
+            "time_offset_s": float(t0),
+            "map": [e.__dict__ for e in mapping], "nan_blocks": blocks}
+    return Trace(out, meta)
+
+
+def _time_column(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
+                 source_rate_hz: float | None) -> np.ndarray:
+    """The table's time in s: its mapped t_s column, else rows at `source_rate_hz`."""
+    n = len(next(iter(raw.values())))
+    if "t_s" in by_sig:
+        e = by_sig["t_s"]
+        return raw[e.column] * e.factor
+    if source_rate_hz:
+        if source_rate_hz <= 0:
+            raise BenchError("the source rate must be > 0 Hz")
+        return np.arange(n) / source_rate_hz
+    raise BenchError("the map has no time signal t_s; map the table's time column or "
+                     "give the table's fixed rate (--source-rate)")
+
+
+def _signal_series(sig: str, e: MapEntry, t: np.ndarray, y: np.ndarray,
+                   ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(times, values) of one mapped signal's valid rows: time must not go backwards,
+    repeated times keep their first row, wrapped angles are unwrapped."""
+    ts, ys = t[ok], y[ok]
+    if len(ts) < 2:
+        raise BenchError(f"column {e.column!r} ({sig}) has fewer than 2 values")
+    d = np.diff(ts)
+    if np.any(d < 0):
+        k = int(np.argmax(d < 0))
+        raise BenchError(f"time goes backwards in the table for {e.column!r} at row "
+                         f"{int(np.flatnonzero(ok)[k + 1]) + 2} (sort the table first)")
+    if np.any(d == 0):
+        keep = np.concatenate([[True], d > 0])
+        ts, ys = ts[keep], ys[keep]
+    if e.wrap:
+        ys = np.unwrap(ys, period=abs(e.wrap * e.factor))
+    return ts, ys
+
+
+def _resample(sig: str, ts: np.ndarray, ys: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """One signal on the SYNC grid: the mode held (zero-order), the others interpolated."""
+    if sig == "mode":
+        idx = np.clip(np.searchsorted(ts, grid, side="right") - 1, 0, len(ts) - 1)
+        return np.round(ys[idx])
+    return np.interp(grid, ts, ys)
+
+
+def _blank_holes(out: dict[str, np.ndarray], holes: dict[str, list[tuple[int, int, float, float]]],
+                 by_sig: dict[str, MapEntry], grid: np.ndarray, t0: float) -> list[dict[str, Any]]:
+    """NaN the grid samples inside each signal's missing-row blocks (in `out`); the
+    blocks that cover a sample, as the trace's `nan_blocks` metadata."""
     blocks = []
     for sig, found in holes.items():
         for first, rows, ta, tb in found:
@@ -270,11 +310,7 @@ def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: floa
                            "first_row": first + 1, "last_row": first + rows, "rows": rows,
                            "t0_s": float(ta - t0), "t1_s": float(tb - t0),
                            "samples": int(inside.sum())})
-    out["t_s"] = grid - grid[0]
-    meta = {"source": str(table), "imported": True, "sync_period_s": sync_period_s,
-            "time_offset_s": float(t0),
-            "map": [e.__dict__ for e in mapping], "nan_blocks": blocks}
-    return Trace(out, meta)
+    return blocks
 
 
 def nan_blocks(ok: np.ndarray, t: np.ndarray) -> list[tuple[int, int, float, float]]:

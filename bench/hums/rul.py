@@ -126,15 +126,18 @@ def thesis_predict(t: np.ndarray, ci: np.ndarray, threshold: float = THRESHOLD,
 
 
 def thesis_profile(t: np.ndarray, ci: np.ndarray, n_boot: int = N_BOOT, seed: int = 0,
-                   **levels: float) -> list[Prediction]:
+                   threshold: float = THRESHOLD, warning: float = WARNING,
+                   failure: float = FAILURE) -> list[Prediction]:
     """The thesis' prediction re-made every period from the warning on (fit from the
     threshold crossing to the present)."""
-    first = thesis_predict(t, ci, n_boot=0, **levels)
+    first = thesis_predict(t, ci, threshold=threshold, warning=warning, failure=failure,
+                           n_boot=0)
     if first is None or first.prediction is None:
         return []
     out = []
     for k, tp in enumerate(t[t >= first.t_warning_s - 1e-9]):
-        r = thesis_predict(t, ci, n_boot=n_boot, seed=seed + k, t_pred_s=float(tp), **levels)
+        r = thesis_predict(t, ci, threshold=threshold, warning=warning, failure=failure,
+                           n_boot=n_boot, seed=seed + k, t_pred_s=float(tp))
         if r is not None and r.prediction is not None:
             out.append(r.prediction)
     return out
