@@ -83,24 +83,8 @@ def run(args: argparse.Namespace) -> int:
     run with its partial trace saved and its log closed (exit 128 + signal number)."""
     from bench.bus import bus_settings
     from bench.ecu import Interrupted, StopSignal, run_over_bus
-    from bench.profiles import make_profile, profile_args
-    from bench.trace import check_save_path, probe_output
 
-    kwargs = {k[3:]: v for k, v in vars(args).items() if k.startswith("pf_") and v is not None}
-    if args.duration is not None:
-        if not (math.isfinite(args.duration) and args.duration > 0):
-            raise BenchError("--duration must be > 0 s")
-        if "duration_s" in profile_args(args.profile):
-            kwargs["duration_s"] = args.duration
-    profile = make_profile(args.profile, **kwargs)
-    if args.save:
-        check_save_path(args.save)
-    if args.log:
-        probe_output(args.log, "log")
-    if not 0 <= args.spin_us <= 1000:
-        raise BenchError("--spin-us must be within 0..1000 us")
-    if not 0 <= args.rt_priority <= 99:
-        raise BenchError("--rt-priority must be within 0..99")
+    profile = _checked_profile(args)
     duration = args.duration if args.duration is not None else profile.duration_s
     progress = args.progress
     if progress is None:
@@ -145,6 +129,29 @@ def run(args: argparse.Namespace) -> int:
                   f"a complete run ({len(trace)} periods)", file=sys.stderr)
             return 128 + stop.signum
     return 0
+
+
+def _checked_profile(args: argparse.Namespace):
+    """The run's profile, after every flag and output path is checked (BenchError)."""
+    from bench.profiles import make_profile, profile_args
+    from bench.trace import check_save_path, probe_output
+
+    kwargs = {k[3:]: v for k, v in vars(args).items() if k.startswith("pf_") and v is not None}
+    if args.duration is not None:
+        if not (math.isfinite(args.duration) and args.duration > 0):
+            raise BenchError("--duration must be > 0 s")
+        if "duration_s" in profile_args(args.profile):
+            kwargs["duration_s"] = args.duration
+    profile = make_profile(args.profile, **kwargs)
+    if args.save:
+        check_save_path(args.save)
+    if args.log:
+        probe_output(args.log, "log")
+    if not 0 <= args.spin_us <= 1000:
+        raise BenchError("--spin-us must be within 0..1000 us")
+    if not 0 <= args.rt_priority <= 99:
+        raise BenchError("--rt-priority must be within 0..99")
+    return profile
 
 
 def _ended(exc: BenchError, args: argparse.Namespace) -> str:
@@ -204,7 +211,7 @@ def summary(trace, save: str | None = None) -> str:
     if n and "status_word" in trace:
         from ema_contract.states import StatusWord
         words = np.nan_to_num(trace["status_word"]).astype(np.int64)
-        seen = [f"{b.name.lower()} in {int(np.count_nonzero(words & int(b)))} periods"
+        seen = [f"{str(b.name).lower()} in {int(np.count_nonzero(words & int(b)))} periods"
                 for b in (StatusWord.OVERCURRENT, StatusWord.END_OF_STROKE,
                           StatusWord.OVERTEMPERATURE) if (words & int(b)).any()]
         if seen:

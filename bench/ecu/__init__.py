@@ -52,9 +52,10 @@ from bench.ecu.errors import (
 )
 from bench.ecu.link import ECU_FRAMES
 from bench.ecu.master import Ecu
+from bench.ecu.nodeinfo import NodeInfo
 from bench.ecu.period import EcuStats
 from bench.ecu.runloop import RUN_COLUMNS, run_periods
-from bench.ecu.sdo import MISSING, NodeInfo
+from bench.ecu.sdo import MISSING
 from bench.ecu.session import plant_values, run_over_bus, setting_origins
 from bench.ecu.signals import StopSignal
 

@@ -8,11 +8,12 @@ from collections.abc import Callable
 import can
 
 from bench.ecu.errors import BusLost, ForeignEcu
-from bench.ecu.link import ECU_FRAMES, EcuLink
+from bench.ecu.link import ECU_FRAMES
+from bench.ecu.prepare import NodePrepare
 from ema_contract.states import NMTCommand, NMTState
 
 
-class EcuClaim(EcuLink):
+class EcuClaim(NodePrepare):
     """Foreign-producer watch and the claim on the node, the run's receive checks, abort."""
 
     def _on_ecu_frame(self, msg: can.Message) -> None:

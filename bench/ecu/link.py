@@ -17,7 +17,7 @@ from canopen.network import MessageListener
 from bench import BenchError
 from bench.ecu.errors import BusLost
 from bench.ecu.logwriter import _Log
-from bench.ecu.sdo import NodeInfo
+from bench.ecu.nodeinfo import NodeInfo
 from bench.ecu.signals import StopSignal
 from bench.trace import Trace
 from ema_contract.frames import FrameError, Frames, load_od
@@ -43,7 +43,8 @@ class EcuLink:
         self.node_id = self.frames.node_id
         self.ecu_id = self.frames.ecu_id
         self.od = load_od(self.node_id)
-        self.network = canopen.Network(_TeeBus(bus, self))   # canopen's sends are logged too
+        # canopen's sends are logged too (_TeeBus forwards everything else to `bus`)
+        self.network = canopen.Network(_TeeBus(bus, self))  # type: ignore[arg-type]
         self.remote = canopen.RemoteNode(self.node_id, self.od)
         self.network.add_node(self.remote)
         self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
@@ -101,6 +102,10 @@ class EcuLink:
             msg.timestamp = time.time()
             msg.is_rx = False
             self.log.on_message_received(msg)
+
+    def _on_ecu_frame(self, msg: can.Message) -> None:
+        """A frame only an ECU sends (SYNC, set-point, RPDO1, ECU heartbeat): `EcuClaim`
+        tells our own echo from another ECU."""
 
     def _monitor(self, msg: can.Message) -> None:
         """Log a received frame and track the plant's heartbeat and EMCY."""

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from bench.ecu.claim import EcuClaim
-from bench.ecu.prepare import NodePrepare
 from bench.ecu.runloop import RunLoop
 
 
-class Ecu(RunLoop, NodePrepare, EcuClaim):
+class Ecu(RunLoop):
     """The bench's CANopen master for the actuator node `node_id` on `bus`.
 
     The NMT/EMCY consumers are the ECU's own (`EcuLink._monitor`), not canopen's

@@ -5,7 +5,8 @@ from __future__ import annotations
 from typing import Any
 
 from bench import BenchError
-from bench.ecu.sdo import MISSING, NodeInfo, NodeSdo
+from bench.ecu.nodeinfo import NodeInfo
+from bench.ecu.sdo import MISSING, NodeSdo
 from ema_contract.states import Pace
 from plant_rt.params import ParameterError, PlantParams
 

@@ -12,6 +12,7 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench import BenchError
 from bench.control import ControllerParams
+from bench.ecu.claim import EcuClaim
 from bench.ecu.errors import (
     FAILING_BITS,
     FAILING_TEXT,
@@ -30,8 +31,8 @@ from ema_contract.states import NMTCommand, Pace
 from plant_rt.params import PlantParams
 
 
-class RunLoop:
-    """Mixin of `Ecu`: `run` a profile on the prepared node."""
+class RunLoop(EcuClaim):
+    """Part of `Ecu`: `run` a profile on the prepared node."""
 
     def run(self, profile: Profile, params: PlantParams, cparams: ControllerParams | None = None,
             pace: Pace = Pace.SYNC, duration_s: float | None = None, progress: bool = False,

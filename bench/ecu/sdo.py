@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 from typing import Any
 
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench import BenchError
 from bench.ecu.errors import PlantLost
+from bench.ecu.link import EcuLink
 from ema_contract.states import NMTCommand, NMTState
 from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams, check_value, resolve
@@ -28,22 +28,8 @@ SETTING_HINTS = {
 
 
 
-@dataclass
-class NodeInfo:
-    """What `Ecu.prepare` found on the node beyond CiA 301 (the trace's ``meta["node"]``)."""
-    identity: dict[str, int] = field(default_factory=dict)   # 0x1000, 0x1018 sub 1-4
-    missing: list[str] = field(default_factory=list)     # optional objects the node lacks
-    params_complete: bool = True       # every 0x2000-0x2008 parameter was read back
-    params: dict[str, Any] = field(default_factory=dict)     # those read (node's values)
-    encoder_counts_per_rev: int = 0
-    encoder_counts_source: str = ""
-    sync_period_s: float = 0.0
-    sync_period_source: str = ""
-    notes: list[str] = field(default_factory=list)       # what the ECU did about it
-
-
-class NodeSdo:
-    """Mixin of `Ecu`: the node's presence, NMT state and objects over SDO."""
+class NodeSdo(EcuLink):
+    """Part of `Ecu`: the node's presence, NMT state and objects over SDO."""
 
     def wait_for_plant(self, timeout: float = 0.5) -> NMTState:
         """The plant's NMT state from its heartbeat, else from an SDO read (the heartbeat
@@ -82,6 +68,8 @@ class NodeSdo:
     def _sdo_var(self, name: str | int | tuple[int, int]):
         """The SDO variable of object `name`: ``group.leaf`` (e.g. ``node_status.cycles``),
         a group name, an index, or (index, sub-index)."""
+        group: str | int
+        leaf: str | int | None
         if isinstance(name, tuple):
             group, leaf = name
         elif isinstance(name, str) and "." in name:

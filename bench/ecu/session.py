@@ -11,8 +11,8 @@ from bench import BenchError
 from bench.control import ControllerParams
 from bench.ecu.errors import PlantLost
 from bench.ecu.master import Ecu
+from bench.ecu.nodeinfo import NodeInfo
 from bench.ecu.runloop import run_periods
-from bench.ecu.sdo import NodeInfo
 from bench.ecu.signals import StopSignal
 from bench.profiles import Profile
 from bench.trace import Trace, probe_output
@@ -164,7 +164,7 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
             if ecu is not None:
                 ecu.abort()
                 if isinstance(exc, (BenchError, KeyboardInterrupt)):
-                    exc.trace = _with_node(ecu.partial, ecu.node_info)  # type: ignore[attr-defined]
+                    exc.trace = _with_node(ecu.partial, ecu.node_info)  # type: ignore[union-attr]
             raise
         finally:
             if ecu is not None:

@@ -21,10 +21,10 @@ from bench.ecu import Ecu, run_over_bus
 from bench.profiles import make_profile
 from ema_contract.frames import Frames, load_od
 from ema_contract.states import NMTCommand, NMTState, Pace, StatusWord
+from ema_contract.transport import close_bus
 from plant_rt.model import Plant
 from plant_rt.node import PlantNode
 from plant_rt.params import PlantParams
-from ema_contract.transport import close_bus
 
 SYNC, NMT, SDO_RX, ECU_HB, SETPOINT, RPDO1 = 0x080, 0x000, 0x610, 0x701, 0x181, 0x210
 
