@@ -11,7 +11,7 @@ from pathlib import Path
 
 from bus_helpers import ROOT
 
-from bench.bus import hub as hub_mod
+from bench.bus import selecthub as hub_mod
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "unit"))
 from test_hub_events import OP_PING, OP_PONG, RawClient, _open  # noqa: E402

@@ -23,8 +23,9 @@ from contextlib import contextmanager
 import can
 import pytest
 
-from bench.bus import hub as hub_mod
-from bench.bus.hub import SelectHub
+from bench.bus import selecthub as hub_mod
+from bench.bus import wsproto
+from bench.bus.selecthub import SelectHub
 from ema_contract import transport as T
 
 OP_TEXT, OP_BINARY, OP_CLOSE, OP_PING, OP_PONG = 0x1, 0x2, 0x8, 0x9, 0xA
@@ -274,7 +275,7 @@ def hub_state_bounded(hub: SelectHub) -> None:
     for c in list(hub.clients.values()):
         assert len(c.inbuf) <= hub_mod.MAX_MESSAGE_BYTES + hub_mod.RECV_BYTES
         assert len(c.outbuf) <= hub_mod.CLIENT_OUTBUF_MAX
-        assert len(c.filters or ()) <= hub_mod.MAX_FILTERS
+        assert len(c.filters or ()) <= wsproto.MAX_FILTERS
         assert len(c.periodic) <= hub_mod.MAX_PERIODIC_PER_CLIENT
     assert hub.outbuf_total <= hub_mod.TOTAL_OUTBUF_MAX
 

@@ -23,8 +23,8 @@ from test_hub_events import (
     served,
 )
 
-from bench.bus import hub as hub_mod
-from bench.bus.hub import SelectHub
+from bench.bus import selecthub as hub_mod
+from bench.bus.selecthub import SelectHub
 
 
 def test_slow_readers_are_dropped_and_the_hub_stays_within_its_budget(monkeypatch):

@@ -11,7 +11,7 @@ import time
 import can
 import pytest
 
-from bench.bus.hub import SelectHub
+from bench.bus.selecthub import SelectHub
 from ema_contract import transport as T
 
 

@@ -1,0 +1,150 @@
+"""The tree's shape (issue 10): no import cycles, no module over 600 lines, no function over
+80 lines without a reason written at its top, and the layers' arrows pointing one way.
+
+A long function states why on its first body line, as a comment starting with
+``# long:`` (e.g. ``# long: one compiled loop, splitting it costs a call per sub-step``).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("ema_contract", "plant_rt", "bench")
+MAX_MODULE_LINES = 600
+MAX_FUNCTION_LINES = 80
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for pkg in PACKAGES:
+        base = ROOT / pkg
+        if not base.is_dir():
+            continue
+        for path in sorted(base.rglob("*.py")):
+            rel = path.relative_to(ROOT).with_suffix("")
+            parts = list(rel.parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _resolve(mod: str, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    base = mod.split(".")
+    is_pkg = MODULES[mod].name == "__init__.py"
+    base = base if is_pkg else base[:-1]
+    base = base[:len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _imports(mod: str) -> set[str]:
+    """Modules of this tree that `mod` imports anywhere: at module level or inside a
+    function (a function-local import does not break a cycle, it only hides it)."""
+    tree = ast.parse(MODULES[mod].read_text())
+    found: set[str] = set()
+
+    def add(name: str) -> None:
+        while name and name not in MODULES:
+            name = name.rpartition(".")[0]
+        if name and name != mod:
+            found.add(name)
+
+    for st in ast.walk(tree):
+        if isinstance(st, ast.Import):
+            for a in st.names:
+                add(a.name)
+        elif isinstance(st, ast.ImportFrom):
+            base = _resolve(mod, st)
+            for a in st.names:
+                add(f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base)
+    return found
+
+
+def test_no_import_cycles():
+    graph = {m: _imports(m) for m in MODULES}
+    cycles = []
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for n in sorted(graph[m]):
+            if state.get(n) == 1:
+                cycles.append(stack[stack.index(n):] + [n])
+            elif n not in state:
+                visit(n)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m)
+    assert not cycles, "import cycles:\n" + "\n".join(" -> ".join(c) for c in cycles)
+
+
+def test_layers_point_one_way():
+    bad = []
+    for m in MODULES:
+        deps = _imports(m)
+        if m.startswith("plant_rt"):
+            bad += [f"{m} -> {d}" for d in deps if d.startswith("bench")]
+        if m.startswith("ema_contract"):
+            bad += [f"{m} -> {d}" for d in deps if d.startswith(("bench", "plant_rt"))]
+    assert not bad, "\n".join(bad)
+
+
+def test_no_module_over_600_lines():
+    long = {m: n for m, p in MODULES.items()
+            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert not long, long
+
+
+def _long_functions(path: Path) -> list[str]:
+    src = path.read_text().splitlines()
+    out = []
+    for node in ast.walk(ast.parse("\n".join(src))):
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        n = node.end_lineno - node.lineno + 1
+        if n <= MAX_FUNCTION_LINES:
+            continue
+        body = node.body
+        first = body[1] if (isinstance(body[0], ast.Expr) and isinstance(
+            getattr(body[0], "value", None), ast.Constant) and len(body) > 1) else body[0]
+        # the reason is a comment line between the signature/docstring and the first
+        # statement
+        start = (body[0].end_lineno if first is not body[0] else node.body[0].lineno - 1)
+        window = src[start:first.lineno - 1] if first is not body[0] else \
+            src[node.lineno:first.lineno - 1]
+        if not any(line.strip().startswith("# long:") for line in window):
+            out.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name} ({n} lines)")
+    return out
+
+
+def test_no_function_over_80_lines_without_a_reason():
+    long = [f for p in MODULES.values() for f in _long_functions(p)]
+    assert not long, "\n".join(long)
+
+
+@pytest.mark.parametrize("mod", ["bench.bus.logs", "bench.cli.decode"])
+def test_log_decoding_needs_no_physics(mod):
+    """`bench decode` and the log reader import neither numba nor the kernel (checked in a
+    fresh interpreter)."""
+    import subprocess
+    import sys
+    code = (f"import sys, importlib; importlib.import_module({mod!r}); "
+            "bad = [m for m in ('numba', 'plant_rt.kernel', 'plant_rt.model') "
+            "if m in sys.modules]; print(bad); raise SystemExit(1 if bad else 0)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       cwd=str(ROOT), timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
