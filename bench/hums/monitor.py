@@ -328,7 +328,7 @@ class Monitor:
         return np.concatenate([meas[:, :4], dem[:, None], truth], axis=1)
 
 
-def _columns(t: np.ndarray, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
+def nominal_columns(t: np.ndarray, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
              out: np.ndarray) -> dict[str, np.ndarray]:
     return {"t_s": t, "setpoint_position_m": sp_pos, "setpoint_speed_rad_s": sp_spd,
             "mode": mode, "current_demand_a": out[:, 4], "current_a": out[:, 0],
@@ -354,7 +354,7 @@ def simulate_monitor(profile: Profile, position_kp_rad_s_per_m: float | None = N
     meta = {"source": "monitor", "profile": profile.name, "profile_kwargs": profile.kwargs,
             "fundamental_hz": profile.fundamental_hz,
             "position_kp_rad_s_per_m": mon.cparams.position_kp_rad_s_per_m}
-    return Trace(_columns(t, sp_pos, sp_spd, mode, out), meta)
+    return Trace(nominal_columns(t, sp_pos, sp_spd, mode, out), meta)
 
 
 NOMINAL_DRIVE = ("t_s", "setpoint_position_m", "setpoint_speed_rad_s", "mode")
@@ -387,7 +387,7 @@ def nominal_for(trace: Trace, position_kp_rad_s_per_m: float | None = None,
     meta = {"source": "monitor", "of": trace.meta.get("source", "?"),
             "fundamental_hz": trace.meta.get("fundamental_hz", float("nan")),
             "position_kp_rad_s_per_m": mon.cparams.position_kp_rad_s_per_m}
-    return Trace(_columns(trace.t.copy(), sp_pos, sp_spd, mode, out), meta)
+    return Trace(nominal_columns(trace.t.copy(), sp_pos, sp_spd, mode, out), meta)
 
 
 def closed_loop(params: PlantParams, drive: Any, n: int | None = None,
