@@ -1,46 +1,21 @@
-"""Set-point profiles: the thesis' test maneuvers plus a chirp and the RUL run.
+"""Set-point profiles: the thesis' test maneuvers plus a chirp and the RUL run, by name.
 
-A `Profile` gives the ECU mode (position or speed loop) and the set-points as functions
-of time. Position set-points are nut positions (m); speed set-points are motor-shaft
-speeds (rad/s), as in the thesis' open-loop tests (section 5.7.4).
+Each builds a `bench.setpoints.Profile` (ECU mode and set-points as functions of time);
+the gap diagnosis maneuver comes from `bench.gap.maneuvers`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from bench import BenchError
+from bench.gap.maneuvers import excitation
+from bench.setpoints import Profile
 from bench.trace import MODE_POSITION, MODE_SPEED
-
-
-@dataclass(frozen=True)
-class Profile:
-    name: str
-    mode: int
-    duration_s: float
-    position: Callable[[np.ndarray], np.ndarray]
-    speed: Callable[[np.ndarray], np.ndarray]
-    kwargs: dict[str, Any] = field(default_factory=dict)
-    params_overrides: dict[str, Any] = field(default_factory=dict)
-    fundamental_hz: float = float("nan")   # command frequency (HUMS spectra, gap regimes)
-
-    def setpoint(self, t: float) -> tuple[float, float]:
-        ta = np.array([t], dtype=float)
-        return float(self.position(ta)[0]), float(self.speed(ta)[0])
-
-    def setpoints(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return (np.asarray(self.position(t), dtype=float),
-                np.asarray(self.speed(t), dtype=float))
-
-    def describe(self) -> str:
-        args = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
-                         for k, v in self.kwargs.items())
-        return f"{self.name}({args})"
 
 
 def _zeros(t: np.ndarray) -> np.ndarray:
@@ -117,7 +92,6 @@ def rul(duration_s: float = 120.0, amplitude_m: float = 0.5e-3,
 def gap_excitation(duration_s: float = 10.0, load_n: float = 2000.0) -> Profile:
     """The gap diagnosis maneuver (`bench.gap.maneuvers.excitation`): 1-4 Hz sines,
     current-limited steps, cruise ramps and dwells under a `load_n` N sine load."""
-    from bench.gap.maneuvers import excitation
     return excitation(duration_s, load_n)
 
 

@@ -42,14 +42,15 @@ from bench.gap.maneuvers import excitation
 from bench.harness import simulate
 from bench.trace import MEASURED, Trace
 from bench.workers import run_all
+from plant_rt.model import viscous_friction
 from plant_rt.params import PlantParams
 
 LOG_S = 10.0
 NOMINAL = PlantParams()
 # motor-side viscous coefficient per unit of effects.viscous_scale (thesis table 5.4,
 # eq. 5.13 reflected through the reducer): (c_sm + c_sr) tau / eta
-_VISC_PER_SCALE = ((NOMINAL.motor.viscous_friction_nm_s + NOMINAL.reducer.viscous_friction_nm_s)
-                   * NOMINAL.reducer.ratio / NOMINAL.reducer.efficiency)
+_VISC_PER_SCALE = (viscous_friction(NOMINAL) * NOMINAL.reducer.ratio
+                   / NOMINAL.reducer.efficiency)
 
 
 def _lu(rng: np.random.Generator, lo: float, hi: float) -> float:
@@ -73,7 +74,15 @@ class Truth:
 
 def draw(name: str, rng: np.random.Generator) -> Truth:
     """A random magnitude of effect `name` (generator-side ranges)."""
-    # long: one flat branch per generated effect, each a range and its expected values
+    for group in (_draw_mechanical, _draw_sensor, _draw_motor_screw):
+        truth = group(name, rng)
+        if truth is not None:
+            return truth
+    raise KeyError(name)
+
+
+def _draw_mechanical(name: str, rng: np.random.Generator) -> Truth | None:
+    """Backlash, friction, viscous, Stribeck, stiffness, preload; None for another name."""
     n = NOMINAL
     if name == "backlash":
         v = rng.uniform(5e-6, 100e-6)
@@ -103,6 +112,11 @@ def draw(name: str, rng: np.random.Generator) -> Truth:
         v = rng.uniform(500.0, 5000.0)
         return Truth(name, {"effects.preload_n": v}, expect={"preload_n": v},
                      nominal={"preload_n": 0.0})
+    return None
+
+
+def _draw_sensor(name: str, rng: np.random.Generator) -> Truth | None:
+    """Sensor and log effects; None for another name."""
     if name == "sensor_delay":
         v = float(rng.integers(1, 6)) * 1e-3
         return Truth(name, {"effects.sensor_delay_s": v}, expect={"sensor_delay_s": v},
@@ -131,6 +145,13 @@ def draw(name: str, rng: np.random.Generator) -> Truth:
         v = _pm(rng, 0.05, 0.5)
         return Truth(name, {"sensors.current_offset_a": v}, expect={"current_offset_a": v},
                      nominal={"current_offset_a": 0.0})
+    return None
+
+
+def _draw_motor_screw(name: str, rng: np.random.Generator) -> Truth | None:
+    """Motor and screw constants and the effects outside the library; None for
+    another name."""
+    n = NOMINAL
     if name == "resistance":
         v = n.motor.resistance_ohm * _lu(rng, 1.5, 4.0)
         return Truth(name, {"motor.resistance_ohm": v}, expect={"resistance_ohm": v},
@@ -161,7 +182,7 @@ def draw(name: str, rng: np.random.Generator) -> Truth:
     if name == "current_ripple":       # outside: position-periodic current-sensor error
         return Truth(name, log={"ripple_a": rng.uniform(0.1, 0.5),
                                 "ripple_per_rev": float(rng.integers(2, 9))})
-    raise KeyError(name)
+    return None
 
 
 POOL = ("backlash", "friction", "viscous", "stribeck", "stiffness", "preload",

@@ -23,7 +23,6 @@ Steps:
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -241,6 +240,39 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if (sig or o.fit_always) and o.workers > 1 and len(names) > 1:
         pool = make_pool(o.workers, wait=False)
         pools.append(pool)
+    loc, ho_en, ho_ex = _localisation(trace, holdout, p, h, frac, (sig, raw, sm), say)
+    skipped = [] if o.model == "plant" else not_representable(p, names)
+    names = [n for n in names if n not in skipped]
+    loc["model"] = {"name": o.model, "fidelity": "fast: averaged PWM, massless balls "
+                    "(drive.pwm_mode=averaged, sim.ball_model=quasistatic), ~240x real time"
+                    if o.model == "plant" else "monitoring model (rigid screw, no PWM)",
+                    "effects_not_representable": skipped,
+                    "load": _load_note(p, o.model),
+                    "nominal_differs_from_thesis": {k: v[1] for k, v in
+                                                    PlantParams().diff(base).items()}}
+    if not sig and not o.fit_always:
+        return Result(loc, [], "none", p, h, None, ho_en, False)
+    # -- singles -------------------------------------------------------------------------
+    bar = None
+    if o.progress:
+        from tqdm import tqdm
+        bar = tqdm(total=2 * len(names) - 1, unit="fit",
+                   desc="gap", leave=False)
+    say(f"fitting {len(names)} candidate effects")
+    singles, pairs, best, L = _select(names, p, h, pool, bar, say)
+    if bar is not None:
+        bar.close()
+    chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
+                                                               ho_ex, sig, L)
+    return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties)
+
+
+def _localisation(trace: Trace, holdout: Trace | None, p: Any, h: Any, frac: float,
+                  significant: tuple[bool, Any, Any], say: Callable[[str], None]
+                  ) -> tuple[dict[str, Any], Any, Any]:
+    """The localisation of the gap with the log's integrity, the significance test and
+    the held-out gap before any fit: (loc, held-out energy, held-out excess)."""
+    sig, raw, sm = significant
     nominal_sim = p.info["nominal"]
     f0 = LZ.fundamental_hz(p, trace.meta.get("fundamental_hz") if trace.meta else None)
     log_cols = {c: np.asarray(trace[c], float) for c in
@@ -263,27 +295,14 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
                       f"last {frac * 100:.0f} % of the log",
                       "samples": h.n if h is not None else p.n - p.n_fit,
                       "energy_before": ho_en, "excess_before": ho_ex}
-    skipped = [] if o.model == "plant" else not_representable(p, names)
-    names = [n for n in names if n not in skipped]
-    loc["model"] = {"name": o.model, "fidelity": "fast: averaged PWM, massless balls "
-                    "(drive.pwm_mode=averaged, sim.ball_model=quasistatic), ~240x real time"
-                    if o.model == "plant" else "monitoring model (rigid screw, no PWM)",
-                    "effects_not_representable": skipped,
-                    "load": _load_note(p, o.model),
-                    "nominal_differs_from_thesis": {k: v[1] for k, v in
-                                                    PlantParams().diff(base).items()}}
-    if not sig and not o.fit_always:
-        return Result(loc, [], "none", p, h, None, ho_en, False)
-    # -- singles -------------------------------------------------------------------------
-    bar = None
-    if o.progress:
-        from tqdm import tqdm
-        bar = tqdm(total=2 * len(names) - 1, unit="fit",
-                   desc="gap", leave=False)
-    say(f"fitting {len(names)} candidate effects")
-    singles, pairs, best, L = _select(names, p, h, pool, bar, say)
-    if bar is not None:
-        bar.close()
+    return loc, ho_en, ho_ex
+
+
+def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_ex: Any,
+            sig: bool, L: Any) -> tuple[Any, str, list[Any], list[str], dict[str, Any]]:
+    """The chosen candidate (the best single, or a pair by the rule in the selection
+    record), the verdict, the ranking, the candidates tied with the chosen one and the
+    selection record."""
     chosen = best
     n_ho = h.n if h is not None else p.n - p.n_fit
     thr_ho = thresholds(h if h is not None else p, n_ho)
@@ -303,16 +322,16 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     gain = ref - chosen.heldout_excess
     ties = [c.fit.name for c in ranking[1:] if len(c.fit.effects) == len(chosen.fit.effects)
             and gain > 0 and ref - c.heldout_excess >= TIE * gain]
-    loc["selection"] = {"corr_length_samples": L, "best_single": best.fit.name,
-                        "best_single_leaves_significant_heldout_gap": remaining,
-                        "chosen": chosen.fit.name, "heldout_shrink_pct": shrink,
-                        "min_shrink_pct": MIN_SHRINK_PCT,
-                        "indistinguishable_from_chosen": ties,
-                        "rule": ("a pair replaces the best single when the single leaves a "
-                                 f"significant held-out gap, the pair removes >= {PAIR_GAIN:.0%} "
-                                 f"of it and its BIC is lower by > {PAIR_BIC:g}; "
-                                 f"'unexplained' if the held-out shrink < {MIN_SHRINK_PCT:.0f} %")}
-    return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties)
+    selection = {"corr_length_samples": L, "best_single": best.fit.name,
+                 "best_single_leaves_significant_heldout_gap": remaining,
+                 "chosen": chosen.fit.name, "heldout_shrink_pct": shrink,
+                 "min_shrink_pct": MIN_SHRINK_PCT,
+                 "indistinguishable_from_chosen": ties,
+                 "rule": ("a pair replaces the best single when the single leaves a "
+                          f"significant held-out gap, the pair removes >= {PAIR_GAIN:.0%} "
+                          f"of it and its BIC is lower by > {PAIR_BIC:g}; "
+                          f"'unexplained' if the held-out shrink < {MIN_SHRINK_PCT:.0f} %")}
+    return chosen, verdict, ranking, ties, selection
 
 
 def log_integrity(trace: Trace, holdout: Trace | None) -> dict[str, Any]:
@@ -440,6 +459,3 @@ def hums_distance(r: Result) -> dict[str, Any]:
         out["after"] = indexes(tgt.meas, after, lo, hi, tgt.dt)
     return out
 
-
-def default_workers() -> int:
-    return max(1, min(2, os.cpu_count() or 1))

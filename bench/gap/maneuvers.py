@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.profiles import Profile
+from bench.setpoints import Profile
 from bench.trace import MODE_POSITION
 
 

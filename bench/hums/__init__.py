@@ -3,10 +3,13 @@
 - `bench.hums.monitor`: the monitoring model of eq. 6.1-6.2 (the nominal actuator the HUMS
   trusts), compiled, driven by the same set-points with the bus timing, and the
   Nelder-Mead fit of its position gain (row H1).
-- `bench.hums.indexes`: mean position error (6.4), fidelity coefficients Cp and Ci (6.5-6.6,
-  ratio-of-integrals reading), peak-current ratio (6.7), the calibrated current spectrum
-  (6.3) with harmonic features, lost motion and reversal dead time, whole-trace and per
-  command period (online).
+- `bench.hums.indexes`: the public face of the indexes, whole-trace and per command
+  period (online), from `formulas` (mean position error 6.4, fidelity coefficients Cp and
+  Ci 6.5-6.6 in the ratio-of-integrals reading, peak-current ratio 6.7, lost-motion and
+  dead-time readings), `spectra` (the calibrated current spectrum 6.3 with harmonic
+  features), `motion` (the streaming signals behind lost motion and reversal dead time),
+  `comparison` (`Indexes` of one window), `gaps` (lost samples) and `periods` (per
+  command period, `OnlineHums`).
 - `bench.hums.sweep`: the 11-point degradation sweep (rows H2-H6) with figures.
 - `bench.hums.rul`: the thesis' RUL algorithm (section 6.5): Ci levels, the cubic trend
   fit extrapolated to failure with a bootstrap band, and the `Prediction` every predictor

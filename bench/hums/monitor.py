@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numba import njit
@@ -47,11 +47,12 @@ from bench import BenchError
 from bench.control import NC as CTRL_NC
 from bench.control import THESIS_SET_GAIN_V_PER_M, ControllerParams
 from bench.loop import ecu_control, ecu_reference, no_columns, no_prepare, run_chunks, run_loop
+from bench.paramset import ParamSet
 from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K
 from plant_rt.model import equivalent_inertia, static_friction, viscous_friction
-from plant_rt.params import PlantParams
+from plant_rt.params import P, PlantParams, resolve
 from plant_rt.pi import clamped_pi
 
 # --- state vector ------------------------------------------------------------------------
@@ -65,46 +66,77 @@ NQM = 26
 TWO_PI = 2.0 * math.pi
 _NO_SENSORS = np.zeros(0)   # the monitor's measure reads its gains from q
 
-THESIS_START_GAIN = 20.0
+def _as_plant(name: str, doc: str = "") -> Any:
+    """A monitor field with the plant parameter `name`'s default, unit, range and source."""
+    i = resolve(name)
+    return P(i.default, i.unit, i.min, i.max, doc or i.doc, f"{i.source} (as {name})")
+
+
+_NOMINAL = PlantParams()
+
+
+@dataclass(frozen=True)
+class ThesisMonitorGains(ParamSet):
+    """The monitoring model's position gains the thesis prints (thesis units, (rad/s)/V,
+    with K_SET = 285.7 V/m: `bench.control.THESIS_SET_GAIN_V_PER_M`)."""
+    _group: ClassVar[str] = "monitor_gains"
+    start_thesis_units: float = P(20.0, "(rad/s)/V", 0.0, 1e5,
+                                  "the first attempt of the thesis' fminsearch",
+                                  "section 6.3 (fminsearch start)")
+    fitted_thesis_units: float = P(663.0, "(rad/s)/V", 0.0, 1e5, "the thesis' k_p,opt",
+                                   "section 6.3, row H1")
+
+
+THESIS_GAINS = ThesisMonitorGains()
+THESIS_START_GAIN = THESIS_GAINS.start_thesis_units
 """The first attempt of the thesis' fminsearch (thesis units, (rad/s)/V)."""
-THESIS_FITTED_GAIN = 663.0
+THESIS_FITTED_GAIN = THESIS_GAINS.fitted_thesis_units
 """The thesis' k_p,opt (thesis units), row H1."""
 
 
 @dataclass(frozen=True)
-class MonitorParams:
-    """Parameters of the monitoring model (SI, thesis symbols in the comments).
+class MonitorParams(ParamSet):
+    """Parameters of the monitoring model (SI, thesis symbols in the docs), with units,
+    ranges and sources as the plant's (`bench.paramset`).
 
     Build it from a plant parameter set with `from_plant`, so the nominal values are the
     plant's tables 5.1-5.4; only `friction_factor` (eq. 6.1's 2) and the integration step
-    are the monitor's own.
+    are the monitor's own. The defaults are `from_plant(PlantParams())`'s.
     """
-    resistance_ohm: float            # R
-    inductance_h: float              # L
-    ke_v_s_per_rad: float            # k_e
-    kt_nm_per_a: float               # k_t
-    current_max_a: float             # i_max
-    supply_voltage_v: float          # V_a
-    demod_time_constant_s: float     # tau_h
-    current_sensor_time_constant_s: float  # tau_c
-    ratio: float                     # tau (screw speed / motor speed)
-    efficiency: float                # eta
-    inertia_kg_m2: float             # I_eq, screw side (eq. 5.12)
-    static_friction_nm: float        # C_s (eq. 5.14), screw side
-    stribeck_amplitude: float        # eq. 5.13
-    stribeck_velocity_rad_s: float   # eq. 5.13
-    viscous_friction_nm_s: float     # c_sm + c_sr (eq. 5.13, divided by tau there)
-    lead_m: float                    # p
-    lvdt_damping: float
-    lvdt_natural_rad_s: float
-    encoder_damping: float
-    encoder_natural_rad_s: float
-    current_kp_v_per_a: float        # drive PI, as the plant's drive
-    current_ki_v_per_as: float
-    encoder_counts_per_rev: int
-    sync_period_s: float
-    friction_factor: float = 2.0     # eq. 6.1: screw and nut friction
-    substep_s: float = 20e-6         # as the plant's averaged-PWM step
+    _group: ClassVar[str] = "monitor"
+    resistance_ohm: float = _as_plant("motor.resistance_ohm")                 # R
+    inductance_h: float = _as_plant("motor.inductance_h")                     # L
+    ke_v_s_per_rad: float = _as_plant("motor.ke_v_s_per_rad")                 # k_e
+    kt_nm_per_a: float = _as_plant("motor.kt_nm_per_a")                       # k_t
+    current_max_a: float = _as_plant("motor.current_max_a")                   # i_max
+    supply_voltage_v: float = _as_plant("motor.supply_voltage_v")             # V_a
+    demod_time_constant_s: float = _as_plant("motor.demod_time_constant_s")   # tau_h
+    current_sensor_time_constant_s: float = _as_plant(
+        "sensors.current_time_constant_s")                                    # tau_c
+    ratio: float = _as_plant("reducer.ratio")                     # tau (screw / motor speed)
+    efficiency: float = _as_plant("reducer.efficiency")                       # eta
+    inertia_kg_m2: float = P(equivalent_inertia(_NOMINAL), "kg m^2", 0.0, 1e4,
+                             "equivalent inertia I_eq, screw side", "eq. 5.12 (plant tables)")
+    static_friction_nm: float = P(static_friction(_NOMINAL), "N m", 0.0, 1e6,
+                                  "static friction C_s, screw side", "eq. 5.14 (plant tables)")
+    stribeck_amplitude: float = _as_plant("screw.stribeck_amplitude")
+    stribeck_velocity_rad_s: float = _as_plant("screw.stribeck_velocity_rad_s")
+    viscous_friction_nm_s: float = P(viscous_friction(_NOMINAL), "N m s/rad", 0.0, 1e6,
+                                     "viscous coefficient c_sm + c_sr (divided by tau with "
+                                     "the screw speed)", "eq. 5.13 (table 5.4)")
+    lead_m: float = _as_plant("screw.lead_m")                                 # p
+    lvdt_damping: float = _as_plant("sensors.lvdt_damping")
+    lvdt_natural_rad_s: float = _as_plant("sensors.lvdt_natural_rad_s")
+    encoder_damping: float = _as_plant("sensors.encoder_damping")
+    encoder_natural_rad_s: float = _as_plant("sensors.encoder_natural_rad_s")
+    current_kp_v_per_a: float = _as_plant("drive.current_kp_v_per_a")         # as the drive
+    current_ki_v_per_as: float = _as_plant("drive.current_ki_v_per_as")
+    encoder_counts_per_rev: int = _as_plant("sensors.encoder_counts_per_rev")
+    sync_period_s: float = _as_plant("sim.sync_period_s")
+    friction_factor: float = P(2.0, "-", 0.0, 100.0, "screw and nut friction factor",
+                               "eq. 6.1")
+    substep_s: float = P(20e-6, "s", 1e-9, 1.0, "integration step (at most sync_period_s)",
+                         "chosen (as the plant's averaged-PWM step)")
 
     @classmethod
     def from_plant(cls, params: PlantParams | None = None, **overrides: Any) -> MonitorParams:
@@ -133,9 +165,7 @@ class MonitorParams:
         return replace(mp, **overrides) if overrides else mp
 
     def __post_init__(self) -> None:
-        for k, v in asdict(self).items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v)):
-                raise BenchError(f"monitor parameter {k} must be a finite number, got {v!r}")
+        super().__post_init__()
         if self.substep_s <= 0 or self.substep_s > self.sync_period_s:
             raise BenchError("monitor substep_s must be in (0, sync_period_s]")
 
@@ -328,7 +358,7 @@ class Monitor:
         return np.concatenate([meas[:, :4], dem[:, None], truth], axis=1)
 
 
-def _columns(t: np.ndarray, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
+def nominal_columns(t: np.ndarray, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
              out: np.ndarray) -> dict[str, np.ndarray]:
     return {"t_s": t, "setpoint_position_m": sp_pos, "setpoint_speed_rad_s": sp_spd,
             "mode": mode, "current_demand_a": out[:, 4], "current_a": out[:, 0],
@@ -354,7 +384,7 @@ def simulate_monitor(profile: Profile, position_kp_rad_s_per_m: float | None = N
     meta = {"source": "monitor", "profile": profile.name, "profile_kwargs": profile.kwargs,
             "fundamental_hz": profile.fundamental_hz,
             "position_kp_rad_s_per_m": mon.cparams.position_kp_rad_s_per_m}
-    return Trace(_columns(t, sp_pos, sp_spd, mode, out), meta)
+    return Trace(nominal_columns(t, sp_pos, sp_spd, mode, out), meta)
 
 
 NOMINAL_DRIVE = ("t_s", "setpoint_position_m", "setpoint_speed_rad_s", "mode")
@@ -387,7 +417,7 @@ def nominal_for(trace: Trace, position_kp_rad_s_per_m: float | None = None,
     meta = {"source": "monitor", "of": trace.meta.get("source", "?"),
             "fundamental_hz": trace.meta.get("fundamental_hz", float("nan")),
             "position_kp_rad_s_per_m": mon.cparams.position_kp_rad_s_per_m}
-    return Trace(_columns(trace.t.copy(), sp_pos, sp_spd, mode, out), meta)
+    return Trace(nominal_columns(trace.t.copy(), sp_pos, sp_spd, mode, out), meta)
 
 
 def closed_loop(params: PlantParams, drive: Any, n: int | None = None,

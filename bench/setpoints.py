@@ -1,0 +1,40 @@
+"""The `Profile` type: an ECU mode and set-points as functions of time.
+
+Position set-points are nut positions (m); speed set-points are motor-shaft speeds
+(rad/s), as in the thesis' open-loop tests (section 5.7.4). The profiles themselves are
+in `bench.profiles` (the thesis' maneuvers) and `bench.gap.maneuvers` (the diagnosis
+maneuver); both build this type, so neither imports the other for it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Profile:
+    name: str
+    mode: int
+    duration_s: float
+    position: Callable[[np.ndarray], np.ndarray]
+    speed: Callable[[np.ndarray], np.ndarray]
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    params_overrides: dict[str, Any] = field(default_factory=dict)
+    fundamental_hz: float = float("nan")   # command frequency (HUMS spectra, gap regimes)
+
+    def setpoint(self, t: float) -> tuple[float, float]:
+        ta = np.array([t], dtype=float)
+        return float(self.position(ta)[0]), float(self.speed(ta)[0])
+
+    def setpoints(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (np.asarray(self.position(t), dtype=float),
+                np.asarray(self.speed(t), dtype=float))
+
+    def describe(self) -> str:
+        args = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+                         for k, v in self.kwargs.items())
+        return f"{self.name}({args})"
