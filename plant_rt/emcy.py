@@ -12,6 +12,8 @@ import logging
 from dataclasses import dataclass, field
 
 from ema_contract.states import StatusWord
+from plant_rt.nodebase import NodePart
+from plant_rt.ratelimit import Inhibit
 
 log = logging.getLogger("plant_rt.node")    # the node's logger: one name for its lines
 
@@ -39,8 +41,12 @@ class EmcyState:
     off_since: dict[int, float] = field(default_factory=dict)
 
 
-class EmcyProducer:
+class EmcyProducer(NodePart):
     """EMCY production of `PlantNode` (see the module docstring)."""
+
+    _emcy: EmcyState
+    _emcy_inhibit: Inhibit
+    _emcy_inhibit_raw: int
 
     def error_register(self) -> int:
         reg = 0

@@ -11,18 +11,22 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 
 import can
 
 from ema_contract.states import NMTState, Pace
+from plant_rt.nodebase import NodePart
 from plant_rt.ratelimit import EPS_S
 
 # error behaviour 0x1029 sub 1 (CiA 301): on a communication error (heartbeat lost)
 ERROR_BEHAVIOUR_PRE_OPERATIONAL, ERROR_BEHAVIOUR_NONE, ERROR_BEHAVIOUR_STOPPED = 0, 1, 2
 
 
-class Heartbeat:
+class Heartbeat(NodePart):
     """Heartbeat producer/consumer and error behaviour of `PlantNode` (module docstring)."""
+
+    _check_conditions: Callable[[], None]     # plant_rt.emcy.EmcyProducer
 
     def _on_ecu_heartbeat(self, msg: can.Message) -> None:
         if len(msg.data) != 1:

@@ -35,7 +35,8 @@ The node is one class, `PlantNode`, written in five modules by job: this one (th
 NMT state machine, frame dispatch, SYNC handling, PDOs, node clock, run loop),
 `plant_rt.emcy` (EMCY producer), `plant_rt.heartbeat` (heartbeat producer/consumer,
 error behaviour), `plant_rt.sdoobjects` (SDO object callbacks) as its mixins, and
-`plant_rt.ratelimit` (EMCY inhibit queue, log limiter) which they use.
+`plant_rt.ratelimit` (EMCY inhibit queue, log limiter) and `plant_rt.nodebase` (counters,
+command, the interface the parts use) which they build on.
 """
 
 from __future__ import annotations
@@ -44,7 +45,6 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import can
 import canopen
@@ -54,6 +54,7 @@ from ema_contract.states import ControlWord, NMTCommand, NMTState, Pace, Status,
 from plant_rt.emcy import EMCY_CONDITIONS, ERR_COMMUNICATION, EmcyProducer, EmcyState
 from plant_rt.heartbeat import Heartbeat
 from plant_rt.model import Plant
+from plant_rt.nodebase import Command, Counters
 from plant_rt.pacing import LatenessStats, RealtimePacer
 from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import PlantParams
@@ -72,36 +73,6 @@ _DEADLINE_MISS = int(StatusWord.DEADLINE_MISS)
 _ENABLE = int(ControlWord.ENABLE)
 # real-time pacer: releases locked this fraction of a period after a SYNC has been handled
 SYNC_PHASE = 0.3
-
-
-@dataclass
-class Counters:
-    """What object 0x2100 reports (reset by NMT reset and by 0x2200 sub 3)."""
-    frames_received: int = 0
-    bad_frames: int = 0
-    unknown_frames: int = 0
-    demands_invalid: int = 0
-    sync_received: int = 0
-    cycles: int = 0
-    heartbeat_timeouts: int = 0
-    emcy_sent: int = 0
-    rpdo_missing: int = 0
-    sync_counter_gaps: int = 0
-    emcy_suppressed: int = 0
-
-    def reset(self) -> None:
-        for k in self.__dataclass_fields__:
-            setattr(self, k, 0)
-
-
-@dataclass
-class Command:
-    """The ECU's command as received (RPDO1) and as latched at a SYNC."""
-    demand_a: float = 0.0
-    control: ControlWord = ControlWord.NONE
-    invalid: bool = False   # NaN/inf or beyond the current limit (replaced/clamped)
-
-
 
 
 class PlantNode(EmcyProducer, Heartbeat, SdoObjects):

@@ -10,6 +10,7 @@ these callbacks; they use the node's state, parameters, plant, counters and time
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 from canopen.sdo.exceptions import SdoAbortedError
 
@@ -20,6 +21,7 @@ from plant_rt.heartbeat import (
     ERROR_BEHAVIOUR_PRE_OPERATIONAL,
     ERROR_BEHAVIOUR_STOPPED,
 )
+from plant_rt.nodebase import NodePart
 from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams
 
@@ -31,8 +33,14 @@ ABORT_DEVICE_STATE = 0x08000022
 ABORT_APP_REFUSED = 0x08000020
 
 
-class SdoObjects:
+class SdoObjects(NodePart):
     """The SDO read/write callbacks of `PlantNode` (see the module docstring)."""
+
+    # plant_rt.emcy.EmcyProducer
+    _emcy: EmcyState
+    _emcy_inhibit_raw: int
+    error_register: Callable[[], int]
+    _set_emcy_inhibit: Callable[[int], None]
 
     def _on_sdo_read(self, index: int, subindex: int, od) -> object | None:
         key = (index, subindex)
