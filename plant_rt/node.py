@@ -31,7 +31,7 @@ time (0x1015) and the log rate limit run on the node clock (`PlantNode.node_time
 time in lockstep while OPERATIONAL (EMCYs fall on the same SYNCs in every run), the wall
 clock otherwise.
 
-The node is one class, `PlantNode`, written in five modules by job: this one (the core:
+The node is one class, `PlantNode`, written in six modules by job: this one (the core:
 NMT state machine, frame dispatch, SYNC handling, PDOs, node clock, run loop),
 `plant_rt.emcy` (EMCY producer), `plant_rt.heartbeat` (heartbeat producer/consumer,
 error behaviour), `plant_rt.sdoobjects` (SDO object callbacks) as its mixins, and
