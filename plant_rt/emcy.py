@@ -72,7 +72,11 @@ class EmcyProducer(NodePart):
         self._send_emcy(self._emcy_inhibit.due(now_s))
 
     def _send_emcy(self, items: list[tuple[object, int]]) -> None:
-        for (label, code, values), repeats in items:  # type: ignore[misc]
+        for item, repeats in items:
+            label: str
+            code: int
+            values: dict[str, int]
+            label, code, values = item  # type: ignore[misc]
             self.send(self.frames.encode("EMA_EMCY", values))   # encoded when sent only
             self.counters.emcy_sent += 1
             if repeats:

@@ -59,6 +59,11 @@ class SdoObjects(NodePart):
             v = self._last_process or self.process_values()
             raw = v[od.name]
             return raw if od.factor == 1 else round(raw / od.factor)
+        return self._read_communication(index, subindex)
+
+    def _read_communication(self, index: int, subindex: int) -> object | None:
+        """The CiA 301 communication objects the node keeps itself (None: canopen's store)."""
+        key = (index, subindex)
         if index == 0x1001:
             return self.error_register()
         if index == 0x1006:

@@ -140,7 +140,7 @@ def _strip(p: Problem) -> Problem:
     return q
 
 
-def _run(tasks: list[tuple[tuple[str, ...], list[dict[str, float]] | None]], p: Problem,
+def _run(tasks: Sequence[tuple[tuple[str, ...], list[dict[str, float]] | None]], p: Problem,
          h: Problem | None, pool: Any = None, bar: Any = None) -> list[Candidate]:
     """Evaluate `tasks` in `pool` (worker processes set up by `_init`) or in-process."""
     if pool is None or len(tasks) <= 1:
