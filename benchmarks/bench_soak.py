@@ -28,6 +28,7 @@ import argparse
 import base64
 import json
 import os
+import select
 import socket
 import struct
 import subprocess
@@ -149,13 +150,11 @@ class SlowReader(threading.Thread):
     def run(self) -> None:
         s = self._join()
         while not self.stop.wait(2.0):
-            try:   # still connected? (a peek does not drain the queue)
-                alive = s.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) != b""
-            except BlockingIOError:
-                alive = True
-            except OSError:
-                alive = False
-            if not alive:
+            # still connected? POLLRDHUP tells a peer's close even with unread data queued
+            # (a MSG_PEEK would see the data and miss the close)
+            poller = select.poll()
+            poller.register(s, select.POLLRDHUP | select.POLLHUP | select.POLLERR)
+            if poller.poll(0):
                 self.dropped += 1
                 s.close()
                 try:
