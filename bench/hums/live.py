@@ -209,7 +209,14 @@ class LiveHums:
         for cols in rows:
             assert self._online is not None
             self._modes.append(cols["mode"])
-            for ix in self._online.push(cols):
+            try:
+                done = self._online.push(cols)
+            except BenchError as exc:     # a signal missing through the whole period
+                t0 = self._periods * self.period_s
+                done = [Indexes(t0, t0 + self.period_s,
+                                unavailable={k: f"not available: {exc}"
+                                             for k in I.INDEX_SIGNALS})]
+            for ix in done:
                 m = np.array(self._modes[:self._online.m])
                 del self._modes[:self._online.m]
                 m = m[np.isfinite(m)]
