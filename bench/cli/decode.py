@@ -34,7 +34,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from bench.bus.logs import LogIssues, integrity, report_issues, trace_from_log
+    from bench.bus.integrity import integrity
+    from bench.bus.logread import LogIssues, report_issues
+    from bench.bus.logs import trace_from_log
 
     if args.output and Path(args.output).suffix.lower() not in (".csv", ".parquet", ".npz"):
         raise BenchError(f"unknown table format {Path(args.output).suffix!r} "

@@ -25,15 +25,23 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                        "prediction and reports (thesis chapter 6, rows H1-H6, R1-R2).")
     s = p.add_subparsers(title="hums commands", dest="hums_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
+    _add_thesis_commands(s)
+    _add_report(s)
+    _add_watch(s)
 
-    def common(q: argparse.ArgumentParser, workers: bool = True) -> None:
-        q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
-                       help="override a plant parameter (see `bench plant --list-params`)")
-        if workers:
-            q.add_argument("--workers", type=int, default=None,
-                           help="worker processes (default: 2, or 1 on a one-core machine)")
-        q.add_argument("--json", metavar="PATH", help="write the results as JSON")
 
+def _common(q: argparse.ArgumentParser, workers: bool = True) -> None:
+    q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
+                   help="override a plant parameter (see `bench plant --list-params`)")
+    if workers:
+        q.add_argument("--workers", type=int, default=None,
+                       help="worker processes (default: 2, or 1 on a one-core machine)")
+    q.add_argument("--json", metavar="PATH", help="write the results as JSON")
+
+
+def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
+    """fit, sweep, rul and campaign: the thesis' chapter 6 runs."""
+    common = _common
     q = s.add_parser("fit", help="H1: fit the monitoring model's position gain",
                      description="Fit the monitoring model's position P gain to a nominal "
                      "high-fidelity run of the 2 Hz sine by Nelder-Mead from 20 (thesis "
@@ -84,6 +92,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     common(q)
     q.set_defaults(func=run_campaign)
 
+
+def _add_report(s: argparse._SubParsersAction) -> None:
     q = s.add_parser("report", help="HTML health report of logs",
                      description="A self-contained HTML report (figures, indexes, verdict, "
                      "RUL with band) of candump logs (decoded through the DBC) or trace "
@@ -105,13 +115,16 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                    help="nominal plant parameter override")
     q.set_defaults(func=run_report)
 
+
+def _add_watch(s: argparse._SubParsersAction) -> None:
     from bench.bus import add_bus_arguments
     q = s.add_parser("watch", help="live indexes per command period, listening to the bus",
                      description="The HUMS as a passive bus client: decodes the ECU's "
                      "set-points and the actuator's PDOs through the DBC, runs the monitoring "
                      "model alongside and prints (and writes with --out) Cp, Ci, peak ratio "
-                     "and lost motion of every command period, with the level against the "
-                     "thesis' thresholds. Start it, then `bench run` on the same bus (e.g. "
+                     "and lost motion of every command period, with the verdict `bench hums "
+                     "report` gives that period (the same rows, lost SYNCs, duplicates and "
+                     "short gaps handled alike). Start it, then `bench run` on the same bus (e.g. "
                      "after `bench up`). Stops on Ctrl-C, --duration, or --idle seconds "
                      "without SYNC once a run was seen.")
     q.add_argument("--period", type=float, default=0.5, metavar="S",
@@ -278,6 +291,7 @@ def run_watch(args: argparse.Namespace) -> int:
     import sys
 
     from bench.bus import bus_settings, close_bus, connect, find_bus
+    from bench.bus.integrity import integrity
     from bench.hums.live import LiveHums, format_result, watch
     for name in ("period", "idle"):
         v = getattr(args, name)
@@ -331,4 +345,7 @@ def run_watch(args: argparse.Namespace) -> int:
     print(f"{n} command periods over {hums.run} run(s), {hums.frames_seen} frames"
           + (f", {hums.bad_frames} bad" if hums.bad_frames else "")
           + (f"; rows in {args.out}" if args.out else ""), file=sys.stderr)
+    damage = integrity(hums.count)
+    if damage:
+        print("bus: " + "; ".join(damage), file=sys.stderr)
     return 0

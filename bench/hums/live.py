@@ -18,28 +18,23 @@ from dataclasses import dataclass
 from typing import Any
 
 import can
+import numpy as np
 
 from bench import BenchError
-from bench.bus.logs import SIGNAL_COLUMNS
+from bench.bus.rows import RowAssembler
+from bench.hums import indexes as I
+from bench.hums import verdict as V
 from bench.hums.indexes import Indexes, OnlineHums
-from ema_contract.frames import FrameError, Frames
-from ema_contract.states import NMTCommand
+from ema_contract.frames import Frames, load_od
 from plant_rt.params import PlantParams
 
 TWO_PI = 2.0 * math.pi
 ROW_COLUMNS = ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
                "current_a", "motor_speed_rad_s", "encoder_counts", "position_m")
-LEVELS = ("HEALTHY", "DEGRADED", "WARNING", "FAILURE")
-
-
-def level_of(ix: Indexes) -> int:
-    """0..3 from the period's Ci against the thesis' threshold / warning / failure levels
-    (0.93 / 0.80 / 0.56, section 6.3)."""
-    from bench.hums.rul import FAILURE, THRESHOLD, WARNING
-    ci = ix.ci_harmonic if math.isfinite(ix.ci_harmonic) else ix.ci
-    if not math.isfinite(ci):
-        return 0
-    return 3 if ci < FAILURE else 2 if ci < WARNING else 1 if ci < THRESHOLD else 0
+BRIDGED = ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
+           "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")
+"""The columns pushed whose short gaps are bridged as the report bridges them."""
+LEVELS = (*V.LEVELS, V.UNKNOWN)
 
 
 @dataclass
@@ -49,6 +44,7 @@ class PeriodResult:
     t_start_s: float
     indexes: Indexes
     level: int
+    """Index into LEVELS: the report's verdict of this command period (4: UNKNOWN)."""
 
     def row(self) -> dict[str, Any]:
         ix = self.indexes
@@ -58,8 +54,91 @@ class PeriodResult:
                 "lost_motion_m": ix.lost_motion_m, "level": LEVELS[self.level]}
 
 
+class _RowQueue:
+    """Row sink of the `RowAssembler`: the rows it writes, queued as (run, {column:
+    value}) until `LiveHums` takes them."""
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.out: list[tuple[int, dict[str, float]]] = []
+
+    def __len__(self) -> int:
+        return self.n
+
+    def add(self, bus_time_s: float, run: int, group: Any) -> None:
+        vals: dict[str, float] = {}
+        if group is not None:
+            for _, v in group.frames.values():
+                vals.update(v)
+        self.n += 1
+        self.out.append((run, vals))
+
+
+class _Bridge:
+    """Short gaps of each column filled as `bench.hums.indexes.bridge` fills them on a
+    whole log (linear in time; HOLD_SIGNALS: the previous value; a leading gap: the first
+    value): rows are held while a gap is open and released when it closes. A gap longer
+    than BRIDGE_MAX_SAMPLES is not waited for: its rows go on with the previous value
+    held (the report would mark the indexes that read it 'not available'), counted in
+    ``unbridged``."""
+
+    def __init__(self) -> None:
+        self.held: list[dict[str, float]] = []
+        self.last: dict[str, tuple[float, float]] = {}      # column -> (t, value)
+        self.unbridged = 0
+
+    def push(self, row: dict[str, float]) -> list[dict[str, float]]:
+        self.held.append(row)
+        for c in BRIDGED:
+            y = row[c]
+            if not math.isfinite(y):
+                continue
+            gap = []
+            for r in reversed(self.held[:-1]):
+                if math.isfinite(r[c]):
+                    break
+                gap.append(r)
+            if not gap:
+                self.last[c] = (row["t_s"], y)
+                continue
+            gap.reverse()
+            prev = self.last.get(c)
+            for r in gap:
+                if prev is None or c in I.HOLD_SIGNALS and prev is not None:
+                    r[c] = y if prev is None else prev[1]
+                else:
+                    r[c] = float(np.interp(r["t_s"], [prev[0], row["t_s"]], [prev[1], y]))
+            self.last[c] = (row["t_s"], y)
+        return self._release(False)
+
+    def _release(self, flush: bool) -> list[dict[str, float]]:
+        out = []
+        while self.held:
+            r = self.held[0]
+            open_ = [c for c in BRIDGED if not math.isfinite(r[c]) and c in self.last
+                     or not math.isfinite(r[c]) and c not in self.last and not flush]
+            if open_ and not flush and len(self.held) <= I.BRIDGE_MAX_SAMPLES:
+                break
+            for c in BRIDGED:
+                if not math.isfinite(r[c]) and c in self.last:
+                    r[c] = self.last[c][1]
+                    self.unbridged += 1
+            out.append(self.held.pop(0))
+        return out
+
+    def finish(self) -> list[dict[str, float]]:
+        return self._release(True)
+
+
 class LiveHums:
-    """Frames in, per-period results out. Feed it with `feed(msg)`."""
+    """Frames in, per-period results out. Feed it with `feed(msg)`.
+
+    The rows are those of the log decoder (`bench.bus.rows.RowAssembler`: lost SYNCs,
+    duplicates, late and missing frames handled and counted alike, ``count``), their
+    short gaps bridged as the report bridges them, and each period judged by the
+    report's verdict (`bench.hums.verdict.judge`). Not done live: sorting a log whose
+    lines are out of time order (that needs the whole log), and the report's 2 % limit
+    on bridged samples (it needs the whole signal)."""
 
     def __init__(self, period_s: float, params: PlantParams | None = None,
                  node_id: int | None = None, position_kp_rad_s_per_m: float | None = None
@@ -74,86 +153,97 @@ class LiveHums:
         self.mparams = M.MonitorParams.from_plant(self.params)
         self.dt = self.params.sim.sync_period_s
         self.cpr = float(self.params.sensors.encoder_counts_per_rev)
-        cob = self.frames.cob
-        self._sync, self._nmt = cob["SYNC"], cob["NMT"]
-        self._signals = {cob[n]: cols for n, cols in SIGNAL_COLUMNS.items()}
+        self._sync, self._nmt = self.frames.cob["SYNC"], self.frames.cob["NMT"]
+        self._queue = _RowQueue()
+        self.assembler = RowAssembler(self.frames, int(load_od(self.frames.node_id)[0x1019]
+                                                       .default), self._queue)
         self.run = 0
-        self.frames_seen = 0
-        self.bad_frames = 0
         self.last_sync: float | None = None        # monotonic time it was fed
         self.last_sync_stamp: float | None = None  # its bus timestamp
         self._online: OnlineHums | None = None
-        self._row: dict[str, float] | None = None
+        self._bridge = _Bridge()
+        self._row_run: int | None = None
+        self._modes: list[float] = []
         self._k = 0
         self._periods = 0
 
-    def _new_run(self) -> None:
+    @property
+    def count(self) -> dict[str, int]:
+        """The damage counted by the row assembler (as ``trace.meta`` of a log)."""
+        return self.assembler.count
+
+    @property
+    def frames_seen(self) -> int:
+        return self.assembler.count["frames"]
+
+    @property
+    def bad_frames(self) -> int:
+        return self.assembler.count["bad_frames"]
+
+    def _new_run(self) -> list[PeriodResult]:
+        out = self._push(self._bridge.finish())
         self.run += 1
         self._online = OnlineHums(self.period_s, self.kp, self.mparams)
-        self._row = None
+        self._bridge = _Bridge()
+        self._modes = []
         self._k = 0
         self._periods = 0
+        return out
 
-    def _flush_row(self) -> list[PeriodResult]:
-        row, self._row = self._row, None
-        if row is None or self._online is None:
-            return []
-        cols = {c: row.get(c, math.nan) for c in ROW_COLUMNS}
-        counts = cols.pop("encoder_counts")
-        cols["motor_angle_rad"] = counts * TWO_PI / self.cpr
-        cols["t_s"] = self._k * self.dt
-        self._k += 1
+    def _take_rows(self) -> list[PeriodResult]:
+        out: list[PeriodResult] = []
+        rows, self._queue.out = self._queue.out, []
+        for run, vals in rows:
+            if run != self._row_run or self._online is None:   # a new run (or joined one)
+                out += self._new_run()
+                self._row_run = run
+            cols = {c: vals.get(c, math.nan) for c in ROW_COLUMNS}
+            cols["motor_angle_rad"] = cols.pop("encoder_counts") * TWO_PI / self.cpr
+            cols["t_s"] = self._k * self.dt
+            self._k += 1
+            out += self._push(self._bridge.push(cols))
+        return out
+
+    def _push(self, rows: list[dict[str, float]]) -> list[PeriodResult]:
         out = []
-        for ix in self._online.push(cols):
-            out.append(PeriodResult(self.run, self._periods, self._periods * self.period_s,
-                                    ix, level_of(ix)))
-            self._periods += 1
+        for cols in rows:
+            assert self._online is not None
+            self._modes.append(cols["mode"])
+            try:
+                done = self._online.push(cols)
+            except BenchError as exc:     # a signal missing through the whole period
+                t0 = self._periods * self.period_s
+                done = [Indexes(t0, t0 + self.period_s,
+                                unavailable={k: f"not available: {exc}"
+                                             for k in I.INDEX_SIGNALS})]
+            for ix in done:
+                m = np.array(self._modes[:self._online.m])
+                del self._modes[:self._online.m]
+                m = m[np.isfinite(m)]
+                mode = int(np.bincount(m.astype(int)).argmax()) if len(m) else 0
+                level = LEVELS.index(V.judge(ix, mode)[0])
+                out.append(PeriodResult(self.run, self._periods,
+                                        self._periods * self.period_s, ix, level))
+                self._periods += 1
         return out
 
     def feed(self, msg: can.Message) -> list[PeriodResult]:
         """One frame; returns the command periods it completed (usually none)."""
-        self.frames_seen += 1
-        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
-            return []
-        cid = msg.arbitration_id
-        if cid == self._sync:
+        if (msg.arbitration_id == self._sync and not msg.is_extended_id
+                and not msg.is_error_frame and not msg.is_remote_frame):
             self.last_sync = time.monotonic()
             self.last_sync_stamp = msg.timestamp
-            if self._online is None:      # joined mid-run: start here
-                self._new_run()
-            out = self._flush_row()
-            self._row = {}
-            return out
-        if cid == self._nmt:
-            try:
-                _, sig = self.frames.decode(msg)  # type: ignore[misc]
-            except (FrameError, TypeError):
-                self.bad_frames += 1
-                return []
-            if sig["NMT_NodeId"] not in (0, self.frames.node_id):
-                return []
-            out = self._flush_row()     # the run's last row is complete: no SYNC follows
-            if sig["NMT_Command"] == NMTCommand.START:
-                self._new_run()
-            return out
-        cols = self._signals.get(cid)
-        if cols is None or self._row is None:
-            return []
-        try:
-            decoded = self.frames.decode(msg)
-        except FrameError:
-            self.bad_frames += 1
-            return []
-        if decoded is None:
-            return []
-        sig = decoded[1]
-        for s, col in cols:
-            self._row[col] = float(sig[s])
-        return []
+        self.assembler.feed(msg)
+        if (msg.arbitration_id == self._nmt and not msg.is_extended_id and len(msg.data) == 2
+                and msg.data[1] in (0, self.frames.node_id)):
+            self.assembler.close_period()   # the run's last row is complete: no SYNC follows
+        return self._take_rows() if self._queue.out else []
 
     def finish(self) -> list[PeriodResult]:
         """End of listening: the pending row (its frames have all arrived) is counted."""
-        return self._flush_row()
+        self.assembler.finish()
+        out = self._take_rows()
+        return out + self._push(self._bridge.finish())
 
     def feed_all(self, msgs: Iterable[can.Message]) -> list[PeriodResult]:
         out: list[PeriodResult] = []

@@ -27,6 +27,7 @@ import numpy as np
 from bench import BenchError
 from bench.hums import indexes as I
 from bench.hums import monitor as M
+from bench.hums.verdict import LEVELS, UNKNOWN, judge  # noqa: F401  (LEVELS, UNKNOWN: re-exported)
 from bench.trace import MEASURED, MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
 
@@ -122,8 +123,6 @@ MIN_VERDICT_S = 0.1
 """Shortest log given a verdict: a tenth of a second (100 SYNC periods at 1 kHz). The
 shortest profile, the 0.3 s velocity step, is three times that; over a shorter window
 the start transient of the loops (tens of ms) outweighs what the indexes integrate."""
-UNKNOWN = "UNKNOWN"
-LEVELS = ["HEALTHY", "DEGRADED", "WARNING", "FAILURE"]
 
 
 def analyse(trace: Trace, name: str, params: PlantParams | None = None,
@@ -215,63 +214,9 @@ def _unjudged(meas: Trace, name: str, why: str, missing: list[str],
 
 
 def verdict(a: LogAnalysis) -> tuple[str, list[str]]:
-    """HEALTHY / DEGRADED / WARNING / FAILURE and the reasons, from the thesis' Ci levels
-    (0.93 / 0.80 / 0.56) in position mode, Cp in speed mode, and the fused backlash
-    estimate against its warning level; UNKNOWN (first reason: what is missing) when
-    nothing was commanded or the index the mode's level rests on is not available."""
-    from bench.hums import rul as R
-    ix = a.indexes
-    reasons = []
-    level = 0
-    ci = ix.ci_harmonic if math.isfinite(ix.ci_harmonic) else ix.ci
-    mode = _mode(a.trace)
-    if mode not in (MODE_POSITION, MODE_SPEED):
-        return UNKNOWN, ["the ECU is idle (mode 0) through the log: nothing was commanded, "
-                         "so there is no index to judge"]
-    key, value = ("Ci", ci) if mode == MODE_POSITION else ("Cp", ix.cp)
-    unknown = None
-    if not math.isfinite(value):
-        why = ix.unavailable.get(key.lower()) or "not available (not computable from this log)"
-        unknown = f"{key} {why}"
-    if math.isfinite(ci) and mode == MODE_POSITION:
-        if ci < R.FAILURE:
-            level = max(level, 3)
-            reasons.append(f"Ci = {ci:.3f} is below the failure level {R.FAILURE}")
-        elif ci < R.WARNING:
-            level = max(level, 2)
-            reasons.append(f"Ci = {ci:.3f} is below the warning level {R.WARNING}")
-        elif ci < R.THRESHOLD:
-            level = max(level, 1)
-            reasons.append(f"Ci = {ci:.3f} is below the threshold {R.THRESHOLD} "
-                           "(deviation from nominal no longer negligible)")
-        else:
-            reasons.append(f"Ci = {ci:.3f} is within 7 % of nominal")
-    if math.isfinite(ix.cp) and mode == MODE_SPEED:
-        if ix.cp > 1.005:     # 4x the largest noise effect on Cp in the sweep (H6)
-            level = max(level, 1)
-            reasons.append(f"Cp = {ix.cp:.3f}: the nut moves {100 * (1 - 1 / ix.cp):.1f} % "
-                           "less than nominal (lost motion)")
-        else:
-            reasons.append(f"Cp = {ix.cp:.4f} is within 0.5 % of nominal")
-    if a.fused is not None:
-        fr, cal, _ = a.fused
-        b = float(np.nanmedian(fr.b_um[-3:]))
-        if math.isfinite(fr.t_warning_s):
-            level = max(level, 2)
-            reasons.append(f"fused backlash estimate {b:.1f} um is above the warning level "
-                           f"{cal.warn_um:.2f} um (since t = {fr.t_warning_s:.1f} s)")
-        else:
-            reasons.append(f"fused backlash estimate {b:.2f} um is below the warning level "
-                           f"{cal.warn_um:.2f} um")
-    elif math.isfinite(ix.lost_motion_m):
-        lm = ix.lost_motion_m * 1e6
-        if lm > 5.0:
-            level = max(level, 1)
-            reasons.append(f"lost motion between motor and nut {lm:.1f} um (nominal "
-                           f"{ix.nominal_lost_motion_m * 1e6:.1f} um)")
-    if unknown is not None:
-        return UNKNOWN, [unknown] + reasons
-    return LEVELS[level], reasons
+    """The log's verdict and its reasons (`bench.hums.verdict.judge` on the log's indexes,
+    its most frequent mode and its fused backlash estimate)."""
+    return judge(a.indexes, _mode(a.trace), a.fused)
 
 
 # --- rendering -----------------------------------------------------------------------------

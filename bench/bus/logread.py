@@ -1,0 +1,158 @@
+"""candump -L lines -> frames: the tolerant line reader of `bench.bus.logs`.
+
+The format is ``candump -L`` (python-can's `CanutilsLogWriter`/`CanutilsLogReader`):
+``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` streams it line by line and,
+unlike `CanutilsLogReader` (which stops at the first bad line), reports each truncated
+or corrupted line with its number and keeps the rest; bad lines are counted and only the
+first ones kept (`LogIssues`), and a line is read MAX_LINE characters at most, so memory
+stays bounded whatever the file holds.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import can
+
+from bench import BenchError
+
+LINE = re.compile(r"^\((?P<ts>\d+(?:\.\d*)?)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})"
+                  r"#(?P<fd>#[0-9A-Fa-f])?(?P<data>[0-9A-Fa-f]*|R\d{0,2})(?:\s+(?P<dir>[RT]))?$")
+FD_LENGTHS = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64}
+
+MAX_LINE = 4096
+"""Characters of a log line read at most: a candump -L line of a 64-byte CAN FD frame
+has under 200; a longer line is reported and skipped in pieces (memory stays bounded)."""
+
+
+@dataclass
+class LogIssue:
+    """A line of a log that could not be read (its text cut to 60 characters)."""
+    line: int
+    reason: str
+    text: str
+
+    def __post_init__(self) -> None:
+        if len(self.text) > 60:
+            self.text = self.text[:57] + "..."
+
+    def __str__(self) -> str:
+        return f"line {self.line}: {self.reason}: {self.text!r}"
+
+
+class LogIssues:
+    """Bad lines of a log: all counted, the first `keep` kept (memory bounded whatever
+    the log). ``len()`` is the count; iteration gives the kept ones."""
+
+    def __init__(self, keep: int = 20) -> None:
+        self.keep = keep
+        self.count = 0
+        self.first: list[LogIssue] = []
+
+    def append(self, issue: LogIssue) -> None:
+        self.count += 1
+        if len(self.first) < self.keep:
+            self.first.append(issue)
+
+    def __len__(self) -> int:
+        return self.count
+
+    def __iter__(self) -> Iterator[LogIssue]:
+        return iter(self.first)
+
+
+def parse_line(text: str) -> can.Message:
+    """One candump -L line as a Message (ValueError with the reason if it is not one)."""
+    s = text.strip()
+    m = LINE.match(s)
+    if m is None:
+        if s.startswith("(") and ")" not in s:
+            raise ValueError("truncated timestamp")
+        if "#" not in s:
+            raise ValueError("no frame (expected ID#DATA)")
+        raise ValueError("not a candump -L frame")
+    ident, data, fd = m["id"], m["data"], m["fd"]
+    can_id = int(ident, 16)
+    ext = len(ident) == 8
+    if not ext and can_id > 0x7FF:
+        raise ValueError(f"standard id 0x{can_id:X} above 0x7FF")
+    if ext and can_id & 0x20000000:     # error frame as written by CanutilsLogWriter
+        return can.Message(timestamp=float(m["ts"]), is_error_frame=True)
+    if data.startswith("R"):
+        if fd:
+            raise ValueError("remote frame in CAN FD")
+        dlc = int(data[1:]) if len(data) > 1 else 0
+        if dlc > 8:
+            raise ValueError(f"remote frame DLC {dlc} above 8")
+        return can.Message(timestamp=float(m["ts"]), arbitration_id=can_id & 0x1FFFFFFF,
+                           is_extended_id=ext, is_remote_frame=True, dlc=dlc,
+                           channel=m["ch"], is_rx=m["dir"] != "T")
+    if len(data) % 2:
+        raise ValueError("odd number of hex digits (truncated data)")
+    payload = bytes.fromhex(data)
+    if fd:
+        if len(payload) not in FD_LENGTHS:
+            raise ValueError(f"CAN FD frame of {len(payload)} bytes")
+        flags = int(fd[1], 16)
+        return can.Message(timestamp=float(m["ts"]), arbitration_id=can_id, is_extended_id=ext,
+                           is_fd=True, bitrate_switch=bool(flags & 1),
+                           error_state_indicator=bool(flags & 2), data=payload,
+                           channel=m["ch"], is_rx=m["dir"] != "T")
+    if len(payload) > 8:
+        raise ValueError(f"{len(payload)} data bytes in a classic CAN frame")
+    return can.Message(timestamp=float(m["ts"]), arbitration_id=can_id, is_extended_id=ext,
+                       data=payload, channel=m["ch"], is_rx=m["dir"] != "T")
+
+
+def read_log(path: str | Path, issues: Any = None) -> Iterator[can.Message]:
+    """The frames of a candump log, streamed; bad lines go to `issues` (anything with
+    ``append``, e.g. a list or a `LogIssues`; line numbers from 1). BenchError when the
+    file does not exist or cannot be read."""
+    path = Path(path)
+    if not path.exists():
+        raise BenchError(f"no such log: {path}")
+    try:
+        fh = path.open("r", errors="replace", newline="")
+    except OSError as exc:
+        raise BenchError(f"cannot read {path}: {exc.strerror or exc}") from None
+    with fh:
+        for lineno, line in enumerate(_lines(fh), start=1):
+            if line is None:
+                if issues is not None:
+                    issues.append(LogIssue(lineno, f"line longer than {MAX_LINE} characters",
+                                           ""))
+                continue
+            if not line.strip():
+                continue
+            try:
+                yield parse_line(line)
+            except ValueError as exc:
+                if issues is not None:
+                    issues.append(LogIssue(lineno, str(exc), line.rstrip("\r\n")))
+
+
+def _lines(fh: Any) -> Iterator[str | None]:
+    """The lines of a text file, None for one longer than MAX_LINE (read in pieces)."""
+    while True:
+        line = fh.readline(MAX_LINE + 1)
+        if not line:
+            return
+        if len(line) > MAX_LINE and not line.endswith("\n"):
+            while line and not line.endswith("\n"):
+                line = fh.readline(MAX_LINE)
+            yield None
+        else:
+            yield line
+
+
+def report_issues(issues: Any, limit: int = 20) -> list[str]:
+    """The first `limit` bad lines as text, and how many more there are."""
+    shown = [str(i) for _, i in zip(range(limit), issues, strict=False)]
+    if len(issues) > len(shown):
+        lines = shown + [f"... and {len(issues) - len(shown)} more bad lines"]
+        return lines
+    return shown

@@ -1,0 +1,317 @@
+"""Frames -> the signal table, one row per SYNC period: the one row assembler of the bus
+logs (`bench.bus.logs.trace_from_messages`) and of the live HUMS (`bench.hums.live`).
+
+A row holds the SYNC's bus time, the TPDOs (sensors at that SYNC), the ECU's set-point
+frame and its RPDO (the demand it computed from them) that follow it. `RowAssembler`
+takes frames one at a time, in the order given, and writes a period's rows into its row
+sink when the period closes (the next SYNC, an NMT start, `finish`). Missing SYNCs
+(counter jumps) leave rows so time stays aligned, filled with their frames when only the
+SYNC line is gone; frames missing from a period, duplicates (never an extra row), late
+frames and frames out of time order are counted in ``count`` (see
+`bench.bus.logs.trace_from_messages` for each word). Sorting a shuffled log by time
+stamp needs the whole log: that step is the log decoder's (`bench.bus.logs.time_ordered`),
+not this module's; a live listener gets the frames in bus order.
+"""
+
+from __future__ import annotations
+
+import math
+from array import array
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+import numpy as np
+
+from bench import BenchError
+from bench.bus.sdo import SdoTracker
+from ema_contract.frames import FrameError, Frames
+from ema_contract.states import NMTCommand
+
+COLUMNS = ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
+           "current_a", "motor_speed_rad_s", "encoder_counts", "position_m",
+           "winding_temperature_k", "load_force_n", "status_word", "bus_time_s", "run")
+SIGNAL_COLUMNS = {
+    "ECU_Setpoint": (("SetpointPosition", "setpoint_position_m"),
+                     ("SetpointSpeed", "setpoint_speed_rad_s"), ("Mode", "mode")),
+    "EMA_RPDO1": (("CurrentDemand", "current_demand_a"),),
+    "EMA_TPDO1": (("MotorCurrent", "current_a"), ("StatusWord", "status_word")),
+    "EMA_TPDO2": (("EncoderAngle", "encoder_counts"), ("EncoderSpeed", "motor_speed_rad_s")),
+    "EMA_TPDO3": (("LvdtPosition", "position_m"), ("WindingTemperature",
+                                                   "winding_temperature_k"),
+                  ("LoadForce", "load_force_n")),
+}
+
+
+ROW_FRAMES = ("ECU_Setpoint", "EMA_TPDO1", "EMA_TPDO2", "EMA_TPDO3", "EMA_RPDO1")
+"""Frames that fill a SYNC period's row (one of each per period)."""
+OUT_OF_ORDER_S = 1.0
+"""A frame stamped more than this before an earlier line of the log is out of time order
+(and so is a SYNC stamped before an earlier SYNC: one producer, one clock). A live log
+interleaves two clocks' stamps: the ECU stamps its own frames as it logs them, received
+frames carry the bus's stamp and reach the log when the ECU's receive thread gets to
+them, which puts a TPDO ~1 ms before the set-point logged ahead of it and the plant's
+heartbeats up to 0.17 s (measured) behind the run's first frames. A frame 1 s late would
+have ended the run (the ECU gives up after 1 s without TPDO)."""
+MAX_LOST_SYNCS = (2.0, 1000)
+"""Lost SYNCs believed at most: twice the SYNCs read plus 1000. Each counter jump adds
+up to 239 empty rows, so a log of garbage counters would otherwise grow the table 239
+times its SYNC lines; a log that lost more than that is refused (BenchError)."""
+MAX_EMCY_KEPT = 1000
+_MAX_SAME_TS = 4096
+
+
+@dataclass
+class _Group:
+    """The row frames of one SYNC period: frame name -> (payload, {column: value})."""
+    frames: dict[str, tuple[bytes, dict[str, float]]] = field(default_factory=dict)
+
+    def holds(self, name: str, data: bytes) -> bool:
+        got = self.frames.get(name)
+        return got is not None and got[0] == data
+
+
+@dataclass
+class _Period:
+    """An open SYNC period: its bus time and the groups of frames that followed its SYNC
+    (a second group starts when a frame kind comes again with other content: the frames
+    of a following period whose SYNC line is missing, or a late frame)."""
+    bus_time_s: float
+    run: int
+    groups: list[_Group] = field(default_factory=lambda: [_Group()])
+
+
+class _Rows:
+    """The signal table as it grows: one compact column per signal, plus which row
+    frames each row received (bit i: ROW_FRAMES[i])."""
+
+    def __init__(self) -> None:
+        self.cols = {c: array("d") for c in COLUMNS}
+        self.present = array("B")
+
+    def __len__(self) -> int:
+        return len(self.present)
+
+    def add(self, bus_time_s: float, run: int, group: _Group | None) -> None:
+        values: dict[str, float] = {"bus_time_s": bus_time_s, "run": float(run)}
+        mask = 0
+        if group is not None:
+            for name, (_, vals) in group.frames.items():
+                values.update(vals)
+                mask |= 1 << ROW_FRAMES.index(name)
+        for c, col in self.cols.items():
+            col.append(values.get(c, math.nan))
+        self.present.append(mask)
+
+    def missing(self, seen: set[str]) -> dict[str, int]:
+        """Per row frame seen in the log: the rows (SYNC periods) without it."""
+        mask = np.frombuffer(self.present, dtype=np.uint8) if len(self) else np.zeros(0, int)
+        return {name: int(np.sum((mask & (1 << i)) == 0))
+                for i, name in enumerate(ROW_FRAMES) if name in seen}
+
+
+class RowAssembler:
+    """Frames in log order -> rows, one per SYNC period, with the log's damage counted
+    (see `trace_from_messages`)."""
+
+    def __init__(self, frames: Frames, sync_max: int, rows: Any = None) -> None:
+        """`rows`: the sink of the rows (``add(bus_time_s, run, group)`` and ``len()``),
+        a growing table (`_Rows`) when not given."""
+        self.f = frames
+        cob = frames.cob
+        self.sync_cob, self.nmt_cob, self.emcy_cob = cob["SYNC"], cob["NMT"], cob["EMA_EMCY"]
+        self.row_ids = {cob[n]: n for n in ROW_FRAMES}
+        self.sync_max = sync_max
+        self.sdo = SdoTracker(frames.sdo_rx, frames.sdo_tx)
+        self.rows = _Rows() if rows is None else rows
+        self.open: _Period | None = None
+        self.first_ts: float | None = None
+        self.last_counter: int | None = None
+        self.run = 0
+        self.syncs_in_run = self.syncs_read = 0
+        self.seen: set[str] = set()
+        self.emcy: list[dict[str, Any]] = []
+        self.count = dict(frames=0, bad_frames=0, short_frames=0, sync_gaps=0,
+                          sync_recovered=0, duplicate_frames=0, replaced_frames=0,
+                          out_of_order=0, emcy_count=0)
+        self.check_order = True
+        self.stop_on_disorder = False
+        self._max_ts = self._max_sync_ts = -math.inf
+        self._same_ts: set[tuple] = set()
+        self._last_ts: float | None = None
+
+    # -- frame by frame --------------------------------------------------------------
+    def feed(self, msg: can.Message) -> None:
+        c = self.count
+        c["frames"] += 1
+        ts = float(msg.timestamp)
+        if self.check_order:
+            self.order(msg)
+            if self.stop_on_disorder and c["out_of_order"]:
+                raise _OutOfOrder
+        if self._exact_duplicate(msg, ts):
+            c["duplicate_frames"] += 1
+            return
+        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
+            return
+        cid = msg.arbitration_id
+        if cid == self.sync_cob:
+            self._sync(msg, ts)
+        elif cid in (self.f.sdo_rx, self.f.sdo_tx):
+            self.sdo.feed(msg)
+        else:
+            self._data(msg, cid)
+
+    def order(self, msg: can.Message) -> None:
+        """Count `msg` as out of time order: stamped more than OUT_OF_ORDER_S before an
+        earlier line, or a SYNC stamped before an earlier SYNC (one producer, one clock)."""
+        ts = float(msg.timestamp)
+        late = ts < self._max_ts - OUT_OF_ORDER_S
+        if msg.arbitration_id == self.sync_cob and not msg.is_extended_id:
+            late = late or ts < self._max_sync_ts
+            self._max_sync_ts = max(self._max_sync_ts, ts)
+        self.count["out_of_order"] += late
+        self._max_ts = max(self._max_ts, ts)
+
+    def _exact_duplicate(self, msg: can.Message, ts: float) -> bool:
+        """The same frame with the same time stamp as one already read in this SYNC
+        period: one frame logged twice (a classic CAN frame lasts >= 47 us at 1 Mbit/s,
+        so two frames never share a microsecond stamp)."""
+        key = (msg.arbitration_id, bytes(msg.data), msg.is_extended_id, msg.is_remote_frame,
+               msg.is_error_frame, msg.is_fd, msg.dlc, msg.is_rx)
+        if ts != self._last_ts or len(self._same_ts) > _MAX_SAME_TS:
+            self._same_ts.clear()
+            self._last_ts = ts
+        elif key in self._same_ts:
+            return True
+        if msg.arbitration_id == self.sync_cob and not msg.is_extended_id:
+            self._same_ts.clear()      # a new SYNC period; its copy still matches below
+        self._same_ts.add(key)
+        return False
+
+    def _sync(self, msg: can.Message, ts: float) -> None:
+        if len(msg.data) not in (0, 1):
+            self.count["bad_frames"] += 1
+            return
+        lost = None
+        if len(msg.data) == 1:
+            counter = int(msg.data[0])
+            if self.last_counter is not None:
+                step = (counter - self.last_counter) % self.sync_max
+                if step == 0:                       # the same SYNC again
+                    self.count["duplicate_frames"] += 1
+                    return
+                lost = step - 1
+            self.last_counter = counter
+        if self.first_ts is None:
+            self.first_ts = ts
+        self.syncs_read += 1
+        self._close(lost)
+        self.syncs_in_run += 1
+        self.open = _Period(ts - self.first_ts, self.run)
+
+    def _close(self, lost: int | None) -> None:
+        """Write the open period's rows: its own, then one per lost SYNC, filled with the
+        frames that followed the missing SYNC line when the log has them. `lost` None: no
+        SYNC counter tells (end of the log, a run's end, SYNCs without counter); then a
+        group led by the ECU's set-point (sent right after each SYNC, never late) is the
+        period of a lost SYNC line, and other groups are late frames."""
+        p = self.open
+        self.open = None
+        if p is None:
+            self.count["sync_gaps"] += lost or 0
+            self._check_lost()
+            for _ in range(lost or 0):
+                self.rows.add(math.nan, self.run, None)
+            return
+        main, extra = p.groups[0], p.groups[1:]
+        if lost is None:
+            own = [g for g in extra if next(iter(g.frames)) == "ECU_Setpoint"]
+            lost = len(own)
+        else:
+            own = extra[:lost]
+        self.count["sync_gaps"] += lost
+        self._check_lost()
+        last = main
+        for g in extra:
+            if any(g is o for o in own):
+                last = g
+                continue
+            for name, v in g.frames.items():     # no lost SYNC explains them: the later wins
+                if name in last.frames:
+                    self.count["replaced_frames"] += 1
+                last.frames[name] = v
+        self.rows.add(p.bus_time_s, p.run, main)
+        for g in own:
+            self.rows.add(math.nan, p.run, g)
+        self.count["sync_recovered"] += len(own)
+        for _ in range(lost - len(own)):
+            self.rows.add(math.nan, p.run, None)
+
+    def _check_lost(self) -> None:
+        factor, slack = MAX_LOST_SYNCS
+        if self.count["sync_gaps"] > factor * self.syncs_read + slack:
+            raise BenchError(f"the SYNC counters make no sense: {self.count['sync_gaps']} "
+                             f"SYNCs lost for {self.syncs_read} read (a corrupted log?)")
+
+    def _data(self, msg: can.Message, cid: int) -> None:
+        try:
+            # process data of an older, shorter layout: keep the signals it carries
+            decoded = self.f.decode(msg, allow_truncated=cid in self.row_ids)
+        except FrameError:
+            self.count["bad_frames"] += 1
+            return
+        if decoded is None:
+            return
+        if len(msg.data) < self.f.by_cob[cid].length:   # older layout: the rest stays NaN
+            self.count["short_frames"] += 1
+        name, sig = decoded
+        if cid == self.nmt_cob:
+            self._nmt(sig)
+        elif cid == self.emcy_cob:
+            self._emcy(sig)
+        elif cid in self.row_ids and self.open is not None:
+            self._row_frame(name, bytes(msg.data), sig)
+
+    def _nmt(self, sig: dict[str, Any]) -> None:
+        if (sig["NMT_Command"] == NMTCommand.START
+                and sig["NMT_NodeId"] in (0, self.f.node_id)):
+            self._close(None)
+            if self.run == 0 or self.syncs_in_run:     # a repeated start is the same run
+                self.run += 1
+            self.syncs_in_run = 0
+            self.last_counter = None
+
+    def _emcy(self, sig: dict[str, Any]) -> None:
+        self.count["emcy_count"] += 1
+        if len(self.emcy) < MAX_EMCY_KEPT:
+            row = len(self.rows) - (0 if self.open is not None else 1)
+            self.emcy.append({"row": row, "code": int(sig["EMCY_ErrorCode"]),
+                              "name": self.f.label("EMA_EMCY", "EMCY_ErrorCode",
+                                                   sig["EMCY_ErrorCode"]),
+                              "status_word": int(sig["EMCY_StatusWord"])})
+
+    def _row_frame(self, name: str, data: bytes, sig: dict[str, Any]) -> None:
+        assert self.open is not None
+        groups = self.open.groups
+        if any(g.holds(name, data) for g in groups):     # the same frame again
+            self.count["duplicate_frames"] += 1
+            return
+        if name in groups[-1].frames:
+            groups.append(_Group())
+        self.seen.add(name)
+        groups[-1].frames[name] = (data, {col: float(sig[s]) for s, col in
+                                          SIGNAL_COLUMNS[name] if s in sig})
+
+    def close_period(self) -> None:
+        """Write the open period's rows now (a live listener at an NMT stop: no SYNC
+        follows, the period's frames have all come)."""
+        self._close(None)
+
+    def finish(self) -> Any:
+        self._close(None)
+        return self.rows
+
+
+class _OutOfOrder(Exception):
+    """Raised by a decoder told to stop at the first frame out of time order."""
