@@ -65,9 +65,8 @@ class LogIssues:
         return iter(self.first)
 
 
-def parse_line(text: str) -> can.Message:
-    """One candump -L line as a Message (ValueError with the reason if it is not one)."""
-    s = text.strip()
+def _match(s: str) -> re.Match[str]:
+    """The candump -L fields of a stripped line (ValueError saying why it is not one)."""
     m = LINE.match(s)
     if m is None:
         if s.startswith("(") and ")" not in s:
@@ -75,6 +74,12 @@ def parse_line(text: str) -> can.Message:
         if "#" not in s:
             raise ValueError("no frame (expected ID#DATA)")
         raise ValueError("not a candump -L frame")
+    return m
+
+
+def parse_line(text: str) -> can.Message:
+    """One candump -L line as a Message (ValueError with the reason if it is not one)."""
+    m = _match(text.strip())
     ident, data, fd = m["id"], m["data"], m["fd"]
     can_id = int(ident, 16)
     ext = len(ident) == 8

@@ -218,10 +218,10 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
                                  sort_by_time=True)
     if not len(tr):
         n = len(found)
-        first = next(iter(found), None)
+        first_issue = next(iter(found), None)
         raise BenchError(f"{path}: nothing to decode: {tr.meta['frames']} frames, no SYNC "
                          f"frame, so no control period"
-                         + (f"; {n} bad lines ({first})" if n else ""))
+                         + (f"; {n} bad lines ({first_issue})" if n else ""))
     return tr
 
 

@@ -34,56 +34,57 @@ class SdoTracker:
         d = bytes(msg.data)
         if len(d) != 8:
             return
-        cmd = d[0]
         if msg.arbitration_id == self.rx_cob:          # client -> server
-            ccs = cmd >> 5
-            if ccs == 1:                                 # initiate download
-                t = _Transfer(d[1] | d[2] << 8, d[3], False)
-                if cmd & 0x2:                            # expedited
-                    n = 4 - ((cmd >> 2) & 0x3) if cmd & 0x1 else 4
-                    t.data += d[4:4 + n]
-                    t.size = n
-                elif cmd & 0x1:
-                    t.size = int.from_bytes(d[4:8], "little")
-                self._pending_write = t
-            elif ccs == 0 and self._pending_write is not None:   # download segment
-                n = 7 - ((cmd >> 1) & 0x7)
-                self._pending_write.data += d[1:1 + n]
-                if cmd & 0x1:
-                    self._pending_write.size = len(self._pending_write.data)
-            elif ccs == 2:                               # initiate upload
-                self._req = _Transfer(d[1] | d[2] << 8, d[3], True)
+            self._from_client(d)
         elif msg.arbitration_id == self.tx_cob:        # server -> client
-            scs = cmd >> 5
-            if scs == 4:                                 # abort
-                self._req = self._pending_write = None
-            elif scs == 3 and self._pending_write is not None:   # download confirmed
-                t = self._pending_write
-                if t.size is not None and len(t.data) >= t.size:
-                    self.values[(t.index, t.sub)] = bytes(t.data[:t.size])
-                    self._pending_write = None
-            elif scs == 1 and self._pending_write is not None:   # segment confirmed
-                t = self._pending_write
-                if t.size is not None and len(t.data) >= t.size:
-                    self.values[(t.index, t.sub)] = bytes(t.data[:t.size])
-                    self._pending_write = None
-            elif scs == 2 and self._req is not None:     # initiate upload response
-                t = self._req
-                if cmd & 0x2:
-                    n = 4 - ((cmd >> 2) & 0x3) if cmd & 0x1 else 4
-                    self.values[(t.index, t.sub)] = d[4:4 + n]
-                    self._req = None
-                else:
-                    t.size = int.from_bytes(d[4:8], "little") if cmd & 0x1 else None
-            elif scs == 0 and self._req is not None:     # upload segment
-                t = self._req
-                n = 7 - ((cmd >> 1) & 0x7)
-                t.data += d[1:1 + n]
-                if cmd & 0x1:
-                    self.values[(t.index, t.sub)] = bytes(t.data if t.size is None
-                                                          else t.data[:t.size])
-                    self._req = None
+            self._from_server(d)
 
+    def _from_client(self, d: bytes) -> None:
+        cmd = d[0]
+        ccs = cmd >> 5
+        if ccs == 1:                                 # initiate download
+            t = _Transfer(d[1] | d[2] << 8, d[3], False)
+            if cmd & 0x2:                            # expedited
+                n = 4 - ((cmd >> 2) & 0x3) if cmd & 0x1 else 4
+                t.data += d[4:4 + n]
+                t.size = n
+            elif cmd & 0x1:
+                t.size = int.from_bytes(d[4:8], "little")
+            self._pending_write = t
+        elif ccs == 0 and self._pending_write is not None:   # download segment
+            n = 7 - ((cmd >> 1) & 0x7)
+            self._pending_write.data += d[1:1 + n]
+            if cmd & 0x1:
+                self._pending_write.size = len(self._pending_write.data)
+        elif ccs == 2:                               # initiate upload
+            self._req = _Transfer(d[1] | d[2] << 8, d[3], True)
+
+    def _from_server(self, d: bytes) -> None:
+        cmd = d[0]
+        scs = cmd >> 5
+        if scs == 4:                                 # abort
+            self._req = self._pending_write = None
+        elif scs in (3, 1) and self._pending_write is not None:  # download / segment confirmed
+            t = self._pending_write
+            if t.size is not None and len(t.data) >= t.size:
+                self.values[(t.index, t.sub)] = bytes(t.data[:t.size])
+                self._pending_write = None
+        elif scs == 2 and self._req is not None:     # initiate upload response
+            t = self._req
+            if cmd & 0x2:
+                n = 4 - ((cmd >> 2) & 0x3) if cmd & 0x1 else 4
+                self.values[(t.index, t.sub)] = d[4:4 + n]
+                self._req = None
+            else:
+                t.size = int.from_bytes(d[4:8], "little") if cmd & 0x1 else None
+        elif scs == 0 and self._req is not None:     # upload segment
+            t = self._req
+            n = 7 - ((cmd >> 1) & 0x7)
+            t.data += d[1:1 + n]
+            if cmd & 0x1:
+                self.values[(t.index, t.sub)] = bytes(t.data if t.size is None
+                                                      else t.data[:t.size])
+                self._req = None
 
 def sdo_values(sdo: SdoTracker, pobj: ParamObjects, od: Any) -> dict[str, Any]:
     """The plant parameters the SDO traffic revealed (name -> value)."""

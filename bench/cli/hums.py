@@ -291,14 +291,8 @@ def run_watch(args: argparse.Namespace) -> int:
     import sys
 
     from bench.bus import bus_settings, close_bus, connect, find_bus
-    from bench.bus.integrity import integrity
     from bench.hums.live import LiveHums, format_result, watch
-    for name in ("period", "idle"):
-        v = getattr(args, name)
-        if not (math.isfinite(v) and v > 0):
-            raise BenchError(f"--{name} must be > 0 s")
-    if args.duration is not None and not args.duration > 0:
-        raise BenchError("--duration must be > 0 s")
+    _check_watch_args(args)
     params = _params(args)
     hums = LiveHums(args.period, params, args.node_id)   # fits the monitor gain first
     found = find_bus(bus_settings(args))
@@ -342,10 +336,27 @@ def run_watch(args: argparse.Namespace) -> int:
         close_bus(bus)
         if out is not None:
             out.close()
+    _watch_summary(n, hums, args.out)
+    return 0
+
+
+def _check_watch_args(args: argparse.Namespace) -> None:
+    for name in ("period", "idle"):
+        v = getattr(args, name)
+        if not (math.isfinite(v) and v > 0):
+            raise BenchError(f"--{name} must be > 0 s")
+    if args.duration is not None and not args.duration > 0:
+        raise BenchError("--duration must be > 0 s")
+
+
+def _watch_summary(n: int, hums, out: str | None) -> None:
+    """What the watcher saw, on stderr: periods, runs, frames, and any damage on the bus."""
+    import sys
+
+    from bench.bus.integrity import integrity
     print(f"{n} command periods over {hums.run} run(s), {hums.frames_seen} frames"
           + (f", {hums.bad_frames} bad" if hums.bad_frames else "")
-          + (f"; rows in {args.out}" if args.out else ""), file=sys.stderr)
+          + (f"; rows in {out}" if out else ""), file=sys.stderr)
     damage = integrity(hums.count)
     if damage:
         print("bus: " + "; ".join(damage), file=sys.stderr)
-    return 0
