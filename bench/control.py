@@ -1,7 +1,7 @@
 """The ECU controller: position P and speed PI at the SYNC rate (thesis section 5.2).
 
 The current loop lives in the drive (plant_rt), so the ECU sends a current demand; see
-design.md "Control partition". The same compiled `controller_step` runs in the live ECU
+docs/model.md, "Control partition and the bus delay". The same compiled `controller_step` runs in the live ECU
 (bench.ecu, one call per SYNC) and in the one compiled closed loop (`bench.loop`, used by
 the harness, the gap re-simulation and the monitoring model), so all give the same demand
 for the same measurements. Its speed PI is the drive's clamped PI law (`plant_rt.pi`).
@@ -65,7 +65,7 @@ class ControllerParams(ParamSet):
     current_limit_a: float = P(25.0, "A", 0.0, 1000.0, "current demand limit i_max",
                                "table 5.2")
     sample_period_s: float = P(1e-3, "s", 1e-4, 0.1, "ECU sample (SYNC) period",
-                               "design.md (as sim.sync_period_s)")
+                               "chosen (as sim.sync_period_s, docs/model.md)")
 
     @property
     def position_kp_thesis_units(self) -> float:

@@ -149,7 +149,7 @@ def p5_p7(res: Result, params: PlantParams, cparams: ControllerParams) -> None:
     fr, pk = s.resonance()
     delay_note = ("the speed loop is closed by the ECU over the bus: 1 ms SYNC, one "
                   "period of delay and sample-and-hold cost about 31 deg at 27 Hz, so the "
-                  "crossover is held at ~30 Hz to keep ~60 deg of margin (design.md)")
+                  "crossover is held at ~30 Hz to keep ~60 deg of margin (docs/model.md)")
     res.rows += [
         Row("P6", "speed loop phase margin", "deg", 67.0, round(pm, 1), delay_note),
         Row("P6", "speed loop gain margin", "dB", 14.0, round(gm, 1), delay_note),

@@ -248,7 +248,8 @@ class ScheduleParams(_Validated):
 class SimParams(_Validated):
     """Integration settings of the compiled fixed-step core."""
     _group: ClassVar[str] = "sim"
-    sync_period_s: float = P(1e-3, "s", 1e-4, 0.1, "SYNC (ECU sample) period", "design.md")
+    sync_period_s: float = P(1e-3, "s", 1e-4, 0.1, "SYNC (ECU sample) period",
+                             "chosen (docs/model.md)")
     substep_s: float = P(0.0, "s", 0.0, 1e-3,
                          "integration step; 0 picks 5 us (switching PWM) or 20 us (averaged)",
                          "chosen")

@@ -1,5 +1,5 @@
 """The gap diagnosis of one log: where the gap lies, which effect causes it, how far it
-shrinks (design.md "Sim-to-real gap diagnosis").
+shrinks (docs/gap.md).
 
     result = diagnose(trace, holdout=None, nominal=None, options=Options())
     result.json()      # {"localisation": ..., "ranking": [...], "verdict": ...}

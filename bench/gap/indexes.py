@@ -2,7 +2,7 @@
 sees it"), computed by `bench.hums.indexes`.
 
 With x the logged nut position (m), i the logged current (A) and x_N, i_N the model's
-(design.md's reading of eq. 6.4-6.7, ratio of integrals):
+(the ratio-of-integrals reading of eq. 6.4-6.7, docs/hums.md):
     Cp = int(x_N x) / int(x^2)    Ci = int(i_N i) / int(i^2)
     peak ratio = max|i| / max|i_N|      mean error = mean |x - x_N|  (m)
 Each is 1 (0 for the mean error) when log and model agree.

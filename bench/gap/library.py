@@ -1,4 +1,4 @@
-"""The built-in candidate effects (design.md "Sim-to-real gap diagnosis", question 2).
+"""The built-in candidate effects (docs/gap.md, which unmodelled effect causes the gap).
 
 Each is a bounded augmentation of the nominal plant with physical units. Plant-side
 effects change `PlantParams` inside the closed loop; log-side effects transform the

@@ -9,7 +9,7 @@ monitoring model's (nominal) ones, over a window of duration T:
 - peak-current ratio (eq. 6.7): ratio = max|i| / max|i_N|                           (-)
 
 Eq. 6.5-6.6 print the integral of a pointwise ratio, which diverges where x or i cross
-zero; the reading used here is the ratio of integrals (docs/design.md), which is 1 in
+zero; the reading used here is the ratio of integrals (docs/hums.md), which is 1 in
 nominal conditions, > 1 (Cp) when the real nut moves less than the nominal one and < 1 (Ci)
 when the real motor needs more current. Integrals over uniformly sampled windows are sums
 (the dt cancels in the ratios).
