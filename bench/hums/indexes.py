@@ -1,18 +1,7 @@
 """HUMS indexes of thesis section 6.2, from traces (real vs nominal), whole-run and online.
 
-With x the real (measured, LVDT) nut position, i the real (measured) motor current and
-x_N, i_N the monitoring model's (nominal) ones, over a window of duration T:
-
-- mean error (eq. 6.4):  |e| = 1/T int |x_N - x| dt                                (m)
-- position fidelity (eq. 6.5):  Cp = int x_N x dt / int x^2 dt                      (-)
-- current fidelity (eq. 6.6):   Ci = int i_N i dt / int i^2 dt                      (-)
-- peak-current ratio (eq. 6.7): ratio = max|i| / max|i_N|                           (-)
-
-Eq. 6.5-6.6 print the integral of a pointwise ratio, which diverges where x or i cross
-zero; the reading used here is the ratio of integrals (docs/hums.md), which is 1 in
-nominal conditions, > 1 (Cp) when the real nut moves less than the nominal one and < 1 (Ci)
-when the real motor needs more current. Integrals over uniformly sampled windows are sums
-(the dt cancels in the ratios).
+The mean error, Cp, Ci and the peak-current ratio (eq. 6.4-6.7, in the ratio-of-integrals
+reading) are written out in `bench.hums.formulas`.
 
 - current spectrum (eq. 6.3): one-sided amplitude spectrum of a windowed rfft, calibrated
   so a sine of amplitude A reads A at its line (`amplitude_spectrum`); harmonic features
