@@ -27,6 +27,13 @@ from bench.hums.spectra import N_HARMONICS, harmonic_amplitudes
 from bench.trace import Trace
 
 
+def distortion(harmonics_a) -> float:
+    """sqrt(sum of harmonics 2..n squared) / fundamental (-); NaN without a fundamental."""
+    h = np.asarray(harmonics_a, dtype=float)
+    if len(h) < 2 or not h[0] > 0:
+        return math.nan
+    return float(np.sqrt(np.nansum(h[1:] ** 2)) / h[0])
+
 @dataclass
 class Indexes:
     """Indexes of one window (whole run or one command period). NaN = not computable."""
@@ -55,18 +62,13 @@ class Indexes:
 
     @property
     def harmonic_distortion(self) -> float:
-        """sqrt(sum of harmonics 2..n squared) / fundamental, real current (-)."""
-        h = np.asarray(self.harmonics_a, dtype=float)
-        if len(h) < 2 or not h[0] > 0:
-            return math.nan
-        return float(np.sqrt(np.nansum(h[1:] ** 2)) / h[0])
+        """Harmonic distortion of the real current (`distortion`)."""
+        return distortion(self.harmonics_a)
 
     @property
     def nominal_harmonic_distortion(self) -> float:
-        h = np.asarray(self.nominal_harmonics_a, dtype=float)
-        if len(h) < 2 or not h[0] > 0:
-            return math.nan
-        return float(np.sqrt(np.nansum(h[1:] ** 2)) / h[0])
+        """Harmonic distortion of the nominal current (`distortion`)."""
+        return distortion(self.nominal_harmonics_a)
 
     def to_json(self) -> dict[str, Any]:
         d = asdict(self)
