@@ -29,6 +29,32 @@ _Y, _EXT, _DIR, _LO, _HI, _STARTED = range(6)
 
 
 @njit(cache=True)
+def _first_direction(v, st, h):  # pragma: no cover - compiled
+    """Before the first move: widen the range seen; set the direction once it spans h (up
+    if the top came last; the other end, within h of the first sample, is filtered)."""
+    if v > st[_HI]:
+        st[_HI] = v
+    if v < st[_LO]:
+        st[_LO] = v
+    if st[_HI] - st[_LO] >= h and st[_HI] > st[_LO]:
+        st[_DIR] = 1.0 if v == st[_HI] else -1.0
+        st[_EXT] = v
+
+
+@njit(cache=True)
+def _turned(v, st, h):  # pragma: no cover - compiled
+    """True (and the search turned around) when v retreated h from the pending extreme."""
+    back = (st[_EXT] - v) * st[_DIR]     # how far v is behind the extreme
+    if back < 0.0:
+        st[_EXT] = v
+        return False
+    if back >= h and back > 0.0:
+        st[_DIR] = -st[_DIR]
+        return True
+    return False
+
+
+@njit(cache=True)
 def _track(x, h, st, dy, tp):  # pragma: no cover - compiled
     """Advance state `st` over samples `x`: play increments into `dy`, new turning points
     into `tp`; returns the number of turning points written."""
@@ -42,7 +68,6 @@ def _track(x, h, st, dy, tp):  # pragma: no cover - compiled
         if st[_STARTED] == 0.0:
             st[_STARTED] = 1.0
             st[_Y] = v
-            st[_EXT] = v
             st[_LO] = v
             st[_HI] = v
             tp[n_tp] = v
@@ -52,38 +77,14 @@ def _track(x, h, st, dy, tp):  # pragma: no cover - compiled
         ny = min(max(y, v - half), v + half)
         dy[k] = ny - y
         st[_Y] = ny
-        d = st[_DIR]
-        if d == 0.0:
-            if v > st[_HI]:
-                st[_HI] = v
-            if v < st[_LO]:
-                st[_LO] = v
-            if st[_HI] - st[_LO] >= h and st[_HI] > st[_LO]:
-                # the first move: up if the top came last (the other end, within h of
-                # the first sample, is filtered out)
-                if v == st[_HI]:
-                    st[_DIR] = 1.0
-                    st[_EXT] = st[_HI]
-                else:
-                    st[_DIR] = -1.0
-                    st[_EXT] = st[_LO]
+        if st[_DIR] == 0.0:
+            _first_direction(v, st, h)
             continue
-        if d > 0.0:
-            if v > st[_EXT]:
-                st[_EXT] = v
-            elif st[_EXT] - v >= h and st[_EXT] - v > 0.0:
-                tp[n_tp] = st[_EXT]
-                n_tp += 1
-                st[_DIR] = -1.0
-                st[_EXT] = v
-        else:
-            if v < st[_EXT]:
-                st[_EXT] = v
-            elif v - st[_EXT] >= h and v - st[_EXT] > 0.0:
-                tp[n_tp] = st[_EXT]
-                n_tp += 1
-                st[_DIR] = 1.0
-                st[_EXT] = v
+        ext = st[_EXT]
+        if _turned(v, st, h):
+            tp[n_tp] = ext
+            n_tp += 1
+            st[_EXT] = v
     return n_tp
 
 
