@@ -60,16 +60,15 @@ class UsageSettings(ParamSet):
 
 # fixed bins (edges), so that runs and actuators merge bin by bin
 LOAD_STEP_N, LOAD_MAX_N = 500.0, 20000.0
-LOAD_EDGES_N = np.concatenate([[-math.inf], np.arange(-LOAD_MAX_N, LOAD_MAX_N + 1, LOAD_STEP_N),
-                               [math.inf]])
+LOAD_EDGES_N = np.concatenate([[-math.inf], np.arange(-40, 41) * LOAD_STEP_N, [math.inf]])
 """Load spectrum: signed axial load, 500 N bins over +-20 kN, and the two overflow bins."""
-TEMP_EDGES_K = np.concatenate([[-math.inf], np.arange(230.0, 431.0, 10.0), [math.inf]])
+TEMP_EDGES_K = np.concatenate([[-math.inf], np.arange(230, 431, 10) * 1.0, [math.inf]])
 """Time at winding temperature: 10 K bins from 230 K to 430 K, and the overflow bins."""
 POS_RANGE_EDGES_M = np.array([0.0, 50e-6, 100e-6, 200e-6, 500e-6, 1e-3, 2e-3, 5e-3, 10e-3,
                               20e-3, 50e-3, math.inf])
-POS_MEAN_EDGES_M = np.concatenate([[-math.inf], np.arange(-50e-3, 50.1e-3, 10e-3), [math.inf]])
+POS_MEAN_EDGES_M = np.concatenate([[-math.inf], np.arange(-50, 51, 10) * 1e-3, [math.inf]])
 LOAD_RANGE_EDGES_N = np.array([0.0, 200.0, 500.0, 1e3, 2e3, 5e3, 1e4, 2e4, 5e4, math.inf])
-LOAD_MEAN_EDGES_N = np.concatenate([[-math.inf], np.arange(-20e3, 20.1e3, 5e3), [math.inf]])
+LOAD_MEAN_EDGES_N = np.concatenate([[-math.inf], np.arange(-20, 21, 5) * 1e3, [math.inf]])
 """Rainflow matrices: cycle range (rows) by cycle mean (columns)."""
 REGIMES = ("dwell", "slow", "fast")
 
