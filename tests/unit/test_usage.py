@@ -97,8 +97,9 @@ def test_rainflow_counts_the_astm_e1049_example():
     # ASTM E1049-85 fig. 6 (peaks and valleys in mm): ranges 3 (1/2), 4 (3/2), 6 (1/2),
     # 8 (1), 9 (1/2): 4 cycles
     pts = np.array([-2.0, 1.0, -3.0, 5.0, -1.0, 3.0, -4.0, 4.0, -2.0]) * 1e-3
-    x = np.concatenate([np.linspace(a, b, 50, endpoint=False) for a, b in zip(pts[:-1], pts[1:])]
-                       + [pts[-1:]])
+    legs = [np.linspace(a, b, 50, endpoint=False)
+            for a, b in zip(pts[:-1], pts[1:], strict=True)]
+    x = np.concatenate([*legs, pts[-1:]])
     s = usage_of_trace(Trace({"t_s": np.arange(len(x)) * DT, "position_m": x},
                              {"period_s": DT}))
     assert s.position_cycles == 4.0
