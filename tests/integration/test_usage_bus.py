@@ -7,9 +7,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 
 import pytest
-from bus_helpers import make_env
+from bus_helpers import make_env, spawn
+from test_hums_live import _wait_line
 from test_minimal_node import start_minimal_node
 
 from bench.bus.logs import read_log, trace_from_log
@@ -36,11 +38,22 @@ def serial_env(tmp_path_factory):
 
 
 def test_serial_in_the_log_and_live_usage_equals_the_log(serial_env, tmp_path, capsys):
-    log = tmp_path / "run.log"
+    log, live_json = tmp_path / "run.log", tmp_path / "live.json"
     values = {"load.kind": "sine", "load.amplitude_n": 3000.0, "load.frequency_hz": 3.0,
               "sensors.noise": True, "sensors.noise_seed": 3}
-    tr = run_over_bus(make_profile("sine", cycles=3), values=values, pace="sync",
-                      settings=serial_env.cfg, log_path=log)
+    watcher = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "2",
+                    "--usage", str(live_json), "-i", serial_env.cfg["interface"],
+                    "-c", str(serial_env.cfg["channel"]), env=serial_env.env)
+    try:
+        _wait_line(watcher, "listening", 60)
+        tr = run_over_bus(make_profile("sine", cycles=3), values=values, pace="sync",
+                          settings=serial_env.cfg, log_path=log)
+        w_out, w_err = watcher.communicate(timeout=60)
+    finally:
+        if watcher.poll() is None:
+            watcher.kill()
+    assert watcher.returncode == 0, w_err
+    assert "usage run 1" in w_out and str(SERIAL) in w_out
     assert tr.meta["node"]["identity"]["serial"] == SERIAL
     assert tr.meta["actuator_serial"] == str(SERIAL)
     dec = trace_from_log(log)
@@ -52,7 +65,7 @@ def test_serial_in_the_log_and_live_usage_equals_the_log(serial_env, tmp_path, c
     assert offline.life_consumed > 0 and offline.load_cycles >= 3
 
     # the live accumulator, fed the log's frames as a watcher gets them
-    hums = LiveHums(0.5)
+    hums = LiveHums(0.5, position_kp_rad_s_per_m=20.0)   # (no gain fit: usage only)
     hums.feed_all(read_log(log))
     hums.finish()
     runs = hums.usage.runs()
@@ -66,6 +79,14 @@ def test_serial_in_the_log_and_live_usage_equals_the_log(serial_env, tmp_path, c
             math.isnan(a[k]) and math.isnan(b[k])), k
     assert (live.load_spectrum_rev == pytest.approx(offline.load_spectrum_rev, rel=1e-9))
     assert (live.position_rainflow == offline.position_rainflow).all()
+    # and the watcher that listened to the run live: its totals at the end
+    watched = json.loads(live_json.read_text())
+    assert len(watched["runs"]) == 1
+    total = watched["actuators"][str(SERIAL)]
+    for k, v in b.items():
+        if math.isfinite(v):
+            assert total[k] == pytest.approx(v, rel=1e-9, abs=1e-15), k
+    assert total["load_spectrum_rev"] == pytest.approx(offline.load_spectrum_rev.tolist())
 
     # `bench usage` on the log (in-process): the same numbers, accumulated by serial
     out = tmp_path / "usage.json"
