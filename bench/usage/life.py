@@ -11,7 +11,8 @@
 Preload (`preload_mode` "double-nut", docs/usage.md): in a preloaded double nut both nuts
 carry the preload F_pr and an external load F shifts it from one nut to the other until,
 at |F| = 2^1.5 F_pr = 2.83 F_pr, the relieved nut is free (Hertzian contacts, deflection
-~ F^(2/3)). Manufacturers' rule (Steinmeyer; also the Rexroth and NSK catalogues):
+~ F^(2/3)). Manufacturers' rule (Steinmeyer, 'Equivalent load: considering the preload
+with double nuts'):
 F_1 = F_pr (1 + F / (2.83 F_pr))^1.5 and F_2 = F_pr (1 - F / (2.83 F_pr))^1.5 for
 |F| < 2.83 F_pr; beyond it the loaded nut carries F and the other none. Each nut gets its
 own Miner sum D_j with the nut's rating C_a; the pair's life follows the system rule of

@@ -9,7 +9,7 @@ live watcher row by row give the same numbers).
 - the turning points: the extreme of x is kept until x has retreated from it by h, then
   recorded as a turning point (a reversal) and the search turns around. These are the
   peaks and valleys that rainflow counting (ASTM E1049) takes, with ranges below h
-  filtered out (the range filter ASTM E1049 allows before counting). The first sample
+  filtered out (a range filter, the usual step before counting). The first sample
   is the first point; the pending extreme is the last one.
 
 NaN samples are skipped. The loop is compiled (numba): a 1 kHz log of an hour is 3.6
