@@ -93,6 +93,9 @@ def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace, node_id: int
     from bench.bus.procs import start_plant as _start_plant
     try:
         ecu.wait_for_plant(1.0 if sess.children else 0.6)
+        if serial is not None:
+            say(f"serial number {serial} not applied: a node already answers (its own "
+                "serial is in the trace; start a plant with `bench up --serial N`)")
     except PlantLost:
         ecu.check_receive()
         if not (start_plant and is_simulated(sess.cfg)):
