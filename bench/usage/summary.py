@@ -112,13 +112,17 @@ class UsageSummary:
     # -- output ----------------------------------------------------------------------------
     def as_dict(self) -> dict[str, float]:
         """Flat floats for a store: every scalar, the derived ones, the time per regime and
-        per temperature bin (``time_s_temp_<lo>_<hi>_k``). The load spectrum and the
+        per temperature bin (``time_s_temp_<lo>_<hi>_k``); an extreme of a signal the run
+        did not have is NaN, L10 without load inf. The load spectrum and the
         rainflow matrices are in `arrays` (and `to_json`)."""
         out: dict[str, float] = {}
         for f in fields(self):
             v = getattr(self, f.name)
             if isinstance(v, float | int) and not isinstance(v, bool):
                 out[f.name] = float(v)
+        for name in (*MAXIMA, *MINIMA):      # no sample seen: NaN, not the +-inf seed
+            if math.isinf(out[name]):
+                out[name] = math.nan
         out.update(fm_n=self.fm_n, l10_rev=self.l10_rev, life_consumed=self.life_consumed,
                    current_rms_a=self.current_rms_a)
         for k, (lo, hi) in enumerate(zip(TEMP_EDGES_K[:-1], TEMP_EDGES_K[1:], strict=True)):
