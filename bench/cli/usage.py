@@ -38,6 +38,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                         "%(default)s; docs/usage.md)")
     p.add_argument("--preload-n", type=float, default=None, metavar="N",
                    help="double-nut preload (default: the run's effects.preload_n)")
+    p.add_argument("--set", dest="assignments", action="append", default=[],
+                   metavar="NAME=VALUE", help="a usage setting, e.g. "
+                   "usage.reversal_hysteresis_m=5e-6 (repeatable; docs/usage.md)")
     p.add_argument("--load-rating-n", type=float, default=None, metavar="N",
                    help="dynamic load rating C_a (default: the run's "
                         "screw.dynamic_load_rating_n)")
@@ -60,6 +63,30 @@ def _check(args: argparse.Namespace) -> None:
             raise BenchError(f"no such file: {f}")
 
 
+def _settings(args: argparse.Namespace, cls):
+    """The usage settings: --preload, --preload-n, then every --set NAME=VALUE."""
+    values: dict = {"preload_mode": args.preload,
+                    "preload_n": -1.0 if args.preload_n is None else args.preload_n}
+    known = {i.leaf: i for i in cls.infos()}
+    for a in args.assignments:
+        name, sep, value = a.partition("=")
+        leaf = name.strip().removeprefix("usage.")
+        if not sep or leaf not in known:
+            raise BenchError(f"--set {a!r}: expected NAME=VALUE with NAME one of "
+                             + ", ".join(f"usage.{k}" for k in known))
+        values[leaf] = value.strip() if known[leaf].type is str else float(value) \
+            if _is_number(value) else value
+    return cls.from_dict(values)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -69,8 +96,7 @@ def run(args: argparse.Namespace) -> int:
     from bench.usage.table import format_table
 
     _check(args)
-    settings = UsageSettings(preload_mode=args.preload,
-                             preload_n=-1.0 if args.preload_n is None else args.preload_n)
+    settings = _settings(args, UsageSettings)
     runs = []
     for f in tqdm(args.files, desc="usage", unit="file", file=sys.stderr,
                   disable=len(args.files) < 2 or not sys.stderr.isatty()):

@@ -57,6 +57,8 @@ def test_usage_per_run_and_per_actuator(tmp_path, capsys):
     (["--preload-n", "nan", "X"], "--preload-n must be a finite"),
     (["--json", "out.txt", "X"], "unknown suffix"),
     (["--load-rating-n", "0", "X"], "--load-rating-n must be > 0"),
+    (["--set", "usage.bogus=1", "X"], "expected NAME=VALUE"),
+    (["--set", "usage.load_hysteresis_n=-5", "X"], "below its minimum"),
 ])
 def test_bad_input_is_one_line(tmp_path, capsys, args, message):
     x = tmp_path / "x.npz"
