@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -147,7 +147,6 @@ class UsageAccumulator:
 
     def summary(self, serial: str = UNKNOWN, source: str = "") -> UsageSummary:
         """The usage so far (a copy; pushing on goes on from where it was)."""
-        from dataclasses import replace
         s = replace(self.s, actuator_serial=serial, source=source,
                     load_spectrum_rev=self.s.load_spectrum_rev.copy(),
                     temperature_time_s=self.s.temperature_time_s.copy())
@@ -172,6 +171,22 @@ def _rainflow(points: np.ndarray, range_edges: np.ndarray, mean_edges: np.ndarra
     mat = np.histogram2d(cyc[:, 0], cyc[:, 1], [range_edges, mean_edges],
                          weights=cyc[:, 2])[0]
     return float(cyc[:, 2].sum()), float(cyc[:, 0].max()), mat
+
+
+SIGNALS = {"motor_angle_rad": "revolutions, travel, reversals, life consumed",
+           "load_force_n": "load cycles, load spectrum, F_m, life consumed",
+           "position_m": "position cycles", "current_a": "I2t",
+           "motor_speed_rad_s": "motion regimes"}
+
+
+def missing_signals(trace: Trace) -> list[str]:
+    """What the usage of `trace` lacks: "column (what it gives)" for each absent or
+    all-NaN signal."""
+    out = [f"{c} ({what})" for c, what in SIGNALS.items()
+           if c not in trace or not np.isfinite(trace[c]).any()]
+    if not any(c in trace and np.isfinite(trace[c]).any() for c in TEMPERATURE_COLUMNS):
+        out.append("winding_temperature_k (time at temperature)")
+    return out
 
 
 def trace_params(trace: Trace) -> PlantParams:
