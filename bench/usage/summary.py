@@ -172,9 +172,10 @@ def accumulate(summaries: list[UsageSummary]) -> dict[str, UsageSummary]:
 
 
 def merged(a: UsageSummary, b: UsageSummary) -> UsageSummary:
-    """`a` and `b` added (a new summary; `a` keeps C_a and the preload treatment)."""
+    """`a` and `b` added (a new summary; `a` keeps C_a and the preload treatment; the
+    preload must agree only where it counts, with `preload_mode` double-nut)."""
     if a.load_rating_n != b.load_rating_n or a.preload_mode != b.preload_mode \
-            or a.preload_n != b.preload_n:
+            or a.preload_mode == "double-nut" and a.preload_n != b.preload_n:
         raise BenchError(f"actuator {b.actuator_serial}: runs with different C_a or preload "
                          f"({a.load_rating_n:g} N {a.preload_mode} {a.preload_n:g} N against "
                          f"{b.load_rating_n:g} N {b.preload_mode} {b.preload_n:g} N {b.source})"

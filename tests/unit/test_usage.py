@@ -163,6 +163,10 @@ def test_accumulate_per_actuator():
     flat = a.as_dict()
     assert all(isinstance(v, float) for v in flat.values())
     assert {"life_consumed", "fm_n", "l10_rev", "reversals", "i2t_a2s", "dwell_s"} <= set(flat)
+    # the preload of a run does not matter without the double-nut treatment
+    pre = usage_of_trace(trace_of(steps, np.full(1001, 3000.0)), EXACT, serial="7",
+                         params=P0.with_dict({"effects.preload_n": 2000.0}))
+    assert accumulate([one, pre])["7"].runs == 2
     other_ca = usage_of_trace(trace_of(steps, np.full(1001, 1000.0)), EXACT, serial="7",
                               params=P0.with_dict({"screw.dynamic_load_rating_n": 30000.0}))
     with pytest.raises(BenchError, match="does not add"):
