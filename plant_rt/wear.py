@@ -118,10 +118,18 @@ def effects_from_depth(depth_m: float, preload0_n: float, kstar: float, mslope: 
     if depth_m <= 0.0:
         return 0.0, 0.0, 1.0
     d = depth_m
-    delta0 = interference_from_preload(preload0_n, kstar, mslope, z, g)
+    # self-contained (plant_rt.kernel compiles it): `interference_from_preload`, then
+    # `preload_from_interference` written out
+    delta0 = 0.0
+    if preload0_n > 0.0:
+        delta0 = 4.0 * preload0_n / (z * (kstar + mslope * preload0_n) * g * g)
     delta = delta0 - 4.0 * d / g
     if delta > 0.0:
-        remaining = preload_from_interference(delta, kstar, mslope, z, g)
+        a = delta * z * g * g
+        den = 4.0 - a * mslope
+        if den <= 1e-12:
+            den = 1e-12
+        remaining = a * kstar / den
         backlash = 0.0
     else:
         remaining = 0.0
