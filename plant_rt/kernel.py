@@ -178,6 +178,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         fscale = fscale * w_fric
     vscale = u[U_VSCALE]
     wgain = p[P_WEAR_GAIN]
+    wearing = wgain != 0.0
     gust = u[U_GUST]
     CS = p[P_CS] * fscale
     STRA, STRV = p[P_STRA], p[P_STRV]
@@ -385,7 +386,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         x[E_ETA] += (x[TQ] / tau - cm) * omm * dt
         # C_V of eq. 5.10 vs the work-consistent lever: power the transmission creates
         x[E_MIS] += Z * (ps1 + ps2) * (lever_kin - lever_v) * omm * dt
-        if wgain != 0.0:   # Archard: dV = (Z k / H) sum|P| (rolling distance per rad) |dOmega|
+        if wearing:        # Archard: dV = (Z k / H) sum|P| (rolling distance per rad) |dOmega|
             x[WEAR_V] += wgain * (abs(ps1) + abs(pn1) + abs(ps2) + abs(pn2)) * abs(omm) * dt
         x[OM] = om_new
         x[TH] += dt * om_new
