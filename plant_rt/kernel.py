@@ -224,6 +224,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     acc_fe = 0.0
     pmax1 = 0.0
     pmax2 = 0.0
+    acc_w = 0.0
 
     for _ in range(nsub):
         t = x[T]
@@ -387,7 +388,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         # C_V of eq. 5.10 vs the work-consistent lever: power the transmission creates
         x[E_MIS] += Z * (ps1 + ps2) * (lever_kin - lever_v) * omm * dt
         if wearing:        # Archard: dV = (Z k / H) sum|P| (rolling distance per rad) |dOmega|
-            x[WEAR_V] += wgain * (abs(ps1) + abs(pn1) + abs(ps2) + abs(pn2)) * abs(omm) * dt
+            acc_w += (abs(ps1) + abs(pn1) + abs(ps2) + abs(pn2)) * abs(omm)
         x[OM] = om_new
         x[TH] += dt * om_new
         x[X1] += dt * x[V1]
@@ -406,6 +407,8 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         acc_fe += fext
 
     inv = 1.0 / nsub
+    if wearing:
+        x[WEAR_V] += wgain * dt * acc_w
     out[O_FRIC_T] = acc_cf * inv
     out[O_FRIC_F] = acc_ff * inv
     out[O_REACT_T] = acc_cv * inv
