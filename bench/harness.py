@@ -135,6 +135,8 @@ def simulate(profile: Profile, params: PlantParams | None = None,
             "params": params.to_dict(), "controller": cparams.__dict__,
             "complete": bool(n == len(ri.t)),
             "wear_volume_m3": float(plant.x[K.WEAR_V])}
+    if profile.phases:
+        meta["phases"] = [list(ph) for ph in profile.phases]
     return Trace(_columns(ri, n, meas, dem, diag, st, ndelay), meta)
 
 

@@ -152,3 +152,4 @@ def test_axial_reading_gives_100_n_per_um():
     assert axial_stiffness(q) == pytest.approx(1e8)
     # a 3 kN preload: 1/(1 + m F_pr / k_c) of the deflection, 0.564
     assert axial_stiffness(q) / axial_stiffness(q, 3000.0) == pytest.approx(0.5640, abs=1e-3)
+
