@@ -15,8 +15,10 @@ Phases (position mode, nut position set-points; `Profile.phases` names them):
 5. ``landing``: approach with stronger turbulence (x1.5), the flare (+6 mm x severity),
    then the surface back to neutral on the ground.
 
-Phase lengths: 2 s of ground test, then 20 %, 40 %, 25 % and 15 % of the rest; at least
-30 s in all (`MIN_DURATION_S`), 60 s by default.
+Phase lengths: 2 s of ground test, then 20 %, 40 %, 25 % and 15 % of the rest, 60 s in
+all by default. A flight shorter than 30 s (`MIN_DURATION_S`, where every phase has room
+for its moves) is the start of a 30 s one: `bench run flight --duration 2` flies the
+ground test alone.
 
 Every move is a raised-cosine transition no faster than the nut's 50 mm/s cruise speed
 (eq. 5.33) at the largest severity allowed (3); the turbulence is not limited (at
@@ -122,9 +124,6 @@ def flight(duration_s: float = 60.0, severity: float = 1.0, turbulence_m: float 
            seed: float = 1) -> Profile:
     """A seeded flight (module docstring): ground test, take-off, cruise with turbulence,
     manoeuvres, landing; `severity` scales the moves and the turbulence (0-3)."""
-    if duration_s < MIN_DURATION_S:
-        raise BenchError(f"profile 'flight': duration_s must be >= {MIN_DURATION_S:g} s, got "
-                         f"{duration_s:g}")
     if not 0.0 < severity <= MAX_SEVERITY:
         raise BenchError(f"profile 'flight': severity must be > 0 and <= {MAX_SEVERITY:g}, "
                          f"got {severity:g}")
@@ -133,7 +132,11 @@ def flight(duration_s: float = 60.0, severity: float = 1.0, turbulence_m: float 
                          f"{turbulence_m:g}")
     if seed != int(seed) or seed < 0:
         raise BenchError(f"profile 'flight': seed must be an integer >= 0, got {seed:g}")
-    x, phases = flight_setpoints(duration_s, severity, turbulence_m, int(seed))
+    # shorter than a whole flight: the start of a MIN_DURATION_S one (`--duration 2` is
+    # the ground test alone)
+    x, phases = flight_setpoints(max(duration_s, MIN_DURATION_S), severity, turbulence_m,
+                                 int(seed))
+    phases = tuple((n, t0, min(t1, duration_s)) for n, t0, t1 in phases if t0 < duration_s)
     grid = np.arange(len(x)) * GRID_S
 
     def pos(t: np.ndarray) -> np.ndarray:

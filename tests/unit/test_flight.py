@@ -71,6 +71,16 @@ def test_flight_phases_and_their_content():
     assert np.max(np.abs(np.diff(x))) / GRID_S < 0.05
 
 
+def test_a_short_flight_is_the_start_of_a_30_s_one():
+    short, full = make_profile("flight", duration_s=2.0), make_profile("flight", duration_s=30.0)
+    assert short.duration_s == 2.0 and short.phases == (("ground-test", 0.0, 2.0),)
+    t = np.arange(0.0, 2.0, GRID_S)
+    assert np.array_equal(short.position(t), full.position(t))
+    mid = make_profile("flight", duration_s=12.0)
+    assert [p[0] for p in mid.phases] == ["ground-test", "take-off", "cruise"]
+    assert mid.phases[-1][2] == 12.0
+
+
 def test_severity_scales_the_moves():
     t = np.arange(0.0, 60.0, GRID_S)
     x1 = make_profile("flight", severity=1.0).position(t)
@@ -80,7 +90,7 @@ def test_severity_scales_the_moves():
 
 @pytest.mark.parametrize("kw, match", [
     ({"severity": 0.0}, "severity"), ({"severity": 4.0}, "severity"),
-    ({"duration_s": 10.0}, "duration_s"), ({"seed": 1.5}, "seed"), ({"seed": -1.0}, "seed"),
+    ({"duration_s": 0.0}, "duration_s"), ({"seed": 1.5}, "seed"), ({"seed": -1.0}, "seed"),
     ({"turbulence_m": -1e-3}, "turbulence_m"), ({"turbulence_m": math.nan}, "turbulence_m"),
 ])
 def test_flight_parameters_are_checked(kw, match):
