@@ -4,6 +4,8 @@
     bench hums sweep      H1-H6: the 11-point degradation sweep, three maneuvers
     bench hums rul        R1-R2: the 120 s run-to-failure run, thesis and fused RUL
     bench hums campaign   >= 20 randomised run-to-failure runs + healthy runs, scored
+                          (--usage: 50 actuators with use-driven wear, prognosis)
+    bench hums prognose   RUL distribution per actuator from a trends CSV
     bench hums report     self-contained HTML report of one or more logs
     bench hums watch      live: indexes of every command period of a run on the bus
 """
@@ -83,14 +85,41 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
                      "a noise-free twin for its true failure time, plus healthy runs for "
                      "false alarms; scored with progpy (prognostic horizon, alpha-lambda "
                      "with alpha = 0.2, relative accuracy).")
-    q.add_argument("--runs", type=int, default=20, help="run-to-failure runs (default 20)")
-    q.add_argument("--healthy", type=int, default=10, help="healthy runs (default 10)")
+    q.add_argument("--runs", type=int, default=None,
+                   help="run-to-failure runs (default 20; with --usage: 50 actuators)")
+    q.add_argument("--healthy", type=int, default=None,
+                   help="healthy runs (default 10; with --usage: 5 healthy actuators)")
     q.add_argument("--seed", type=int, default=2024, help="campaign seed (default 2024)")
     q.add_argument("--figures", metavar="DIR", help="write the campaign figure")
     q.add_argument("--doc", metavar="PATH", help="update the generated campaign section "
                    "of this markdown file")
+    q.add_argument("--usage", action="store_true",
+                   help="the usage campaign instead (issue 12): actuators with Archard wear "
+                   "flown daily under flight profiles of random severity, a daily ground "
+                   "test, prognosis from usage and health (docs/hums.md)")
+    q.add_argument("--max-days", type=int, default=120,
+                   help="with --usage: days after which an actuator is censored (120)")
+    q.add_argument("--calibration-out", metavar="FILE.json",
+                   help="with --usage: where to write the prognosis calibration (default: "
+                   "the cache `bench hums prognose` reads)")
     common(q)
     q.set_defaults(func=run_campaign)
+
+    q = s.add_parser("prognose", help="RUL distribution per actuator from health trends",
+                     description="The prognosis of `bench hums campaign --usage` on a CSV of "
+                     "health indexes over time (columns time [days], actuator, index, "
+                     "value; any cadence; optional index 'exposure' rows with the usage's "
+                     "Archard exposure in N rev): a particle filter on the wear state, RUL "
+                     "percentiles per actuator. Trends from another rig work as long as "
+                     "their index names are the calibration's (friction_current_a, "
+                     "lost_motion_um, ci_harmonic, ci).")
+    q.add_argument("--trends", required=True, metavar="FILE.csv", help="the trends CSV")
+    q.add_argument("--calibration", metavar="FILE.json",
+                   help="prognosis calibration (default: the one the last `bench hums "
+                   "campaign --usage` wrote to the cache)")
+    q.add_argument("--seed", type=int, default=0, help="particle filter seed (default 0)")
+    q.add_argument("--json", metavar="PATH", help="write every estimate as JSON")
+    q.set_defaults(func=run_prognose)
 
 
 def _add_report(s: argparse._SubParsersAction) -> None:
@@ -248,6 +277,10 @@ def run_campaign(args: argparse.Namespace) -> int:
     from bench.hums import campaign as R
     from bench.hums.table import replace_section
     _check_workers(args)
+    if args.usage:
+        return _run_usage_campaign(args)
+    args.runs = 20 if args.runs is None else args.runs
+    args.healthy = 10 if args.healthy is None else args.healthy
     if args.runs < 1 or args.healthy < 0:
         raise BenchError("--runs must be >= 1 and --healthy >= 0")
     res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args), args.workers)
@@ -264,6 +297,42 @@ def run_campaign(args: argparse.Namespace) -> int:
             body += "\n" + "\n".join(figure_links(paths, _doc_dir(args.doc))) + "\n"
         replace_section(args.doc, "campaign", body)
         print(f"updated {args.doc}")
+    return 0
+
+
+def _run_usage_campaign(args: argparse.Namespace) -> int:
+    from bench.hums import prognosis_campaign as PC
+    from bench.hums.prognosis_trends import default_calibration_path
+    from bench.hums.table import replace_section
+    n = 50 if args.runs is None else args.runs
+    nh = 5 if args.healthy is None else args.healthy
+    if n < 1 or nh < 0 or args.max_days < 2:
+        raise BenchError("--runs must be >= 1, --healthy >= 0 and --max-days >= 2")
+    res = PC.run_usage_campaign(n, n_healthy=nh, seed=args.seed, params=_params(args),
+                                workers=args.workers, max_days=args.max_days)
+    text = PC.markdown(res)
+    print(text)
+    cal_path = Path(args.calibration_out or default_calibration_path())
+    cal_path.parent.mkdir(parents=True, exist_ok=True)
+    cal_path.write_text(json.dumps(res.cal.to_json(), indent=1))
+    print(f"wrote the prognosis calibration {cal_path}")
+    _write_json(args.json, PC.to_json(res))
+    if args.doc:
+        replace_section(args.doc, "usage-campaign", text)
+        print(f"updated {args.doc}")
+    return 0
+
+
+def run_prognose(args: argparse.Namespace) -> int:
+    from bench.hums.prognosis_trends import load_calibration, prognose_trends, table, to_json
+    cal = load_calibration(args.calibration)
+    results, skipped = prognose_trends(args.trends, cal, args.seed)
+    if skipped:
+        import sys
+        print(f"note: skipped index names the calibration has no curve for: "
+              f"{', '.join(skipped)}", file=sys.stderr)
+    print(table(results))
+    _write_json(args.json, to_json(results))
     return 0
 
 

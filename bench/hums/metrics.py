@@ -20,11 +20,13 @@ from bench.hums.rul import Prediction
 
 
 def score_run(preds: list[Prediction], t_warn: float, t_f: float, alpha: float = 0.2,
-              lambdas: tuple[float, ...] = (0.5, 0.7, 0.9), beta: float = 0.5
-              ) -> dict[str, Any]:
+              lambdas: tuple[float, ...] = (0.5, 0.7, 0.9), beta: float = 0.5,
+              cadence: float = 0.75) -> dict[str, Any]:
     """Prognostic metrics of one run with progpy: prognostic horizon (first time at least
     `beta` of the ToE samples lie within alpha of the true RUL), alpha-lambda at fractions
-    `lambdas` of the true life, and relative accuracy of the median RUL there."""
+    `lambdas` of the true life, and relative accuracy of the median RUL there. A
+    lambda point is scored on the first prediction within `cadence` after it (0.75 s for
+    the 0.5 s command periods; one ground test a day: 1 day)."""
     import matplotlib
     with matplotlib.rc_context():   # importing progpy rewrites matplotlib's rcParams
         from progpy.metrics import alpha_lambda, prognostic_horizon
@@ -66,7 +68,7 @@ def score_run(preds: list[Prediction], t_warn: float, t_f: float, alpha: float =
     out["stable_ph_life_frac"] = (t_f - stable) / t_f if math.isfinite(stable) else 0.0
     for lam in lambdas:
         t_l = lam * t_f
-        near = [p for p in preds if t_l - 1e-9 <= p.t_pred_s <= t_l + 0.75]
+        near = [p for p in preds if t_l - 1e-9 <= p.t_pred_s <= t_l + cadence]
         key = f"{lam:g}"
         if not near or not len(prof):
             out[f"alpha_lambda_{key}"] = False

@@ -48,6 +48,8 @@ INDEXES = ("friction_current_a", "lost_motion_um", "ci_harmonic", "ci")
 """Health indexes the prognosis can use (per ground test); a trends file may give any
 subset: names as in `bench.hums.periods.as_table`, lost motion in um."""
 PERCENTILES = (5.0, 25.0, 50.0, 75.0, 95.0)
+T0 = -1e-6
+"""Start time of the filter: a first ground test at t = 0 is an update."""
 
 
 @dataclass
@@ -89,13 +91,13 @@ class PrognosisCalibration:
         return np.where(lo, c[0] + (w - g[0]) * (c[1] - c[0]) / (g[1] - g[0]), out)
 
     def index_w(self, name: str, value: float) -> float:
-        """Invert the curve of `name` (monotone part): the w an index value says."""
+        """Invert the curve of `name` (made monotone): the w an index value says, held
+        at the ends of the grid (no extrapolation)."""
         g = np.asarray(self.w_grid, dtype=float)
         c = np.asarray(self.curves[name], dtype=float)
         sign = 1.0 if c[-1] >= c[0] else -1.0
         cm = np.maximum.accumulate(sign * c)
-        return float(np.interp(sign * value, cm, g, left=g[0] - (cm[0] - sign * value)
-                               * (g[1] - g[0]) / max(cm[1] - cm[0], 1e-12), right=math.inf))
+        return float(np.interp(sign * value, cm, g))
 
     def slope(self, name: str) -> float:
         """Mean slope of the index over the grid (value per unit w)."""
@@ -240,8 +242,8 @@ class WearPrognoser:
         self.noise = {o: float(cal.sigma[o]) for o in self.outputs}
         self.pf = ParticleFilter(self.model, UnweightedSamples(
             [dict(zip(x0, v, strict=True)) for v in zip(*x0.values(), strict=True)]),
-            num_particles=n, measurement_noise=dict(self.noise), t0=0.0)
-        self.t = 0.0
+            num_particles=n, measurement_noise=dict(self.noise), t0=T0)
+        self.t = T0
         self.exposure_total = 0.0
         self.history: list[RulEstimate] = []
 

@@ -1,0 +1,122 @@
+"""Prognosis from external trends (issue 12): a CSV of per-test health indexes over time,
+from this bench or from a rig that is not this bench, into an RUL distribution per
+actuator (`bench hums prognose --trends FILE.csv`).
+
+CSV columns (a header row; any order; any cadence, e.g. one ground test a day):
+``time`` (days, the unit of the calibration's time prior), ``actuator`` (any text),
+``index`` (a name the calibration has a curve for: friction_current_a, lost_motion_um,
+ci_harmonic, ci) and ``value``. Optional usage rows: ``index`` = ``exposure`` with the
+Archard exposure (N rev) used since the previous row of that actuator; with them the
+prognosis uses usage and health (`WearPrognoser`), without them time is the exposure.
+Unknown index names are listed and skipped; an actuator with none of the calibration's
+indexes is an error.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from bench import BenchError
+from bench.hums.prognosis import PrognosisCalibration, RulEstimate, WearPrognoser
+
+COLUMNS = ("time", "actuator", "index", "value")
+EXPOSURE = "exposure"
+
+
+def read_trends(path: str | Path) -> dict[str, dict[float, dict[str, float]]]:
+    """actuator -> time -> {index: value} (repeated index at one time: the mean)."""
+    p = Path(path)
+    if not p.is_file():
+        raise BenchError(f"no trends file {p}")
+    acc: dict[str, dict[float, dict[str, list[float]]]] = defaultdict(
+        lambda: defaultdict(lambda: defaultdict(list)))
+    with p.open(newline="") as fh:
+        rd = csv.DictReader(fh)
+        missing = [c for c in COLUMNS if c not in (rd.fieldnames or [])]
+        if missing:
+            raise BenchError(f"{p}: the trends CSV needs the columns {', '.join(COLUMNS)}; "
+                             f"missing {', '.join(missing)}")
+        for n, row in enumerate(rd, start=2):
+            try:
+                t, v = float(row["time"]), float(row["value"])
+            except (TypeError, ValueError):
+                raise BenchError(f"{p}:{n}: time and value must be numbers") from None
+            if not math.isfinite(t):
+                raise BenchError(f"{p}:{n}: time must be finite")
+            acc[str(row["actuator"])][t][str(row["index"]).strip()].append(v)
+    if not acc:
+        raise BenchError(f"{p}: no rows")
+    return {a: {t: {k: sum(v) / len(v) for k, v in d.items()} for t, d in sorted(ts.items())}
+            for a, ts in acc.items()}
+
+
+def prognose_series(series: dict[float, dict[str, float]], cal: PrognosisCalibration,
+                    seed: int = 0, n_particles: int = 1000) -> list[RulEstimate]:
+    """The prognosis of one actuator, one estimate per time of the series."""
+    names = sorted({k for d in series.values() for k in d if k in cal.curves})
+    if not names:
+        known = sorted({k for d in series.values() for k in d})
+        raise BenchError(f"no index the calibration knows ({', '.join(cal.curves)}); the "
+                         f"trends have {', '.join(known)}")
+    use_usage = any(EXPOSURE in d for d in series.values())
+    pr = WearPrognoser(cal, names, n_particles=n_particles, seed=seed,
+                       time_only=not use_usage)
+    t0 = min(series)
+    out = []
+    for t, d in series.items():
+        obs = {k: v for k, v in d.items() if k in cal.curves}
+        out.append(pr.update(t - t0, d.get(EXPOSURE, 0.0), obs))
+    return out
+
+
+def prognose_trends(path: str | Path, cal: PrognosisCalibration, seed: int = 0
+                    ) -> tuple[dict[str, list[RulEstimate]], list[str]]:
+    """Every actuator of a trends CSV: its estimates, and the index names skipped."""
+    data = read_trends(path)
+    skipped = sorted({k for ts in data.values() for d in ts.values() for k in d
+                      if k not in cal.curves and k != EXPOSURE})
+    return {a: prognose_series(ts, cal, seed) for a, ts in data.items()}, skipped
+
+
+def table(results: dict[str, list[RulEstimate]], t0: dict[str, float] | None = None) -> str:
+    """One line per actuator: last time, wear, RUL percentiles, warning."""
+    lines = [f"{'actuator':>12s} {'tests':>5s} {'w p50':>6s} {'RUL p5':>8s} {'p25':>8s} "
+             f"{'p50':>8s} {'p75':>8s} {'p95':>8s}  warning"]
+    for a, ests in results.items():
+        e = ests[-1]
+        r = e.rul_pct
+        lines.append(f"{a:>12s} {len(ests):5d} {e.w_pct['50']:6.3f} {r['5']:8.1f} "
+                     f"{r['25']:8.1f} {r['50']:8.1f} {r['75']:8.1f} {r['95']:8.1f}  "
+                     + ("yes" if any(x.warning for x in ests) else "no"))
+    return "\n".join(lines)
+
+
+def to_json(results: dict[str, list[RulEstimate]]) -> dict[str, Any]:
+    def clean(v: float) -> float | None:
+        return v if math.isfinite(v) else None
+    return {a: [{k: clean(v) for k, v in e.row().items()} for e in ests]
+            for a, ests in results.items()}
+
+
+def default_calibration_path() -> Path:
+    """Where `bench hums campaign --usage` leaves its calibration for `prognose`."""
+    import os
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "ema-hums-bench" / "prognosis-calibration.json"
+
+
+def load_calibration(path: str | Path | None) -> PrognosisCalibration:
+    """A prognosis calibration JSON (`path`, else the cache's)."""
+    import json
+    p = Path(path) if path else default_calibration_path()
+    if not p.is_file():
+        raise BenchError(f"no prognosis calibration at {p}: run `bench hums campaign "
+                         "--usage` first, or pass --calibration FILE.json")
+    try:
+        return PrognosisCalibration.from_json(json.loads(p.read_text()))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise BenchError(f"{p}: not JSON ({exc})") from None
