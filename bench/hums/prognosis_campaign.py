@@ -63,8 +63,8 @@ class UsageCampaignResult:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-def sweep_jobs(base: PlantParams, kp: float, points: int = SWEEP_POINTS
-               ) -> tuple[list[dict[str, Any]], float]:
+def sweep_jobs(base: PlantParams, kp: float, points: int = SWEEP_POINTS,
+               noisy: int = SWEEP_NOISY) -> tuple[list[dict[str, Any]], float]:
     """Calibration ground tests: volumes from new to past failure (backlash 130 um)."""
     from plant_rt.wear import volume_for_backlash
     p, _ = U.actuator_params(base, CAL_SWEEP_SEED)
@@ -76,7 +76,7 @@ def sweep_jobs(base: PlantParams, kp: float, points: int = SWEEP_POINTS
         jobs.append({"params": p.to_json(), "kp": kp, "volume_m3": float(v),
                      "noise_seed": None})
         jobs += [{"params": p.to_json(), "kp": kp, "volume_m3": float(v),
-                  "noise_seed": CAL_SWEEP_SEED * 1000 + 10 * j + r} for r in range(SWEEP_NOISY)]
+                  "noise_seed": CAL_SWEEP_SEED * 1000 + 10 * j + r} for r in range(noisy)]
     return jobs, vmax
 
 
@@ -194,7 +194,8 @@ def run_usage_campaign(n: int = 50, n_cal: int = 8, n_healthy: int = 5,
                        params: PlantParams | None = None, workers: int | None = None,
                        progress: bool = True, max_days: int = U.MAX_DAYS,
                        healthy_days: int = 40, acceleration: float = U.ACCELERATION,
-                       sweep_points: int = SWEEP_POINTS, kp: float | None = None
+                       sweep_points: int = SWEEP_POINTS, sweep_noisy: int = SWEEP_NOISY,
+                       cal_healthy_days: int = 15, kp: float | None = None
                        ) -> UsageCampaignResult:
     """Simulate, calibrate, prognose and score (module docstring)."""
     from bench.hums import monitor as M
@@ -208,7 +209,7 @@ def run_usage_campaign(n: int = 50, n_cal: int = 8, n_healthy: int = 5,
     t0 = time.perf_counter()
     base = params or PlantParams()
     kp = kp or M.fitted(base)[0].gain_rad_s_per_m
-    sweeps, _ = sweep_jobs(base, kp, sweep_points)
+    sweeps, _ = sweep_jobs(base, kp, sweep_points, max(2, sweep_noisy))
     jobs: list[tuple[str, dict[str, Any]]] = [("sweep", j) for j in sweeps]
 
     def days_job(s: int, healthy: bool, nd: int) -> tuple[str, dict[str, Any]]:
@@ -217,7 +218,7 @@ def run_usage_campaign(n: int = 50, n_cal: int = 8, n_healthy: int = 5,
                          "healthy": healthy, "max_days": nd,
                          "acceleration": acceleration})
     groups = {"cal": [days_job(CAL_SEED + c, False, max_days) for c in range(n_cal)],
-              "cal_healthy": [days_job(CAL_HEALTHY_SEED + h, True, 15)
+              "cal_healthy": [days_job(CAL_HEALTHY_SEED + h, True, cal_healthy_days)
                               for h in range(n_cal_healthy)],
               "judged": [days_job(seed + k, False, max_days) for k in range(n)],
               "healthy": [days_job(HEALTHY_SEED + h, True, healthy_days)
