@@ -123,9 +123,9 @@ def calibrate(sweep: list[dict[str, Any]], cal_runs: list[dict[str, Any]],
     lnk, lnkt = -np.log(e_fail), -np.log(t_fail)
     cal = PrognosisCalibration(
         w_grid=w, curves=curves, sigma=sigma,
-        lnk_mean=float(np.mean(lnk)), lnk_std=float(max(np.std(lnk, ddof=1), 0.05)),
+        lnk_mean=float(np.mean(lnk)), lnk_std=max(float(np.std(lnk, ddof=1)), 0.05),
         lnk_time_mean=float(np.mean(lnkt)),
-        lnk_time_std=float(max(np.std(lnkt, ddof=1), 0.05)),
+        lnk_time_std=max(float(np.std(lnkt, ddof=1)), 0.05),
         exposure_rate_mean=float(np.mean(rates)), v_fail_m3=float(v_fail))
     # friction of a new actuator: spread of the calibration healthy actuators' friction
     # current around the curve's new value, less the ground test's own noise
