@@ -99,6 +99,9 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
                    "test, prognosis from usage and health (docs/hums.md)")
     q.add_argument("--max-days", type=int, default=120,
                    help="with --usage: days after which an actuator is censored (120)")
+    q.add_argument("--trends-out", metavar="FILE.csv",
+                   help="with --usage: write the judged actuators' daily indexes and "
+                   "exposures as a trends CSV (input of `bench hums prognose`)")
     q.add_argument("--calibration-out", metavar="FILE.json",
                    help="with --usage: where to write the prognosis calibration (default: "
                    "the cache `bench hums prognose` reads)")
@@ -112,7 +115,7 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
                      "Archard exposure in N rev): a particle filter on the wear state, RUL "
                      "percentiles per actuator. Trends from another rig work as long as "
                      "their index names are the calibration's (friction_current_a, "
-                     "lost_motion_um, ci_harmonic, ci).")
+                     "lost_motion_um, ci_harmonic).")
     q.add_argument("--trends", required=True, metavar="FILE.csv", help="the trends CSV")
     q.add_argument("--calibration", metavar="FILE.json",
                    help="prognosis calibration (default: the one the last `bench hums "
@@ -317,8 +320,17 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
     cal_path.write_text(json.dumps(res.cal.to_json(), indent=1))
     print(f"wrote the prognosis calibration {cal_path}")
     _write_json(args.json, PC.to_json(res))
+    if args.trends_out:
+        print(f"wrote {PC.write_trends(res, args.trends_out)}")
+    paths = PC.figure(res, args.figures) if args.figures else []
+    for p in paths:
+        print(f"wrote {p}")
     if args.doc:
-        replace_section(args.doc, "usage-campaign", text)
+        body = text
+        if paths:
+            from bench.hums.table import figure_links
+            body += "\n" + "\n".join(figure_links(paths, _doc_dir(args.doc))) + "\n"
+        replace_section(args.doc, "usage-campaign", body)
         print(f"updated {args.doc}")
     return 0
 

@@ -44,9 +44,11 @@ from bench import BenchError
 from bench.hums.rul import Prediction
 
 FRICTION_INDEX = "friction_current_a"
-INDEXES = ("friction_current_a", "lost_motion_um", "ci_harmonic", "ci")
-"""Health indexes the prognosis can use (per ground test); a trends file may give any
-subset: names as in `bench.hums.periods.as_table`, lost motion in um."""
+INDEXES = ("friction_current_a", "lost_motion_um", "ci_harmonic")
+"""Health indexes the campaign's calibration has curves for (per ground test; names as in
+`bench.hums.periods.as_table`, lost motion in um); plain Ci is left out: sensor noise
+biases it (0.89 on a healthy actuator, H6) and Ci on 15 harmonics carries the same
+information. A calibration file may hold curves of other indexes."""
 PERCENTILES = (5.0, 25.0, 50.0, 75.0, 95.0)
 T0 = -1e-6
 """Start time of the filter: a first ground test at t = 0 is an update."""
@@ -240,12 +242,31 @@ class WearPrognoser:
               "lnk": self.rng.normal(mu, sd, n),
               "lfs": self.rng.normal(0.0, cal.lfs_std, n)}
         self.noise = {o: float(cal.sigma[o]) for o in self.outputs}
+        # the drawn particles as they are (with `num_particles` progpy would resample
+        # them from numpy's global random state)
         self.pf = ParticleFilter(self.model, UnweightedSamples(
             [dict(zip(x0, v, strict=True)) for v in zip(*x0.values(), strict=True)]),
-            num_particles=n, measurement_noise=dict(self.noise), t0=T0)
+            measurement_noise=dict(self.noise), t0=T0,
+            resample_fcn=self._resample)
         self.t = T0
         self.exposure_total = 0.0
         self.history: list[RulEstimate] = []
+
+    def _resample(self, weights: np.ndarray) -> np.ndarray:
+        """Residual resampling (Liu and Chen 1998, progpy's default) drawing from this
+        prognoser's seeded generator: filterpy's version draws from numpy's global
+        random state, which would make the filter differ from run to run."""
+        w = np.asarray(weights, dtype=float)
+        n = len(w)
+        counts = np.floor(n * w).astype(int)
+        idx = np.repeat(np.arange(n), counts)
+        rest = n - len(idx)
+        if rest > 0:
+            resid = n * w - counts
+            cs = np.cumsum(resid / resid.sum())
+            cs[-1] = 1.0
+            idx = np.concatenate([idx, np.searchsorted(cs, self.rng.random(rest))])
+        return idx
 
     def particles(self) -> dict[str, np.ndarray]:
         return {k: np.asarray(v, dtype=float) for k, v in self.pf.particles.items()}

@@ -20,9 +20,11 @@ does with trends from another rig).
 
 from __future__ import annotations
 
+import csv
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -248,6 +250,7 @@ def run_usage_campaign(n: int = 50, n_cal: int = 8, n_healthy: int = 5,
                                "acceleration": acceleration},
                               machine_description())
     out.extra["sweep"] = res[:len(sweeps)]
+    out.extra["judged"] = got["judged"]
     return out
 
 
@@ -280,6 +283,62 @@ def summarise(runs: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
                   "miner_at_failure_median": float(np.median(
                       [r["miner_life_consumed"] for r in ok])) if ok else math.nan}
     return out
+
+
+def write_trends(res: UsageCampaignResult, path: str | Path) -> Path:
+    """The judged actuators' daily ground-test indexes and flight exposures as a trends
+    CSV (`bench.hums.prognosis_trends`): what `bench hums prognose --trends` reads."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    with p.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["time", "actuator", "index", "value"])
+        for r in res.extra.get("judged", []):
+            prev = None
+            for d in r["days"]:
+                a = f"A{r['seed']}"
+                if prev is not None:
+                    w.writerow([d["day"], a, "exposure", prev])
+                for name in OUTPUTS:
+                    w.writerow([d["day"], a, name, d[name]])
+                prev = d.get("exposure_n_rev")
+    return p
+
+
+def figure(res: UsageCampaignResult, out_dir: str | Path) -> list[Path]:
+    """Prognostic horizon per actuator and method, and one actuator's RUL bands."""
+    from matplotlib.figure import Figure  # matplotlib only when figures are asked for
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = [r for r in res.runs if not r.get("censored")]
+    fig = Figure(figsize=(13, 4))
+    ax = fig.subplots(1, 2)
+    for k, m in enumerate(METHODS):
+        ph = [r[m]["ph_life_frac"] for r in runs]
+        ax[0].bar(np.arange(len(ph)) + (k - 1) * 0.27, ph, width=0.27, label=m)
+    ax[0].axhline(0.5, color="k", ls="--", lw=1)
+    ax[0].set(title="prognostic horizon / life (alpha 0.2, progpy)", xlabel="actuator",
+              ylabel="PH / life")
+    ax[0].legend(fontsize=7)
+    if runs:
+        ex = sorted(runs, key=lambda r: r["t_failure"])[len(runs) // 2]   # median life
+        t_f = ex["t_failure"]
+        tt = np.linspace(0, t_f, 50)
+        ax[1].plot(tt, t_f - tt, "k-", label="true RUL")
+        ax[1].fill_between(tt, 0.8 * (t_f - tt), 1.2 * (t_f - tt), color="0.85",
+                           label="+-20 %")
+        for m, c in (("usage+health", "C0"), ("usage", "C1")):
+            b = np.array(ex[m]["band"])
+            ax[1].plot(b[:, 0], b[:, 2], c + "o-", ms=3, label=f"{m}: median")
+            ax[1].fill_between(b[:, 0], b[:, 1], b[:, 3], color=c, alpha=0.2,
+                               label=f"{m}: 5-95 %")
+        ax[1].set(title=f"actuator {ex['seed']} (life {t_f:.1f} days)", xlabel="day",
+                  ylabel="RUL (days)")
+        ax[1].legend(fontsize=7)
+    fig.tight_layout()
+    p = out / "usage_campaign.png"
+    fig.savefig(p, dpi=90)
+    return [p]
 
 
 # --- text and JSON ----------------------------------------------------------------------------

@@ -4,8 +4,8 @@ actuator (`bench hums prognose --trends FILE.csv`).
 
 CSV columns (a header row; any order; any cadence, e.g. one ground test a day):
 ``time`` (days, the unit of the calibration's time prior), ``actuator`` (any text),
-``index`` (a name the calibration has a curve for: friction_current_a, lost_motion_um,
-ci_harmonic, ci) and ``value``. Optional usage rows: ``index`` = ``exposure`` with the
+``index`` (a name the calibration has a curve for; the campaign's: friction_current_a,
+lost_motion_um, ci_harmonic) and ``value``. Optional usage rows: ``index`` = ``exposure`` with the
 Archard exposure (N rev) used since the previous row of that actuator; with them the
 prognosis uses usage and health (`WearPrognoser`), without them time is the exposure.
 Unknown index names are listed and skipped; an actuator with none of the calibration's

@@ -158,3 +158,15 @@ def test_bench_hums_prognose_on_a_trends_csv(tmp_path, capsys):
     rows = json.loads(out.read_text())["RIG-7"]
     assert len(rows) == 12
     assert rows[-1]["rul_p50"] == pytest.approx(25.0 - 11.0, rel=0.25)
+
+
+def test_the_filter_is_deterministic_for_a_seed():
+    cal = synthetic_calibration()
+    runs = []
+    for _ in range(2):
+        np.random.seed(None)                    # the global state must not matter
+        pr = WearPrognoser(cal, n_particles=300, seed=9)
+        for t, e, obs in series(cal, 1 / 22.0, 6):
+            est = pr.update(t, e, obs)
+        runs.append(est.rul_pct)
+    assert runs[0] == runs[1]

@@ -12,7 +12,7 @@ from bench.cli import main
 from bench.hums import prognosis_campaign as PC
 
 
-def test_mini_campaign_runs_to_failure_and_scores_every_method():
+def test_mini_campaign_runs_to_failure_and_scores_every_method(tmp_path):
     # heavy time compression (actuators fail within a few days) to stay cheap
     res = PC.run_usage_campaign(n=3, n_cal=2, n_healthy=1, n_cal_healthy=1, seed=40,
                                 workers=1, progress=False, max_days=8, healthy_days=3,
@@ -35,6 +35,13 @@ def test_mini_campaign_runs_to_failure_and_scores_every_method():
     assert res.false_alarms["ground_tests"] == 4        # days 0-3 of the healthy one
     assert "usage + health" in PC.markdown(res)
     assert math.isfinite(res.summary["all"]["life_days_median"])
+    # its trends CSV runs through the external-trends path, with the usage rows
+    from bench.hums.prognosis_trends import prognose_trends
+    est, skipped = prognose_trends(PC.write_trends(res, tmp_path / "t.csv"), res.cal)
+    assert set(est) == {"A40", "A41", "A42"} and skipped == []
+    for r in res.runs:
+        assert len(est[f"A{r['seed']}"]) == r["days"]
+    assert [p.name for p in PC.figure(res, tmp_path)] == ["usage_campaign.png"]
 
 
 @pytest.mark.parametrize("argv, msg", [
