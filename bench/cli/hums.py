@@ -28,6 +28,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     s = p.add_subparsers(title="hums commands", dest="hums_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
     _add_thesis_commands(s)
+    _add_prognose(s)
     _add_report(s)
     _add_watch(s)
 
@@ -93,6 +94,13 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     q.add_argument("--figures", metavar="DIR", help="write the campaign figure")
     q.add_argument("--doc", metavar="PATH", help="update the generated campaign section "
                    "of this markdown file")
+    _add_usage_options(q)
+    common(q)
+    q.set_defaults(func=run_campaign)
+
+
+def _add_usage_options(q: argparse.ArgumentParser) -> None:
+    """`bench hums campaign --usage` and its options (issue 12)."""
     q.add_argument("--usage", action="store_true",
                    help="the usage campaign instead (issue 12): actuators with Archard wear "
                    "flown daily under flight profiles of random severity, a daily ground "
@@ -105,9 +113,9 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     q.add_argument("--calibration-out", metavar="FILE.json",
                    help="with --usage: where to write the prognosis calibration (default: "
                    "the cache `bench hums prognose` reads)")
-    common(q)
-    q.set_defaults(func=run_campaign)
 
+
+def _add_prognose(s: argparse._SubParsersAction) -> None:
     q = s.add_parser("prognose", help="RUL distribution per actuator from health trends",
                      description="The prognosis of `bench hums campaign --usage` on a CSV of "
                      "health indexes over time (columns time [days], actuator, index, "
