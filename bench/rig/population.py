@@ -1,0 +1,130 @@
+"""Populations of runs (issue 11): thresholds from the spread of held-out healthy runs, and
+a detection rate and a false-alarm rate per condition instead of a single verdict.
+
+Thresholds (`calibrate`): with the calibration runs of one load (e.g. runs 1-2), each run
+in turn is held out, a baseline is built from the others, and the held-out run's cycles
+are scored; so every calibration score is that of a cycle its baseline did not see
+(leave-one-run-out; run-to-run differences are in the scores). The threshold of a
+feature is the upper prediction bound of the log-scores, a Student-t bound:
+mean + t(1 - alpha/3, m - 1) * sd * sqrt(1 + 1/m) over the m held-out log-scores, alpha
+the false-alarm rate aimed at (0.05), shared by the three features (Bonferroni). The
+thresholds come from healthy calibration runs only, never from a fault's cycles.
+
+The reference detector the issue asks for (`zscore_score`): a plain per-sample z-score
+of the current against the healthy mean at the same aligned sample (all phases), the
+cycle's score its largest |z|; its threshold is set so that it flags the same number of
+held-out healthy cycles as the bench's detector (`matched_threshold`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+from bench.rig.baseline import LoadBaseline, build_load, residuals
+from bench.rig.cycles import Cycle
+from bench.rig.features import FEATURES, CycleFeatures, cycle_features, judge
+
+ALPHA = 0.05
+
+
+@dataclass
+class Calibration:
+    """Thresholds of one load and the held-out healthy scores they came from."""
+    load: float
+    runs: list[int]
+    thresholds: dict[str, float]
+    scores: dict[str, list[float]]        # leave-one-run-out healthy scores per feature
+    alpha: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {"load": self.load, "runs": self.runs, "thresholds": self.thresholds,
+                "loro_scores": self.scores, "alpha": self.alpha,
+                "method": "leave-one-run-out over the calibration runs; Student-t upper "
+                          "prediction bound of the log-scores, alpha shared by the "
+                          f"{len(FEATURES)} features"}
+
+
+def prediction_bound(values: list[float], alpha: float) -> float:
+    """Upper (1 - alpha) Student-t prediction bound of one more value, on log scale."""
+    from scipy import stats
+    v = np.log(np.maximum(np.asarray(values, float), 1e-9))
+    v = v[np.isfinite(v)]
+    m = len(v)
+    if m < 3:
+        raise BenchError(f"a threshold needs at least 3 held-out healthy scores, got {m}")
+    t = float(stats.t.ppf(1.0 - alpha, m - 1))
+    return float(math.exp(v.mean() + t * v.std(ddof=1) * math.sqrt(1.0 + 1.0 / m)))
+
+
+def calibrate(cycles: list[Cycle], alpha: float = ALPHA) -> Calibration:
+    """Thresholds of one load from its healthy calibration cycles (two or more runs)."""
+    runs = sorted({c.run for c in cycles})
+    if len(runs) < 2:
+        raise BenchError(f"load {cycles[0].load:g}: thresholds need at least two healthy "
+                         f"calibration runs (one held out at a time), got run(s) {runs}")
+    scores: dict[str, list[float]] = {k: [] for k in FEATURES}
+    for r in runs:
+        lb = build_load([c for c in cycles if c.run != r])
+        for c in cycles:
+            if c.run == r:
+                f = cycle_features(lb, c)
+                for k in FEATURES:
+                    scores[k].append(f.scores[k])
+    per = alpha / len(FEATURES)
+    thr = {k: prediction_bound(v, per) for k, v in scores.items()}
+    return Calibration(cycles[0].load, runs, thr, scores, alpha)
+
+
+def zscore_score(lb: LoadBaseline, cycle: Cycle) -> float:
+    """The plain reference: the cycle's largest |per-sample z-score| of the current
+    against the healthy mean at the same aligned sample, over all phases."""
+    res = residuals(lb, cycle, "current_a")
+    vals = [float(np.max(np.abs(z))) for z, _ in res.values() if len(z)]
+    return max(vals) if vals else float("nan")
+
+
+def matched_threshold(healthy_scores: list[float], n_flagged: int) -> float:
+    """The z-score threshold that flags `n_flagged` of the held-out healthy cycles (the
+    bench detector's count): between the n-th and (n+1)-th largest score."""
+    s = sorted((x for x in healthy_scores if math.isfinite(x)), reverse=True)
+    if not s:
+        return float("nan")
+    if n_flagged >= len(s):
+        return s[-1] * 0.999
+    return s[n_flagged]          # flagged: score > threshold
+
+
+def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[str, Any]:
+    """Detection (or false-alarm) rate of a condition, the effects named and where the
+    localised ones are (median and interquartile range of the position in mm)."""
+    n = len(features)
+    flagged, effects, locs, outs, ins = 0, {}, [], [], []
+    for f in features:
+        hit, effect, _ = judge(f, thresholds)
+        if not hit:
+            continue
+        flagged += 1
+        effects[effect] = effects.get(effect, 0) + 1
+        if effect == "localised":
+            locs.append(f.location_mm)
+            outs.append(f.out_mm)
+            ins.append(f.in_mm)
+    out: dict[str, Any] = {"cycles": n, "flagged": flagged,
+                           "rate": flagged / n if n else float("nan"), "effects": effects}
+    out.update(_where(locs, "position"))
+    out.update(_where(outs, "out"))
+    out.update(_where(ins, "in"))
+    return out
+
+
+def _where(vals: list[float], key: str) -> dict[str, float]:
+    v = np.asarray([x for x in vals if math.isfinite(x)], float)
+    if not len(v):
+        return {f"{key}_mm": float("nan"), f"{key}_iqr_mm": float("nan")}
+    q1, q2, q3 = np.percentile(v, [25, 50, 75])
+    return {f"{key}_mm": float(q2), f"{key}_iqr_mm": float(q3 - q1)}
