@@ -92,6 +92,7 @@ class Baseline:
     loads: dict[float, LoadBaseline]
     sources: list[str]
     path: str = ""                         # the file it was read from / written to
+    lead_mm: float | None = None           # the screw's lead (position-periodic feature)
     thresholds: dict[str, Any] = field(default_factory=dict)   # set by population
 
     def for_load(self, load: float) -> LoadBaseline:
@@ -115,6 +116,7 @@ class Baseline:
 
     def to_json(self) -> dict[str, Any]:
         return {"format": FORMAT, "sources": self.sources, "thresholds": self.thresholds,
+                "lead_mm": self.lead_mm,
                 "loads": [{"load": lb.load, "runs": lb.runs, "cycles": lb.cycles,
                            "indexes": lb.indexes,
                            "phases": [p.to_json() for p in lb.phases.values()]}
@@ -144,7 +146,9 @@ class Baseline:
                    for k, v in e["indexes"].items()}
             loads[float(e["load"])] = LoadBaseline(float(e["load"]), list(e["runs"]),
                                                    list(e["cycles"]), ph, idx)
-        return cls(loads, list(d["sources"]), str(path), dict(d.get("thresholds") or {}))
+        lead = d.get("lead_mm")
+        return cls(loads, list(d["sources"]), str(path),
+                   None if lead is None else float(lead), dict(d.get("thresholds") or {}))
 
 
 def _r(a: np.ndarray) -> list[float]:

@@ -7,7 +7,7 @@ are scored; so every calibration score is that of a cycle its baseline did not s
 (leave-one-run-out; run-to-run differences are in the scores). The threshold of a
 feature is the upper prediction bound of the log-scores, a Student-t bound:
 mean + t(1 - alpha/3, m - 1) * sd * sqrt(1 + 1/m) over the m held-out log-scores, alpha
-the false-alarm rate aimed at (0.05), shared by the three features (Bonferroni). The
+the false-alarm rate aimed at (0.05), shared by the features (Bonferroni). The
 thresholds come from healthy calibration runs only, never from a fault's cycles.
 
 The reference detector the issue asks for (`zscore_score`): a plain per-sample z-score
@@ -27,7 +27,7 @@ import numpy as np
 from bench import BenchError
 from bench.rig.baseline import LoadBaseline, build_load, residuals
 from bench.rig.cycles import Cycle
-from bench.rig.features import FEATURES, CycleFeatures, cycle_features, judge
+from bench.rig.features import FEATURES, CycleFeatures, cycle_features, judge, location
 
 ALPHA = 0.05
 
@@ -46,7 +46,7 @@ class Calibration:
                 "loro_scores": self.scores, "alpha": self.alpha,
                 "method": "leave-one-run-out over the calibration runs; Student-t upper "
                           "prediction bound of the log-scores, alpha shared by the "
-                          f"{len(FEATURES)} features"}
+                          f"{len(self.thresholds)} features"}
 
 
 def prediction_bound(values: list[float], alpha: float) -> float:
@@ -61,8 +61,10 @@ def prediction_bound(values: list[float], alpha: float) -> float:
     return float(math.exp(v.mean() + t * v.std(ddof=1) * math.sqrt(1.0 + 1.0 / m)))
 
 
-def calibrate(cycles: list[Cycle], alpha: float = ALPHA) -> Calibration:
-    """Thresholds of one load from its healthy calibration cycles (two or more runs)."""
+def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None = None
+              ) -> Calibration:
+    """Thresholds of one load from its healthy calibration cycles (two or more runs); a
+    feature the cycles cannot give (periodic without the lead) gets none."""
     runs = sorted({c.run for c in cycles})
     if len(runs) < 2:
         raise BenchError(f"load {cycles[0].load:g}: thresholds need at least two healthy "
@@ -72,11 +74,12 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA) -> Calibration:
         lb = build_load([c for c in cycles if c.run != r])
         for c in cycles:
             if c.run == r:
-                f = cycle_features(lb, c)
+                f = cycle_features(lb, c, lead_mm)
                 for k in FEATURES:
                     scores[k].append(f.scores[k])
-    per = alpha / len(FEATURES)
-    thr = {k: prediction_bound(v, per) for k, v in scores.items()}
+    usable = {k: v for k, v in scores.items() if np.isfinite(v).all()}
+    per = alpha / len(usable)
+    thr = {k: prediction_bound(v, per) for k, v in usable.items()}
     return Calibration(cycles[0].load, runs, thr, scores, alpha)
 
 
@@ -103,17 +106,22 @@ def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[s
     """Detection (or false-alarm) rate of a condition, the effects named and where the
     localised ones are (median and interquartile range of the position in mm)."""
     n = len(features)
-    flagged, effects, locs, outs, ins = 0, {}, [], [], []
+    flagged = 0
+    effects: dict[str, int] = {}
+    locs: list[float] = []
+    outs: list[float] = []
+    ins: list[float] = []
     for f in features:
         hit, effect, _ = judge(f, thresholds)
         if not hit:
             continue
         flagged += 1
         effects[effect] = effects.get(effect, 0) + 1
-        if effect == "localised":
-            locs.append(f.location_mm)
-            outs.append(f.out_mm)
-            ins.append(f.in_mm)
+        where = location(f, effect)
+        if where is not None:
+            locs.append(where)
+            outs.append(f.out_mm if effect == "localised" else f.periodic_out_mm)
+            ins.append(f.in_mm if effect == "localised" else f.periodic_in_mm)
     out: dict[str, Any] = {"cycles": n, "flagged": flagged,
                            "rate": flagged / n if n else float("nan"), "effects": effects}
     out.update(_where(locs, "position"))

@@ -55,11 +55,11 @@ class Study:
         return sorted(names, key=lambda c: (stage_number(c) or 0, c))
 
 
-def score_cycle(job: tuple[B.LoadBaseline, Cycle]) -> CycleResult:
+def score_cycle(job: tuple[B.LoadBaseline, Cycle, float | None]) -> CycleResult:
     """One cycle against its load's baseline (a worker job)."""
-    lb, cycle = job
+    lb, cycle, lead = job
     t0 = time.perf_counter()
-    f = cycle_features(lb, cycle)
+    f = cycle_features(lb, cycle, lead)
     z = P.zscore_score(lb, cycle)
     dt = time.perf_counter() - t0
     res = B.residuals(lb, cycle, "current_a")
@@ -82,7 +82,8 @@ def table_files(directory: str | Path) -> list[Path]:
 
 def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: list[int],
               healthy: str = "normal*", workers: int | None = None, alpha: float = P.ALPHA,
-              progress: bool = True, conditions: list[str] | None = None) -> Study:
+              progress: bool = True, conditions: list[str] | None = None,
+              lead_mm: float | None = None) -> Study:
     """Baseline and thresholds from the healthy table's `calibrate_runs`, then the
     held-out healthy runs and every fault table scored (per condition a `run_all`)."""
     from bench.workers import run_all
@@ -102,9 +103,10 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
         raise BenchError(f"{healthy_files[0]}: no cycle of the calibration runs "
                          f"{calibrate_runs} or of the held-out runs {holdout_runs}")
     base = B.build(cal, [healthy_files[0].name])
+    base.lead_mm = lead_mm
     cals = {}
     for load in sorted({c.load for c in cal}):
-        cals[load] = P.calibrate([c for c in cal if c.load == load], alpha)
+        cals[load] = P.calibrate([c for c in cal if c.load == load], alpha, lead_mm)
     base.thresholds = {f"{k:g}": v.to_json() for k, v in cals.items()}
     study = Study(base, cals, sorted(holdout_runs), {}, hname)
     todo: list[tuple[str, list[Cycle]]] = [(hname, hold)]
@@ -114,13 +116,13 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
             continue
         todo.append((name, read_cycles(p)))
     for name, cycles in todo:
-        jobs = [(base.for_load(c.load), c) for c in cycles if c.load in cals]
+        jobs = [(base.for_load(c.load), c, lead_mm) for c in cycles if c.load in cals]
         t0 = time.perf_counter()
         res = run_all(score_cycle, jobs, workers=workers, progress=progress, desc=name,
                       unit="cycle")
         study.wall_s[name] = time.perf_counter() - t0
         per: dict[float, list[CycleResult]] = {}
-        for (lb, _), r in zip(jobs, res, strict=True):
+        for (lb, _, _), r in zip(jobs, res, strict=True):
             per.setdefault(lb.load, []).append(r)
         study.results[name] = per
     study.summary = summarise(study)
