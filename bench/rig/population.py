@@ -51,13 +51,13 @@ class Calibration:
 
 def prediction_bound(values: list[float], alpha: float) -> float:
     """Upper (1 - alpha) Student-t prediction bound of one more value, on log scale."""
-    from scipy import stats
+    from scipy.special import stdtrit      # Student-t quantile (scipy.stats is slow to import)
     v = np.log(np.maximum(np.asarray(values, float), 1e-9))
     v = v[np.isfinite(v)]
     m = len(v)
     if m < 3:
         raise BenchError(f"a threshold needs at least 3 held-out healthy scores, got {m}")
-    t = float(stats.t.ppf(1.0 - alpha, m - 1))
+    t = float(stdtrit(m - 1, 1.0 - alpha))
     return float(math.exp(v.mean() + t * v.std(ddof=1) * math.sqrt(1.0 + 1.0 / m)))
 
 
