@@ -114,14 +114,12 @@ class _Fit:
                          for k in self.free])
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        span = {"feedforward": None, "current_offset_a": 5.0}
         lo, hi = [], []
         for k, z in zip(self.free, self.z0(), strict=True):
-            if k == "feedforward":
-                lo.append(0.0), hi.append(1.5)
-            elif k == "current_offset_a":
-                lo.append(z - 5.0), hi.append(z + 5.0)
-            else:
-                lo.append(z - 4.0), hi.append(z + 4.0)
+            w = span.get(k, 4.0)
+            lo.append(0.0 if w is None else z - w)
+            hi.append(1.5 if w is None else z + w)
         return np.array(lo), np.array(hi)
 
 
