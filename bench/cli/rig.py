@@ -56,6 +56,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lead-mm", type=float, metavar="MM",
                    help="the screw's lead in mm (enables the position-periodic feature; "
                         "Cranfield: 5)")
+    p.add_argument("--actuator", metavar="DESC",
+                   help="actuator description (.json/.toml or a shipped name, e.g. "
+                        "cranfield): its lead_m when --lead-mm is not given")
     p.add_argument("--alpha", type=float, default=0.05, metavar="A",
                    help="false-alarm rate the thresholds aim at (default 0.05)")
 
@@ -80,6 +83,13 @@ def runs_list(text: str | None, flag: str) -> list[int] | None:
 
 def _check(args: argparse.Namespace) -> None:
     from bench import BenchError
+    if getattr(args, "actuator", None) and getattr(args, "lead_mm", None) is None:
+        from bench.actuator import load
+        lead_m = load(args.actuator).get("lead_m")
+        if lead_m is None:
+            raise BenchError(f"{args.actuator}: the description gives no lead_m "
+                             "(use --lead-mm)")
+        args.lead_mm = 1e3 * lead_m
     lead = getattr(args, "lead_mm", None)
     if lead is not None and not (math.isfinite(lead) and lead > 0):
         raise BenchError("--lead-mm must be a finite length > 0")

@@ -6,7 +6,8 @@ the keys of the run: load, run number and cycle (`group`). The Cranfield linear-
 data set uses exactly these columns (set_point and position_error in mm, current in A,
 load in kgf, run, group, time restarting at 0 for every cycle). A trace written by
 `bench import` (`.npz`, with `setpoint_position_m`, `position_m`, `current_a`) is read
-too; its load and run come from its metadata when present.
+too (one per run or per cycle, from `bench import --split-by load,run[,group]`); its
+load, run and cycle come from the split keys in its metadata.
 
 Nothing is resampled: a cycle keeps the samples the rig logged. The phases come from the
 set-point alone (`phases`): out-stroke, in-stroke and the dwells between them; within a
@@ -139,6 +140,8 @@ def read_cycles(path: str | Path, columns: dict[str, str] | None = None) -> list
         return _trace_cycles(path)
     cols = dict(DEFAULT_COLUMNS, **(columns or {}))
     raw = read_columns(path)
+    if "setpoint_position_m" in raw and path.name.lower().endswith(".parquet"):
+        return _trace_cycles(path)                   # a bench trace, not a rig table
     source = condition_name(path)
     need = ["setpoint", "current"]
     missing = [cols[k] for k in need if cols[k] not in raw]
@@ -179,15 +182,18 @@ def _trace_cycles(path: Path) -> list[Cycle]:
     tr.require(("setpoint_position_m", "position_m", "current_a"), "a rig baseline")
     sp = tr["setpoint_position_m"] * 1e3
     pos = tr["position_m"] * 1e3
-    group = _cycles_from_setpoint(sp)
-    load = float(tr.meta.get("load", tr.meta.get("load_kgf", float("nan"))))
-    run = int(tr.meta.get("run", 0))
+    keys = tr.meta.get("split") or {}            # `bench import --split-by` keys
+    group = (np.full(len(sp), float(keys["group"])) if "group" in keys
+             else _cycles_from_setpoint(sp))
+    load = float(keys.get("load", tr.meta.get("load", float("nan"))))
+    run = int(keys.get("run", tr.meta.get("run", 0)))
     out = []
     for g in np.unique(group):
         m = group == g
         if m.sum() >= 8:
             out.append(Cycle(tr.t[m] - tr.t[m][0], sp[m], pos[m], tr["current_a"][m], load,
-                             run, int(g), condition_name(path), dict(tr.meta)))
+                             run, int(g), str(tr.meta.get("source_name", condition_name(path))),
+                             dict(tr.meta)))
     return out
 
 

@@ -5,9 +5,12 @@ Thresholds (`calibrate`): with the calibration runs of one load (e.g. runs 1-2),
 in turn is held out, a baseline is built from the others, and the held-out run's cycles
 are scored; so every calibration score is that of a cycle its baseline did not see
 (leave-one-run-out; run-to-run differences are in the scores). The threshold of a
-feature is the upper prediction bound of the log-scores, a Student-t bound:
-mean + t(1 - alpha/3, m - 1) * sd * sqrt(1 + 1/m) over the m held-out log-scores, alpha
-the false-alarm rate aimed at (0.05), shared by the features (Bonferroni). The
+feature is the upper (1 - alpha / n_features) prediction bound of one more healthy score
+(`bound`), alpha the false-alarm rate aimed at (0.05), shared by the features
+(Bonferroni): an F bound for the chi-square-like scores (periodic power; level and
+reversal squared), a Student-t bound of the log-scores for the localised scan. (The
+first version used the log-normal bound for every feature; it gave thresholds of 20-35
+for chi-square scores near 0, and was replaced after the first study: docs/real-data.md.) The
 thresholds come from healthy calibration runs only, never from a fault's cycles.
 
 The reference detector the issue asks for (`zscore_score`): a plain per-sample z-score
@@ -44,14 +47,44 @@ class Calibration:
     def to_json(self) -> dict[str, Any]:
         return {"load": self.load, "runs": self.runs, "thresholds": self.thresholds,
                 "loro_scores": self.scores, "alpha": self.alpha,
-                "method": "leave-one-run-out over the calibration runs; Student-t upper "
-                          "prediction bound of the log-scores, alpha shared by the "
-                          f"{len(self.thresholds)} features"}
+                "method": "leave-one-run-out over the calibration runs; upper prediction "
+                          "bound per feature (F for chi-square-like scores, Student-t of "
+                          "the log for the localised scan), alpha shared by the "
+                          f"{len(self.thresholds)} features",
+                "nulls": {k: list(NULLS.get(k, ("log", 0))) for k in self.thresholds}}
+
+
+# how each feature's healthy scores are distributed, for its prediction bound:
+# ("chi2", k) a scaled chi-square with k degrees of freedom (the periodic power is one
+# with 4 under white noise); ("abs", 1) the absolute value of a zero-mean normal (its
+# square a scaled chi-square with 1); "log" a log-normal (the localised scan, a maximum,
+# stays well away from 0)
+NULLS: dict[str, tuple[str, int]] = {"periodic": ("chi2", 4), "level": ("abs", 1),
+                                     "reversal": ("abs", 1), "localised": ("log", 0)}
+
+
+def bound(values: list[float], alpha: float, null: tuple[str, int]) -> float:
+    """Upper (1 - alpha) prediction bound of one more healthy score, from m held-out ones:
+    for a scaled chi-square with k dof, mean * F(1 - alpha; k, k m) (the ratio of a new
+    value to the mean of m is F-distributed); for |normal|, sqrt(mean of squares *
+    F(1 - alpha; 1, m)); else the log-normal Student-t bound."""
+    from scipy.special import fdtri
+    kind, k = null
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    m = len(v)
+    if m < 3:
+        raise BenchError(f"a threshold needs at least 3 held-out healthy scores, got {m}")
+    if kind == "chi2":
+        return float(v.mean() * fdtri(k, k * m, 1.0 - alpha))
+    if kind == "abs":
+        return float(math.sqrt(np.mean(v ** 2) * fdtri(1, m, 1.0 - alpha)))
+    return prediction_bound(list(v), alpha)
 
 
 def prediction_bound(values: list[float], alpha: float) -> float:
     """Upper (1 - alpha) Student-t prediction bound of one more value, on log scale."""
-    from scipy.special import stdtrit      # Student-t quantile (scipy.stats is slow to import)
+    from scipy.special import stdtrit  # Student-t quantile (scipy.stats is slow to import)
     v = np.log(np.maximum(np.asarray(values, float), 1e-9))
     v = v[np.isfinite(v)]
     m = len(v)
@@ -79,7 +112,7 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None =
                     scores[k].append(f.scores[k])
     usable = {k: v for k, v in scores.items() if np.isfinite(v).all()}
     per = alpha / len(usable)
-    thr = {k: prediction_bound(v, per) for k, v in usable.items()}
+    thr = {k: bound(v, per, NULLS.get(k, ("log", 0))) for k, v in usable.items()}
     return Calibration(cycles[0].load, runs, thr, scores, alpha)
 
 
