@@ -16,13 +16,16 @@ from bench.rig.study import Study, mean_profile
 
 
 def residual_figure(study: Study, path: Path) -> Path:
-    """Per load: the mean current residual (z) of each stage against measured position,
-    out- and in-stroke, with each stage's located position (median) marked."""
+    """Per load: the mean current residual (z) against measured position, out- and
+    in-stroke, of the held-out healthy runs and of the first, middle and last fault
+    stage, with each stage's located position (median) marked."""
     from matplotlib.figure import Figure
     loads = study.loads
     fig = Figure(figsize=(12, 3.2 * len(loads)))
     axes = fig.subplots(len(loads), 2, squeeze=False)
-    conds = [study.healthy_condition] + study.fault_conditions
+    faults = study.fault_conditions
+    picked = sorted({0, len(faults) // 2, len(faults) - 1}) if faults else []
+    conds = [study.healthy_condition] + [faults[i] for i in picked]
     cmap = __import__("matplotlib").colormaps["viridis"]
     for i, load in enumerate(loads):
         row = study.summary["loads"][f"{load:g}"]
@@ -46,7 +49,7 @@ def residual_figure(study: Study, path: Path) -> Path:
             ax.grid(alpha=0.3)
         axes[i][1].legend(fontsize=6, ncol=2)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=72)
     return path
 
 
