@@ -22,7 +22,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                     "against it, thresholds from held-out healthy runs, detection and "
                     "false-alarm rates per condition. Tables: CSV (plain or .xz/.gz/.bz2) "
                     "or Parquet with set_point, position_error (mm), current (A), load, "
-                    "run, group (one motion cycle), time; or `bench import` traces (.npz).")
+                    "run, group (one motion cycle), time; or `bench import` traces (.npz/.parquet).")
     sub = p.add_subparsers(dest="rig_command", metavar="ACTION")
     b = sub.add_parser("baseline", help="build a healthy baseline and its thresholds")
     b.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")

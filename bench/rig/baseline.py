@@ -140,12 +140,16 @@ class Baseline:
         if not isinstance(d, dict) or d.get("format") != FORMAT:
             raise BenchError(f"{path}: not a baseline written by `bench rig baseline`")
         loads = {}
-        for e in d["loads"]:
-            ph = {p["name"]: PhaseStats.from_json(p) for p in e["phases"]}
-            idx = {k: {i: (float(m), float(s)) for i, (m, s) in v.items()}
-                   for k, v in e["indexes"].items()}
-            loads[float(e["load"])] = LoadBaseline(float(e["load"]), list(e["runs"]),
-                                                   list(e["cycles"]), ph, idx)
+        try:
+            for e in d["loads"]:
+                ph = {p["name"]: PhaseStats.from_json(p) for p in e["phases"]}
+                idx = {k: {i: (float(m), float(s)) for i, (m, s) in v.items()}
+                       for k, v in e["indexes"].items()}
+                loads[float(e["load"])] = LoadBaseline(float(e["load"]), list(e["runs"]),
+                                                       list(e["cycles"]), ph, idx)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise BenchError(f"{path}: damaged baseline ({type(exc).__name__}: {exc})"
+                             ) from None
         lead = d.get("lead_mm")
         return cls(loads, list(d["sources"]), str(path),
                    None if lead is None else float(lead), dict(d.get("thresholds") or {}))

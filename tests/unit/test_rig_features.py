@@ -78,3 +78,13 @@ def test_runs_list():
     assert runs_list("1,3-4", "--runs") == [1, 3, 4]
     with pytest.raises(BenchError, match="--runs"):
         runs_list("a", "--runs")
+
+
+def test_a_damaged_or_foreign_baseline_is_a_clear_error(tmp_path):
+    p = tmp_path / "b.json"
+    p.write_text('{"format": "bench-rig-baseline/1", "sources": [], "loads": [{"load": 1}]}')
+    with pytest.raises(BenchError, match="damaged baseline"):
+        B.Baseline.load(p)
+    p.write_text('{"hello": 1}')
+    with pytest.raises(BenchError, match="not a baseline"):
+        B.Baseline.load(p)
