@@ -43,24 +43,33 @@ NEEDS: dict[str, tuple[str, ...]] = {
     "gap path: mechanics": ("current_demand_a", "motor_speed_rad_s", SYNC_RATE),
     "gap path: screw": ("motor_angle_rad", "position_m"),
     "gap path: sensors": ("motor_speed_rad_s", "motor_angle_rad"),
-    "gap regime: reversal, acceleration": ("setpoint_position_m|position_m",),
-    "gap regime: load change": ("load_force_n|current_demand_a",),
-    "gap regime: cruise, dwell": ("position_m|motor_speed_rad_s",),
-    # effects: the signals their signature shows in
-    "effect: backlash": ("position_m", "motor_angle_rad"),
-    "effect: friction, viscous, stribeck": ("current_a", "position_m|motor_speed_rad_s"),
-    "effect: kt, inertia, current_offset": ("current_a",),
-    "effect: resistance, thermal_drift": ("current_demand_a", "current_a"),
-    "effect: stiffness, preload, lead, lvdt_gain": ("position_m", "motor_angle_rad"),
-    "effect: lvdt_lag, lvdt_offset": ("position_m",),
-    "effect: encoder_gain, sensor_delay": ("motor_angle_rad|motor_speed_rad_s",),
-    "effect: log_skew": ("current_a", "position_m"),
+    "gap regimes: reversal, acceleration, cruise, dwell": PLANT_RESIM + (SYNC_RATE,),
+    "gap regime: load change": PLANT_RESIM + ("load_force_n|current_demand_a", SYNC_RATE),
+    # effects of the thesis plant's diagnosis: its re-simulation plus the signals their
+    # signature shows in
+    "gap effect: backlash": PLANT_RESIM + (SYNC_RATE,),
+    "gap effect: friction, viscous, stribeck, kt, inertia, current_offset":
+        PLANT_RESIM + (SYNC_RATE,),
+    "gap effect: resistance, thermal_drift": PLANT_RESIM + ("current_demand_a", SYNC_RATE),
+    "gap effect: stiffness, preload, lead, lvdt_gain, lvdt_lag, lvdt_offset":
+        PLANT_RESIM + (SYNC_RATE,),
+    "gap effect: encoder_gain, sensor_delay, log_skew": PLANT_RESIM + (SYNC_RATE,),
+    # the gap against a generic calibration (bench.gap.riggap), any rate
+    "rig gap: localisation (signal, regime, direction, position)":
+        ("setpoint_position_m", "position_m"),
+    "rig gap: ranking (friction, force gain, inertia, controller, localised)":
+        ("setpoint_position_m", "position_m"),
+    "rig gap: current offset; current parts of the ranking":
+        ("setpoint_position_m", "position_m", "current_a"),
+    "rig HUMS index: Cp, mean error (eq. 6.4-6.5)": ("setpoint_position_m", "position_m"),
+    "rig HUMS index: Ci, peak ratio (eq. 6.6-6.7)":
+        ("setpoint_position_m", "position_m", "current_a"),
     # HUMS (chapter 6): the monitoring model and each index
     "HUMS: monitoring model": MONITOR_DRIVE + (SYNC_RATE,),
     "HUMS index: Cp, mean error (eq. 6.4-6.5)": POSITION_SIGNALS + MONITOR_DRIVE + (SYNC_RATE,),
     "HUMS index: Ci, peak ratio (eq. 6.6-6.7)": CURRENT_SIGNALS + MONITOR_DRIVE + (SYNC_RATE,),
     "HUMS index: lost motion": LOST_MOTION_SIGNALS,
-    "HUMS report: harmonics (eq. 6.3)": CURRENT_SIGNALS,
+    "HUMS report: harmonics (eq. 6.3)": CURRENT_SIGNALS + MONITOR_DRIVE + (SYNC_RATE,),
 }
 
 

@@ -100,8 +100,8 @@ class _Fit:
     def __init__(self, values: dict[str, float | None], free: Sequence[str],
                  start: dict[str, float]) -> None:
         self.free = list(free)
-        self.fixed = {k: (v if v is not None else start[k]) for k, v in values.items()
-                      if k in RM.THETA}
+        self.fixed = {**RM.EXTRA, **{k: (v if v is not None else start[k])
+                                     for k, v in values.items() if k in RM.THETA}}
 
     def theta(self, z: np.ndarray) -> np.ndarray:
         v = dict(self.fixed)
@@ -177,13 +177,7 @@ def score(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s: fl
     nut position fitted within the first sample's noise: an initial condition, not a
     model value)."""
     fl = floors(tr)
-    dx0 = 0.0
-    if method != "measured-current":
-        sol = least_squares(_residual, np.zeros(1), bounds=(-X0_FLOORS, X0_FLOORS),
-                            args=(_Held(theta), [tr], [fl], act, method, period_s),
-                            max_nfev=30)
-        dx0 = float(sol.x[0]) * fl["position_m"]
-    sim = simulate(theta, tr, act, method, period_s, dx0)
+    sim = simulate(theta, tr, act, method, period_s, fit_x0(theta, tr, act, method, period_s))
     out = {}
     for s, y in sim.items():
         r = np.asarray(tr[s], float) - y
@@ -191,6 +185,24 @@ def score(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s: fl
         rms = float(np.sqrt(np.mean(r[ok] ** 2))) if ok.any() else float("nan")
         out[s] = {"rms": rms, "noise_floor": fl[s], "ratio": rms / fl[s]}
     return out
+
+
+def fit_x0(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s: float
+           ) -> float:
+    """The closed loop's initial nut position offset (m) from the first sample that fits
+    `tr` best, within X0_FLOORS position floors (0 for the measured-current drive)."""
+    if method == "measured-current":
+        return 0.0
+    fl = floors(tr)
+    sol = least_squares(_residual, np.zeros(1), bounds=(-X0_FLOORS, X0_FLOORS),
+                        args=(_Held(theta), [tr], [fl], act, method, period_s), max_nfev=30)
+    return float(sol.x[0]) * fl["position_m"]
+
+
+def theta_of(cal: dict[str, Any]) -> np.ndarray:
+    """The model vector of a calibration (`calibrate_rig`'s output)."""
+    v = {**RM.EXTRA, **cal["values"]}
+    return np.array([float(v[k]) for k in RM.THETA])
 
 
 def _free(act: Actuator, method: str) -> tuple[list[str], dict[str, float | None]]:
@@ -242,6 +254,7 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     return {
         "model": "generic nut-level model (bench.gap.rigmodel)",
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,
+        "actuator_description": act.to_dict(),
         "method_text": METHOD_TEXT[method], "sample_period_s": period_s,
         "values": values, "fitted": free, "ci95": ci,
         "not_identified": [k for k, (lo, hi) in ci.items() if k not in LINEAR

@@ -20,6 +20,9 @@ fraction of the controller's sample time) and sampled at the log's own instants:
   instead of a controller, in segments re-started from the measured position and the
   speed of its central difference (a long open-loop integration would drift).
 
+A position-locked resistance (`EXTRA`: a spall the balls roll over) adds
+F_b exp(-(x - x_b)^2 / 2 w^2) to the Coulomb friction; it is zero in a healthy model.
+
 The logged current is i + i_0 for a drive with a current loop; for a stepper with a
 chopper drive the logged current is taken as i_0 + |i| (the drive's sensor sees an
 amplitude). That is all this family says about a stepper: the load angle enters only in
@@ -37,9 +40,12 @@ from numba import njit
 
 THETA = ("mass_kg", "force_per_a_n", "coulomb_n", "viscous_n_s_per_m", "current_offset_a",
          "kp_1_s", "kv_a_s_per_m", "ki_a_per_m", "feedforward", "current_limit_a",
-         "current_tau_s")
+         "current_tau_s", "bump_n", "bump_at_m", "bump_width_m")
 """The model's values, in this order in the vectors the compiled functions take."""
-M, KF, FC, C, I0, KP, KV, KI, FF, IMAX, TAU = range(len(THETA))
+M, KF, FC, C, I0, KP, KV, KI, FF, IMAX, TAU, BA, BX, BW = range(len(THETA))
+EXTRA = {"bump_n": 0.0, "bump_at_m": 0.0, "bump_width_m": 2e-3}
+"""Values no description gives: a position-locked force (N) opposing motion around one
+nut position (m) with a Gaussian width (m), zero in a healthy model (`bench.gap.riggap`)."""
 H_MAX = 2e-4            # s: the model's largest step
 
 
@@ -94,7 +100,10 @@ def _closed(th, stepper, t, sp, fext, ts, h, x0):  # pragma: no cover - compiled
                 integ = ni
         i = a * i + (1.0 - a) * icmd
         f = th[KF] * i + fext[max(k - 1, 0)]
-        x, v = _mech(x, v, f, th[M], th[FC], th[C], h)
+        fc = th[FC]
+        if th[BA] != 0.0:
+            fc += th[BA] * math.exp(-0.5 * ((x - th[BX]) / th[BW]) ** 2)
+        x, v = _mech(x, v, f, th[M], fc, th[C], h)
         if not math.isfinite(x) or abs(x) > 1e3:
             break
         step += 1
