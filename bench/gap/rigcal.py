@@ -272,7 +272,7 @@ METHOD_TEXT = {
     "fit-gains": "closed loop; the controller is unknown: a generic position/speed cascade "
                  "(saturation, sample time) fitted with the physical values",
     "measured-current": "no controller: the measured current drives the mechanics "
-                        "(re-started from the measured position every 25 samples)",
+                        "(re-started from the measured position and speed every 0.5 s)",
     "described": "closed loop with the described controller; physical values fitted",
 }
 
