@@ -117,9 +117,10 @@ def _actuator(args: argparse.Namespace) -> int:
             print(f"  {k}: {v}")
     cal["not_available"] = lack
     for k in cal["fitted"]:
-        lo, hi = cal["ci95"].get(k, [float("nan")] * 2)
+        lo, hi = cal["ci95"].get(k, [None, None])
+        ci = "no effect on the fit" if lo is None or hi is None else f"{lo:.3g} .. {hi:.3g}"
         flag = "  (not identified)" if k in cal["not_identified"] else ""
-        print(f"  {k:22s} {cal['values'][k]:.5g}  (95 % CI {lo:.3g} .. {hi:.3g}){flag}")
+        print(f"  {k:22s} {cal['values'][k]:.5g}  (95 % CI {ci}){flag}")
     rows = cal["holdout_summary"] or {}
     what = "held-out" if rows else "calibration"
     for sig, r in (rows or _fit_summary(cal)).items():

@@ -228,7 +228,7 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     fit = _Fit(vals, free, _start(healthy, act))
     fl = [floors(t) for t in healthy]
     notes = _notes(act, method, period_s, vals)
-    ci: dict[str, list[float]] = {}
+    ci: dict[str, list[float | None]] = {}
     nx = 0 if method == "measured-current" else len(healthy)
     if free or nx:
         lo, hi = fit.bounds()
@@ -257,8 +257,8 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
         "actuator_description": act.to_dict(),
         "method_text": METHOD_TEXT[method], "sample_period_s": period_s,
         "values": values, "fitted": free, "ci95": ci,
-        "not_identified": [k for k, (lo, hi) in ci.items() if k not in LINEAR
-                           and hi > 10.0 * lo],
+        "not_identified": [k for k, (lo, hi) in ci.items() if lo is None or hi is None
+                           or (k not in LINEAR and hi > 10.0 * lo)],
         "described": {k: v for k, v in model_values(act).items() if v is not None},
         "fit_logs": [_src(t) for t in healthy], "fit_scores": fit_scores,
         "holdout_logs": [_src(t) for t in holdout], "holdout_scores": held,
@@ -297,7 +297,7 @@ def summary(scores: Sequence[dict[str, dict[str, float]]]) -> dict[str, dict[str
     return out
 
 
-def _ci(sol: Any, fit: _Fit) -> dict[str, list[float]]:
+def _ci(sol: Any, fit: _Fit) -> dict[str, list[float | None]]:
     """95 % intervals from the Jacobian at the solution (Gauss-Newton covariance)."""
     j = sol.jac
     dof = max(len(sol.fun) - len(sol.x), 1)
@@ -306,8 +306,12 @@ def _ci(sol: Any, fit: _Fit) -> dict[str, list[float]]:
         cov = np.linalg.pinv(j.T @ j) * s2
     except np.linalg.LinAlgError:
         return {}
-    out = {}
+    out: dict[str, list[float | None]] = {}
+    norms = np.linalg.norm(j, axis=0)
     for k, name in enumerate(fit.free):
+        if not norms[k] > 1e-9 * max(float(norms.max()), 1e-300):
+            out[name] = [None, None]      # no effect on the fit: not identified
+            continue
         half = min(1.96 * math.sqrt(max(cov[k, k], 0.0)), 30.0)
         z = sol.x[k]
         lo, hi = (z - half, z + half) if name in LINEAR else (10 ** (z - half), 10 ** (z + half))
