@@ -232,11 +232,12 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     nx = 0 if method == "measured-current" else len(healthy)
     if free or nx:
         lo, hi = fit.bounds()
-        sol = least_squares(_residual, np.concatenate([fit.z0(), np.zeros(nx)]),
-                            bounds=(np.append(lo, [-X0_FLOORS] * nx),
-                                    np.append(hi, [X0_FLOORS] * nx)),
-                            args=(fit, healthy, fl, act, method, period_s), max_nfev=300,
-                            diff_step=1e-3)
+        z0 = np.concatenate([fit.z0(), np.zeros(nx)])
+        args = (fit, healthy, fl, act, method, period_s)
+        sol = least_squares(_residual, z0, bounds=(np.append(lo, [-X0_FLOORS] * nx),
+                                                   np.append(hi, [X0_FLOORS] * nx)),
+                            args=args, max_nfev=300, diff_step=1e-3,
+                            jac_sparsity=_sparsity(z0, len(free), args))
         z = sol.x[:len(free)]
         ci = _ci(sol, fit)
     else:
@@ -297,9 +298,26 @@ def summary(scores: Sequence[dict[str, dict[str, float]]]) -> dict[str, dict[str
     return out
 
 
+def _sparsity(z0: np.ndarray, nfree: int, args: tuple[Any, ...]) -> np.ndarray:
+    """Which residuals each fitted value moves: the shared values all of them, a log's
+    initial position only that log's (so finite differences perturb all initial
+    positions at once)."""
+    fit, traces, fl, act, method, period_s = args
+    rows = [len(_residual(z0[:nfree], fit, [tr], [f], act, method, period_s))
+            for tr, f in zip(traces, fl, strict=True)]
+    sp = np.zeros((sum(rows), len(z0)), dtype=np.int8)
+    sp[:, :nfree] = 1
+    start = 0
+    for k, r in enumerate(rows):
+        if nfree + k < len(z0):
+            sp[start:start + r, nfree + k] = 1
+        start += r
+    return sp
+
+
 def _ci(sol: Any, fit: _Fit) -> dict[str, list[float | None]]:
     """95 % intervals from the Jacobian at the solution (Gauss-Newton covariance)."""
-    j = sol.jac
+    j = sol.jac.toarray() if hasattr(sol.jac, "toarray") else np.asarray(sol.jac)
     dof = max(len(sol.fun) - len(sol.x), 1)
     s2 = 2.0 * sol.cost / dof
     try:
