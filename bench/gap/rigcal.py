@@ -77,7 +77,13 @@ def choose_method(traces: Sequence[Trace], act: Actuator, method: str) -> str:
     return method
 
 
-def _start(traces: Sequence[Trace], act: Actuator) -> dict[str, float]:
+STARTS = ((10.0, 200.0), (2.0, 30.0), (30.0, 1000.0))
+"""Start points of a cascade fit: (position gain 1/s, speed-loop bandwidth rad/s); the
+fit from each runs and the lowest cost on the calibration logs is kept."""
+
+
+def _start(traces: Sequence[Trace], act: Actuator, kp: float = 10.0, wv: float = 200.0
+           ) -> dict[str, float]:
     """Start values of the unknowns, from the logs' scales (not fitted to them)."""
     cur = np.concatenate([np.asarray(t["current_a"], float) for t in traces
                           if _has(t, "current_a")] or [np.ones(1)])
@@ -86,11 +92,10 @@ def _start(traces: Sequence[Trace], act: Actuator) -> dict[str, float]:
     lead = act.values.get("lead_m") or 5e-3
     kf = 2.0 * math.pi / lead          # ~1 N m per A at the motor, direct drive
     mass = 3e-4 * (2.0 * math.pi / lead) ** 2   # a 3e-4 kg m^2 rotor, direct drive
-    wv = 200.0                          # rad/s speed-loop bandwidth
     return {"mass_kg": mass, "force_per_a_n": kf, "coulomb_n": 0.1 * kf * imax,
             "viscous_n_s_per_m": 0.01 * kf * imax / 0.02,
             "current_offset_a": float(np.min(cur)) if cur.size else 0.0,
-            "kp_1_s": 10.0, "kv_a_s_per_m": wv * mass / kf, "ki_a_per_m": 0.2 * wv * wv * mass / kf,
+            "kp_1_s": kp, "kv_a_s_per_m": wv * mass / kf, "ki_a_per_m": 0.2 * wv * wv * mass / kf,
             "feedforward": 1.0, "current_limit_a": 2.0 * imax, "current_tau_s": 0.0}
 
 
@@ -225,24 +230,8 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     method = choose_method(list(healthy) + list(holdout), act, method)
     period_s = act.controller.get("sample_period_s") or DEFAULT_PERIOD_S
     free, vals = _free(act, method)
-    fit = _Fit(vals, free, _start(healthy, act))
-    fl = [floors(t) for t in healthy]
     notes = _notes(act, method, period_s, vals)
-    ci: dict[str, list[float | None]] = {}
-    nx = 0 if method == "measured-current" else len(healthy)
-    if free or nx:
-        lo, hi = fit.bounds()
-        z0 = np.concatenate([fit.z0(), np.zeros(nx)])
-        args = (fit, healthy, fl, act, method, period_s)
-        sol = least_squares(_residual, z0, bounds=(np.append(lo, [-X0_FLOORS] * nx),
-                                                   np.append(hi, [X0_FLOORS] * nx)),
-                            args=args, max_nfev=300, diff_step=1e-3,
-                            jac_sparsity=_sparsity(z0, len(free), args))
-        z = sol.x[:len(free)]
-        ci = _ci(sol, fit)
-    else:
-        z = np.zeros(0)
-    theta = fit.theta(z)
+    theta, ci, starts = _fit_all(healthy, act, method, period_s, free, vals)
     values = {k: float(v) for k, v in zip(RM.THETA, theta, strict=True)}
     fit_scores = [score(theta, t, act, method, period_s) for t in healthy]
     held = [score(theta, t, act, method, period_s) for t in holdout]
@@ -257,7 +246,7 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,
         "actuator_description": act.to_dict(),
         "method_text": METHOD_TEXT[method], "sample_period_s": period_s,
-        "values": values, "fitted": free, "ci95": ci,
+        "values": values, "fitted": free, "ci95": ci, "start_costs": starts,
         "not_identified": [k for k, (lo, hi) in ci.items() if lo is None or hi is None
                            or (k not in LINEAR and hi > 10.0 * lo)],
         "described": {k: v for k, v in model_values(act).items() if v is not None},
@@ -296,6 +285,34 @@ def summary(scores: Sequence[dict[str, dict[str, float]]]) -> dict[str, dict[str
                     "ratio_median": float(np.median([r["ratio"] for r in rs])),
                     "ratio_max": float(np.max([r["ratio"] for r in rs]))}
     return out
+
+
+def _fit_all(healthy: Sequence[Trace], act: Actuator, method: str, period_s: float,
+             free: list[str], vals: dict[str, float | None]
+             ) -> tuple[np.ndarray, dict[str, list[float | None]], list[float]]:
+    """(theta, 95 % intervals, cost from each start) of the best of the fits from
+    `STARTS` (one start unless gains are fitted)."""
+    fl = [floors(t) for t in healthy]
+    nx = 0 if method == "measured-current" else len(healthy)
+    if not (free or nx):
+        return _Fit(vals, free, _start(healthy, act)).theta(np.zeros(0)), {}, []
+    best: tuple[float, Any, _Fit] | None = None
+    costs = []
+    for kp, wv in (STARTS if method == "fit-gains" else STARTS[:1]):
+        fit = _Fit(vals, free, _start(healthy, act, kp, wv))
+        lo, hi = fit.bounds()
+        z0 = np.concatenate([fit.z0(), np.zeros(nx)])
+        args = (fit, healthy, fl, act, method, period_s)
+        sol = least_squares(_residual, z0, bounds=(np.append(lo, [-X0_FLOORS] * nx),
+                                                   np.append(hi, [X0_FLOORS] * nx)),
+                            args=args, max_nfev=200, diff_step=1e-3,
+                            jac_sparsity=_sparsity(z0, len(free), args))
+        costs.append(float(sol.cost))
+        if best is None or sol.cost < best[0]:
+            best = (float(sol.cost), sol, fit)
+    assert best is not None
+    _, sol, fit = best
+    return fit.theta(sol.x[:len(free)]), _ci(sol, fit), costs
 
 
 def _sparsity(z0: np.ndarray, nfree: int, args: tuple[Any, ...]) -> np.ndarray:
