@@ -79,12 +79,19 @@ def test_measured_current_drives_the_mechanics():
 
 
 def test_a_stepper_is_said_what_the_model_cannot_represent():
-    desc = {**KNOWN, "motor_kind": "stepper_chopper"}
+    gains = {"position_kp_1_s": 12.0, "speed_kp_a_s_per_m": 60.0, "speed_ki_a_per_m": 900.0,
+             "speed_feedforward": 0.8, "current_limit_a": 4.0}
+    desc = {**KNOWN, "motor_kind": "stepper_chopper",
+            "controller": {**KNOWN["controller"], **gains}}
     with pytest.raises(BenchError, match="needs a drive with a current loop.*stepper_chopper"):
         RC.calibrate_rig([synthetic(1, 200.0, stepper=True)], from_dict(desc), (),
                          "measured-current")
     cal = RC.calibrate_rig([synthetic(1, 200.0, stepper=True)], from_dict(desc))
+    # a stepper has no torque constant: its force per ampere is identified
+    assert cal["method"] == "described" and cal["fitted"] == ["force_per_a_n"]
+    assert cal["values"]["force_per_a_n"] == pytest.approx(1500.0, rel=0.1)
     assert any("load angle" in n and "chopper" in n for n in cal["notes"])
+    assert cal["fit_scores"][0]["current_a"]["ratio"] < 1.3     # |i| + offset, as logged
 
 
 def test_missing_set_point_and_current_are_not_available():
