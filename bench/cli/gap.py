@@ -89,12 +89,11 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.json, "--json", (".json",), stdout_ok=True)
     if args.report:
         check_output_dir(args.report, "--report")
-    from bench.gap.riggap import is_rig_calibration
-    if args.nominal and is_rig_calibration(args.nominal):
+    if _is_rig(args):
         return _rig(args)
     names = E.parse_list(args.effects)
     nominal = load_nominal(args.nominal)
-    log = load_log(args.log)
+    log = args.loaded_log         # read once, by _is_rig
     hold = load_log(args.holdout) if args.holdout else None
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
@@ -120,6 +119,27 @@ def run(args: argparse.Namespace) -> int:
         idx = write_report(res, js, Path(args.report))
         print(f"report: {idx}", file=sys.stderr if args.json == "-" else sys.stdout)
     return 0
+
+
+def _is_rig(args: argparse.Namespace) -> bool:
+    """Whether --nominal is another actuator's generic calibration; without one, a log
+    the thesis plant's diagnosis cannot take is refused with what it needs and where to
+    go instead."""
+    from bench import BenchError
+    from bench.gap.inputs import load_log
+    from bench.gap.needs import NEEDS, SYNC_RATE, missing
+    from bench.gap.riggap import is_rig_calibration
+    if args.nominal and is_rig_calibration(args.nominal):
+        return True
+    log = args.loaded_log = load_log(args.log)
+    lack = missing(log, NEEDS["gap: closed-loop re-simulation"])
+    # a log of the bench's own at another SYNC period is the thesis plant's to take
+    if missing(log, [n for n in NEEDS["gap: closed-loop re-simulation"] if n != SYNC_RATE]):
+        raise BenchError(f"{args.log}: the thesis plant's gap diagnosis not available: needs "
+                         f"{', '.join(lack)}; for another actuator: bench calibrate HEALTHY... "
+                         "--actuator DESC, then bench gap LOG --nominal CALIBRATION.json "
+                         "(docs/real-data.md)")
+    return False
 
 
 def _rig(args: argparse.Namespace) -> int:
