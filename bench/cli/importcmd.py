@@ -67,7 +67,16 @@ def run(args: argparse.Namespace) -> int:
     tr = import_table(args.table, mapping, args.sync_period, args.source_rate)
     tr.save(out)
     _describe(out, tr)
+    _availability(tr)
     return 0
+
+
+def _availability(tr: Trace) -> None:
+    """What the bench can do with such a trace, consumer by consumer (bench.gap.needs)."""
+    from bench.gap.needs import describe
+    print("what this log supports (bench.gap.needs):")
+    for line in describe(tr):
+        print(f"  {line}")
 
 
 def _split(args: argparse.Namespace) -> int:
@@ -93,6 +102,7 @@ def _split(args: argparse.Namespace) -> int:
     dts = sorted({round(float(tr.meta["sample_period_s"]), 9) for _, tr in parts})
     print(f"{outdir}: {len(parts)} traces split by {', '.join(keys)}; sample period(s) "
           + ", ".join(f"{d * 1e3:g} ms" for d in dts))
+    _availability(parts[0][1])
     return 0
 
 
@@ -106,7 +116,7 @@ def _describe(out: Path, tr: Trace) -> None:
                            "motor_angle_rad", "position_m", "current_demand_a")
                if s not in tr]
     if missing:
-        print("not mapped (what needs them is reported not available): " + ", ".join(missing))
+        print("not mapped: " + ", ".join(missing))
     from bench.bus.logs import integrity
     for line in integrity(tr.meta):
         print(f"{out}: {line}")

@@ -77,7 +77,13 @@ def choose_method(traces: Sequence[Trace], act: Actuator, method: str) -> str:
     return method
 
 
-def _start(traces: Sequence[Trace], act: Actuator) -> dict[str, float]:
+STARTS = ((10.0, 200.0), (2.0, 30.0), (30.0, 1000.0))
+"""Start points of a cascade fit: (position gain 1/s, speed-loop bandwidth rad/s); the
+fit from each runs and the lowest cost on the calibration logs is kept."""
+
+
+def _start(traces: Sequence[Trace], act: Actuator, kp: float = 10.0, wv: float = 200.0
+           ) -> dict[str, float]:
     """Start values of the unknowns, from the logs' scales (not fitted to them)."""
     cur = np.concatenate([np.asarray(t["current_a"], float) for t in traces
                           if _has(t, "current_a")] or [np.ones(1)])
@@ -86,11 +92,10 @@ def _start(traces: Sequence[Trace], act: Actuator) -> dict[str, float]:
     lead = act.values.get("lead_m") or 5e-3
     kf = 2.0 * math.pi / lead          # ~1 N m per A at the motor, direct drive
     mass = 3e-4 * (2.0 * math.pi / lead) ** 2   # a 3e-4 kg m^2 rotor, direct drive
-    wv = 200.0                          # rad/s speed-loop bandwidth
     return {"mass_kg": mass, "force_per_a_n": kf, "coulomb_n": 0.1 * kf * imax,
             "viscous_n_s_per_m": 0.01 * kf * imax / 0.02,
             "current_offset_a": float(np.min(cur)) if cur.size else 0.0,
-            "kp_1_s": 10.0, "kv_a_s_per_m": wv * mass / kf, "ki_a_per_m": 0.2 * wv * wv * mass / kf,
+            "kp_1_s": kp, "kv_a_s_per_m": wv * mass / kf, "ki_a_per_m": 0.2 * wv * wv * mass / kf,
             "feedforward": 1.0, "current_limit_a": 2.0 * imax, "current_tau_s": 0.0}
 
 
@@ -100,8 +105,8 @@ class _Fit:
     def __init__(self, values: dict[str, float | None], free: Sequence[str],
                  start: dict[str, float]) -> None:
         self.free = list(free)
-        self.fixed = {k: (v if v is not None else start[k]) for k, v in values.items()
-                      if k in RM.THETA}
+        self.fixed = {**RM.EXTRA, **{k: (v if v is not None else start[k])
+                                     for k, v in values.items() if k in RM.THETA}}
 
     def theta(self, z: np.ndarray) -> np.ndarray:
         v = dict(self.fixed)
@@ -177,13 +182,7 @@ def score(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s: fl
     nut position fitted within the first sample's noise: an initial condition, not a
     model value)."""
     fl = floors(tr)
-    dx0 = 0.0
-    if method != "measured-current":
-        sol = least_squares(_residual, np.zeros(1), bounds=(-X0_FLOORS, X0_FLOORS),
-                            args=(_Held(theta), [tr], [fl], act, method, period_s),
-                            max_nfev=30)
-        dx0 = float(sol.x[0]) * fl["position_m"]
-    sim = simulate(theta, tr, act, method, period_s, dx0)
+    sim = simulate(theta, tr, act, method, period_s, fit_x0(theta, tr, act, method, period_s))
     out = {}
     for s, y in sim.items():
         r = np.asarray(tr[s], float) - y
@@ -191,6 +190,24 @@ def score(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s: fl
         rms = float(np.sqrt(np.mean(r[ok] ** 2))) if ok.any() else float("nan")
         out[s] = {"rms": rms, "noise_floor": fl[s], "ratio": rms / fl[s]}
     return out
+
+
+def fit_x0(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s: float
+           ) -> float:
+    """The closed loop's initial nut position offset (m) from the first sample that fits
+    `tr` best, within X0_FLOORS position floors (0 for the measured-current drive)."""
+    if method == "measured-current":
+        return 0.0
+    fl = floors(tr)
+    sol = least_squares(_residual, np.zeros(1), bounds=(-X0_FLOORS, X0_FLOORS),
+                        args=(_Held(theta), [tr], [fl], act, method, period_s), max_nfev=30)
+    return float(sol.x[0]) * fl["position_m"]
+
+
+def theta_of(cal: dict[str, Any]) -> np.ndarray:
+    """The model vector of a calibration (`calibrate_rig`'s output)."""
+    v = {**RM.EXTRA, **cal["values"]}
+    return np.array([float(v[k]) for k in RM.THETA])
 
 
 def _free(act: Actuator, method: str) -> tuple[list[str], dict[str, float | None]]:
@@ -213,23 +230,8 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     method = choose_method(list(healthy) + list(holdout), act, method)
     period_s = act.controller.get("sample_period_s") or DEFAULT_PERIOD_S
     free, vals = _free(act, method)
-    fit = _Fit(vals, free, _start(healthy, act))
-    fl = [floors(t) for t in healthy]
     notes = _notes(act, method, period_s, vals)
-    ci: dict[str, list[float]] = {}
-    nx = 0 if method == "measured-current" else len(healthy)
-    if free or nx:
-        lo, hi = fit.bounds()
-        sol = least_squares(_residual, np.concatenate([fit.z0(), np.zeros(nx)]),
-                            bounds=(np.append(lo, [-X0_FLOORS] * nx),
-                                    np.append(hi, [X0_FLOORS] * nx)),
-                            args=(fit, healthy, fl, act, method, period_s), max_nfev=300,
-                            diff_step=1e-3)
-        z = sol.x[:len(free)]
-        ci = _ci(sol, fit)
-    else:
-        z = np.zeros(0)
-    theta = fit.theta(z)
+    theta, ci, starts = _fit_all(healthy, act, method, period_s, free, vals)
     values = {k: float(v) for k, v in zip(RM.THETA, theta, strict=True)}
     fit_scores = [score(theta, t, act, method, period_s) for t in healthy]
     held = [score(theta, t, act, method, period_s) for t in holdout]
@@ -242,10 +244,11 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     return {
         "model": "generic nut-level model (bench.gap.rigmodel)",
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,
+        "actuator_description": act.to_dict(),
         "method_text": METHOD_TEXT[method], "sample_period_s": period_s,
-        "values": values, "fitted": free, "ci95": ci,
-        "not_identified": [k for k, (lo, hi) in ci.items() if k not in LINEAR
-                           and hi > 10.0 * lo],
+        "values": values, "fitted": free, "ci95": ci, "start_costs": starts,
+        "not_identified": [k for k, (lo, hi) in ci.items() if lo is None or hi is None
+                           or (k not in LINEAR and hi > 10.0 * lo)],
         "described": {k: v for k, v in model_values(act).items() if v is not None},
         "fit_logs": [_src(t) for t in healthy], "fit_scores": fit_scores,
         "holdout_logs": [_src(t) for t in holdout], "holdout_scores": held,
@@ -259,7 +262,7 @@ METHOD_TEXT = {
     "fit-gains": "closed loop; the controller is unknown: a generic position/speed cascade "
                  "(saturation, sample time) fitted with the physical values",
     "measured-current": "no controller: the measured current drives the mechanics "
-                        "(re-started from the measured position every 25 samples)",
+                        "(re-started from the measured position and speed every 0.5 s)",
     "described": "closed loop with the described controller; physical values fitted",
 }
 
@@ -284,17 +287,66 @@ def summary(scores: Sequence[dict[str, dict[str, float]]]) -> dict[str, dict[str
     return out
 
 
-def _ci(sol: Any, fit: _Fit) -> dict[str, list[float]]:
+def _fit_all(healthy: Sequence[Trace], act: Actuator, method: str, period_s: float,
+             free: list[str], vals: dict[str, float | None]
+             ) -> tuple[np.ndarray, dict[str, list[float | None]], list[float]]:
+    """(theta, 95 % intervals, cost from each start) of the best of the fits from
+    `STARTS` (one start unless gains are fitted)."""
+    fl = [floors(t) for t in healthy]
+    nx = 0 if method == "measured-current" else len(healthy)
+    if not (free or nx):
+        return _Fit(vals, free, _start(healthy, act)).theta(np.zeros(0)), {}, []
+    best: tuple[float, Any, _Fit] | None = None
+    costs = []
+    for kp, wv in (STARTS if method == "fit-gains" else STARTS[:1]):
+        fit = _Fit(vals, free, _start(healthy, act, kp, wv))
+        lo, hi = fit.bounds()
+        z0 = np.concatenate([fit.z0(), np.zeros(nx)])
+        args = (fit, healthy, fl, act, method, period_s)
+        sol = least_squares(_residual, z0, bounds=(np.append(lo, [-X0_FLOORS] * nx),
+                                                   np.append(hi, [X0_FLOORS] * nx)),
+                            args=args, max_nfev=200, diff_step=1e-3,
+                            jac_sparsity=_sparsity(z0, len(free), args))
+        costs.append(float(sol.cost))
+        if best is None or sol.cost < best[0]:
+            best = (float(sol.cost), sol, fit)
+    assert best is not None
+    _, sol, fit = best
+    return fit.theta(sol.x[:len(free)]), _ci(sol, fit), costs
+
+
+def _sparsity(z0: np.ndarray, nfree: int, args: tuple[Any, ...]) -> np.ndarray:
+    """Which residuals each fitted value moves: the shared values all of them, a log's
+    initial position only that log's (so finite differences perturb all initial
+    positions at once)."""
+    fit, traces, fl, act, method, period_s = args
+    rows = [len(_residual(z0[:nfree], fit, [tr], [f], act, method, period_s))
+            for tr, f in zip(traces, fl, strict=True)]
+    sp = np.zeros((sum(rows), len(z0)), dtype=np.int8)
+    sp[:, :nfree] = 1
+    start = 0
+    for k, r in enumerate(rows):
+        if nfree + k < len(z0):
+            sp[start:start + r, nfree + k] = 1
+        start += r
+    return sp
+
+
+def _ci(sol: Any, fit: _Fit) -> dict[str, list[float | None]]:
     """95 % intervals from the Jacobian at the solution (Gauss-Newton covariance)."""
-    j = sol.jac
+    j = sol.jac.toarray() if hasattr(sol.jac, "toarray") else np.asarray(sol.jac)
     dof = max(len(sol.fun) - len(sol.x), 1)
     s2 = 2.0 * sol.cost / dof
     try:
         cov = np.linalg.pinv(j.T @ j) * s2
     except np.linalg.LinAlgError:
         return {}
-    out = {}
+    out: dict[str, list[float | None]] = {}
+    norms = np.linalg.norm(j, axis=0)
     for k, name in enumerate(fit.free):
+        if not norms[k] > 1e-9 * max(float(norms.max()), 1e-300):
+            out[name] = [None, None]      # no effect on the fit: not identified
+            continue
         half = min(1.96 * math.sqrt(max(cov[k, k], 0.0)), 30.0)
         z = sol.x[k]
         lo, hi = (z - half, z + half) if name in LINEAR else (10 ** (z - half), 10 ** (z + half))

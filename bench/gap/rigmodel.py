@@ -17,8 +17,11 @@ fraction of the controller's sample time) and sampled at the log's own instants:
   (time constant tau_i, 0: ideal). The set-point between two log samples is the straight
   line between them (it is a command, known at the log's instants only).
 - `current_driven`: the measured current (linear between samples) drives the mechanics
-  instead of a controller, in segments re-started from the measured position and the
-  speed of its central difference (a long open-loop integration would drift).
+  instead of a controller, in segments re-started from the measured position and speed
+  (a line fitted over +-20 ms; a long open-loop integration would drift).
+
+A position-locked resistance (`EXTRA`: a spall the balls roll over) adds
+F_b exp(-(x - x_b)^2 / 2 w^2) to the Coulomb friction; it is zero in a healthy model.
 
 The logged current is i + i_0 for a drive with a current loop; for a stepper with a
 chopper drive the logged current is taken as i_0 + |i| (the drive's sensor sees an
@@ -37,9 +40,12 @@ from numba import njit
 
 THETA = ("mass_kg", "force_per_a_n", "coulomb_n", "viscous_n_s_per_m", "current_offset_a",
          "kp_1_s", "kv_a_s_per_m", "ki_a_per_m", "feedforward", "current_limit_a",
-         "current_tau_s")
+         "current_tau_s", "bump_n", "bump_at_m", "bump_width_m")
 """The model's values, in this order in the vectors the compiled functions take."""
-M, KF, FC, C, I0, KP, KV, KI, FF, IMAX, TAU = range(len(THETA))
+M, KF, FC, C, I0, KP, KV, KI, FF, IMAX, TAU, BA, BX, BW = range(len(THETA))
+EXTRA = {"bump_n": 0.0, "bump_at_m": 0.0, "bump_width_m": 2e-3}
+"""Values no description gives: a position-locked force (N) opposing motion around one
+nut position (m) with a Gaussian width (m), zero in a healthy model (`bench.gap.riggap`)."""
 H_MAX = 2e-4            # s: the model's largest step
 
 
@@ -94,7 +100,10 @@ def _closed(th, stepper, t, sp, fext, ts, h, x0):  # pragma: no cover - compiled
                 integ = ni
         i = a * i + (1.0 - a) * icmd
         f = th[KF] * i + fext[max(k - 1, 0)]
-        x, v = _mech(x, v, f, th[M], th[FC], th[C], h)
+        fc = th[FC]
+        if th[BA] != 0.0:
+            fc += th[BA] * math.exp(-0.5 * ((x - th[BX]) / th[BW]) ** 2)
+        x, v = _mech(x, v, f, th[M], fc, th[C], h)
         if not math.isfinite(x) or abs(x) > 1e3:
             break
         step += 1
@@ -103,17 +112,14 @@ def _closed(th, stepper, t, sp, fext, ts, h, x0):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _driven(th, t, cur, xm, fext, seg, h):  # pragma: no cover - compiled
+def _driven(th, t, cur, x0, v0, fext, seg, h):  # pragma: no cover - compiled
     """`current_driven`'s compiled core: the position at the instants `t`."""
     n = len(t)
     xo = np.full(n, np.nan)
     for k0 in range(0, n - 1, seg):
         k1 = min(k0 + seg, n - 1)
-        x = xm[k0]
-        if k0 > 0:
-            v = (xm[k0 + 1] - xm[k0 - 1]) / (t[k0 + 1] - t[k0 - 1])
-        else:
-            v = (xm[1] - xm[0]) / (t[1] - t[0])
+        x = x0[k0]
+        v = v0[k0]
         xo[k0] = x
         for k in range(k0, k1):
             nsub = max(1, int(math.ceil((t[k + 1] - t[k]) / h)))
@@ -144,12 +150,39 @@ def closed_loop(theta: np.ndarray, stepper: bool, t: np.ndarray, setpoint: np.nd
 
 
 def current_driven(theta: np.ndarray, t: np.ndarray, current: np.ndarray,
-                   position: np.ndarray, load_n: np.ndarray, segment: int = 25) -> np.ndarray:
+                   position: np.ndarray, load_n: np.ndarray, segment_s: float = 0.5
+                   ) -> np.ndarray:
     """The position (m) the mechanics give at the instants `t` when the measured current
-    drives them, re-started every `segment` samples from the measurement (module doc)."""
-    return _driven(np.asarray(theta, float), np.asarray(t, float),
-                   np.nan_to_num(np.asarray(current, float)), np.asarray(position, float),
-                   np.nan_to_num(np.asarray(load_n, float)), int(segment), H_MAX)
+    drives them, re-started every `segment_s` from the measured position and speed
+    (`restart_state`) (module doc)."""
+    t = np.asarray(t, float)
+    dt = float(np.median(np.diff(t)))
+    seg = max(2, round(segment_s / dt))
+    x0, v0 = np.zeros(len(t)), np.zeros(len(t))
+    starts = np.arange(0, len(t), seg)
+    x0[starts], v0[starts] = restart_state(t, np.asarray(position, float),
+                                           max(1, round(0.02 / dt)), starts)
+    return _driven(np.asarray(theta, float), t, np.nan_to_num(np.asarray(current, float)),
+                   x0, v0, np.nan_to_num(np.asarray(load_n, float)), seg, H_MAX)
+
+
+def restart_state(t: np.ndarray, x: np.ndarray, half: int, at: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Position and speed at the samples `at`, each from a straight line fitted over the
+    samples within +-`half` of it (a central fit: exact on a parabola's slope, and it
+    averages the noise that a two-point difference would multiply)."""
+    n = len(t)
+    xs, vs = np.empty(len(at)), np.empty(len(at))
+    for j, k in enumerate(at):
+        a, b = max(0, k - half), min(n, k + half + 1)
+        tt, yy = t[a:b] - t[k], x[a:b]
+        ok = np.isfinite(yy)
+        if ok.sum() < 2:
+            xs[j], vs[j] = x[k], 0.0
+            continue
+        v, c = np.polyfit(tt[ok], yy[ok], 1)
+        xs[j], vs[j] = c, v
+    return xs, vs
 
 
 def noise_floor(y: np.ndarray) -> float:
