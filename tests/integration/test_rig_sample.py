@@ -113,3 +113,19 @@ def test_study_on_the_sample_writes_the_report(tmp_path, capsys):
     assert main(["rig", "study", str(SAMPLE), "--calibrate-runs", "1,2", "--holdout-runs",
                  "2,3", "--out", str(out)]) == 2
     assert "overlap" in capsys.readouterr().err
+
+
+def test_imported_traces_give_the_same_baseline(tmp_path, sample):
+    """`bench import --split-by load,run,group` traces -> the same cycles and thresholds as
+    the table itself."""
+    from bench.cli import main
+    assert main(["import", str(SAMPLE / "normal_load40_runs1-4.csv.xz"), "--map",
+                 str(Path(__file__).resolve().parents[2] / "bench" / "actuators"
+                     / "cranfield_map.json"),
+                 "--split-by", "load,run,group", "-o", str(tmp_path)]) == 0
+    cycles = [c for p in sorted(tmp_path.glob("*.parquet")) for c in read_cycles(p)]
+    assert len(cycles) == 20 and {c.load for c in cycles} == {40.0}
+    cal = [c for c in cycles if c.run in (1, 2)]
+    thr = P.calibrate(cal, lead_mm=LEAD_MM).thresholds
+    for k, v in sample[1].items():
+        assert thr[k] == pytest.approx(v, rel=1e-6), k
