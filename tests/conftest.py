@@ -39,6 +39,8 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_logs_damaged.py::test_gap_noise_free_log_with_a_lost_sync_has_no_significant_gap",
     "tests/integration/test_logs_damaged.py::test_hums_report_bridges_counts_and_keeps_the_intact_numbers",
     "tests/integration/test_minimal_node.py::test_encoder_resolution_from_the_flag",
+    "tests/integration/test_rig_calibrate.py::test_cli_calibrate_then_gap_finds_a_localised_resistance",
+    "tests/integration/test_rig_calibrate.py::test_unknown_cascade_gains_recovered_at_25_hz",
     "tests/integration/test_minimal_node.py::test_gap_excitation_load_needs_the_load_objects",
     "tests/integration/test_minimal_node.py::test_realtime_run_reports_what_is_missing_and_completes",
     "tests/integration/test_state_runlogs.py::test_runs_leave_no_files_behind",
