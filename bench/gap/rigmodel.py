@@ -36,7 +36,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from plant_rt.jit import njit
 
 THETA = ("mass_kg", "force_per_a_n", "coulomb_n", "viscous_n_s_per_m", "current_offset_a",
          "kp_1_s", "kv_a_s_per_m", "ki_a_per_m", "feedforward", "current_limit_a",
