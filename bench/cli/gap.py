@@ -9,6 +9,10 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bench.trace import Trace
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
@@ -93,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         return _rig(args)
     names = E.parse_list(args.effects)
     nominal = load_nominal(args.nominal)
-    log = args.loaded_log         # read once, by _is_rig
+    log = _thesis_log(args)
     hold = load_log(args.holdout) if args.holdout else None
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
@@ -122,16 +126,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _is_rig(args: argparse.Namespace) -> bool:
-    """Whether --nominal is another actuator's generic calibration; without one, a log
-    the thesis plant's diagnosis cannot take is refused with what it needs and where to
-    go instead."""
+    """Whether --nominal is another actuator's generic calibration (bench.gap.riggap)."""
+    from bench.gap.riggap import is_rig_calibration
+    return bool(args.nominal) and is_rig_calibration(args.nominal)
+
+
+def _thesis_log(args: argparse.Namespace) -> Trace:
+    """The log for the thesis plant's diagnosis; one it cannot take is refused with what
+    it needs and where to go instead."""
     from bench import BenchError
     from bench.gap.inputs import load_log
     from bench.gap.needs import NEEDS, SYNC_RATE, missing
-    from bench.gap.riggap import is_rig_calibration
-    if args.nominal and is_rig_calibration(args.nominal):
-        return True
-    log = args.loaded_log = load_log(args.log)
+    log = load_log(args.log)
     lack = missing(log, NEEDS["gap: closed-loop re-simulation"])
     # a log of the bench's own at another SYNC period is the thesis plant's to take
     if missing(log, [n for n in NEEDS["gap: closed-loop re-simulation"] if n != SYNC_RATE]):
@@ -139,7 +145,7 @@ def _is_rig(args: argparse.Namespace) -> bool:
                          f"{', '.join(lack)}; for another actuator: bench calibrate HEALTHY... "
                          "--actuator DESC, then bench gap LOG --nominal CALIBRATION.json "
                          "(docs/real-data.md)")
-    return False
+    return log
 
 
 def _rig(args: argparse.Namespace) -> int:
