@@ -1,0 +1,210 @@
+"""Fleet benchmark (issue 13): ingest throughput on 1 and 2 workers, a synthetic fleet end
+to end (synth + ingest) with the peak memory of the process tree, `bench fleet status`
+on that store and on a 10,000-run store, bytes per stored run.
+
+Every stage runs the real CLI (`python -m bench fleet ...`) as a subprocess, timed on the
+wall clock; the peak RSS is the largest sum of the resident sets of the stage's process
+and all its descendants, sampled every 0.2 s from /proc.
+
+    python benchmarks/bench_fleet.py --actuators 30 --days 20 --write docs/performance.md
+    python benchmarks/bench_fleet.py --actuators 100 --days 100     # the full 10,000 logs
+
+The 10,000-run store for the status timing is built from the measured store by copying
+its runs under new digests and actuator ids (a status reads only the stored rows).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from perfdoc import write_section  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _tree_rss(pid: int) -> int:
+    """Resident set of `pid` and its descendants, bytes."""
+    kids: dict[int, list[int]] = {}
+    for d in os.listdir("/proc"):
+        if not d.isdigit():
+            continue
+        try:
+            with open(f"/proc/{d}/stat") as f:
+                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        kids.setdefault(ppid, []).append(int(d))
+    total, todo = 0, [pid]
+    while todo:
+        p = todo.pop()
+        todo.extend(kids.get(p, []))
+        try:
+            with open(f"/proc/{p}/status") as f:
+                for line in f:
+                    if line.startswith("VmRSS:"):
+                        total += int(line.split()[1]) * 1024
+        except OSError:
+            pass
+    return total
+
+
+def run(args: list[str]) -> tuple[float, int, str]:
+    """Wall time, peak tree RSS and stdout of `python -m bench fleet ARGS`."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "fleet", *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    peak = [0]
+
+    def sample() -> None:
+        while proc.poll() is None:
+            peak[0] = max(peak[0], _tree_rss(proc.pid))
+            time.sleep(0.2)
+
+    th = threading.Thread(target=sample, daemon=True)
+    th.start()
+    out, _ = proc.communicate()
+    dt = time.perf_counter() - t0
+    th.join()
+    if proc.returncode:
+        raise SystemExit(f"bench fleet {' '.join(args)}: exit {proc.returncode}")
+    return dt, peak[0], out
+
+
+def grow_store(src: Path, dst: Path, target: int) -> int:
+    """A copy of `src` with its runs copied under new digests and actuator ids until it
+    holds `target` runs (for the status timing)."""
+    import duckdb
+    shutil.copy(src, dst)
+    con = duckdb.connect(str(dst))
+    n = con.execute("SELECT count(*) FROM runs").fetchone()[0]
+    k = 1
+    while n < target:
+        con.execute("INSERT INTO runs SELECT * REPLACE (digest || ?  AS digest, "
+                    "actuator_id || ? AS actuator_id) FROM runs WHERE NOT contains(digest, '/')"
+                    f" LIMIT {target - n}", [f"/{k}", f"-copy{k}"])
+        n = con.execute("SELECT count(*) FROM runs").fetchone()[0]
+        k += 1
+    con.close()
+    return int(n)
+
+
+def main() -> None:  # long: the benchmark's stages in order, each timed
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--actuators", type=int, default=30)
+    ap.add_argument("--days", type=int, default=20)
+    ap.add_argument("--scaling-logs", type=int, default=120,
+                    help="logs ingested on 1 and on 2 workers for the speed-up")
+    ap.add_argument("--status-runs", type=int, default=10_000)
+    ap.add_argument("--dir", default=None, help="work directory (default: a temporary one)")
+    ap.add_argument("--write", metavar="PATH", help="update the Fleet section of this file")
+    ap.add_argument("--json", metavar="PATH")
+    a = ap.parse_args()
+    work = Path(a.dir or tempfile.mkdtemp(prefix="bench-fleet-"))
+    work.mkdir(parents=True, exist_ok=True)
+    logs, db = work / "logs", work / "fleet.duckdb"
+    n_logs = a.actuators * a.days
+    res: dict[str, float | int | str] = {"actuators": a.actuators, "days": a.days,
+                                         "logs": n_logs}
+    load0 = os.getloadavg()[0]
+    t_synth, rss_synth, _ = run(["synth", "--actuators", str(a.actuators), "--days",
+                                 str(a.days), "--out", str(logs), "--seed", "1",
+                                 "--workers", "2"])
+    res.update(synth_s=t_synth, synth_rss=rss_synth)
+    print(f"synth {n_logs} logs: {t_synth:.1f} s, peak {rss_synth / 2**20:.0f} MiB", flush=True)
+    files = sorted(logs.rglob("*.log"))[:a.scaling_logs]
+    sub = work / "scaling"
+    sub.mkdir(exist_ok=True)
+    for f in files:
+        (sub / f"{f.parent.name}_{f.name}").symlink_to(f)
+    for w in (1, 2):
+        sdb = work / f"scaling-{w}.duckdb"
+        sdb.unlink(missing_ok=True)
+        t, rss, _ = run(["ingest", str(sub), "--db", str(sdb), "--workers", str(w),
+                         "--actuator", "scaling"])
+        res[f"ingest{w}_s"], res[f"ingest{w}_rss"] = t, rss
+        print(f"ingest {len(files)} logs on {w} worker(s): {t:.1f} s "
+              f"({len(files) / t:.2f} logs/s), peak {rss / 2**20:.0f} MiB", flush=True)
+    res["scaling_logs"] = len(files)
+    db.unlink(missing_ok=True)
+    t_ing, rss_ing, _ = run(["ingest", str(logs), "--db", str(db), "--workers", "2"])
+    res.update(ingest_s=t_ing, ingest_rss=rss_ing)
+    print(f"ingest {n_logs} logs on 2 workers: {t_ing:.1f} s, peak "
+          f"{rss_ing / 2**20:.0f} MiB", flush=True)
+    t_again, _, _ = run(["ingest", str(logs), "--db", str(db), "--workers", "2"])
+    res["reingest_s"] = t_again
+    t_stat, _, out = run(["status", "--db", str(db)])
+    res["status_s"] = t_stat
+    big = work / "big.duckdb"
+    res["status_runs"] = grow_store(db, big, a.status_runs)
+    t_big, _, _ = run(["status", "--db", str(big)])
+    res["status_big_s"] = t_big
+    exp = work / "export"
+    run(["export", "--db", str(db), "--out", str(exp)])
+    res["db_bytes"] = db.stat().st_size
+    res["parquet_runs_bytes"] = (exp / "runs.parquet").stat().st_size
+    res["log_bytes"] = sum(f.stat().st_size for f in logs.rglob("*.log"))
+    res["load_start"], res["load_end"] = load0, os.getloadavg()[0]
+    print(json.dumps(res, indent=1))
+    if a.json:
+        Path(a.json).write_text(json.dumps(res, indent=1))
+    if a.write:
+        write_section(a.write, section(res))
+
+
+def section(r: dict) -> str:  # type: ignore[type-arg]
+    n = r["logs"]
+    s1, s2 = r["scaling_logs"] / r["ingest1_s"], r["scaling_logs"] / r["ingest2_s"]
+    e2e = r["synth_s"] + r["ingest_s"]
+    mib = 2 ** 20
+    return f"""## Fleet (issue 13)
+
+`python benchmarks/bench_fleet.py --actuators {r['actuators']} --days {r['days']} --write docs/performance.md`
+(every stage the real `python -m bench fleet ...` CLI as a subprocess, wall clock, peak
+RSS of the process tree; 2 vCPU Xeon shared VM, load average {r['load_start']:.1f} at the
+start and {r['load_end']:.1f} at the end: other engineers' jobs ran at the same time).
+A log is one daily ground test: the thesis' 2 Hz sine, 4 periods, 2 s, 12,001 candump
+lines, {r['log_bytes'] / n / 1e3:.0f} kB.
+
+| stage | logs | wall (s) | logs/s | peak RSS (MiB) |
+|---|---:|---:|---:|---:|
+| ingest, 1 worker | {r['scaling_logs']} | {r['ingest1_s']:.1f} | {s1:.2f} | {r['ingest1_rss'] / mib:.0f} |
+| ingest, 2 workers | {r['scaling_logs']} | {r['ingest2_s']:.1f} | {s2:.2f} | {r['ingest2_rss'] / mib:.0f} |
+| synth, 2 workers | {n} | {r['synth_s']:.1f} | {n / r['synth_s']:.2f} | {r['synth_rss'] / mib:.0f} |
+| ingest, 2 workers | {n} | {r['ingest_s']:.1f} | {n / r['ingest_s']:.2f} | {r['ingest_rss'] / mib:.0f} |
+| ingest again (all skipped by digest) | {n} | {r['reingest_s']:.1f} | | |
+| `fleet status`, {r['actuators']} actuators | {n} runs | {r['status_s']:.2f} | | |
+| `fleet status`, {r['status_runs']} runs | {r['status_runs']} runs | {r['status_big_s']:.2f} | | |
+
+Speed-up of the second worker: {s2 / s1:.2f} x ({s2 / s1 / 2:.2f} per worker). Both
+times include the workers' start (spawn, imports, numba compilation, the monitoring
+model's gain fit: paid once per worker per ingest).
+End to end, synth + ingest of {n} logs: {e2e:.0f} s ({n / e2e:.2f} logs/s).
+Store: {r['db_bytes'] / n:.0f} bytes per run in the DuckDB file, {r['parquet_runs_bytes'] / n:.0f}
+bytes per run as Parquet. The `fleet status` on {r['status_runs']} runs reads a store
+grown from the measured one by copying its runs under new digests and actuator ids.
+{_full(n, e2e)}
+"""
+
+
+def _full(n: int, e2e: float) -> str:
+    if n >= 10_000:
+        return f"The {n} logs are the full run, measured: {e2e / 60:.1f} min."
+    return (f"10,000 logs end to end was **not run**: at the rate above it is an "
+            f"extrapolation, {10_000 / (n / e2e) / 60:.0f} min on this machine in this "
+            "load; the command for the full run is "
+            "`python benchmarks/bench_fleet.py --actuators 100 --days 100`.")
+
+
+if __name__ == "__main__":
+    main()
