@@ -29,6 +29,8 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_ecu_reliability.py::test_a_disk_filling_up_during_the_run_fails_it_clearly",
     "tests/integration/test_ecu_reliability.py::test_a_second_ecu_is_refused_and_the_first_run_stays_clean",
     "tests/integration/test_ecu_reliability.py::test_a_stalled_ecu_is_not_a_silent_success",
+    "tests/integration/test_fleet.py::test_ingest_killed_mid_way_resumes_without_loss_or_duplicates",
+    "tests/integration/test_fleet.py::test_synth_ingest_status_report_export",
     "tests/integration/test_gap_cli.py::test_gap_bench_smoke",
     "tests/integration/test_gap_cli.py::test_import_calibrate_gap",
     "tests/integration/test_hub_bad_client.py",

@@ -44,7 +44,8 @@ from bench.trace import Trace
 LOG_SUFFIXES = (".log", ".npz", ".csv", ".parquet")
 BATCH_RUNS = 64
 BATCH_S = 5.0
-"""A batch is committed after BATCH_RUNS results or BATCH_S seconds, whichever first."""
+"""A batch is committed after BATCH_RUNS results (``$BENCH_FLEET_BATCH`` overrides it)
+or BATCH_S seconds, whichever comes first."""
 
 
 def usage_columns(trace: Trace) -> dict[str, Any]:
@@ -212,10 +213,11 @@ class _Batch:
         self.store, self.open, self.done = store, [], []   # type: ignore[var-annotated]
         self.stored = 0
         self.t_last = time.monotonic()
+        self.size = max(1, int(os.environ.get("BENCH_FLEET_BATCH") or BATCH_RUNS))
 
     def add(self, result: dict[str, Any]) -> None:
         self.open.append(result)
-        if len(self.open) >= BATCH_RUNS or time.monotonic() - self.t_last > BATCH_S:
+        if len(self.open) >= self.size or time.monotonic() - self.t_last > BATCH_S:
             self.flush()
 
     def flush(self) -> None:
