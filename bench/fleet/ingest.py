@@ -154,7 +154,7 @@ def ingest_one(job: tuple[str, str, str | None]) -> dict[str, Any]:
     tr = a.trace
     row: dict[str, Any] = {
         "digest": dig, "actuator_id": actuator_id(trace, path, given),
-        "run_time": dt.datetime.fromtimestamp(run_time(path, trace), dt.timezone.utc)
+        "run_time": dt.datetime.fromtimestamp(run_time(path, trace), dt.UTC)
         .replace(tzinfo=None),
         "path": str(path.resolve()), "bytes": path.stat().st_size, "rows": len(tr),
         "duration_s": len(tr) * tr.dt if len(tr) > 1 else 0.0, "mode": _mode(tr),

@@ -26,6 +26,7 @@ from bench.fleet.status import (
     DAY_S,
     ActuatorStatus,
     fleet_status,
+    floats,
     judged_ci,
     rul_text,
     urgency,
@@ -98,7 +99,7 @@ def _slug(ident: str) -> str:
 
 
 def _when(t_s: float) -> str:
-    return dt.datetime.fromtimestamp(t_s, dt.timezone.utc).strftime("%Y-%m-%d %H:%M")
+    return dt.datetime.fromtimestamp(t_s, dt.UTC).strftime("%Y-%m-%d %H:%M")
 
 
 def _head(title: str) -> list[str]:
@@ -126,7 +127,7 @@ def _overview(rows: list[ActuatorStatus], store: Any) -> str:
         for k, (st, why) in enumerate(inspect, 1):
             p.append(f"<tr><td>{k}</td>{_id_cell(st)}<td><span class='v {st.verdict}'>"
                      f"{st.verdict}</span></td><td>{st.ci_last:.3f}</td>"
-                     f"<td>{_slope(st)}</td><td>{e(rul_text(st))}</td><td>{e(why)}</td></tr>")
+                     f"<td>{_slope(st)}</td><td>{e(rul_text(st))}</td><td>{e(why or '')}</td></tr>")
         p.append("</table>")
     else:
         p.append("<p>No actuator needs an inspection this week.</p>")
@@ -137,7 +138,7 @@ def _overview(rows: list[ActuatorStatus], store: Any) -> str:
         for st, why in watch:
             p.append(f"<tr>{_id_cell(st)}<td><span class='v {st.verdict}'>{st.verdict}"
                      f"</span></td><td>{st.ci_last:.3f}</td><td>{_slope(st)}</td>"
-                     f"<td>{e(why)}</td></tr>")
+                     f"<td>{e(why or '')}</td></tr>")
         p.append("</table>")
     p.append("<h2>Fleet</h2><img alt='Ci of every actuator' src='figures/fleet-ci.png'>")
     p.append("<table><tr><th>actuator</th><th>tests</th><th>last test (UTC)</th>"
@@ -227,10 +228,7 @@ def _level(v: Any) -> int:
     return LEVELS.index(v) if v in LEVELS else -1
 
 
-def _f(col: Any) -> np.ndarray:
-    if isinstance(col, np.ma.MaskedArray):
-        return np.asarray(col.astype(float).filled(np.nan), dtype=float)
-    return np.asarray(col, dtype=float)
+_f = floats
 
 
 def _levels(ax: Any) -> None:

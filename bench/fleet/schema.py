@@ -57,7 +57,7 @@ def _v1(con: Any) -> None:
 
 def _utc_now() -> dt.datetime:
     """Now, UTC, without a zone (the store's times are all UTC)."""
-    return dt.datetime.now(dt.timezone.utc).replace(tzinfo=None)
+    return dt.datetime.now(dt.UTC).replace(tzinfo=None)
 
 
 def _v2(con: Any) -> None:

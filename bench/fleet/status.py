@@ -108,7 +108,7 @@ def rul_of(t_s: np.ndarray, ci: np.ndarray) -> tuple[float, tuple[float, float],
 
 
 def _date(t_s: float) -> str:
-    return dt.datetime.fromtimestamp(t_s, dt.timezone.utc).strftime("%Y-%m-%d")
+    return dt.datetime.fromtimestamp(t_s, dt.UTC).strftime("%Y-%m-%d")
 
 
 def fleet_status(store: Any, n_trend: int = N_TREND) -> list[ActuatorStatus]:
@@ -118,8 +118,8 @@ def fleet_status(store: Any, n_trend: int = N_TREND) -> list[ActuatorStatus]:
     if not len(ids):
         return []
     t_all = np.asarray(s["run_time"], dtype=float)
-    ci_all = judged_ci(_floats(s["ci"]), _floats(s["ci_harmonic"]))
-    life_all = _floats(s["life_consumed"])
+    ci_all = judged_ci(floats(s["ci"]), floats(s["ci_harmonic"]))
+    life_all = floats(s["life_consumed"])
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
     ends = np.r_[starts[1:], len(ids)]
     out = []
@@ -135,10 +135,10 @@ def fleet_status(store: Any, n_trend: int = N_TREND) -> list[ActuatorStatus]:
     return out
 
 
-def _floats(col: Any) -> np.ndarray:
-    """A numpy column (masked where NULL) as floats with NaN for NULL."""
+def floats(col: Any) -> np.ndarray:
+    """A fetched column (masked where NULL) as floats with NaN for NULL."""
     if isinstance(col, np.ma.MaskedArray):
-        return np.asarray(col.astype(float).filled(np.nan), dtype=float)
+        return np.asarray(np.ma.filled(col.astype(float), np.nan), dtype=float)
     return np.asarray(col, dtype=float)
 
 
@@ -169,7 +169,7 @@ HEADER = ("actuator", "tests", "last test (UTC)", "level", "Ci", "trend Ci/day",
 def format_table(rows: list[ActuatorStatus]) -> str:
     """The status lines, one per actuator, with a header."""
     body = [(st.ident, str(st.tests),
-             dt.datetime.fromtimestamp(st.last_time_s, dt.timezone.utc).strftime(
+             dt.datetime.fromtimestamp(st.last_time_s, dt.UTC).strftime(
                  "%Y-%m-%d %H:%M"), st.verdict,
              "-" if not math.isfinite(st.ci_last) else f"{st.ci_last:.3f}",
              "-" if not math.isfinite(st.slope_per_day) else f"{st.slope_per_day:+.4f}",

@@ -39,7 +39,7 @@ GROUND_TEST_CYCLES = 4.0
 LIFE_DAYS_FRAC = (0.6, 4.0)
 """An actuator's life in days, as a fraction of the synthetic window D: some reach
 their end of life inside the window, most do not."""
-EPOCH = dt.datetime(2026, 1, 5, tzinfo=dt.timezone.utc)
+EPOCH = dt.datetime(2026, 1, 5, tzinfo=dt.UTC)
 """Day 0 of a synthetic fleet (a Monday)."""
 SCHEDULE_FIELDS = ("schedule.backlash_growth", "schedule.friction_growth",
                    "schedule.preload_start_n", "schedule.preload_zero_frac")

@@ -104,7 +104,7 @@ def test_status_trend_and_rul_over_days(tmp_path):
     days = np.arange(40)
     ci = np.where(days < 20, 1.0, 1.0 - 0.02 * (days - 20))   # 0.93 at day 23.5
     with Store(tmp_path / "f.duckdb") as st:
-        st.write([run_row(int(k), "A1", float(c)) for k, c in zip(days[:32], ci[:32])])
+        st.write([run_row(int(k), "A1", float(c)) for k, c in zip(days[:32], ci[:32], strict=True)])
         st.write([run_row(int(k), "B2", 1.0) for k in days[:5]])
         rows = T.fleet_status(st)
     a, b = rows
