@@ -94,10 +94,12 @@ class Engine:
         if closed:                            # closed while starting
             self._shutdown()
 
-    def client(self) -> Any:
+    def client(self, announce: bool | None = None) -> Any:
         """The started `distributed.Client`; a cluster that does not start (or a
-        scheduler that cannot be reached) is a BenchError, not a hang."""
-        self._thread.join(self.timeout + 5.0)
+        scheduler that cannot be reached) is a BenchError, not a hang. With `announce`
+        (default: the engine's) the dashboard link is printed on stderr, once per
+        process."""
+        self._thread.join(1.5 * self.timeout + 10.0)
         if self._thread.is_alive() or self._error is not None or self._client is None:
             why = ("timed out" if self._thread.is_alive() else
                    f"{type(self._error).__name__}: {self._error}")
@@ -107,7 +109,7 @@ class Engine:
             raise BenchError(f"the Dask workers did not start ({why}); a script using "
                              "bench.gap or bench.hums with workers > 1 needs an `if "
                              "__name__ == '__main__':` guard, or use workers=1") from None
-        if self.announce:
+        if self.announce if announce is None else announce:
             link = self._client.dashboard_link
             if link not in _shown:
                 _shown.add(link)

@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import re
 import uuid
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from tqdm import tqdm
@@ -37,6 +38,38 @@ from bench import BenchError
 from bench.cluster import Engine, default_workers, scheduler_address
 
 RETRIES = 1
+
+
+class _Session:
+    """One cluster shared by the `run_all` calls inside `session()` (started lazily)."""
+
+    def __init__(self, workers: int | None, scheduler: str | None) -> None:
+        self.workers = workers
+        self.scheduler = scheduler_address(scheduler)
+        self.engine: Engine | None = None
+
+    def get(self, workers: int) -> Engine:
+        if self.engine is None:
+            self.engine = Engine(self.workers or workers, self.scheduler)
+        return self.engine
+
+
+_SESSIONS: list[_Session] = []
+
+
+@contextmanager
+def session(workers: int | None = None, scheduler: str | None = None) -> Iterator[None]:
+    """Every `run_all` inside (that does not run in-process) shares one cluster, started
+    at the first that needs it and stopped at the end: a command that calls `run_all`
+    several times (calibration, then the campaign's runs) starts its workers once."""
+    s = _Session(workers, scheduler)
+    _SESSIONS.append(s)
+    try:
+        yield
+    finally:
+        _SESSIONS.remove(s)
+        if s.engine is not None:
+            s.engine.close()
 
 
 def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None = None,
@@ -76,12 +109,17 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
             for k, job in enumerate(jobs):
                 done(k, fn(job))
             return results
-        with Engine(n, addr, announce=progress) as engine:
-            client = engine.client()          # prints the dashboard link before the bar
+        shared = _SESSIONS[-1] if _SESSIONS and _SESSIONS[-1].scheduler == addr else None
+        engine = shared.get(n) if shared is not None else Engine(n, addr)
+        try:
+            client = engine.client(announce=progress)   # the dashboard link before the bar
             bar = new_bar()
             _on_dask(client, fn, jobs, done, desc, retries,
                      None if initializer is None else (initializer, initargs),
-                     own_cluster=engine.cluster is not None)
+                     own_cluster=engine.cluster is not None and shared is None)
+        finally:
+            if shared is None:
+                engine.close()
         return results
     finally:
         if bar is not None:
@@ -186,4 +224,5 @@ def ensure_started(pool: Pool) -> None:
     pool.started()
 
 
-__all__ = ["RETRIES", "Pool", "default_workers", "ensure_started", "make_pool", "run_all"]
+__all__ = ["RETRIES", "Pool", "default_workers", "ensure_started", "make_pool", "run_all",
+           "session"]

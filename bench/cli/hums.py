@@ -228,8 +228,10 @@ def run_rul(args: argparse.Namespace) -> int:
     from bench.hums import rul_run as R
     from bench.hums.table import replace_section
     _check_workers(args)
-    res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
-                    workers=args.workers, scheduler=args.scheduler)
+    from bench.workers import session
+    with session(args.workers, args.scheduler):     # one cluster: the runs, calibration
+        res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
+                        workers=args.workers, scheduler=args.scheduler)
     rows = R.rows(res)
     _print_rows(rows)
     print(f"done in {res.elapsed_s:.1f} s")
@@ -250,8 +252,10 @@ def run_campaign(args: argparse.Namespace) -> int:
     _check_workers(args)
     if args.runs < 1 or args.healthy < 0:
         raise BenchError("--runs must be >= 1 and --healthy >= 0")
-    res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args), args.workers,
-                         scheduler=args.scheduler)
+    from bench.workers import session
+    with session(args.workers, args.scheduler):     # one cluster: calibration, runs
+        res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args),
+                             args.workers, scheduler=args.scheduler)
     text = R.campaign_markdown(res)
     print(text)
     paths = R.campaign_figure(res, args.figures) if args.figures else []

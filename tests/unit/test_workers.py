@@ -66,3 +66,11 @@ def test_task_keys_are_readable_on_the_dashboard():
     assert _slug("hums sweep") == "hums-sweep"
     assert _slug("gap-bench") == "gap-bench"
     assert _slug("  ") == "job"
+
+
+def test_session_starts_nothing_for_in_process_jobs():
+    from bench.workers import _SESSIONS, session
+    with session(2):
+        assert run_all(_square, [3], workers=2, progress=False) == [9]
+        assert _SESSIONS[-1].engine is None         # one job: no cluster was started
+    assert not _SESSIONS
