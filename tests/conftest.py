@@ -47,6 +47,7 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_updown_state.py::test_corrupt_hub_record_in_up_and_run",
     "tests/integration/test_updown_state.py::test_two_concurrent_ups_start_one_hub_and_one_plant",
     "tests/integration/test_updown_state.py::test_up_ignores_a_stale_plant_record_of_a_reused_pid",
+    "tests/integration/test_workers_dask.py",
     "tests/system/test_wheel.py",
     "tests/unit/test_figures_api.py",
     "tests/unit/test_gap_diagnose.py::test_each_effect_alone_is_found",
