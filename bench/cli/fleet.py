@@ -33,7 +33,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         q.add_argument("--workers", type=int, default=None,
                        help="worker processes (default: 2, or 1 on a one-core machine)")
         q.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                       help="a Dask scheduler to send the work to (needs the Dask pool)")
+                       help="a Dask scheduler address to send the work to (default: "
+                       "$BENCH_DASK_SCHEDULER, else a LocalCluster on 127.0.0.1)")
 
     q = s.add_parser("ingest", help="ingest logs into the store",
                      description="Read candump logs and trace tables (files, directories "

@@ -14,8 +14,9 @@ killed ingest loses only its open batch, and the next ingest redoes exactly thos
 A log that cannot be read or graded is stored in ``failures`` with its one-line error
 (and skipped next time, by digest) and the ingest goes on.
 
-The actuator id, in order: the log's own (``actuator_id`` or ``serial_number`` in the
-decoded trace's metadata, once the logs carry the 0x1018 serial number), else
+The actuator id, in order: the log's own (``actuator_id``, ``actuator_serial`` or
+``serial_number`` in the decoded trace's metadata: the 0x1018 serial number the ECU
+reads by SDO, once the log decoder reports it), else
 ``--actuator``, else the name of the file's parent directory.
 The run time: the first time stamp of a candump log (the bus clock, UTC), else a trace
 table's ``run_time``/``start_time`` metadata (epoch seconds or ISO 8601), else the
@@ -27,7 +28,6 @@ from __future__ import annotations
 import datetime as dt
 import glob
 import hashlib
-import inspect
 import math
 import os
 import time
@@ -90,7 +90,7 @@ def actuator_id(trace: Trace | None, path: Path, given: str | None) -> str:
     """The actuator id (module docstring: the log's, else `given`, else the parent
     directory's name)."""
     if trace is not None:
-        for key in ("actuator_id", "serial_number"):
+        for key in ("actuator_id", "actuator_serial", "serial_number"):
             v = trace.meta.get(key)
             if v not in (None, ""):
                 return str(v)
@@ -232,16 +232,11 @@ class _Batch:
 def run_jobs(fn: Any, jobs: list[Any], workers: int | None, progress: bool,
              scheduler: str | None, on_result: Any = None, desc: str = "fleet ingest",
              unit: str = "log") -> list[Any]:
-    """`bench.workers.run_all`, passing `scheduler` on when the pool takes one."""
+    """`bench.workers.run_all` (Dask: a LocalCluster on 127.0.0.1 of `workers` processes,
+    or the cluster at `scheduler`), with `on_result` called as each job finishes."""
     from bench.workers import run_all
-    kw: dict[str, Any] = {}
-    if scheduler:
-        if "scheduler" not in inspect.signature(run_all).parameters:
-            raise BenchError("--scheduler needs the Dask worker pool, which this bench "
-                             "does not have yet")
-        kw["scheduler"] = scheduler
     return run_all(fn, jobs, workers, progress, desc=desc, unit=unit, on_result=on_result,
-                   **kw)
+                   scheduler=scheduler)
 
 
 def default_db() -> Path:
