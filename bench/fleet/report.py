@@ -237,9 +237,6 @@ def _levels(ax: Any) -> None:
         ax.axhline(lv, color=c, ls="--", lw=1, label=f"{name} {lv}")
 
 
-def _days(t_s: np.ndarray) -> np.ndarray:
-    return np.asarray(t_s, dtype="datetime64[s]") if len(t_s) else t_s
-
 
 def _actuator_figure(st: ActuatorStatus, sub: dict[str, np.ndarray], path: Path) -> None:
     from matplotlib.figure import Figure
