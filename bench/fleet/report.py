@@ -237,7 +237,6 @@ def _levels(ax: Any) -> None:
         ax.axhline(lv, color=c, ls="--", lw=1, label=f"{name} {lv}")
 
 
-
 def _actuator_figure(st: ActuatorStatus, sub: dict[str, np.ndarray], path: Path) -> None:
     from matplotlib.figure import Figure
     t = _f(sub["run_time"])
