@@ -99,6 +99,20 @@ def grow_store(src: Path, dst: Path, target: int) -> int:
     return int(n)
 
 
+def ingest_cost(logdir: Path, n: int = 44) -> dict[str, float]:
+    """CPU and wall time per log of `bench.fleet.ingest.ingest_one` in this process,
+    after one warm-up log (imports, compilation, gain fit)."""
+    from bench.fleet.ingest import digest, ingest_one
+    files = sorted(logdir.rglob("*.log"))[:n + 1]
+    ingest_one((str(files[0]), digest(files[0]), None))
+    w0, c0 = time.perf_counter(), time.process_time()
+    for f in files[1:]:
+        ingest_one((str(f), digest(f), None))
+    k = len(files) - 1
+    return {"cpu_per_log_s": (time.process_time() - c0) / k,
+            "wall_per_log_s": (time.perf_counter() - w0) / k, "cpu_load": os.getloadavg()[0]}
+
+
 def rul_check(db: Path) -> dict[str, float]:
     """The fleet RUL (`bench.fleet.status.rul_of`) re-made after every test of each
     actuator that reached the failure level, from the tests up to then only, against the
@@ -114,7 +128,7 @@ def rul_check(db: Path) -> dict[str, float]:
     con.close()
     ids, t = d["actuator_id"], floats(d["t"])
     ci = judged_ci(floats(d["ci"]), floats(d["ci_harmonic"]))
-    err, inside, failed, warned = [], [], 0, 0
+    err, inside, failed, warned, span = [], [], 0, 0, []
     for a in np.unique(ids):
         m = ids == a
         ta, ya = t[m], ci[m]
@@ -123,6 +137,8 @@ def rul_check(db: Path) -> dict[str, float]:
             continue
         failed += 1
         warned += int((ya[:hit[0]] < R.WARNING).any())
+        below = np.flatnonzero(ya[:hit[0] + 1] < R.THRESHOLD)
+        span.append(hit[0] - below[0])           # tests from the threshold to failure
         for k in range(hit[0]):
             rul, (lo, hi), *_ = rul_of(ta[:k + 1], ya[:k + 1])
             if np.isfinite(rul):
@@ -130,6 +146,7 @@ def rul_check(db: Path) -> dict[str, float]:
                 err.append(rul - true)
                 inside.append(lo <= true <= hi)
     return {"rul_failed": failed, "rul_warned_before": warned, "rul_n": len(err),
+            "rul_tests_thr_to_fail": float(np.median(span)) if span else float("nan"),
             "rul_med_abs_err_d": float(np.median(np.abs(err))) if err else float("nan"),
             "rul_coverage": float(np.mean(inside)) if inside else float("nan")}
 
@@ -144,9 +161,14 @@ def main() -> None:  # long: the benchmark's stages in order, each timed
     ap.add_argument("--dir", default=None, help="work directory (default: a temporary one)")
     ap.add_argument("--write", metavar="PATH", help="update the Fleet section of this file")
     ap.add_argument("--json", metavar="PATH")
+    ap.add_argument("--cost-only", metavar="LOGDIR", help="only the warm per-log ingest "
+                    "cost in this process, over 44 logs of LOGDIR")
     ap.add_argument("--from-json", metavar="PATH", help="write the section of an earlier "
                     "run's JSON (with --write) instead of running")
     a = ap.parse_args()
+    if a.cost_only:
+        print(json.dumps(ingest_cost(Path(a.cost_only))))
+        return
     if a.from_json:
         res = json.loads(Path(a.from_json).read_text())
         if a.write:
@@ -190,7 +212,7 @@ def main() -> None:  # long: the benchmark's stages in order, each timed
     big = work / "big.duckdb"
     res["status_runs"] = grow_store(db, big, a.status_runs)
     t_big, _, _ = run(["status", "--db", str(big)])
-    res["status_big_s"] = t_big
+    res["status_big_s"], res["big_db_bytes"] = t_big, big.stat().st_size
     exp = work / "export"
     run(["export", "--db", str(db), "--out", str(exp)])
     res["db_bytes"] = db.stat().st_size
@@ -198,6 +220,7 @@ def main() -> None:  # long: the benchmark's stages in order, each timed
     res["log_bytes"] = sum(f.stat().st_size for f in logs.rglob("*.log"))
     res["load_start"], res["load_end"] = load0, os.getloadavg()[0]
     res.update(rul_check(db))
+    res.update(ingest_cost(logs))
     print(json.dumps(res, indent=1))
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1))
@@ -229,26 +252,46 @@ lines, {r['log_bytes'] / n / 1e3:.0f} kB.
 | `fleet status`, {r['actuators']} actuators | {n} runs | {r['status_s']:.2f} | | |
 | `fleet status`, {r['status_runs']} runs | {r['status_runs']} runs | {r['status_big_s']:.2f} | | |
 
+Workers: the Dask LocalCluster of `bench.workers.run_all` (1 worker: in-process).
 Speed-up of the second worker: {s2 / s1:.2f} x ({s2 / s1 / 2:.2f} per worker). Both
 times include the workers' start (spawn, imports, numba compilation, the monitoring
-model's gain fit: paid once per worker per ingest).
+model's gain fit: paid once per worker per ingest); on 2 shared cores at this load the
+second worker cannot add a full core.{_cpu(r)}
 End to end, synth + ingest of {n} logs: {e2e:.0f} s ({n / e2e:.2f} logs/s).
-Store: {r['db_bytes'] / n:.0f} bytes per run in the DuckDB file, {r['parquet_runs_bytes'] / n:.0f}
-bytes per run as Parquet. The `fleet status` on {r['status_runs']} runs reads a store
+Store: {r['big_db_bytes'] / r['status_runs']:.0f} bytes per run in the DuckDB file of
+{r['status_runs']} runs ({r['db_bytes'] / 2**20:.1f} MiB for {n}: DuckDB allocates in
+256 kB blocks), {r['parquet_runs_bytes'] / n:.0f} bytes per run as Parquet. The `fleet status` on {r['status_runs']} runs reads a store
 grown from the measured one by copying its runs under new digests and actuator ids.
 {_full(n, e2e)}
 
 The fleet RUL checked on this synthetic fleet (the thesis' algorithm and levels as they
 are, nothing fitted to it): {r['rul_failed']} actuators reached Ci < 0.56 within the
 {r['days']} days, {r['rul_warned_before']} of them with a test below the warning level
-0.80 before that. Re-made after every test from the tests up to then only, the RUL gave
-{r['rul_n']} predictions; median |predicted - actual| {r['rul_med_abs_err_d']:.1f} days,
-actual failure day inside the 90 % band in {100 * r['rul_coverage']:.0f} % of them. With
-one test a day, Ci falls from 0.93 to 0.56 within a few days of the end of the schedule
-(exponential growth, section 6.5), so there are rarely the five tests between the
-threshold and warning crossings that the cubic needs: the daily ground test is too
-sparse for the thesis' RUL, which was designed for the command periods of one run.
+0.80 before that; median {r['rul_tests_thr_to_fail']:.0f} daily tests from the first
+below the threshold 0.93 to the failure. Re-made after every test from the tests up to
+then only, the RUL gave {_rul_numbers(r)} With one test a day, Ci falls from 0.93 to
+0.56 within a few days at the end of the schedule (exponential growth, section 6.5), so
+there are rarely the five tests between the threshold and warning crossings that the
+cubic needs: the daily ground test is too sparse for the thesis' RUL, which was designed
+for the command periods of one run. Not solved here.
 """
+
+
+def _rul_numbers(r: dict) -> str:  # type: ignore[type-arg]
+    if not r["rul_n"]:
+        return "no prediction at all before a failure."
+    return (f"{r['rul_n']} predictions; median |predicted - actual| "
+            f"{r['rul_med_abs_err_d']:.1f} days, actual failure day inside the 90 % band "
+            f"in {100 * r['rul_coverage']:.0f} % of them.")
+
+
+def _cpu(r: dict) -> str:  # type: ignore[type-arg]
+    if "cpu_per_log_s" not in r:
+        return ""
+    return (f" Per log, warm, in one process: {r['cpu_per_log_s']:.3f} s CPU "
+            f"({r['wall_per_log_s']:.2f} s wall at load {r['cpu_load']:.0f}; "
+            "`python benchmarks/bench_fleet.py --cost-only`): the figure docs/scale.md "
+            "scales with.")
 
 
 def _full(n: int, e2e: float) -> str:
