@@ -256,7 +256,7 @@ Workers: the Dask LocalCluster of `bench.workers.run_all` (1 worker: in-process)
 Speed-up of the second worker: {s2 / s1:.2f} x ({s2 / s1 / 2:.2f} per worker). Both
 times include the workers' start (spawn, imports, numba compilation, the monitoring
 model's gain fit: paid once per worker per ingest); on 2 shared cores at this load the
-second worker cannot add a full core.{_cpu(r)}
+second worker cannot add a full core.{_pool(r)}{_cpu(r)}
 End to end, synth + ingest of {n} logs: {e2e:.0f} s ({n / e2e:.2f} logs/s).
 Store: {r['big_db_bytes'] / r['status_runs']:.0f} bytes per run in the DuckDB file of
 {r['status_runs']} runs ({r['db_bytes'] / 2**20:.1f} MiB for {n}: DuckDB allocates in
@@ -283,6 +283,17 @@ def _rul_numbers(r: dict) -> str:  # type: ignore[type-arg]
     return (f"{r['rul_n']} predictions; median |predicted - actual| "
             f"{r['rul_med_abs_err_d']:.1f} days, actual failure day inside the 90 % band "
             f"in {100 * r['rul_coverage']:.0f} % of them.")
+
+
+def _pool(r: dict) -> str:  # type: ignore[type-arg]
+    if "pool_ingest1_s" not in r:
+        return ""
+    n = r["scaling_logs"]
+    return (f" The same {n} logs on the home-made process pool this replaced (measured "
+            f"earlier in the same session, load 10-15): {r['pool_ingest1_s']:.1f} s on 1 "
+            f"worker, {r['pool_ingest2_s']:.1f} s on 2 "
+            f"({r['pool_ingest1_s'] / r['pool_ingest2_s']:.2f} x); the synth row also ran on "
+            "that pool.")
 
 
 def _cpu(r: dict) -> str:  # type: ignore[type-arg]
