@@ -88,7 +88,7 @@ def _no_sub(p: argparse.ArgumentParser) -> int:
 
 
 def _db(args: argparse.Namespace) -> str:
-    from bench.fleet.ingest import default_db
+    from bench.fleet.store import default_db
     return str(args.db or default_db())
 
 

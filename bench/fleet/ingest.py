@@ -39,9 +39,11 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.bus.logs import TABLE_SUFFIXES
 from bench.trace import Trace
 
-LOG_SUFFIXES = (".log", ".npz", ".csv", ".parquet")
+LOG_SUFFIXES = (".log", *TABLE_SUFFIXES)
+"""What `bench.bus.logs.load_trace` reads: candump logs and the trace table formats."""
 BATCH_RUNS = 64
 BATCH_S = 5.0
 """A batch is committed after BATCH_RUNS results (``$BENCH_FLEET_BATCH`` overrides it)
@@ -237,8 +239,3 @@ def run_jobs(fn: Any, jobs: list[Any], workers: int | None, progress: bool,
     from bench.workers import run_all
     return run_all(fn, jobs, workers, progress, desc=desc, unit=unit, on_result=on_result,
                    scheduler=scheduler)
-
-
-def default_db() -> Path:
-    """The store used without --db: $BENCH_FLEET_DB, else fleet.duckdb here."""
-    return Path(os.environ.get("BENCH_FLEET_DB") or "fleet.duckdb")

@@ -9,6 +9,7 @@ race. A killed ingest loses only its uncommitted batch, which the next ingest re
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,11 @@ RUN_COLUMNS = ("digest", "actuator_id", "run_time", "path", "bytes", "ingested_a
                *S.INDEX_COLUMNS, *S.USAGE_COLUMNS)
 FAILURE_COLUMNS = ("digest", "path", "actuator_id", "error", "ingested_at")
 TABLES = ("runs", "failures", "meta")
+
+
+def default_db() -> Path:
+    """The store used without --db: $BENCH_FLEET_DB, else fleet.duckdb here."""
+    return Path(os.environ.get("BENCH_FLEET_DB") or "fleet.duckdb")
 
 
 class Store:

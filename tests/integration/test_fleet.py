@@ -70,6 +70,23 @@ def test_synth_ingest_status_report_export(fleet, tmp_path, capsys):
                                         "(1,)", "False"]
 
 
+def test_a_trace_table_takes_the_given_actuator_and_its_file_time(fleet, tmp_path, capsys):
+    from bench.bus.logs import load_trace
+    table = tmp_path / "rig" / "run.npz"
+    table.parent.mkdir()
+    load_trace(sorted(fleet.rglob("*.log"))[0]).save(table)
+    os.utime(table, (1.78e9, 1.78e9))
+    db = str(tmp_path / "f.duckdb")
+    assert main(["fleet", "ingest", str(table), "--db", db, "--actuator", "SN-42",
+                 "--workers", "1"]) == 0
+    assert "1 runs stored" in capsys.readouterr().out
+    import duckdb
+    con = duckdb.connect(db, read_only=True)
+    row = con.execute("SELECT actuator_id, epoch(run_time), verdict FROM runs").fetchall()
+    con.close()
+    assert row == [("SN-42", 1.78e9, "HEALTHY")]
+
+
 def test_bad_input_is_one_line(tmp_path, capsys):
     assert main(["fleet", "ingest", str(tmp_path / "nope"), "--db",
                  str(tmp_path / "f.duckdb")]) == 2
