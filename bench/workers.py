@@ -142,10 +142,12 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
                       retries=max(0, int(retries)))
     index = {f.key: k for k, f in enumerate(futs)}
     try:
-        for f in as_completed(futs, loop=client.loop):
+        for f, result in as_completed(futs, loop=client.loop, with_results=True,
+                                      raise_errors=False):
             k = index[f.key]
             try:
-                result = f.result()
+                if f.status != "finished":   # erred or cancelled: raise its error here
+                    result = f.result()
             except BenchError:
                 raise
             except Exception as exc:  # noqa: BLE001 - a task's error: say which job
