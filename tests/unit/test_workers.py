@@ -77,7 +77,9 @@ def test_session_starts_nothing_for_in_process_jobs():
 
 
 @pytest.mark.parametrize("argv", [["hums", "sweep"], ["hums", "rul"], ["hums", "campaign"],
-                                  ["gap", "x.log"], ["gap-bench"]])
+                                  ["gap", "x.log"], ["gap-bench"],
+                                  ["rig", "study", "d", "--calibrate-runs", "1",
+                                   "--holdout-runs", "2", "-o", "o"]])
 def test_every_command_with_workers_takes_a_scheduler(argv):
     from bench.cli import build_parser
     full = [*argv, "--workers", "3", "--scheduler", "tcp://127.0.0.1:8786"]
