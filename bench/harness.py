@@ -32,6 +32,7 @@ from bench.loop import (
 from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K
+from plant_rt.aero import gust_sequence
 from plant_rt.model import Plant, load_noise_seed, schedule_at
 from plant_rt.params import PlantParams
 
@@ -72,6 +73,8 @@ def run_inputs(profile: Profile, params: PlantParams, duration_s: float | None =
     u[:, K.U_IOFF] = params.sensors.current_offset_a
     if ext_force_n is not None:
         u[:, K.U_FEXT] = ext_force_n(t)
+    if params.load.kind == "aero":
+        u[:, K.U_GUST] = gust_sequence(params, n)
     se = params.sensors
     noise = np.zeros((n, 3))
     noise_load = np.zeros(n)
@@ -130,7 +133,10 @@ def simulate(profile: Profile, params: PlantParams | None = None,
     meta = {"source": "in-process", "profile": profile.name, "profile_kwargs": profile.kwargs,
             "fundamental_hz": profile.fundamental_hz,
             "params": params.to_dict(), "controller": cparams.__dict__,
-            "complete": bool(n == len(ri.t))}
+            "complete": bool(n == len(ri.t)),
+            "wear_volume_m3": float(plant.x[K.WEAR_V])}
+    if profile.phases:
+        meta["phases"] = [list(ph) for ph in profile.phases]
     return Trace(_columns(ri, n, meas, dem, diag, st, ndelay), meta)
 
 
@@ -159,5 +165,9 @@ def _columns(ri: RunInputs, n: int, meas: np.ndarray, dem: np.ndarray, diag: np.
     cols["ext_force_n"] = diag[:n, K.O_FEXT]
     cols["voltage_v"] = diag[:n, K.O_VOLT]
     cols["current_limited"] = diag[:n, K.O_ILIM]
-    cols["preload_n"], cols["backlash_m"], cols["friction_scale"] = ri.sched[:n].T
+    # the degradation of each period as the plant applied it (the schedule's, plus
+    # Archard wear under wear.kind = archard)
+    cols["preload_n"] = diag[:n, K.O_PRELOAD]
+    cols["backlash_m"] = diag[:n, K.O_BACKLASH]
+    cols["friction_scale"] = diag[:n, K.O_FSCALE]
     return cols

@@ -1,4 +1,5 @@
-"""Set-point profiles: the thesis' test maneuvers plus a chirp and the RUL run, by name.
+"""Set-point profiles: the thesis' test maneuvers plus a chirp, the RUL run and a seeded
+flight (`bench.flight`), by name.
 
 Each builds a `bench.setpoints.Profile` (ECU mode and set-points as functions of time);
 the gap diagnosis maneuver comes from `bench.gap.maneuvers`.
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.flight import flight
 from bench.gap.maneuvers import excitation
 from bench.setpoints import Profile
 from bench.trace import MODE_POSITION, MODE_SPEED
@@ -98,7 +100,7 @@ def gap_excitation(duration_s: float = 10.0, load_n: float = 2000.0) -> Profile:
 PROFILES: dict[str, Callable[..., Profile]] = {
     "step": step, "sine": sine, "velocity-step": velocity_step,
     "velocity-cosine": velocity_cosine, "chirp": chirp, "rul": rul,
-    "gap-excitation": gap_excitation,
+    "gap-excitation": gap_excitation, "flight": flight,
 }
 
 
@@ -130,6 +132,7 @@ DOMAINS: dict[str, tuple[float, bool, str]] = {
     "frequency_hz": (0.0, False, "Hz"), "f0_hz": (0.0, False, "Hz"),
     "f1_hz": (0.0, False, "Hz"), "cycles": (0.0, False, ""),
     "duration_s": (0.0, False, "s"), "start_s": (0.0, True, "s"), "stop_s": (0.0, True, "s"),
+    "severity": (0.0, False, ""), "turbulence_m": (0.0, True, "m"), "seed": (0.0, True, ""),
 }
 
 

@@ -211,11 +211,10 @@ def stiffness_deflection(params: PlantParams, preload_n: float, load_n: float = 
 def analytic_axial_stiffness(params: PlantParams, preload_n: float) -> float:
     """Axial stiffness (N/m) of the double nut in this model: two nuts in parallel, each
     Z balls with two contacts of k = k* + m F_pr (eq. 5.21) in series, projected twice
-    by cos(alpha) sin(beta) (eq. 5.27-5.28)."""
-    s = params.screw
-    k = s.contact_stiffness_n_per_m + s.stiffness_preload_slope_per_m * preload_n
-    g = math.cos(math.radians(s.helix_angle_deg)) * math.sin(math.radians(s.contact_angle_deg))
-    return 2 * s.balls_active * 0.5 * k * g * g
+    by cos(alpha) sin(beta) (eq. 5.27-5.28); k* and m as `screw.stiffness_reading` reads
+    them (`plant_rt.contacts`)."""
+    from plant_rt.contacts import axial_stiffness
+    return axial_stiffness(params, preload_n)
 
 
 def p8(res: Result, params: PlantParams) -> None:
@@ -223,9 +222,11 @@ def p8(res: Result, params: PlantParams) -> None:
     tr3, d3 = stiffness_deflection(params, 3e3)
     res.traces["P8 F_pr=0"], res.traces["P8 F_pr=3kN"] = tr0, tr3
     ratio = d3 / d0
+    from plant_rt.contacts import real_contact_stiffness
     s = params.screw
-    m_needed = s.contact_stiffness_n_per_m / 3e3
-    rise = s.stiffness_preload_slope_per_m * 3e3 / s.contact_stiffness_n_per_m   # eq. 5.21
+    kc = real_contact_stiffness(params)                   # k* of one contact (eq. 5.21)
+    m_needed = kc / 3e3
+    rise = s.stiffness_preload_slope_per_m * 3e3 / kc                             # eq. 5.21
     res.extra["P8"] = {"deflection_0_um": abs(d0) * 1e6, "deflection_3kN_um": abs(d3) * 1e6,
                        "analytic_0_um": 9e3 / analytic_axial_stiffness(params, 0) * 1e6,
                        "analytic_3kN_um": 9e3 / analytic_axial_stiffness(params, 3e3) * 1e6}

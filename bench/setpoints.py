@@ -25,6 +25,15 @@ class Profile:
     kwargs: dict[str, Any] = field(default_factory=dict)
     params_overrides: dict[str, Any] = field(default_factory=dict)
     fundamental_hz: float = float("nan")   # command frequency (HUMS spectra, gap regimes)
+    # named phases (name, start s, end s) of a composite profile (the flight's), else ()
+    phases: tuple[tuple[str, float, float], ...] = ()
+
+    def phase(self, name: str) -> tuple[float, float]:
+        """(start s, end s) of the phase called `name` (KeyError if none)."""
+        for n, t0, t1 in self.phases:
+            if n == name:
+                return t0, t1
+        raise KeyError(name)
 
     def setpoint(self, t: float) -> tuple[float, float]:
         ta = np.array([t], dtype=float)

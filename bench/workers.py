@@ -142,10 +142,12 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
                       retries=max(0, int(retries)))
     index = {f.key: k for k, f in enumerate(futs)}
     try:
-        for f in as_completed(futs, loop=client.loop):
+        for f, result in as_completed(futs, loop=client.loop, with_results=True,
+                                      raise_errors=False):
             k = index[f.key]
             try:
-                result = f.result()
+                if f.status != "finished":   # erred or cancelled: raise its error here
+                    result = f.result()
             except BenchError:
                 raise
             except Exception as exc:  # noqa: BLE001 - a task's error: say which job
@@ -180,6 +182,7 @@ class Pool:
         self.init = None if initializer is None else (initializer, initargs)
         self.retries = retries
         self._client: Any = None
+        self._plugin: str | None = None
         if wait:
             self.started()
 
@@ -189,8 +192,8 @@ class Pool:
             client = self.engine.client()
             if self.init is not None:
                 from bench.cluster_plugin import Initializer
-                client.register_plugin(Initializer(*self.init),
-                                       name=f"bench-init-{uuid.uuid4().hex[:8]}")
+                self._plugin = f"bench-init-{uuid.uuid4().hex[:8]}"
+                client.register_plugin(Initializer(*self.init), name=self._plugin)
             self._client = client
         return self._client
 
@@ -200,6 +203,11 @@ class Pool:
     def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
         """Stop the cluster this pool started (`wait` and `cancel_futures` are accepted
         for concurrent.futures compatibility: pending tasks end with the client)."""
+        if self._plugin is not None and self.engine.cluster is None:
+            try:                           # leave a shared cluster as it was
+                self._client.unregister_worker_plugin(self._plugin)
+            except Exception:  # noqa: BLE001 - best effort
+                pass
         self.engine.close()
 
     def __enter__(self) -> Pool:

@@ -22,12 +22,18 @@ import numpy as np
 from numba import njit
 
 from plant_rt.pi import clamped_pi
+from plant_rt.wear import effects_from_depth
+
+# the wear mapping of `plant_rt.wear`, compiled here (plant_rt.wear itself stays numba-free)
+_effects_from_depth = njit(cache=True, inline="always", error_model="numpy",
+                           fastmath={"nnan", "ninf", "nsz"})(effects_from_depth)
 
 # --- state vector x -------------------------------------------------------------------
 (I, CI, IM, TQ, TEMP, TH, OM, X1, V1, X2, V2, ZB1, VB1, ZB2, VB2,
  LY, LYD, EY, EYD, STS, STN1, STN2, T,
- E_IN, E_R, E_FRS, E_FRN, E_EXT, E_EMF, E_MIS, E_ETA, E_PR, E_CLAMP, E_MOT, E_DAMP) = range(35)
-NX = 35
+ E_IN, E_R, E_FRS, E_FRN, E_EXT, E_EMF, E_MIS, E_ETA, E_PR, E_CLAMP, E_MOT, E_DAMP,
+ WEAR_V) = range(36)
+NX = 36
 STATE_NAMES = (
     "current_a", "current_pi_integrator_v", "current_sensor_a", "motor_torque_nm",
     "temperature_k", "screw_angle_rad", "screw_speed_rad_s", "nut1_position_m",
@@ -36,7 +42,10 @@ STATE_NAMES = (
     "encoder_ydot_rad_s2", "screw_stuck", "nut1_stuck", "nut2_stuck", "t_s",
     "e_electrical_in_j", "e_joule_j", "e_screw_friction_j", "e_nut_friction_j",
     "e_external_j", "e_back_emf_j", "e_lever_mismatch_j", "e_reducer_loss_j",
-    "e_preload_j", "e_current_clamp_j", "e_motor_torque_j", "e_contact_damping_j")
+    "e_preload_j", "e_current_clamp_j", "e_motor_torque_j", "e_contact_damping_j",
+    "wear_volume_m3")
+# WEAR_V: worn volume of the ball tracks (m^3, Archard; `plant_rt.wear`), accumulated per
+# sub-step when p[P_WEAR_GAIN] != 0
 
 # --- parameter vector p ---------------------------------------------------------------
 (P_R, P_L, P_KE, P_KT, P_IMAX, P_VDC, P_RTH, P_TAMB, P_TAUW, P_TAUH, P_ALPHA_R,
@@ -44,20 +53,28 @@ STATE_NAMES = (
  P_LEVER_R, P_FV, P_FS, P_CN, P_MN, P_MB, P_KSTAR, P_MSLOPE, P_CDAMP,
  P_LZETA, P_LSIG, P_EZETA, P_ESIG, P_TAUC, P_KPI, P_KII, P_FPWM, P_PWM_SW, P_BALL_DYN,
  P_DT, P_NBALL, P_NSUB, P_LOAD_KIND, P_LOAD_AMP, P_LOAD_T0, P_LOAD_RATE, P_LOAD_FREQ,
- P_TRAVEL) = range(50)
-NP = 50
+ P_TRAVEL, P_AERO_GAIN, P_WEAR_ON, P_WEAR_GAIN, P_WEAR_AREA, P_WEAR_FRIC) = range(55)
+NP = 55
+# load kinds (P_LOAD_KIND): the order of `LoadParams.kind`'s choices
+LOAD_KINDS = ("none", "step", "ramp", "sine", "aero")
 
 # --- inputs u (held over one SYNC period) -----------------------------------------------
-U_IDEM, U_PRELOAD, U_BACKLASH, U_FSCALE, U_VSCALE, U_INOISE, U_IGAIN, U_IOFF, U_FEXT = range(9)
-NU = 9
+(U_IDEM, U_PRELOAD, U_BACKLASH, U_FSCALE, U_VSCALE, U_INOISE, U_IGAIN, U_IOFF, U_FEXT,
+ U_GUST) = range(10)
+NU = 10
+# U_PRELOAD, U_BACKLASH, U_FSCALE: the degradation of the period; under Archard wear
+# (p[P_WEAR_ON]) those of the new actuator, to which the wear of WEAR_V is added.
+# U_GUST: the aero load's gust force over the period (N; used only by load kind aero)
 # U_FEXT: external axial force (N) added to the load profile of p over the period: a
 # logged load-cell force replayed by the gap diagnosis, or a disturbance injected in-process
 
 # --- period diagnostics out -------------------------------------------------------------
-(O_FRIC_T, O_FRIC_F, O_REACT_T, O_VOLT, O_FEXT, O_ILIM, O_PMAX1, O_PMAX2) = range(8)
-NO = 8
+(O_FRIC_T, O_FRIC_F, O_REACT_T, O_VOLT, O_FEXT, O_ILIM, O_PMAX1, O_PMAX2,
+ O_PRELOAD, O_BACKLASH, O_FSCALE) = range(11)
+NO = 11
 DIAG_NAMES = ("friction_torque_nm", "friction_force_n", "reaction_torque_nm", "voltage_v",
-              "ext_force_n", "current_limited", "contact_force1_max_n", "contact_force2_max_n")
+              "ext_force_n", "current_limited", "contact_force1_max_n", "contact_force2_max_n",
+              "preload_n", "backlash_m", "friction_scale")
 
 TWO_PI = 2.0 * math.pi
 # Only the fast-math flags that cannot change the rounding of finite values: the same
@@ -120,10 +137,14 @@ def _on_time(t: float, a: float, period: float) -> float:
 
 
 @njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
-def _ext_force(p: np.ndarray, t: float) -> float:
+def _ext_force(p: np.ndarray, t: float, xn: float, gust: float) -> float:
+    """F_ext of the load profile at time t (eq. 5.29-5.30); xn: nut position, gust: the
+    period's gust force (aero only)."""
     kind = p[P_LOAD_KIND]
     if kind == 0.0:
         return 0.0
+    if kind == 4.0:  # aero: hinge moment grows with deflection, restoring (docs/model.md)
+        return p[P_AERO_GAIN] * xn + gust
     t0 = p[P_LOAD_T0]
     if t < t0:
         return 0.0
@@ -147,7 +168,18 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     R0, L, KE, KT = p[P_R], p[P_L], p[P_KE], p[P_KT]
     IMAX, VDC = p[P_IMAX], p[P_VDC]
     tau, eta, jeq = p[P_TAU], p[P_ETA], p[P_JEQ]
-    fscale, vscale = u[U_FSCALE], u[U_VSCALE]
+    fpr, backlash, fscale = u[U_PRELOAD], u[U_BACKLASH], u[U_FSCALE]
+    if p[P_WEAR_ON] != 0.0:     # Archard wear: effects of the worn volume (plant_rt.wear)
+        w_loss, w_back, w_fric = _effects_from_depth(
+            x[WEAR_V] / p[P_WEAR_AREA], fpr, p[P_KSTAR], p[P_MSLOPE], p[P_Z], p[P_G],
+            p[P_WEAR_FRIC])
+        fpr = fpr - w_loss
+        backlash = backlash + w_back
+        fscale = fscale * w_fric
+    vscale = u[U_VSCALE]
+    wgain = p[P_WEAR_GAIN]
+    wearing = wgain != 0.0
+    gust = u[U_GUST]
     CS = p[P_CS] * fscale
     STRA, STRV = p[P_STRA], p[P_STRV]
     CVISC = p[P_CVISC] * vscale
@@ -157,10 +189,9 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     CN = p[P_CN] * vscale
     mhalf = 0.5 * p[P_MN]
     mb = p[P_MB]
-    fpr = u[U_PRELOAD]
     k = p[P_KSTAR] + p[P_MSLOPE] * fpr          # eq. 5.21
     c = p[P_CDAMP]
-    hb = 0.25 * u[U_BACKLASH]                    # b_max/4 per contact (eq. 5.19-5.20)
+    hb = 0.25 * backlash                         # b_max/4 per contact (eq. 5.19-5.20)
     kin = lead / TWO_PI * g                      # dz_s/dOmega (eq. 5.26)
     lever_kin = lead / TWO_PI * g                # work-consistent lever of C_V
     a_c = 1.0 - math.exp(-dt / p[P_TAUC])
@@ -193,6 +224,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     acc_fe = 0.0
     pmax1 = 0.0
     pmax2 = 0.0
+    acc_w = 0.0
 
     for _ in range(nsub):
         t = x[T]
@@ -308,7 +340,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
                 om_new = 0.0
                 x[STS] = 1.0 if abs(tt) <= c_stat else 0.0
         # ---- double nut (eq. 5.27-5.32) -----------------------------------------------
-        fext = _ext_force(p, t) + u[U_FEXT]                             # F_ext, eq. 5.29
+        fext = _ext_force(p, t, 0.5 * (x[X1] + x[X2]), gust) + u[U_FEXT]  # F_ext, eq. 5.29
         fz1 = -pn1 * g                                                 # eq. 5.28
         fz2 = -pn2 * g
         ffr_tot = 0.0
@@ -355,6 +387,8 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         x[E_ETA] += (x[TQ] / tau - cm) * omm * dt
         # C_V of eq. 5.10 vs the work-consistent lever: power the transmission creates
         x[E_MIS] += Z * (ps1 + ps2) * (lever_kin - lever_v) * omm * dt
+        if wearing:        # Archard: dV = (Z k / H) sum|P| (rolling distance per rad) |dOmega|
+            acc_w += (abs(ps1) + abs(pn1) + abs(ps2) + abs(pn2)) * abs(omm)
         x[OM] = om_new
         x[TH] += dt * om_new
         x[X1] += dt * x[V1]
@@ -373,6 +407,8 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         acc_fe += fext
 
     inv = 1.0 / nsub
+    if wearing:
+        x[WEAR_V] += wgain * dt * acc_w
     out[O_FRIC_T] = acc_cf * inv
     out[O_FRIC_F] = acc_ff * inv
     out[O_REACT_T] = acc_cv * inv
@@ -381,6 +417,9 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     out[O_ILIM] = ilim
     out[O_PMAX1] = pmax1
     out[O_PMAX2] = pmax2
+    out[O_PRELOAD] = fpr
+    out[O_BACKLASH] = backlash
+    out[O_FSCALE] = fscale
 
 
 # --- sensor vector for measure() ---------------------------------------------------------

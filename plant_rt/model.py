@@ -20,6 +20,9 @@ import numpy as np
 
 from ema_contract.states import Status
 from plant_rt import kernel as K
+from plant_rt import wear
+from plant_rt.aero import GustGenerator
+from plant_rt.contacts import contact_geometry
 from plant_rt.params import PlantParams
 
 OVERTEMPERATURE_K = 428.0  # class H insulation, 155 degC
@@ -62,7 +65,7 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_FV], p[K.P_FS] = s.rolling_friction, s.nut_static_friction_n
     p[K.P_CN] = viscous_friction(params) / tau                                        # eq. 5.32
     p[K.P_MN], p[K.P_MB] = s.nut_mass_kg, s.ball_mass_kg
-    p[K.P_KSTAR], p[K.P_MSLOPE] = s.contact_stiffness_n_per_m, s.stiffness_preload_slope_per_m
+    p[K.P_KSTAR], p[K.P_MSLOPE] = contact_geometry(params)[:2]                        # eq. 5.21
     p[K.P_CDAMP] = s.contact_damping_n_s_per_m
     p[K.P_LZETA], p[K.P_LSIG] = se.lvdt_damping, se.lvdt_natural_rad_s
     p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
@@ -76,10 +79,15 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_DT] = sim.sync_period_s / nsub
     p[K.P_NSUB] = nsub
     p[K.P_NBALL] = ball_substeps(params, p[K.P_DT])
-    p[K.P_LOAD_KIND] = ("none", "step", "ramp", "sine").index(ld.kind)
+    p[K.P_LOAD_KIND] = K.LOAD_KINDS.index(ld.kind)
+    p[K.P_AERO_GAIN] = ld.aero_gain_n_per_m
     p[K.P_LOAD_AMP], p[K.P_LOAD_T0] = ld.amplitude_n, ld.start_s
     p[K.P_LOAD_RATE], p[K.P_LOAD_FREQ] = ld.rate_n_per_s, ld.frequency_hz
     p[K.P_TRAVEL] = s.travel_limit_m
+    w = params.wear
+    p[K.P_WEAR_ON] = 1.0 if w.kind == "archard" else 0.0
+    p[K.P_WEAR_GAIN] = wear.kernel_wear_gain(params)
+    p[K.P_WEAR_AREA], p[K.P_WEAR_FRIC] = w.track_area_m2, w.friction_per_depth_per_m
     return p
 
 
@@ -109,9 +117,9 @@ def ball_substeps(params: PlantParams, dt: float) -> int:
     h < (2/w)(sqrt(1 + z^2) - z), w = sqrt(2k/M_b), z = c / sqrt(2 k M_b) (two contacts);
     the micro-step is held at 0.6 of that (a 1.67x margin) and at most 1 us."""
     s = params.screw
-    k = s.contact_stiffness_n_per_m + s.stiffness_preload_slope_per_m * max(
-        params.effects.preload_n, params.schedule.preload_start_n
-        if params.schedule.kind != "none" else 0.0)
+    kstar, mslope = contact_geometry(params)[:2]
+    k = kstar + mslope * max(params.effects.preload_n, params.schedule.preload_start_n
+                             if params.schedule.kind != "none" else 0.0)
     w = math.sqrt(2 * k / s.ball_mass_kg)
     z = s.contact_damping_n_s_per_m / math.sqrt(2 * k * s.ball_mass_kg)
     h = min(1e-6, 0.6 * (2 / w) * (math.sqrt(1 + z * z) - z))
@@ -146,6 +154,20 @@ def schedule_at(params: PlantParams, t: float) -> tuple[float, float, float]:
     return preload, backlash, fscale
 
 
+def effects_at(params: PlantParams, t: float, volume_m3: float) -> tuple[float, float, float]:
+    """(preload N, backlash m, friction scale) at time t with `volume_m3` worn: the
+    schedule's (`schedule_at`), plus Archard wear under `wear.kind = archard` (the same
+    mapping as the kernel's, `plant_rt.wear.effects_from_depth`)."""
+    preload, backlash, fscale = schedule_at(params, t)
+    if params.wear.kind != "archard":
+        return preload, backlash, fscale
+    kstar, mslope, z, g = contact_geometry(params)
+    loss, b_wear, f_wear = wear.effects_from_depth(
+        volume_m3 / params.wear.track_area_m2, preload, kstar, mslope, z, g,
+        params.wear.friction_per_depth_per_m)
+    return preload - loss, backlash + b_wear, fscale * f_wear
+
+
 def load_noise_seed(params: PlantParams) -> list[int]:
     """Seed of the load cell's noise stream (separate from the other sensors')."""
     return [int(params.sensors.noise_seed), 4]
@@ -168,6 +190,9 @@ class Plant:
         self.x[:] = 0.0
         self.x[K.TEMP] = self.params.motor.ambient_temperature_k
         self.x[K.STS] = self.x[K.STN1] = self.x[K.STN2] = 1.0
+        self.x[K.WEAR_V] = self.params.wear.initial_volume_m3
+        self._gusts = GustGenerator(self.params)
+        self._gust = self._gusts.next()
         self.out[:] = 0.0
         self._rng = np.random.default_rng(self.params.sensors.noise_seed)
         self._noise = np.zeros(3)
@@ -184,13 +209,12 @@ class Plant:
 
     def _seat_preload(self) -> None:
         """Place the nuts where preload and contacts balance, so t = 0 is at rest."""
-        preload, backlash, _ = schedule_at(self.params, 0.0)
+        preload, backlash, _ = effects_at(self.params, 0.0, float(self.x[K.WEAR_V]))
         if preload <= 0.0:
             return
-        s = self.params.screw
-        k = s.contact_stiffness_n_per_m + s.stiffness_preload_slope_per_m * preload
+        kstar, mslope, z, g = contact_geometry(self.params)
+        k = kstar + mslope * preload
         g = self._p[K.P_G]
-        z = s.balls_active
         # each nut: Z * (k/2) * g * dz = F_pr along x, dz = g dx  (series contacts)
         dz = preload / (z * 0.5 * k * g)             # compression along z
         dx = (dz + backlash / 2.0) / g
@@ -199,9 +223,13 @@ class Plant:
 
     def set_params(self, params: PlantParams) -> None:
         """Change parameters between steps (state kept)."""
+        old = self.params
         self.params = params
         self._p = param_vector(params)
         self._s = sensor_vector(params)
+        if params.load != old.load or params.sim.sync_period_s != old.sim.sync_period_s:
+            self._gusts = GustGenerator(params)
+            self._gust = self._gusts.next()
 
     @property
     def t(self) -> float:
@@ -228,6 +256,7 @@ class Plant:
         u[K.U_INOISE] = self._noise[0]
         u[K.U_IGAIN] = self.params.sensors.current_gain
         u[K.U_IOFF] = self.params.sensors.current_offset_a
+        u[K.U_GUST] = self._gust
         return u
 
     def step(self, current_demand_a: float) -> None:
@@ -240,6 +269,7 @@ class Plant:
         K.advance(self.x, self._p, self.inputs(current_demand_a), self.out)
         self._limited = bool(self.out[K.O_ILIM])
         self._draw_noise()
+        self._gust = self._gusts.next()
 
     def _draw_noise(self) -> None:
         se = self.params.sensors
@@ -281,7 +311,7 @@ class Plant:
     def truth(self) -> dict[str, float]:
         """Simulation-only signals at the current time / over the last period."""
         x, o = self.x, self.out
-        preload, backlash, fscale = schedule_at(self.params, self.t)
+        preload, backlash, fscale = effects_at(self.params, self.t, float(x[K.WEAR_V]))
         return {
             "true_position_m": self.nut_position_m,
             "true_current_a": float(x[K.I]),
@@ -296,6 +326,7 @@ class Plant:
             "friction_scale": fscale,
             "preload_n": preload,
             "voltage_v": float(o[K.O_VOLT]),
+            "wear_volume_m3": float(x[K.WEAR_V]),
         }
 
     def state(self) -> dict[str, float]:

@@ -128,6 +128,16 @@ class ScrewParams(_Validated):
                                 "eq. 5.10")
     travel_limit_m: float = P(0.05, "m", 1e-3, 10.0, "end-of-stroke limit |x_n| (flag only)",
                               "chosen (stroke not stated)")
+    stiffness_reading: str = P("contact", "-", None, None,
+                               "how k* (contact_stiffness_n_per_m) is read: contact: the "
+                               "stiffness of each ball contact (eq. 5.21 as implemented so "
+                               "far); axial: the screw's axial stiffness without preload, "
+                               "shared by circuits x Z balls, two contacts in series, along "
+                               "the contact normal (docs/model.md, 'Stiffness')",
+                               "section 5.6.2", choices=("contact", "axial"))
+    circuits: int = P(6, "-", 1, 100,
+                      "ball circuits of the double nut (both nuts; the axial reading "
+                      "shares k* over circuits x Z balls, eq. 5.11)", "table 5.4")
 
     @property
     def lever_m(self) -> float:
@@ -212,13 +222,27 @@ class EffectParams(_Validated):
 class LoadParams(_Validated):
     """External axial force on the nut, F_ext (eq. 5.29-5.30)."""
     _group: ClassVar[str] = "load"
-    kind: str = P("none", "-", None, None, "none, step, ramp or sine", "5.7.2",
-                  choices=("none", "step", "ramp", "sine"))
+    kind: str = P("none", "-", None, None,
+                  "none, step, ramp, sine, or aero (hinge moment: aero_gain_n_per_m x nut "
+                  "position plus seeded gusts)", "5.7.2; aero: chosen (docs/model.md)",
+                  choices=("none", "step", "ramp", "sine", "aero"))
     amplitude_n: float = P(0.0, "N", -1e5, 1e5, "final (step/ramp) or peak (sine) force",
                            "5.7.2")
     start_s: float = P(0.0, "s", 0.0, 1e6, "time the force starts", "5.7.2")
     rate_n_per_s: float = P(1.5e6, "N/s", 1.0, 1e9, "ramp slope (step: 0.01 s rise)", "5.7.2")
     frequency_hz: float = P(2.0, "Hz", 0.0, 1e3, "sine frequency", "5.7.2")
+    aero_gain_n_per_m: float = P(3e5, "N/m", 0.0, 1e8,
+                                 "aero: axial force per metre of nut travel from neutral (the "
+                                 "hinge moment grows with deflection); 15 kN, the thesis' load "
+                                 "test force, at the 50 mm stroke limit",
+                                 "chosen from 5.7.3 (docs/model.md)")
+    gust_std_n: float = P(1000.0, "N", 0.0, 1e5,
+                          "aero: standard deviation of the gust force (first-order coloured "
+                          "noise, held per SYNC period)", "chosen (docs/model.md)")
+    gust_time_constant_s: float = P(0.5, "s", 1e-3, 100.0,
+                                    "aero: correlation time of the gust force (Dryden-type "
+                                    "first-order filter)", "chosen (docs/model.md)")
+    gust_seed: int = P(7, "-", 0, 2**31 - 1, "aero: seed of the gust generator", "chosen")
 
 
 @dataclass(frozen=True)
@@ -245,6 +269,47 @@ class ScheduleParams(_Validated):
 
 
 @dataclass(frozen=True)
+class WearParams(_Validated):
+    """Use-driven (Archard) wear of the ball tracks (`plant_rt.wear`, docs/model.md).
+
+    Worn volume rate = k F_N v_roll / H (Archard 1953), k drawn per actuator from a
+    log-normal distribution by `seed`; the volume maps to preload loss, backlash and a
+    friction scale. The HUMS never reads this group: the coefficient is the hidden truth.
+    """
+    _group: ClassVar[str] = "wear"
+    kind: str = P("schedule", "-", None, None,
+                  "schedule: degradation from effects.* and the time-based schedule.* "
+                  "(section 6.5); archard: effects.* are the new actuator and wear from "
+                  "use adds to them", "6.5; Archard 1953", choices=("schedule", "archard"))
+    coefficient_median: float = P(1e-8, "-", 0.0, 1e-2,
+                                  "median dimensionless Archard coefficient k of the "
+                                  "population (lubricated steel, rolling with micro-slip)",
+                                  "chosen (docs/model.md)")
+    coefficient_log_std: float = P(0.5, "-", 0.0, 3.0,
+                                   "standard deviation of ln k across actuators (0: every "
+                                   "actuator has the median)", "chosen (docs/model.md)")
+    seed: int = P(1, "-", 0, 2**31 - 1,
+                  "actuator seed: draws this actuator's k from the distribution", "chosen")
+    acceleration: float = P(1.0, "-", 1e-3, 1e9,
+                            "time compression of wear (multiplies k): 1 = real use",
+                            "chosen")
+    hardness_pa: float = P(7.4e9, "Pa", 1e8, 1e11,
+                           "raceway hardness H (bearing steel, HV 750 ~ 60 HRC)",
+                           "chosen (ISO 3408-5 raceways 58-62 HRC)")
+    track_area_m2: float = P(2.0e-4, "m^2", 1e-7, 1.0,
+                             "area the worn volume is spread over: 4 contacts per ball "
+                             "chain pair x Z balls x 2 r_b track length x 0.6 mm width",
+                             "chosen (docs/model.md)")
+    friction_per_depth_per_m: float = P(1.2e5, "1/m", 0.0, 1e9,
+                                        "friction scale growth per metre of wear depth: x4 "
+                                        "at 25 um (100 um of backlash, section 6.5)",
+                                        "6.5 end state (docs/model.md)")
+    initial_volume_m3: float = P(0.0, "m^3", 0.0, 1e-3,
+                                 "worn volume at the start of the run (a campaign carries "
+                                 "it from day to day)", "chosen")
+
+
+@dataclass(frozen=True)
 class SimParams(_Validated):
     """Integration settings of the compiled fixed-step core."""
     _group: ClassVar[str] = "sim"
@@ -262,7 +327,7 @@ class SimParams(_Validated):
 GROUPS: dict[str, type] = {
     "motor": MotorParams, "reducer": ReducerParams, "screw": ScrewParams,
     "sensors": SensorParams, "drive": DriveParams, "effects": EffectParams,
-    "load": LoadParams, "schedule": ScheduleParams, "sim": SimParams,
+    "load": LoadParams, "schedule": ScheduleParams, "sim": SimParams, "wear": WearParams,
 }
 
 
@@ -386,6 +451,7 @@ class PlantParams:
     load: LoadParams = field(default_factory=LoadParams)
     schedule: ScheduleParams = field(default_factory=ScheduleParams)
     sim: SimParams = field(default_factory=SimParams)
+    wear: WearParams = field(default_factory=WearParams)
 
     # -- flat access ---------------------------------------------------------------
     def get(self, name: str) -> Any:

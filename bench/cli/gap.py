@@ -63,6 +63,17 @@ def list_effects() -> str:
     return "\n".join(lines)
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    from bench import BenchError
+    if args.workers < 1:
+        raise BenchError("--workers must be >= 1")
+    if not (math.isfinite(args.holdout_frac) and 0.0 < args.holdout_frac < 1.0):
+        raise BenchError("--holdout-frac must be a fraction between 0 and 1 (exclusive)")
+    if args.fundamental is not None and not (math.isfinite(args.fundamental)
+                                             and args.fundamental > 0):
+        raise BenchError("--fundamental must be a finite frequency > 0 Hz")
+
+
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     if args.list_effects:
@@ -74,21 +85,17 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap.diagnose import Options, diagnose
     from bench.gap.inputs import load_log, load_nominal
     from bench.gap.summary import text
-    if args.workers < 1:
-        raise BenchError("--workers must be >= 1")
-    if not (math.isfinite(args.holdout_frac) and 0.0 < args.holdout_frac < 1.0):
-        raise BenchError("--holdout-frac must be a fraction between 0 and 1 (exclusive)")
-    if args.fundamental is not None and not (math.isfinite(args.fundamental)
-                                             and args.fundamental > 0):
-        raise BenchError("--fundamental must be a finite frequency > 0 Hz")
+    _check_numbers(args)
     from bench.cli.outputs import check_output_dir, check_output_file
     if args.json:                                   # before the diagnosis, not after
         check_output_file(args.json, "--json", (".json",), stdout_ok=True)
     if args.report:
         check_output_dir(args.report, "--report")
+    if _is_rig(args):
+        return _rig(args)
     names = E.parse_list(args.effects)
     nominal = load_nominal(args.nominal)
-    log = load_log(args.log)
+    log = args.loaded_log         # read once, by _is_rig
     hold = load_log(args.holdout) if args.holdout else None
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
@@ -113,4 +120,54 @@ def run(args: argparse.Namespace) -> int:
         from bench.gap.report import write_report
         idx = write_report(res, js, Path(args.report))
         print(f"report: {idx}", file=sys.stderr if args.json == "-" else sys.stdout)
+    return 0
+
+
+def _is_rig(args: argparse.Namespace) -> bool:
+    """Whether --nominal is another actuator's generic calibration; without one, a log
+    the thesis plant's diagnosis cannot take is refused with what it needs and where to
+    go instead."""
+    from bench import BenchError
+    from bench.gap.inputs import load_log
+    from bench.gap.needs import NEEDS, SYNC_RATE, missing
+    from bench.gap.riggap import is_rig_calibration
+    if args.nominal and is_rig_calibration(args.nominal):
+        return True
+    log = args.loaded_log = load_log(args.log)
+    lack = missing(log, NEEDS["gap: closed-loop re-simulation"])
+    # a log of the bench's own at another SYNC period is the thesis plant's to take
+    if missing(log, [n for n in NEEDS["gap: closed-loop re-simulation"] if n != SYNC_RATE]):
+        raise BenchError(f"{args.log}: the thesis plant's gap diagnosis not available: needs "
+                         f"{', '.join(lack)}; for another actuator: bench calibrate HEALTHY... "
+                         "--actuator DESC, then bench gap LOG --nominal CALIBRATION.json "
+                         "(docs/real-data.md)")
+    return False
+
+
+def _rig(args: argparse.Namespace) -> int:
+    """The log against another actuator's generic calibration (bench.gap.riggap)."""
+    from bench import BenchError
+    from bench.gap.inputs import load_log
+    from bench.gap.riggap import CANDIDATES, diagnose_rig, load_calibration, text
+    cal, act = load_calibration(args.nominal)
+    names = tuple(CANDIDATES)
+    if args.effects:
+        names = tuple(n.strip() for n in args.effects.split(",") if n.strip())
+        bad = [n for n in names if n not in CANDIDATES]
+        if bad:
+            raise BenchError(f"unknown effect(s) {', '.join(bad)} for a generic calibration "
+                             f"(effects: {', '.join(CANDIDATES)})")
+    js = diagnose_rig(load_log(args.log), cal, act, names)
+    js["log"] = str(args.log)
+    if args.json == "-":
+        json.dump(js, sys.stdout, indent=1)
+        print()
+        return 0
+    print(f"log: {args.log}")
+    print(text(js))
+    if args.json:
+        Path(args.json).write_text(json.dumps(js, indent=1))
+        print(f"json: {args.json}")
+    if args.report:
+        print("report: not available for a generic calibration (text and --json only)")
     return 0

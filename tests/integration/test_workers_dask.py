@@ -15,7 +15,7 @@ import pytest
 
 from bench import BenchError
 from bench.cluster import Engine
-from bench.workers import run_all
+from bench.workers import ensure_started, make_pool, run_all
 
 _STATE: dict[str, str] = {}
 
@@ -28,6 +28,13 @@ def _job(x: int) -> tuple[str | None, int]:
     """A short, deterministic job that needs the initializer's state."""
     time.sleep(0.2)
     return _STATE.get("value"), int(np.random.default_rng(x).integers(1_000_000))
+
+
+def _counted(x: int) -> int:
+    """`_job` that leaves a file per execution in the initializer's folder."""
+    Path(_STATE["value"], f"{x}.{os.getpid()}.{time.monotonic_ns()}").touch()
+    time.sleep(0.2)
+    return int(np.random.default_rng(x).integers(1_000_000))
 
 
 def _flaky(arg: tuple[str, int]) -> int:
@@ -84,10 +91,27 @@ def _plugins(dask_scheduler) -> list[str]:
     return [k for k in dask_scheduler.worker_plugins if "init" in k]
 
 
-def test_a_worker_killed_mid_run_costs_only_its_tasks(engine):
+def test_make_pool_submit_and_shutdown_on_a_cluster(engine):
+    """The gap diagnosis' way: a pool started in the background, tasks submitted one by
+    one, results read in submission order; shutting down leaves a shared cluster up."""
+    pool = make_pool(2, _set, ("pool",), wait=False,
+                     scheduler=engine.cluster.scheduler_address)
+    ensure_started(pool)
+    futs = [pool.submit(_job, k) for k in range(3)]
+    got = [f.result() for f in futs]
+    pool.shutdown(wait=False, cancel_futures=True)
+    assert got == run_all(_job, range(3), workers=1, progress=False, initializer=_set,
+                          initargs=("pool",))
+    assert not engine.client().run_on_scheduler(_plugins)        # plugin removed
+    assert len(engine.client().run(os.getpid)) == 2                # cluster still up
+
+
+def test_a_worker_killed_mid_run_costs_only_its_tasks(engine, tmp_path):
     n = 16
-    serial = run_all(_job, range(n), workers=1, progress=False, initializer=_set,
-                     initargs=("init",))
+    (tmp_path / "serial").mkdir()
+    (tmp_path / "dask").mkdir()
+    serial = run_all(_counted, range(n), workers=1, progress=False, initializer=_set,
+                     initargs=(str(tmp_path / "serial"),))
     t0 = time.perf_counter()
     client = engine.client()
     client.wait_for_workers(2, timeout=60)
@@ -101,11 +125,14 @@ def test_a_worker_killed_mid_run_costs_only_its_tasks(engine):
             os.kill(victim, signal.SIGKILL)
             killed.append(victim)
 
-    got = run_all(_job, range(n), progress=False, initializer=_set,
-                  initargs=("init",), on_result=kill_once,
+    got = run_all(_counted, range(n), progress=False, initializer=_set,
+                  initargs=(str(tmp_path / "dask"),), on_result=kill_once,
                   scheduler=engine.cluster.scheduler_address)
     assert killed == [victim]
     assert got == serial                        # complete, in job order, same values
+    runs = len(list((tmp_path / "dask").iterdir()))
+    print(f"{runs} executions for {n} jobs")
+    assert n <= runs <= n + 3                   # only the victim's tasks ran again
     after = _pids_without(client, victim)       # the nanny started a new worker
     assert victim not in after and len(after) == 2
     assert time.perf_counter() - t0 < 90

@@ -74,3 +74,15 @@ def test_session_starts_nothing_for_in_process_jobs():
         assert run_all(_square, [3], workers=2, progress=False) == [9]
         assert _SESSIONS[-1].engine is None         # one job: no cluster was started
     assert not _SESSIONS
+
+
+@pytest.mark.parametrize("argv", [["hums", "sweep"], ["hums", "rul"], ["hums", "campaign"],
+                                  ["gap", "x.log"], ["gap-bench"],
+                                  ["rig", "study", "d", "--calibrate-runs", "1",
+                                   "--holdout-runs", "2", "-o", "o"]])
+def test_every_command_with_workers_takes_a_scheduler(argv):
+    from bench.cli import build_parser
+    full = [*argv, "--workers", "3", "--scheduler", "tcp://127.0.0.1:8786"]
+    args = build_parser(full).parse_args(full)
+    assert args.workers == 3 and args.scheduler == "tcp://127.0.0.1:8786"
+    assert build_parser(argv).parse_args(argv).scheduler is None
