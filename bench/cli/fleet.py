@@ -55,6 +55,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     db(q)
     q.add_argument("--sort", choices=["id", "urgency"], default="id",
                    help="order of the lines (default: %(default)s)")
+    q.add_argument("--trend-tests", type=int, default=10, metavar="N",
+                   help="tests the Ci trend is fitted over, the last ones (default: "
+                   "%(default)s)")
     q.set_defaults(func=run_status)
 
     q = s.add_parser("report", help="HTML report: what to inspect this week, per actuator",
@@ -114,9 +117,11 @@ def run_ingest(args: argparse.Namespace) -> int:
 def run_status(args: argparse.Namespace) -> int:
     from bench.fleet.status import fleet_status, format_table, urgency
     from bench.fleet.store import Store
+    if args.trend_tests < 2:
+        raise BenchError("--trend-tests must be at least 2")
     t0 = time.perf_counter()
     with Store(_db(args), read_only=True) as store:
-        rows = fleet_status(store)
+        rows = fleet_status(store, args.trend_tests)
         n_fail = len(store.failures())
     if args.sort == "urgency":
         rows.sort(key=urgency)

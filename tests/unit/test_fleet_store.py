@@ -144,3 +144,19 @@ def test_actuator_id_rule(tmp_path):
     assert G.actuator_id(tr, f, "X1") == "X1"
     tr.meta["serial_number"] = 123456
     assert G.actuator_id(tr, f, "X1") == "123456"
+
+
+def test_ingest_passes_workers_and_scheduler_to_the_pool(tmp_path, monkeypatch):
+    import bench.workers
+    seen = {}
+
+    def fake_run_all(fn, jobs, workers=None, progress=True, **kw):
+        seen.update(workers=workers, jobs=list(jobs), **kw)
+        return []
+    monkeypatch.setattr(bench.workers, "run_all", fake_run_all)
+    (tmp_path / "A3").mkdir()
+    (tmp_path / "A3" / "x.log").write_text("(1.0) can0 080#01\n")
+    res = G.ingest([str(tmp_path / "A3")], tmp_path / "f.duckdb", workers=3,
+                   scheduler="tcp://127.0.0.1:1", progress=False)
+    assert seen["workers"] == 3 and seen["scheduler"] == "tcp://127.0.0.1:1"
+    assert [j[2] for j in seen["jobs"]] == [None] and res.files == 1
