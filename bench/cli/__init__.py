@@ -36,6 +36,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "gap-bench": ("gapbench", "blind check of the gap diagnosis on generated logs"),
     "calibrate": ("calibrate", "fit the nominal model to a healthy log"),
     "import": ("importcmd", "import a CSV/Parquet table from another rig"),
+    "fleet": ("fleet", "fleet store: ingest logs, status, report, export, synthetic fleet"),
     "rig": ("rig", "baselines, fault signatures and populations of a real rig's runs"),
 }
 

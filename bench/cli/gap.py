@@ -47,6 +47,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", metavar="PATH", help="write the diagnosis JSON here ('-': stdout)")
     p.add_argument("--report", metavar="DIR", help="write figures (PNG) and index.html here")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    from bench.cluster import SCHEDULER_HELP
+    p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     p.add_argument("--fit-always", action="store_true",
                    help="fit the candidates even when the gap is within the noise floor")
     p.add_argument("--list-effects", action="store_true",
@@ -105,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     res = diagnose(log, hold, nominal, Options(
         model=args.model, effects=names, holdout_frac=args.holdout_frac,
-        workers=args.workers, encoder=args.encoder, fit_always=args.fit_always,
+        workers=args.workers, scheduler=args.scheduler, encoder=args.encoder, fit_always=args.fit_always,
         progress=not args.quiet and sys.stderr.isatty()), log=say)
     js = res.json()
     say(f"done in {time.perf_counter() - t0:.1f} s")

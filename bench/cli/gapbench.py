@@ -9,6 +9,7 @@ from pathlib import Path
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
+    from bench.cluster import SCHEDULER_HELP
     p = subparsers.add_parser(
         "gap-bench", help="blind check of the gap diagnosis on generated logs",
         description="Generate logs with the plant in-process (bench.harness, full fidelity: "
@@ -21,6 +22,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--cases", type=int, default=40, metavar="N", help="number of logs (40)")
     p.add_argument("--seed", type=int, default=2025, metavar="S", help="case seed (2025)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (2)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     p.add_argument("--log-s", type=float, default=10.0, metavar="S",
                    help="length of each generated log (10 s)")
     p.add_argument("--fidelity", choices=("full", "fast"), default="full",
@@ -98,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap import effects as E
     lib = E.parse_list(args.effects) if args.effects else None
     out = bench_run(args.cases, args.seed, args.workers, args.fidelity, args.log_s,
-                    progress=sys.stderr.isatty(), effects=lib)
+                    progress=sys.stderr.isatty(), effects=lib, scheduler=args.scheduler)
     md = markdown(out)
     print(md)
     if args.json:

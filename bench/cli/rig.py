@@ -46,6 +46,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     s.add_argument("--only", metavar="A,B", help="fault tables to score (default: all)")
     s.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
     s.add_argument("--workers", type=int, default=None, help="worker processes (default 2)")
+    from bench.cluster import SCHEDULER_HELP
+    s.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     _common(s)
     for q in (b, a, s):
         q.set_defaults(func=run)
@@ -184,8 +186,11 @@ def _study(args: argparse.Namespace) -> int:
     cal = runs_list(args.calibrate_runs, "--calibrate-runs") or []
     hold = runs_list(args.holdout_runs, "--holdout-runs") or []
     only = [x.strip() for x in args.only.split(",")] if args.only else None
-    study = run_study(args.directory, cal, hold, args.healthy, args.workers, args.alpha,
-                      progress=sys.stderr.isatty(), conditions=only, lead_mm=args.lead_mm)
+    from bench.workers import session
+    with session(args.workers, args.scheduler):     # one cluster for every condition
+        study = run_study(args.directory, cal, hold, args.healthy, args.workers,
+                          args.alpha, progress=sys.stderr.isatty(), conditions=only,
+                          lead_mm=args.lead_mm, scheduler=args.scheduler)
     command = "bench rig " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["rig"] \
         else f"bench rig study {args.directory} --calibrate-runs {args.calibrate_runs} " \
              f"--holdout-runs {args.holdout_runs} --out {args.out}"

@@ -135,8 +135,8 @@ def markdown(study: Study, command: str) -> str:
     c = sm["cost"]
     lines += ["", f"Cost: one cycle's features and verdict {1e3 * c['cycle_s_median']:.2f} ms "
               f"median, {1e3 * c['cycle_s_max']:.0f} ms max (in a worker, {c['cycles']} "
-              "cycles); wall time per condition over `bench.workers.run_all` (spawn of the "
-              "two workers included):", "",
+              "cycles); wall time per condition over `bench.workers.run_all` (the start of "
+              "the two Dask workers, once per study, is in the first condition's):", "",
               "| condition | cycles | wall s |", "|---|---|---|"]
     for k, v in c["wall_s"].items():
         lines.append(f"| {k} | {c['cycles_per_condition'][k]} | {v:.2f} |")

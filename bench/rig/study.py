@@ -83,7 +83,7 @@ def table_files(directory: str | Path) -> list[Path]:
 def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: list[int],
               healthy: str = "normal*", workers: int | None = None, alpha: float = P.ALPHA,
               progress: bool = True, conditions: list[str] | None = None,
-              lead_mm: float | None = None) -> Study:
+              lead_mm: float | None = None, scheduler: str | None = None) -> Study:
     """Baseline and thresholds from the healthy table's `calibrate_runs`, then the
     held-out healthy runs and every fault table scored (per condition a `run_all`)."""
     from bench.workers import run_all
@@ -119,7 +119,7 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
         jobs = [(base.for_load(c.load), c, lead_mm) for c in cycles if c.load in cals]
         t0 = time.perf_counter()
         res = run_all(score_cycle, jobs, workers=workers, progress=progress, desc=name,
-                      unit="cycle")
+                      unit="cycle", scheduler=scheduler)
         study.wall_s[name] = time.perf_counter() - t0
         per: dict[float, list[CycleResult]] = {}
         for (lb, _, _), r in zip(jobs, res, strict=True):
