@@ -32,6 +32,7 @@ CONNECT_TIMEOUT_S = 20.0          # an existing scheduler
 CLOSE_TIMEOUT_S = 30.0
 THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
                "NUMBA_NUM_THREADS")
+PRE_SPAWN_VARS = (*THREAD_VARS, "MALLOC_TRIM_THRESHOLD_", "PYTHONHASHSEED")
 DASHBOARD = "127.0.0.1:0"          # a free port on the loopback interface
 
 SCHEDULER_HELP = ("run on the existing Dask cluster of this scheduler (e.g. "
@@ -147,9 +148,20 @@ class Engine:
 
 def _local_cluster(workers: int) -> Any:
     """A LocalCluster of `workers` single-threaded worker processes, every socket (the
-    scheduler, the workers, the dashboard) on 127.0.0.1."""
+    scheduler, the workers, the dashboard) on 127.0.0.1. The nannies set their pre-spawn
+    variables in this process's environment to spawn the workers; they are put back
+    afterwards, so that processes this one starts later do not inherit them (a nanny
+    that restarts a dead worker sets them again)."""
     from distributed import LocalCluster
-    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                        host="127.0.0.1", dashboard_address=DASHBOARD,
-                        silence_logs=logging.CRITICAL,
-                        env={k: "1" for k in THREAD_VARS})
+    saved = {k: os.environ.get(k) for k in PRE_SPAWN_VARS}
+    try:
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            host="127.0.0.1", dashboard_address=DASHBOARD,
+                            silence_logs=logging.CRITICAL,
+                            env={k: "1" for k in THREAD_VARS})
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v

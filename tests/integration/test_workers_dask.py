@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.cluster import Engine
+from bench.cluster import PRE_SPAWN_VARS, THREAD_VARS, Engine
 from bench.workers import ensure_started, make_pool, run_all
 
 _STATE: dict[str, str] = {}
@@ -57,8 +57,11 @@ def _fail_on_two(x: int) -> int:
 def engine():
     """One LocalCluster of 2 workers for the file (a start costs 2-15 s on the shared
     2-core VM): what run_all(workers=2) starts."""
+    before = {k: os.environ.get(k) for k in PRE_SPAWN_VARS}
     with Engine(2) as e:
         e.client().wait_for_workers(2, timeout=60)
+        # the nannies' pre-spawn variables do not stay in this process's environment
+        assert {k: os.environ.get(k) for k in PRE_SPAWN_VARS} == before
         yield e
 
 
@@ -68,6 +71,8 @@ def test_cluster_order_initializer_retries_errors(engine, tmp_path, capfd):
                      initargs=("worker",))
     addr = engine.cluster.scheduler_address
     assert addr.startswith("tcp://127.0.0.1:")
+    envs = engine.client().run(_thread_env)        # one BLAS/OpenMP/numba thread each
+    assert len(envs) == 2 and all(v == ["1"] * len(THREAD_VARS) for v in envs.values())
     got = run_all(_job, range(6), progress=True, initializer=_set,
                   initargs=("worker",), on_result=seen.append, desc="engine test",
                   scheduler=addr)
@@ -85,6 +90,10 @@ def test_cluster_order_initializer_retries_errors(engine, tmp_path, capfd):
     with pytest.raises(BenchError, match="job 2 failed in a worker: ValueError: boom"):
         run_all(_fail_on_two, [0, 1, 2, 3], progress=False, desc="t", retries=0,
                 scheduler=addr)
+
+
+def _thread_env() -> list[str | None]:
+    return [os.environ.get(k) for k in THREAD_VARS]
 
 
 def _plugins(dask_scheduler) -> list[str]:
