@@ -1,6 +1,7 @@
 """Command line of the plant node (`python -m plant_rt`, also `bench plant`).
 
-    python -m plant_rt [--pace realtime|sync] [--set NAME=VALUE ...] [-i IFACE -c CHANNEL]
+    python -m plant_rt [--pace realtime|sync] [--set NAME=VALUE ...] [--serial N]
+                       [-i IFACE -c CHANNEL]
     python -m plant_rt --list-params
 
 The bus comes from python-can's flags, environment or config file, else vcan0, else a
@@ -40,6 +41,21 @@ class PlantError(Exception):
     """A user error of the plant command (printed as one line)."""
 
 
+SERIAL_HELP = ("the actuator's serial number, identity object 0x1018 sub 4 (UNSIGNED32, "
+               "decimal or 0x hex; default: the EDS's, 0)")
+
+
+def serial_arg(text: str) -> int:
+    """An argparse type: a serial number (UNSIGNED32, decimal or 0x hex)."""
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value <= 0xFFFFFFFF:
+        raise argparse.ArgumentTypeError(f"{value} is not within 0..4294967295 (UNSIGNED32)")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pace", choices=[p.name.lower() for p in Pace], default="realtime",
                         help="realtime: wall-clock periods with absolute deadlines; sync: one "
@@ -56,6 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="CANopen node id (default 0x10, from ema_contract/dbc/ema.dbc)")
     parser.add_argument("--ecu-id", type=lambda s: int(s, 0), default=None,
                         help="node id of the ECU whose heartbeat is consumed (default 0x01)")
+    parser.add_argument("--serial", type=serial_arg, default=None, metavar="N",
+                        help=SERIAL_HELP)
     parser.add_argument("--spin-us", type=int, default=200,
                         help="real-time pacer: busy-wait window before each period "
                              "(default: %(default)s us)")
@@ -175,7 +193,8 @@ def run(args: argparse.Namespace) -> int:
         raise PlantError(str(exc)) from None
     try:
         node = PlantNode(bus, params, pace=Pace[args.pace.upper()], node_id=args.node_id,
-                         ecu_id=args.ecu_id, spin_us=args.spin_us)
+                         ecu_id=args.ecu_id, spin_us=args.spin_us,
+                         serial=getattr(args, "serial", None))
     except ValueError as exc:
         close_bus(bus)
         raise PlantError(str(exc)) from None

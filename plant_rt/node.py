@@ -81,6 +81,7 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
     def __init__(self, bus: can.BusABC, params: PlantParams | None = None,
                  pace: Pace = Pace.REALTIME, node_id: int | None = None,
                  ecu_id: int | None = None, spin_us: int = 200,
+                 serial: int | None = None,
                  plant_factory: Callable[[PlantParams], Plant] = Plant,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.bus = bus
@@ -105,6 +106,11 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         self._plant_factory = plant_factory
         self.clock = clock
         self.startup_params = params or PlantParams()
+        # the actuator's serial number, identity object 0x1018 sub 4 (default: the EDS's)
+        self.serial = int(self.od[0x1018][4].default) if serial is None else int(serial)
+        if not 0 <= self.serial <= 0xFFFFFFFF:
+            raise ValueError(f"serial number {self.serial} is not an UNSIGNED32 "
+                             "(0..4294967295)")
         self.params = self.startup_params
         self.plant = plant_factory(self.params)
         self.startup_pace = Pace(pace)

@@ -75,6 +75,7 @@ class NodePart:
     _last_process: dict[str, float | int] | None
     _sensor_cache: tuple[dict[str, float | int], list[can.Message], int] | None
     _hb_period_ms: int
+    serial: int
     _next_hb: float
     _consumer: int
     _error_behaviour: int

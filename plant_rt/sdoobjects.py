@@ -1,7 +1,8 @@
 """The plant node's SDO object callbacks: reads and writes of the parameters (0x2000-0x2008,
 `plant_rt.paramobjects`), the status counters (0x2100), the node control (0x2200), the
 process data images (0x2300, 0x2400) and the communication objects it serves itself
-(0x1001, 0x1006, 0x1015, 0x1016, 0x1017, 0x1029), with the CiA 301 abort codes.
+(0x1001, 0x1006, 0x1015, 0x1016, 0x1017, 0x1018 sub 4 serial number, 0x1029), with the
+CiA 301 abort codes.
 
 `SdoObjects` is a part of `plant_rt.node.PlantNode` (a mixin): canopen's SDO server calls
 these callbacks; they use the node's state, parameters, plant, counters and timers.
@@ -70,6 +71,8 @@ class SdoObjects(NodePart):
             return int(round(self.params.sim.sync_period_s * 1e6))
         if index == 0x1017:
             return self._hb_period_ms
+        if key == (0x1018, 4):
+            return self.serial
         if key == (0x1016, 1):
             return self._consumer
         if index == 0x1015:

@@ -48,6 +48,8 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_minimal_node.py::test_realtime_run_reports_what_is_missing_and_completes",
     "tests/integration/test_state_runlogs.py::test_runs_leave_no_files_behind",
     "tests/integration/test_updown_state.py::test_corrupt_hub_record_in_up_and_run",
+    "tests/integration/test_usage_bus.py",
+    "tests/integration/test_usage_cli.py::test_usage_per_run_and_per_actuator",
     "tests/integration/test_updown_state.py::test_two_concurrent_ups_start_one_hub_and_one_plant",
     "tests/integration/test_updown_state.py::test_up_ignores_a_stale_plant_record_of_a_reused_pid",
     "tests/integration/test_workers_dask.py",

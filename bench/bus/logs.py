@@ -57,7 +57,7 @@ from bench.bus.rows import (
     RowAssembler,
     _OutOfOrder,
 )
-from bench.bus.sdo import SdoTracker, sdo_values
+from bench.bus.sdo import SdoTracker, sdo_values, serial_of
 from bench.trace import Trace
 from ema_contract.frames import Frames, load_od
 from plant_rt.paramobjects import ParamObjects
@@ -184,6 +184,7 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
     }
     if len(values) >= len(pobj.by_name):
         meta["params"] = params.to_dict()
+    meta["actuator_serial"] = serial_of(dec.sdo, od)
     return Trace(cols, meta)
 
 

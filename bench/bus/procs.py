@@ -188,7 +188,8 @@ def start_hub(persistent: bool = False, timeout: float = HUB_START_TIMEOUT_S,
 
 def plant_command(cfg: dict[str, Any], pace: str = "sync", assignments: list[str] | None = None,
                   ready_file: Path | None = None, parent_pid: int | None = None,
-                  node_id: int | None = None, extra: list[str] | None = None) -> list[str]:
+                  node_id: int | None = None, extra: list[str] | None = None,
+                  serial: int | None = None) -> list[str]:
     """The command line starting the plant node on the bus `cfg`."""
     cmd = [sys.executable, "-m", "plant_rt", "--pace", pace]
     for key, flag in (("interface", "-i"), ("channel", "-c"), ("bitrate", "-b")):
@@ -207,18 +208,20 @@ def plant_command(cfg: dict[str, Any], pace: str = "sync", assignments: list[str
         cmd += ["--parent-pid", str(parent_pid)]
     if node_id is not None:
         cmd += ["--node-id", str(node_id)]
+    if serial is not None:
+        cmd += ["--serial", str(serial)]
     return cmd + list(extra or [])
 
 
 def start_plant(cfg: dict[str, Any], pace: str = "sync", assignments: list[str] | None = None,
                 persistent: bool = False, node_id: int | None = None,
-                timeout: float = PLANT_START_TIMEOUT_S) -> Child:
+                timeout: float = PLANT_START_TIMEOUT_S, serial: int | None = None) -> Child:
     """Start the plant node on `cfg` and wait until it has booted."""
     log_path = _log_file("plant", persistent)
     ready = log_path.with_suffix(".ready")
     ready.unlink(missing_ok=True)
     cmd = plant_command(cfg, pace, assignments, ready,
-                        None if persistent else os.getpid(), node_id)
+                        None if persistent else os.getpid(), node_id, serial=serial)
     with log_path.open("w") as err:
         proc = subprocess.Popen(cmd, stdout=err, stderr=subprocess.STDOUT,
                                 stdin=subprocess.DEVNULL, start_new_session=True)

@@ -1,5 +1,6 @@
 """SDO traffic of a log -> the values that crossed the SDO server (CiA 301 expedited and
-segmented transfers), and the plant parameters they are (`sdo_values`)."""
+segmented transfers), the plant parameters they are (`sdo_values`) and the actuator's
+serial number (`serial_of`, identity object 0x1018 sub 4)."""
 
 from __future__ import annotations
 
@@ -104,3 +105,15 @@ def sdo_values(sdo: SdoTracker, pobj: ParamObjects, od: Any) -> dict[str, Any]:
         except Exception:  # noqa: BLE001
             pass
     return values
+
+
+def serial_of(sdo: SdoTracker, od: Any) -> str:
+    """The serial number (identity 0x1018 sub 4) the ECU read by SDO in the log, else
+    "unknown" (a node without it, or a log without the ECU's start-up)."""
+    raw = sdo.values.get((0x1018, 4))
+    if raw is None:
+        return "unknown"
+    try:
+        return str(int(od[0x1018][4].decode_raw(raw)))
+    except Exception:  # noqa: BLE001 - a garbled transfer is not a serial number
+        return "unknown"

@@ -32,6 +32,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "replay": ("replay", "play a candump log onto the bus (like canplayer)"),
     "decode": ("decode", "decode a candump log into a signal table (CSV/Parquet)"),
     "hums": ("hums", "health and usage monitoring (thesis chapter 6)"),
+    "usage": ("usage", "usage monitoring: travel, reversals, cycles, load spectrum, life used"),
     "gap": ("gap", "diagnose the gap between a log and the nominal model"),
     "gap-bench": ("gapbench", "blind check of the gap diagnosis on generated logs"),
     "calibrate": ("calibrate", "fit the nominal model to a healthy log"),

@@ -137,6 +137,9 @@ def _add_watch(s: argparse._SubParsersAction) -> None:
     q.add_argument("--idle", type=float, default=2.0, metavar="S",
                    help="stop S seconds after the last SYNC (default: %(default)s)")
     q.add_argument("--out", metavar="FILE.csv", help="append one row per period (CSV)")
+    q.add_argument("--usage", metavar="FILE.json",
+                   help="usage of every run so far (bench usage's JSON), rewritten at every "
+                        "command period; a usage table of each run is printed when it ends")
     q.add_argument("--node-id", type=lambda v: int(v, 0), default=None,
                    help="actuator node id (default 0x10)")
     q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
@@ -303,6 +306,7 @@ def run_watch(args: argparse.Namespace) -> int:
     _check_watch_args(args)
     params = _params(args)
     hums = LiveHums(args.period, params, args.node_id)   # fits the monitor gain first
+    usage = _UsageOut(hums, args.usage)
     found = find_bus(bus_settings(args))
     if found is None:
         raise BenchError("no bus to listen to: no python-can configuration, no vcan0 and no "
@@ -318,6 +322,7 @@ def run_watch(args: argparse.Namespace) -> int:
     def on_result(r) -> None:
         nonlocal writer
         print(format_result(r), flush=True)
+        usage.update()
         if out is not None:
             row = r.row()
             if writer is None:
@@ -344,8 +349,44 @@ def run_watch(args: argparse.Namespace) -> int:
         close_bus(bus)
         if out is not None:
             out.close()
+    usage.finish()
     _watch_summary(n, hums, args.out)
     return 0
+
+
+class _UsageOut:
+    """The watcher's usage (bench/usage): a table row per run when it ends, on stdout;
+    with ``--usage FILE.json`` every run and actuator so far, rewritten per period."""
+
+    def __init__(self, hums, path: str | None) -> None:
+        if path:
+            from bench.cli.outputs import check_output_file
+            check_output_file(path, "--usage", (".json",))
+        self.hums, self.path, self.printed = hums, path, 0
+
+    def update(self) -> None:
+        from bench.usage.table import format_table
+        done = self.hums.usage.done
+        if len(done) > self.printed:
+            print(format_table([(f"usage run {k + 1}", s)
+                                for k, s in enumerate(done) if k >= self.printed]), flush=True)
+            self.printed = len(done)
+        if self.path:
+            self._write()
+
+    def _write(self) -> None:
+        import os
+        assert self.path is not None
+        runs = self.hums.usage.runs()
+        doc = {"runs": [s.to_json() for s in runs],
+               "actuators": {k: s.to_json() for k, s in self.hums.usage.totals().items()}}
+        tmp = Path(f"{self.path}.tmp")
+        tmp.write_text(json.dumps(doc, indent=1))
+        os.replace(tmp, self.path)
+
+    def finish(self) -> None:
+        self.hums.usage.end_run()
+        self.update()
 
 
 def _check_watch_args(args: argparse.Namespace) -> None:

@@ -63,6 +63,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                    help="never start a plant (a real actuator must answer)")
     p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
                    help="actuator node id (default 0x10)")
+    from plant_rt.cli import SERIAL_HELP, serial_arg
+    p.add_argument("--serial", type=serial_arg, default=None, metavar="N",
+                   help=SERIAL_HELP + "; for the plant this run starts when none answers")
     p.add_argument("--encoder-counts", type=int, default=None, metavar="N",
                    help="encoder resolution (counts/rev) of a node without object 0x2003 "
                         "sub 11 (default: the EDS default, 16384)")
@@ -105,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
                                  progress=progress, settings=bus_settings(args),
                                  start_plant=not args.no_plant, node_id=args.node_id,
                                  announce=say, spin_us=args.spin_us, stop=stop,
-                                 encoder_counts=args.encoder_counts)
+                                 encoder_counts=args.encoder_counts, serial=args.serial)
         except BenchError as exc:
             stop.defer = True       # a second signal must not cut the partial trace's save
             msg = _ended(exc, args)

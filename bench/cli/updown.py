@@ -25,6 +25,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                     metavar="NAME=VALUE", help="plant parameter at start (repeatable)")
     up.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
                     help="actuator node id (default 0x10)")
+    from plant_rt.cli import SERIAL_HELP, serial_arg
+    up.add_argument("--serial", type=serial_arg, default=None, metavar="N", help=SERIAL_HELP)
     up.add_argument("--rt-priority", type=int, default=0, metavar="N",
                     help="start hub and plant under SCHED_FIFO at priority N (1-99; needs "
                          "root or CAP_SYS_NICE); 0: normal scheduling (default)")
@@ -105,7 +107,7 @@ def _up(args: argparse.Namespace) -> int:
         else:
             cfg, source = found
         child = start_plant(cfg, pace=args.pace, assignments=args.assignments,
-                            persistent=True, node_id=args.node_id)
+                            persistent=True, node_id=args.node_id, serial=args.serial)
     except BaseException:
         for c in started:
             c.stop()

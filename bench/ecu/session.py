@@ -57,7 +57,8 @@ def setting_origins(profile: Profile, assignments: list[str] | None = None,
 
 def _with_node(trace: Trace | None, info: NodeInfo) -> Trace | None:
     """`trace` with what the ECU found on the node (``meta["node"]``); the parameters in
-    ``meta["params"]`` only when the node gave them all."""
+    ``meta["params"]`` only when the node gave them all; ``meta["actuator_serial"]`` the
+    serial number of 0x1018 sub 4, "unknown" when the node has none."""
     if trace is not None:
         node = asdict(info)
         if info.params_complete:
@@ -65,6 +66,8 @@ def _with_node(trace: Trace | None, info: NodeInfo) -> Trace | None:
         else:
             trace.meta.pop("params", None)
         trace.meta["node"] = node
+        serial = info.identity.get("serial")
+        trace.meta["actuator_serial"] = "unknown" if serial is None else str(serial)
     return trace
 
 
@@ -83,13 +86,16 @@ def _check_run(profile: Profile, vals: dict[str, Any], duration_s: float | None,
 
 
 def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace, node_id: int | None,
-                say: Callable[[str], None]) -> None:
+                say: Callable[[str], None], serial: int | None = None) -> None:
     """Wait for the node on the session's bus; when none answers on a simulated bus and
     `start_plant`, start a plant process for the run (stopped with the session)."""
     from bench.bus import is_simulated
     from bench.bus.procs import start_plant as _start_plant
     try:
         ecu.wait_for_plant(1.0 if sess.children else 0.6)
+        if serial is not None:
+            say(f"serial number {serial} not applied: a node already answers (its own "
+                "serial is in the trace; start a plant with `bench up --serial N`)")
     except PlantLost:
         ecu.check_receive()
         if not (start_plant and is_simulated(sess.cfg)):
@@ -97,7 +103,7 @@ def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace, node_id: int
                             f"{sess.description}") from None
         say("starting a plant for this run")
         sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
-                                          node_id=node_id))
+                                          node_id=node_id, serial=serial))
 
 
 def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
@@ -107,7 +113,8 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
                  start_plant: bool = True, cparams: ControllerParams | None = None,
                  node_id: int | None = None, announce: Callable[[str], None] | None = None,
                  echo: bool = False, spin_us: int = 200, encoder_counts: int | None = None,
-                 sync_driven: bool = False, stop: StopSignal | None = None) -> Trace:
+                 sync_driven: bool = False, stop: StopSignal | None = None,
+                 serial: int | None = None) -> Trace:
     """Run `profile` against the plant over the bus and return the trace.
 
     The bus is the configured one (flags in `settings`, environment, config file,
@@ -121,7 +128,8 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
     ``meta["params"]`` is then left out, since the ECU does not know the node's
     parameters. `encoder_counts` (counts/rev) stands in for a missing encoder
     resolution object; `sync_driven` vouches that a node without the lockstep object
-    steps one period per SYNC, so that `pace` "sync" may run against it.
+    steps one period per SYNC, so that `pace` "sync" may run against it. `serial` is the
+    serial number (0x1018 sub 4) of the plant started for the run, if one is.
 
     Before anything starts: the run's length (`run_periods`) and the log path are
     checked. Before any NMT command or SDO write: `Ecu.claim` (no other ECU on the node).
@@ -139,7 +147,7 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
         ecu = None
         try:
             ecu = Ecu(bus, node_id=node_id, log_path=log_path, echo=echo)
-            _find_plant(ecu, sess, start_plant, pace, node_id, say)
+            _find_plant(ecu, sess, start_plant, pace, node_id, say, serial)
             say(f"bus {sess.description}")
             ecu.claim(say)
             ecu.start_heartbeat()

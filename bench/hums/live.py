@@ -155,8 +155,8 @@ class LiveHums:
         self.cpr = float(self.params.sensors.encoder_counts_per_rev)
         self._sync, self._nmt = self.frames.cob["SYNC"], self.frames.cob["NMT"]
         self._queue = _RowQueue()
-        self.assembler = RowAssembler(self.frames, int(load_od(self.frames.node_id)[0x1019]
-                                                       .default), self._queue)
+        self._od = load_od(self.frames.node_id)
+        self.assembler = RowAssembler(self.frames, int(self._od[0x1019].default), self._queue)
         self.run = 0
         self.last_sync: float | None = None        # monotonic time it was fed
         self.last_sync_stamp: float | None = None  # its bus timestamp
@@ -166,6 +166,29 @@ class LiveHums:
         self._modes: list[float] = []
         self._k = 0
         self._periods = 0
+        from bench.usage.online import OnlineUsage
+        self.usage = OnlineUsage(self._run_params, self._serial)
+        """The usage of each run (bench/usage), from the same rows, gaps unbridged."""
+
+    def _run_params(self) -> PlantParams:
+        """The run's parameters as the log decoder takes them: those the ECU's SDO traffic
+        revealed when it revealed them all, else the nominal ones."""
+        from bench.bus.sdo import sdo_values
+        from plant_rt.paramobjects import ParamObjects
+        od = self._od
+        pobj = ParamObjects(od)
+        values = sdo_values(self.assembler.sdo, pobj, od)
+        if len(values) >= len(pobj.by_name):
+            try:
+                return PlantParams().with_dict(values)
+            except ValueError:
+                pass
+        return self.params
+
+    def _serial(self) -> str:
+        """The serial number the ECU read (0x1018 sub 4), else unknown."""
+        from bench.bus.sdo import serial_of
+        return serial_of(self.assembler.sdo, self._od)
 
     @property
     def count(self) -> dict[str, int]:
@@ -194,6 +217,7 @@ class LiveHums:
         out: list[PeriodResult] = []
         rows, self._queue.out = self._queue.out, []
         for run, vals in rows:
+            self.usage.push(run, vals)
             if run != self._row_run or self._online is None:   # a new run (or joined one)
                 out += self._new_run()
                 self._row_run = run

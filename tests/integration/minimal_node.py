@@ -98,10 +98,12 @@ class PlantPhysics:
 
 
 # -- bus ----------------------------------------------------------------------------------
-def cia301_od(node_id: int) -> ObjectDictionary:
-    """The EDS's object dictionary without anything from 0x2000 on (CiA 301 objects only)."""
+def cia301_od(node_id: int, identity: bool = True) -> ObjectDictionary:
+    """The EDS's object dictionary without anything from 0x2000 on (CiA 301 objects only);
+    without the identity object 0x1018 too unless `identity`."""
     od = load_od(node_id)
-    for index in [i for i in od.keys() if isinstance(i, int) and i >= 0x2000]:
+    for index in [i for i in od.keys() if isinstance(i, int)
+                  and (i >= 0x2000 or i == 0x1018 and not identity)]:
         del od[index]
     return od
 
@@ -113,13 +115,13 @@ class MinimalNode:
     (`Network.notify`: SDO server and the handlers below) and produces the heartbeat."""
 
     def __init__(self, bus: can.BusABC, physics: Physics, node_id: int | None = None,
-                 ecu_id: int | None = None, clock: Callable[[], float] = time.monotonic
-                 ) -> None:
+                 ecu_id: int | None = None, clock: Callable[[], float] = time.monotonic,
+                 identity: bool = True) -> None:
         self.bus = bus
         self.physics = physics
         self.frames = Frames(node_id, ecu_id)
         self.node_id = self.frames.node_id
-        self.od = cia301_od(self.node_id)
+        self.od = cia301_od(self.node_id, identity)
         self.local = canopen.LocalNode(self.node_id, self.od)
         self.network = canopen.Network(bus)
         self.network.add_node(self.local)
@@ -307,6 +309,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--ready-file", type=Path)
     p.add_argument("--parent-pid", type=int)
     p.add_argument("--duration", type=float)
+    p.add_argument("--no-identity", action="store_true",
+                   help="a node without the identity object 0x1018 (no serial number)")
     args = p.parse_args(argv)
     physics = PlantPhysics(PlantParams().with_assignments(args.assignments))
     physics.step(0.0)                  # load the compiled plant before going on the bus
@@ -314,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
     cfg = {"interface": args.interface, "channel": args.channel}
     setpoint = Frames(args.node_id).cob["ECU_Setpoint"]   # for loggers, not for the drive
     bus = open_bus(cfg, receive_own_messages=False, can_filters=exclude_filters([setpoint]))
-    node = MinimalNode(bus, physics, args.node_id)
+    node = MinimalNode(bus, physics, args.node_id, identity=not args.no_identity)
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, lambda *_: node.stop())
     try:

@@ -1,0 +1,136 @@
+"""`bench usage LOG_OR_TRACE...`: the usage of each run and per actuator (docs/usage.md).
+
+    bench usage run1.log run2.log [--by-actuator] [--json OUT.json] [--plot DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from bench import BenchError
+
+
+def add_subparser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "usage", help="usage monitoring: travel, reversals, cycles, load spectrum, life used",
+        description="The usage of each run from its candump log or saved trace: nut travel "
+        "and screw revolutions, reversals, rainflow-counted position and load cycles (ASTM "
+        "E1049), the load spectrum, the equivalent dynamic axial load F_m and the rating "
+        "life consumed against the screw's dynamic load rating C_a (ISO 3408-5, "
+        "Palmgren-Miner), time at winding temperature, I2t and time per motion regime; "
+        "accumulated per actuator by the serial number the ECU read from object 0x1018 "
+        "(docs/usage.md).")
+    p.add_argument("files", nargs="+", metavar="LOG_OR_TRACE",
+                   help="candump .log, or a trace saved by bench run --save (.npz, .csv, "
+                        ".parquet)")
+    p.add_argument("--by-actuator", action="store_true",
+                   help="also print the runs accumulated per actuator (serial number)")
+    p.add_argument("--json", metavar="OUT.json", help="write every run and every actuator")
+    p.add_argument("--plot", metavar="DIR",
+                   help="write a PNG per run and per actuator: load spectrum, rainflow "
+                        "matrices")
+    p.add_argument("--preload", choices=["none", "double-nut"], default="none",
+                   help="how the nut loads follow from the measured load (default: "
+                        "%(default)s; docs/usage.md)")
+    p.add_argument("--preload-n", type=float, default=None, metavar="N",
+                   help="double-nut preload (default: the run's effects.preload_n)")
+    p.add_argument("--set", dest="assignments", action="append", default=[],
+                   metavar="NAME=VALUE", help="a usage setting, e.g. "
+                   "usage.reversal_hysteresis_m=5e-6 (repeatable; docs/usage.md)")
+    p.add_argument("--load-rating-n", type=float, default=None, metavar="N",
+                   help="dynamic load rating C_a (default: the run's "
+                        "screw.dynamic_load_rating_n)")
+    p.set_defaults(func=run)
+
+
+def _check(args: argparse.Namespace) -> None:
+    from bench.cli.outputs import check_output_dir, check_output_file
+    for v, flag in ((args.preload_n, "--preload-n"), (args.load_rating_n, "--load-rating-n")):
+        if v is not None and not (math.isfinite(v) and v >= 0):
+            raise BenchError(f"{flag} must be a finite number of newtons >= 0, not {v:g}")
+    if args.load_rating_n is not None and not args.load_rating_n > 0:
+        raise BenchError("--load-rating-n must be > 0 N")
+    if args.json:
+        check_output_file(args.json, "--json", (".json",))
+    if args.plot:
+        check_output_dir(args.plot, "--plot")
+    for f in args.files:
+        if not Path(f).is_file():
+            raise BenchError(f"no such file: {f}")
+
+
+def _settings(args: argparse.Namespace, cls):
+    """The usage settings: --preload, --preload-n, then every --set NAME=VALUE."""
+    values: dict = {"preload_mode": args.preload,
+                    "preload_n": -1.0 if args.preload_n is None else args.preload_n}
+    known = {i.leaf: i for i in cls.infos()}
+    for a in args.assignments:
+        name, sep, value = a.partition("=")
+        leaf = name.strip().removeprefix("usage.")
+        if not sep or leaf not in known:
+            raise BenchError(f"--set {a!r}: expected NAME=VALUE with NAME one of "
+                             + ", ".join(f"usage.{k}" for k in known))
+        values[leaf] = value.strip() if known[leaf].type is str else float(value) \
+            if _is_number(value) else value
+    return cls.from_dict(values)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from bench.bus.logs import load_trace
+    from bench.usage import UsageSettings, accumulate, usage_of_trace
+    from bench.usage.accumulator import missing_signals, trace_params
+    from bench.usage.table import format_table
+
+    _check(args)
+    settings = _settings(args, UsageSettings)
+    runs = []
+    for f in tqdm(args.files, desc="usage", unit="file", file=sys.stderr,
+                  disable=len(args.files) < 2 or not sys.stderr.isatty()):
+        tr = load_trace(f)
+        params = trace_params(tr)
+        if args.load_rating_n is not None:
+            params = params.with_dict({"screw.dynamic_load_rating_n": args.load_rating_n})
+        runs.append((f, usage_of_trace(tr, settings, params)))
+        lacking = missing_signals(tr)
+        if lacking:
+            print(f"{f}: no {'; no '.join(lacking)}: those quantities are 0", file=sys.stderr)
+    print(format_table([(Path(f).name, s) for f, s in runs]))
+    per_actuator = accumulate([s for _, s in runs])
+    if args.by_actuator:
+        print()
+        print(format_table([(f"actuator {k}", s) for k, s in per_actuator.items()]))
+    if args.json:
+        doc = {"settings": settings.to_dict(),
+               "runs": [{"file": str(f), **s.to_json()} for f, s in runs],
+               "actuators": {k: s.to_json() for k, s in per_actuator.items()}}
+        Path(args.json).write_text(json.dumps(doc, indent=1))
+        print(f"wrote {args.json}")
+    if args.plot:
+        _plots(args.plot, runs, per_actuator)
+    return 0
+
+
+def _plots(directory: str, runs, per_actuator) -> None:
+    from bench.usage.figure import save_usage_figure
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    for f, s in runs:
+        save_usage_figure(s, f"{Path(f).name}: actuator {s.actuator_serial}",
+                          out / f"{Path(f).stem}_usage.png")
+    for k, s in per_actuator.items():
+        save_usage_figure(s, f"actuator {k}: {s.runs:g} run(s)", out / f"actuator_{k}_usage.png")
+    print(f"wrote {len(runs) + len(per_actuator)} figure(s) into {out}")
