@@ -50,11 +50,27 @@ BATCH_S = 5.0
 or BATCH_S seconds, whichever comes first."""
 
 
+HOT_K = 400.0
+"""`time_hot_s` counts the winding above 400 K (127 degC): the usage monitor's 10 K
+temperature bin edge nearest below the 403 K (130 degC) limit of class B insulation."""
+
+
 def usage_columns(trace: Trace) -> dict[str, Any]:
-    """The usage of one run, by the schema's usage column names (`schema.USAGE_COLUMNS`).
-    The single place the usage computation plugs in; empty until it lands, so the
-    columns stay NULL."""
-    return {}
+    """The usage of one run (`bench.usage.usage_of_trace`, docs/usage.md), by the schema's
+    usage column names (`schema.USAGE_COLUMNS`); a value the run cannot give (L10 of a
+    run without load, a signal it lacks) is NULL."""
+    from bench.usage.accumulator import usage_of_trace
+    from bench.usage.settings import TEMP_EDGES_K
+    u = usage_of_trace(trace)
+    d = u.as_dict()
+    hot = sum(float(t) for lo, t in zip(TEMP_EDGES_K[:-1], u.temperature_time_s, strict=True)
+              if lo >= HOT_K)
+    row = {"travel_m": d["nut_travel_m"], "screw_revs": d["screw_revolutions"],
+           "reversals": int(d["reversals"]), "equivalent_load_n": d["fm_n"],
+           "life_consumed": d["life_consumed"], "i2t_a2s": d["i2t_a2s"],
+           "time_hot_s": hot}
+    return {k: (v if isinstance(v, int) or math.isfinite(v) else None)
+            for k, v in row.items()}
 
 
 # --- finding the files ---------------------------------------------------------------------

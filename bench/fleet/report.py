@@ -5,7 +5,7 @@ inspect this week and why, most urgent first (`inspect_reason`), then every actu
 with its status line (`bench.fleet.status`) and a figure of the fleet's Ci. One page per
 actuator (``DIR/actuators/<id>.html``): Ci per test against the thesis' levels (0.93
 threshold, 0.80 warning, 0.56 failure), with the RUL's failure-time band when there is
-one; Cp and the lost motion; the usage (empty until the usage computation lands); the
+one; Cp and the lost motion; the usage (docs/usage.md); the
 alerts (tests whose verdict is not HEALTHY) with links to the logs behind them.
 Figures are drawn with matplotlib's Figure API into ``DIR/figures``.
 """
@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.fleet.schema import USAGE_COLUMNS
 from bench.fleet.status import (
     DAY_S,
     ActuatorStatus,
@@ -81,7 +82,7 @@ def write_report(store: Any, out_dir: str | Path) -> Path:
     if not rows:
         raise BenchError(f"{store.path}: the fleet store has no runs yet")
     data = store.series(("ci", "ci_harmonic", "cp", "lost_motion_m", "verdict", "reasons",
-                         "path", "life_consumed"))
+                         "path", *USAGE_COLUMNS))
     ids = np.asarray(data["actuator_id"], dtype=object)
     _fleet_figure(rows, data, ids, out / "figures" / "fleet-ci.png")
     for st in rows:
@@ -166,8 +167,8 @@ def _footer() -> str:
             f"failure {R.FAILURE}. RUL: the thesis' cubic on Ci over the daily tests from "
             f"the threshold crossing, extrapolated to {R.FAILURE}, band 5-95 % of a "
             f"bootstrap. Inspect this week: last test WARNING or FAILURE, or the RUL band "
-            f"starting within {INSPECT_RUL_DAYS:.0f} days. Usage columns are empty until "
-            "the usage computation lands.</small></p></body></html>")
+            f"starting within {INSPECT_RUL_DAYS:.0f} days. Usage: docs/usage.md (L10 life "
+            "consumed by Palmgren-Miner).</small></p></body></html>")
 
 
 def _id_cell(st: ActuatorStatus) -> str:
@@ -177,6 +178,30 @@ def _id_cell(st: ActuatorStatus) -> str:
 
 def _slope(st: ActuatorStatus) -> str:
     return "-" if not math.isfinite(st.slope_per_day) else f"{st.slope_per_day:+.4f}"
+
+
+USAGE_ROWS = (("nut travel", "travel_m", 1.0, "m"), ("screw revolutions", "screw_revs", 1.0, ""),
+              ("reversals", "reversals", 1.0, ""), ("L10 life consumed", "life_consumed",
+                                                      100.0, "%"),
+              ("I^2 t", "i2t_a2s", 1.0, "A^2 s"), ("winding above 400 K", "time_hot_s", 1.0,
+                                                   "s"))
+
+
+def _usage_table(sub: dict[str, np.ndarray]) -> str:
+    """The actuator's usage summed over its runs, and the equivalent load of the latest
+    run that had one (NULL columns, runs without a load signal, are left out)."""
+    rows = []
+    for label, col, scale, unit in USAGE_ROWS:
+        v = _f(sub[col])
+        ok = np.isfinite(v)
+        txt = f"{scale * float(v[ok].sum()):.4g} {unit}" if ok.any() else "n/a"
+        rows.append(f"<tr><td>{label}</td><td>{txt}</td><td>{int(ok.sum())}</td></tr>")
+    fm = _f(sub["equivalent_load_n"])
+    last = fm[np.isfinite(fm)]
+    rows.append("<tr><td>equivalent load F_m, latest run</td><td>"
+                + (f"{last[-1]:.0f} N" if len(last) else "n/a") + "</td><td></td></tr>")
+    return ("<table><tr><th>usage (sum of runs)</th><th>value</th><th>runs</th></tr>"
+            + "".join(rows) + "</table>")
 
 
 def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) -> str:
@@ -195,11 +220,7 @@ def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) ->
         ("RUL (days) [90 % band]", rul_text(st)), ("usage consumed", usage_text(st)),
         ("action", why or "none"))) + "</table>")
     p.append(f"<h2>Index trends</h2><img alt='trends' src='../figures/{e(slug)}.png'>")
-    p.append("<h2>Usage</h2><p>" + (
-        e(usage_text(st)) if math.isfinite(st.life_consumed) else
-        "The usage columns (travel, screw revolutions, reversals, equivalent load, L10 "
-        "life consumed, i2t, time hot) are empty: the usage computation has not landed "
-        "yet.") + "</p>")
+    p.append("<h2>Usage</h2>" + _usage_table(sub))
     lvl = np.array([_level(v) for v in sub["verdict"]])
     alerts = np.flatnonzero(lvl >= 1)[::-1][:MAX_ALERTS]
     p.append(f"<h2>Alerts ({int((lvl >= 1).sum())} tests not HEALTHY"

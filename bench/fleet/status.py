@@ -13,8 +13,8 @@ then the warning level 0.80, a cubic fitted to Ci(t) from the threshold crossing
 latest test is extrapolated to the failure level 0.56; the band is the 5-95 % spread of
 a residual bootstrap of that fit. Where the algorithm does not apply (no crossing yet,
 or too few tests between the crossings) the RUL is "n/a" with the reason.
-The usage consumed is the sum of the runs' ``life_consumed`` (fraction of L10): empty
-until the usage computation lands.
+The usage consumed is the sum of the runs' ``life_consumed`` (fraction of L10, Palmgren-
+Miner; docs/usage.md); n/a when no run had a load signal.
 """
 
 from __future__ import annotations
@@ -158,7 +158,7 @@ def rul_text(st: ActuatorStatus) -> str:
 
 def usage_text(st: ActuatorStatus) -> str:
     if not math.isfinite(st.life_consumed):
-        return "n/a (usage not computed yet)"
+        return "n/a (no run with a load signal)"
     return f"{100.0 * st.life_consumed:.2f} % of L10"
 
 

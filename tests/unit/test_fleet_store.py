@@ -121,8 +121,29 @@ def test_status_trend_and_rul_over_days(tmp_path):
     assert "A1" in text.splitlines()[1] and "n/a (usage not computed yet)" in text
 
 
-def test_usage_columns_are_empty_until_usage_lands():
-    assert G.usage_columns(None) == {}          # type: ignore[arg-type]
+def test_usage_columns_of_a_constant_load_run():
+    """2 rev/s for 5 s under 5 kN, winding 410 K for the second half: the store's usage
+    columns by hand (L10 = (22 kN / 5 kN)^3 10^6 rev, docs/usage.md)."""
+
+    from bench.trace import Trace
+    from plant_rt.params import PlantParams
+    p = PlantParams()
+    n, dt = 5001, 1e-3
+    rev = np.arange(n) * 0.002
+    temp = np.where(np.arange(n) < 2500, 300.0, 410.0)
+    tr = Trace({"t_s": np.arange(n) * dt,
+                "motor_angle_rad": rev * 2 * math.pi / p.reducer.ratio,
+                "load_force_n": np.full(n, 5000.0), "current_a": np.full(n, 2.0),
+                "winding_temperature_k": temp}, {"period_s": dt})
+    u = G.usage_columns(tr)
+    assert set(u) == set(S.USAGE_COLUMNS)
+    assert u["screw_revs"] == pytest.approx(10.0, abs=1e-3)
+    assert u["travel_m"] == pytest.approx(10.0 * p.screw.lead_m, rel=1e-3)
+    assert u["equivalent_load_n"] == pytest.approx(5000.0, rel=1e-9)
+    assert u["life_consumed"] == pytest.approx(u["screw_revs"] / (4.4 ** 3 * 1e6), rel=1e-9)
+    assert u["reversals"] == 0
+    assert u["i2t_a2s"] == pytest.approx(4.0 * 5.0, rel=1e-2)
+    assert u["time_hot_s"] == pytest.approx(2.5, abs=0.01)
 
 
 def test_expand_files_dirs_globs_and_missing(tmp_path):
