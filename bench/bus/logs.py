@@ -27,7 +27,6 @@ needs the whole log and is done here only.
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -56,6 +55,7 @@ from bench.bus.rows import (
     SIGNAL_COLUMNS,
     RowAssembler,
     _OutOfOrder,
+    trace_columns,
 )
 from bench.bus.sdo import SdoTracker, sdo_values
 from bench.trace import Trace
@@ -67,9 +67,6 @@ __all__ = ["COLUMNS", "FD_LENGTHS", "LINE", "MAX_EMCY_KEPT", "MAX_LINE", "MAX_LO
            "OUT_OF_ORDER_S", "ROW_FRAMES", "SIGNAL_COLUMNS", "LogIssue", "LogIssues",
            "SdoTracker", "integrity", "load_trace", "parse_line", "read_log", "report_issues",
            "time_ordered", "trace_from_log", "trace_from_messages"]
-
-TWO_PI = 2.0 * math.pi
-
 
 FRAME_DTYPE = np.dtype([("ts", "f8"), ("id", "u4"), ("flags", "u1"), ("dlc", "u1"),
                         ("len", "u1"), ("data", "V8")])
@@ -169,11 +166,7 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
         params = PlantParams()
     ts = period_s or params.sim.sync_period_s
     cpr = counts_per_rev or params.sensors.encoder_counts_per_rev
-    n = len(rows)
-    cols: dict[str, np.ndarray] = {"t_s": np.arange(n) * ts}
-    for c in COLUMNS:
-        cols[c] = np.frombuffer(rows.cols[c], dtype=float).copy() if n else np.zeros(0)
-    cols["motor_angle_rad"] = cols.pop("encoder_counts") * TWO_PI / cpr
+    cols = trace_columns(rows, ts, cpr)
     kept = list(issues or [])[:100]
     meta: dict[str, Any] = {
         "source": source, "node_id": frames.node_id, "period_s": ts, "counts_per_rev": cpr,
