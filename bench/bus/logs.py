@@ -43,9 +43,11 @@ from bench.bus.logread import (
     LogIssue,
     LogIssues,
     parse_line,
+    read_frames,
     read_log,
     report_issues,
 )
+from bench.bus.logwrite import LOG_FORMATS
 from bench.bus.rows import (
     COLUMNS,
     MAX_EMCY_KEPT,
@@ -65,7 +67,8 @@ from plant_rt.params import ParameterError, PlantParams
 
 __all__ = ["COLUMNS", "FD_LENGTHS", "LINE", "MAX_EMCY_KEPT", "MAX_LINE", "MAX_LOST_SYNCS",
            "OUT_OF_ORDER_S", "ROW_FRAMES", "SIGNAL_COLUMNS", "LogIssue", "LogIssues",
-           "SdoTracker", "integrity", "load_trace", "parse_line", "read_log", "report_issues",
+           "SdoTracker", "integrity", "load_trace", "parse_line", "read_frames", "read_log",
+           "report_issues",
            "time_ordered", "trace_from_log", "trace_from_messages"]
 
 FRAME_DTYPE = np.dtype([("ts", "f8"), ("id", "u4"), ("flags", "u1"), ("dlc", "u1"),
@@ -192,7 +195,8 @@ def _counting_order(messages: Iterable[can.Message], dec: RowAssembler
 def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float | None = None,
                    counts_per_rev: int | None = None,
                    issues: Any = None) -> Trace:
-    """The signal table of a candump log (for the HUMS, the gap diagnosis, `bench decode`).
+    """The signal table of a log (for the HUMS, the gap diagnosis, `bench decode`): candump
+    ``.log`` or any other format of LOG_FORMATS (`bench.bus.logread.read_frames`).
 
     Bad lines are skipped, counted and the first ones listed in ``trace.meta["issues"]``
     (and collected in `issues` when given: a list or a `LogIssues`); the rest of the log
@@ -203,10 +207,10 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
     found = LogIssues(100) if issues is None else issues
     first = _Counted(found)
     try:
-        tr = trace_from_messages(read_log(path, first), node_id, period_s, counts_per_rev,
+        tr = trace_from_messages(read_frames(path, first), node_id, period_s, counts_per_rev,
                                  found, source=str(path), stop_on_disorder=True)
     except _OutOfOrder:        # read it all again, in time-stamp order
-        tr = trace_from_messages(read_log(path, _Counted(found, skip=first.seen)), node_id,
+        tr = trace_from_messages(read_frames(path, _Counted(found, skip=first.seen)), node_id,
                                  period_s, counts_per_rev, found, source=str(path),
                                  sort_by_time=True)
     if not len(tr):
@@ -236,18 +240,18 @@ TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
 
 
 def load_trace(path: str | Path) -> Trace:
-    """A candump log (decoded through the DBC) or a saved trace table (.npz, .csv,
-    .parquet) as a Trace; BenchError naming the file when it cannot be read."""
+    """A bus log (LOG_FORMATS, decoded through the DBC) or a saved trace table (.npz,
+    .csv, .parquet) as a Trace; BenchError naming the file when it cannot be read."""
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such file: {path}")
     suffix = path.suffix.lower()
-    if suffix == ".log":
+    if suffix in LOG_FORMATS:
         tr = trace_from_log(path)
     elif suffix in TABLE_SUFFIXES:
         tr = Trace.load(path)
     else:
-        raise BenchError(f"{path}: unknown log format {suffix!r} (a candump .log, or a "
-                         f"trace {', '.join(TABLE_SUFFIXES)})")
+        raise BenchError(f"{path}: unknown log format {suffix!r} (a bus log "
+                         f"{', '.join(LOG_FORMATS)}, or a trace {', '.join(TABLE_SUFFIXES)})")
     tr.meta.setdefault("source", str(path))
     return tr
