@@ -45,12 +45,11 @@ def check_arguments(args: argparse.Namespace) -> None:
         raise BenchError(f"--count must be >= 1 frame, not {args.count}")
     if args.max_bytes < 0:
         raise BenchError(f"--max-bytes must be >= 0 (0: one file), not {args.max_bytes}")
-    from bench.bus.logwrite import LOG_FORMATS, ROTATING_FORMATS, log_format
-    log_format(args.file, "FILE")
+    from bench.bus.logwrite import LOG_FORMATS, ROTATING_FORMATS
+    check_output_file(args.file, "FILE.log", tuple(LOG_FORMATS))   # the format from it
     if args.max_bytes and Path(args.file).suffix.lower() not in ROTATING_FORMATS:
         raise BenchError(f"--max-bytes: python-can rotates {', '.join(ROTATING_FORMATS)} logs, "
                          f"not {Path(args.file).suffix.lower()}")
-    check_output_file(args.file, "FILE", tuple(LOG_FORMATS))
 
 
 def run(args: argparse.Namespace) -> int:

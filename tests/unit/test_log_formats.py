@@ -111,7 +111,7 @@ def test_an_unknown_format_is_a_one_line_error(tmp_path, capsys):
     err = one_line_error(capsys, "decode", str(other))
     assert "unknown log format '.xyz'" in err and ".blf" in err, err
     err = one_line_error(capsys, "log", str(tmp_path / "out.csv"), "--duration", "1")
-    assert "unknown log format '.csv'" in err, err
+    assert "unknown suffix '.csv'" in err and ".mf4" in err, err
     err = one_line_error(capsys, "log", str(tmp_path / "out.trc"), "--max-bytes", "1000")
     assert "--max-bytes" in err and ".trc" in err, err
 
