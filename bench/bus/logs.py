@@ -1,4 +1,5 @@
-"""candump logs: tolerant reading, replay and decoding into a `Trace` through the DBC.
+"""Bus logs decoded into a `Trace` through the DBC: candump logs read tolerantly, and the
+other formats python-can reads (`bench.bus.logread.read_frames`).
 
 The format is ``candump -L`` (python-can's `CanutilsLogWriter`/`CanutilsLogReader`):
 ``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` streams it line by line and,
