@@ -21,8 +21,8 @@ for _helpers in ("unit", "integration"):        # helper modules shared across t
 
 # Tests whose run (setup + call) took over ~5 s on the 2-core development VM under load
 # (pytest --durations, 2026-11-23); re-measured on 2026-11-23 under a load average of
-# 10-20 (the whole suite 26 min 52 s instead of ~3 min 40 s): the tests over ~30 s there
-# were added. A file marks all its tests, "file::test" one test and all its parameter
+# 10-20 (the whole suite 26 min 52 s instead of ~3 min 40 s; 24 min 32 s after the moves
+# of issue 10, load 7-12): the tests over ~30 s there were added. A file marks all its tests, "file::test" one test and all its parameter
 # sets.
 SLOW: tuple[str, ...] = (
     "tests/integration/test_bus_faults.py::test_ecu_killed_mid_run_lockstep_plant_holds_still",
