@@ -24,7 +24,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                     "measure how far the best one shrinks the gap on held-out data. The "
                     "fits use the plant's fast mode (averaged PWM, massless balls).")
     p.add_argument("log", nargs="?", metavar="REAL",
-                   help="candump log (.log) or trace (.npz/.csv/.parquet) of the run")
+                   help="bus log (.log candump, .asc, .blf, .trc, .mf4) or trace "
+                        "(.npz/.csv/.parquet) of the run")
     p.add_argument("--holdout", metavar="OTHER",
                    help="another log for held-out validation (default: the last part of REAL)")
     p.add_argument("--holdout-frac", type=float, default=0.5, metavar="F",

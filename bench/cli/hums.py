@@ -107,7 +107,7 @@ def _add_report(s: argparse._SubParsersAction) -> None:
                      "nothing was commanded gets the verdict UNKNOWN. Exit status: 0 when "
                      "every log has a verdict, 3 when one has none (UNKNOWN; the report is "
                      "still written), 2 on bad input.")
-    q.add_argument("logs", nargs="+", metavar="LOG", help="candump .log or trace file")
+    q.add_argument("logs", nargs="+", metavar="LOG", help="bus log (.log, .asc, .blf, .trc, .mf4) or trace file")
     q.add_argument("--out", default="hums-report", metavar="DIR",
                    help="output directory (default: %(default)s)")
     q.add_argument("--period", type=float, default=None, metavar="S",
