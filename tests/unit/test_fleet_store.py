@@ -118,7 +118,7 @@ def test_status_trend_and_rul_over_days(tmp_path):
     assert not math.isfinite(b.rul_days) and "above the threshold" in b.rul_why
     assert b.slope_per_day == pytest.approx(0.0, abs=1e-12)
     text = T.format_table(rows)
-    assert "A1" in text.splitlines()[1] and "n/a (usage not computed yet)" in text
+    assert "A1" in text.splitlines()[1] and "n/a (no run with a load signal)" in text
 
 
 def test_usage_columns_of_a_constant_load_run():
