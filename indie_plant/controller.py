@@ -14,17 +14,23 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from indie_plant.params import IndieParams
-
-# controller vector
-(C_SRC, C_KPP, C_KIP, C_KPS, C_KIS, C_WLIM, C_ILIM, C_EVERY, C_T, C_TRAVEL) = range(10)
-NCV = 10
-# controller state
-S_IPOS, S_ISPD, S_HELD = range(3)
-NCS = 3
-SOURCE_LVDT, SOURCE_ENCODER = 0.0, 1.0
+from indie_plant.physics import (
+    C_EVERY,
+    C_ILIM,
+    C_KIP,
+    C_KIS,
+    C_KPP,
+    C_KPS,
+    C_SRC,
+    C_T,
+    C_TRAVEL,
+    C_WLIM,
+    NCV,
+    SOURCE_ENCODER,
+    SOURCE_LVDT,
+)
 
 
 @dataclass(frozen=True)
@@ -58,43 +64,10 @@ class Cascade:
         return cls(SOURCE_LVDT, kp_pos, 0.0, kp_spd, ki_spd, speed_limit, current_limit, 1)
 
     def vector(self, p: IndieParams) -> np.ndarray:
+        """The compiled law's vector (`indie_plant.physics.cascade_step`)."""
         v = np.zeros(NCV)
         v[C_SRC], v[C_KPP], v[C_KIP] = self.position_source, self.kp_pos, self.ki_pos
         v[C_KPS], v[C_KIS] = self.kp_spd, self.ki_spd
         v[C_WLIM], v[C_ILIM] = self.speed_limit_rad_s, self.current_limit_a
         v[C_EVERY], v[C_T], v[C_TRAVEL] = self.every_periods, p.sync_period_s, p.travel_per_rad
         return v
-
-
-@njit(cache=True)
-def _pi(e: float, integ: float, kp: float, ki: float, dt: float, lim: float
-        ) -> tuple[float, float]:
-    """PI with clamping anti-windup (integration stops while saturated outward)."""
-    u = kp * e + integ
-    uc = min(max(u, -lim), lim)
-    if not (uc != u and e * u > 0.0):
-        integ += ki * e * dt
-    return uc, integ
-
-
-@njit(cache=True)
-def cascade_step(s: np.ndarray, c: np.ndarray, k: int, sp_pos: float, sp_spd: float,
-                 mode: float, lvdt: float, angle: float, speed: float) -> float:
-    """The current demand at SYNC k (mode 0 idle, 1 position, 2 speed); between samples
-    the last demand is held."""
-    every = int(c[C_EVERY])
-    if k % every != 0:
-        return s[S_HELD]
-    if mode == 0.0:
-        s[:] = 0.0
-        return 0.0
-    ts = every * c[C_T]
-    lim = c[C_WLIM]
-    if mode == 1.0:
-        pos = lvdt if c[C_SRC] == SOURCE_LVDT else angle * c[C_TRAVEL]
-        w_dem, s[S_IPOS] = _pi(sp_pos - pos, s[S_IPOS], c[C_KPP], c[C_KIP], ts, lim)
-    else:
-        w_dem = min(max(sp_spd, -lim), lim)
-    i_dem, s[S_ISPD] = _pi(w_dem - speed, s[S_ISPD], c[C_KPS], c[C_KIS], ts, c[C_ILIM])
-    s[S_HELD] = i_dem
-    return i_dem

@@ -11,34 +11,13 @@ motor_speed_rad_s, motor_angle_rad, position_m, load_force_n.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from indie_plant import physics as ph
-from indie_plant.controller import NCS, Cascade, cascade_step
+from indie_plant.controller import Cascade
 from indie_plant.params import IndieParams
 
 COLUMNS = ("t_s", "setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
            "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m", "load_force_n")
-
-
-@njit(cache=True)
-def _run(x, p, hist, cvec, sp_pos, sp_spd, mode, fext, rnd, meas, dem):  # pragma: no cover
-    n = len(sp_pos)
-    s = np.zeros(NCS)
-    out = np.zeros(5)
-    applied = 0.0
-    for k in range(n):
-        ph.sense(x, p, hist, k, rnd[k], out)
-        meas[k, :] = out
-        d = cascade_step(s, cvec, k, sp_pos[k], sp_spd[k], mode[k], out[3], out[1], out[2])
-        dem[k] = d
-        ph.advance(x, p, applied, fext[k])
-        applied = d
-        if not np.isfinite(x[ph.OM]):
-            meas[k:, :] = np.nan
-            dem[k:] = np.nan
-            return k
-    return n
 
 
 def simulate(params: IndieParams, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
@@ -58,7 +37,7 @@ def simulate(params: IndieParams, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: 
     meas = np.zeros((n, 5))
     dem = np.zeros(n)
     fext = np.zeros(n) if load_n is None else np.ascontiguousarray(load_n, float)
-    _run(x, p, hist, ctrl.vector(params), np.ascontiguousarray(sp_pos, float),
+    ph.run(x, p, hist, ctrl.vector(params), np.ascontiguousarray(sp_pos, float),
          np.ascontiguousarray(sp_spd, float), np.ascontiguousarray(mode, float), fext, rnd,
          meas, dem)
     t = np.arange(n) * params.sync_period_s

@@ -39,6 +39,9 @@ class IndieParams:
     cogging_nm: float = P(0.03, "N m", 0.0, 2.0, "cogging torque amplitude")
     cogging_per_rev: float = P(24.0, "1/rev", 1, 200, "LCM(12 slots, 8 poles) = 24")
     supply_v: float = P(270.0, "V", 10, 1000, "aircraft HVDC bus")
+    voltage_frac: float = P(1.0, "-", 0.1, 1.2, "drive voltage limit over the bus voltage: "
+                            "space-vector modulation gives a line-to-line amplitude of V_dc, "
+                            "and ke is line to line")
     current_limit_a: float = P(20.0, "A", 0.1, 200, "drive limit")
     current_bw_hz: float = P(1000.0, "Hz", 10, 5000, "drive current PI bandwidth (20 kHz)")
     # -- reducer, screw and nut ----------------------------------------------------------

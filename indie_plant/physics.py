@@ -24,6 +24,7 @@ _KT, _KE, _R, _L, _J = (IDX[n] for n in ("kt_nm_per_a", "ke_v_s_per_rad", "resis
 _PP, _RIP, _COG, _NCOG = (IDX[n] for n in ("pole_pairs", "ripple", "cogging_nm",
                                            "cogging_per_rev"))
 _VDC, _ILIM, _CBW = IDX["supply_v"], IDX["current_limit_a"], IDX["current_bw_hz"]
+_VFRAC = IDX["voltage_frac"]
 _RATIO, _LEAD, _MN, _CN = (IDX[n] for n in ("ratio", "lead_m", "nut_mass_kg",
                                             "nut_viscous_n_s_per_m"))
 _KH, _HC, _PRE, _BL = (IDX[n] for n in ("hertz_n_per_m15", "hc_damping_s_per_m", "preload_n",
@@ -41,6 +42,13 @@ _LGAIN, _LOFF = IDX["lvdt_gain"], IDX["lvdt_offset_m"]
 _FNOISE, _FSTEP = IDX["load_noise_n"], IDX["load_step_n"]
 _DELAY, _T, _NSUB, _NOISE = (IDX[n] for n in ("sensor_delay_periods", "sync_period_s",
                                               "substeps", "noise"))
+# controller vector and state (indie_plant.controller.Cascade; the law is compiled here,
+# with the physics, so numba's on-disk cache never pairs stale code across files)
+(C_SRC, C_KPP, C_KIP, C_KPS, C_KIS, C_WLIM, C_ILIM, C_EVERY, C_T, C_TRAVEL) = range(10)
+NCV = 10
+S_IPOS, S_ISPD, S_HELD = range(3)
+NCS = 3
+SOURCE_LVDT, SOURCE_ENCODER = 0.0, 1.0
 CURRENT_PI_EVERY = 5        # the drive's current PI runs every 5th sub-step (20 kHz)
 HIST = 64                   # sensor history ring (delay + speed window)
 
@@ -97,7 +105,7 @@ def advance(x: np.ndarray, p: np.ndarray, demand_a: float, fext_n: float) -> Non
     dem = min(max(demand_a, -ilim), ilim) if math.isfinite(demand_a) else 0.0
     kp = 2.0 * math.pi * p[_CBW] * p[_L]              # I2: PI zero on the winding pole
     ki = 2.0 * math.pi * p[_CBW] * p[_R]
-    vmax = 0.5 * p[_VDC]
+    vmax = p[_VFRAC] * p[_VDC]
     tr = p[_RATIO] * p[_LEAD] / (2.0 * math.pi)        # I5
     d0 = preload_deflection(p[_PRE], p[_KH])
     half_gap = 0.5 * p[_BL]
@@ -180,3 +188,59 @@ def initial_history(x: np.ndarray, p: np.ndarray) -> np.ndarray:
     hist[:, 0] = out[1]
     hist[:, 1] = out[3]
     return hist
+
+
+@njit(cache=True)
+def _pi(e: float, integ: float, kp: float, ki: float, dt: float, lim: float
+        ) -> tuple[float, float]:
+    """PI with clamping anti-windup (integration stops while saturated outward)."""
+    u = kp * e + integ
+    uc = min(max(u, -lim), lim)
+    if not (uc != u and e * u > 0.0):
+        integ += ki * e * dt
+    return uc, integ
+
+
+@njit(cache=True)
+def cascade_step(s: np.ndarray, c: np.ndarray, k: int, sp_pos: float, sp_spd: float,
+                 mode: float, lvdt: float, angle: float, speed: float) -> float:
+    """The current demand at SYNC k (mode 0 idle, 1 position, 2 speed); between samples
+    the last demand is held."""
+    every = int(c[C_EVERY])
+    if k % every != 0:
+        return s[S_HELD]
+    if mode == 0.0:
+        s[:] = 0.0
+        return 0.0
+    ts = every * c[C_T]
+    lim = c[C_WLIM]
+    if mode == 1.0:
+        pos = lvdt if c[C_SRC] == SOURCE_LVDT else angle * c[C_TRAVEL]
+        w_dem, s[S_IPOS] = _pi(sp_pos - pos, s[S_IPOS], c[C_KPP], c[C_KIP], ts, lim)
+    else:
+        w_dem = min(max(sp_spd, -lim), lim)
+    i_dem, s[S_ISPD] = _pi(w_dem - speed, s[S_ISPD], c[C_KPS], c[C_KIS], ts, c[C_ILIM])
+    s[S_HELD] = i_dem
+    return i_dem
+
+
+@njit(cache=True)
+def run(x, p, hist, cvec, sp_pos, sp_spd, mode, fext, rnd, meas, dem):  # pragma: no cover
+    """A whole run in-process (`indie_plant.generate.simulate`): at SYNC k sense, the
+    cascade's demand, then one period under the demand of SYNC k-1."""
+    n = len(sp_pos)
+    s = np.zeros(NCS)
+    out = np.zeros(5)
+    applied = 0.0
+    for k in range(n):
+        sense(x, p, hist, k, rnd[k], out)
+        meas[k, :] = out
+        d = cascade_step(s, cvec, k, sp_pos[k], sp_spd[k], mode[k], out[3], out[1], out[2])
+        dem[k] = d
+        advance(x, p, applied, fext[k])
+        applied = d
+        if not np.isfinite(x[OM]):
+            meas[k:, :] = np.nan
+            dem[k:] = np.nan
+            return k
+    return n
