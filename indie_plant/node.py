@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import can
 import canopen
@@ -80,8 +81,9 @@ class IndieNode:
 
     def _reset_communication(self) -> None:
         self.local.data_store.clear()
-        self.heartbeat_ms = int(self.od[0x1017].default)
-        self.consumer = int(self.od[0x1016][1].default)
+        od: Any = self.od
+        self.heartbeat_ms = int(od[0x1017].default)
+        self.consumer = int(od[0x1016][1].default)
         self.pending = (0.0, 0, False)
         self.ecu_hb: float | None = None
         self.timed_out = False
@@ -134,7 +136,7 @@ class IndieNode:
         if len(data) != m.length:
             self.bad_frames += 1
             return
-        sig = m.decode(bytes(data), decode_choices=False)
+        sig: Any = m.decode(bytes(data), decode_choices=False)
         demand = float(sig["CurrentDemand"])
         control = int(sig["ControlWord"])
         if (control & ControlWord.FAULT_RESET and not self.pending[1] & ControlWord.FAULT_RESET

@@ -24,6 +24,7 @@ nominal log over the RMS difference of two noisy nominal logs / sqrt 2.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -148,12 +149,13 @@ def make_cases(n: int, seed: int) -> list[Case]:
 
 
 def generate(case: Case, noise: bool = True, duration_s: float = LOG_S,
-             controller: str = "ecu") -> Trace:
-    """The case's log from the independent actuator: measured columns, no metadata."""
+             controller: str = "ecu", actuator: IndieParams = NOMINAL) -> Trace:
+    """The case's log from the independent `actuator` (healthy, as built) with the case's
+    effects: measured columns, no metadata."""
     over: dict[str, float] = {"noise": 1.0 if noise else 0.0}
     for t in case.truths:
         over.update(t.plant)
-    params = NOMINAL.with_dict(over)
+    params = actuator.with_dict(over)
     m = maneuver(duration_s)
     ctrl = bench_ecu_cascade() if controller == "ecu" else Cascade.own(params)
     cols = indie_simulate(params, m["sp_pos"], m["sp_spd"], m["mode"], m["load"], ctrl,
@@ -161,43 +163,45 @@ def generate(case: Case, noise: bool = True, duration_s: float = LOG_S,
     return Trace(cols, {})
 
 
-def reference(duration_s: float, seed: int, controller: str) -> dict[str, Any]:
+def reference(duration_s: float, seed: int, controller: str,
+              actuator: IndieParams = NOMINAL) -> dict[str, Any]:
     """Noise-free nominal log and the generator's noise floor per signal."""
-    clean = generate(Case(-1, "nominal", [], seed), False, duration_s, controller)
-    a = generate(Case(-1, "nominal", [], seed + 1), True, duration_s, controller)
-    b = generate(Case(-1, "nominal", [], seed + 2), True, duration_s, controller)
+    clean = generate(Case(-1, "nominal", [], seed), False, duration_s, controller, actuator)
+    a = generate(Case(-1, "nominal", [], seed + 1), True, duration_s, controller, actuator)
+    b = generate(Case(-1, "nominal", [], seed + 2), True, duration_s, controller, actuator)
     floor = {s: float(np.sqrt(np.mean((a[s] - b[s]) ** 2)) / math.sqrt(2.0))
              for s in SNR_SIGNALS}
     return {"clean": {s: clean[s] for s in SNR_SIGNALS}, "floor": floor}
 
 
-def floor_snr(case: Case, duration_s: float, ref: dict[str, Any], controller: str
-              ) -> dict[str, float]:
-    clean = generate(case, False, duration_s, controller)
+def floor_snr(case: Case, duration_s: float, ref: dict[str, Any], controller: str,
+              actuator: IndieParams = NOMINAL) -> dict[str, float]:
+    clean = generate(case, False, duration_s, controller, actuator)
     return {s: float(np.sqrt(np.mean((clean[s] - ref["clean"][s]) ** 2)) / ref["floor"][s])
             for s in SNR_SIGNALS}
 
 
-def calibrated_model(seed: int, duration_s: float = LOG_S, controller: str = "ecu"
-                     ) -> tuple[PlantParams, dict[str, Any]]:
+def calibrated_model(seed: int, duration_s: float = LOG_S, controller: str = "ecu",
+                     actuator: IndieParams = NOMINAL) -> tuple[PlantParams, dict[str, Any]]:
     """The datasheet model calibrated (bench.gap.calibrate, its default parameters) on one
     healthy log of the actuator with noise seed `seed + CALIBRATION_SEED_OFFSET`."""
     log = generate(Case(-1, "nominal", [], seed + CALIBRATION_SEED_OFFSET), True,
-                   duration_s, controller)
+                   duration_s, controller, actuator)
     base = datasheet_model()
     cal = calibrate(log, base)
     return base.with_dict(cal["params"]), cal
 
 
 def heldout_residual(model: PlantParams, seed: int, duration_s: float = LOG_S,
-                     controller: str = "ecu") -> dict[str, Any]:
+                     controller: str = "ecu", actuator: IndieParams = NOMINAL
+                     ) -> dict[str, Any]:
     """Goal 4: the model's closed-loop re-simulation of a held-out healthy log (noise seed
     `seed + HELDOUT_SEED_OFFSET`): RMS residual per signal, the noise floor per signal
     (the diagnosis' bootstrap of the noise estimated from that log, without the fast
     model's own error) and their ratio."""
     from bench.gap.problem import build
     log = generate(Case(-1, "nominal", [], seed + HELDOUT_SEED_OFFSET), True, duration_s,
-                   controller)
+                   controller, actuator)
     p = build(log.measured(), model, holdout_frac=0.5)
     nominal = p.info["nominal"]
     out: dict[str, Any] = {}
@@ -221,14 +225,14 @@ def _init(state: dict[str, Any]) -> None:
 def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
              effects: list[str] | None = None) -> dict[str, Any]:
     """Generate, diagnose against the calibrated model (seeing only the log), score."""
-    ref, model = _STATE["ref"], _STATE["model"]
-    log = generate(case, True, duration_s, controller)
+    ref, model, act = _STATE["ref"], _STATE["model"], _STATE["actuator"]
+    log = generate(case, True, duration_s, controller, act)
     t0 = time.perf_counter()
     res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects))
     elapsed = time.perf_counter() - t0
     snr_each = {t.name: floor_snr(Case(case.index, case.kind, [t], case.noise_seed),
-                                  duration_s, ref, controller) for t in case.truths}
-    snr_all = floor_snr(case, duration_s, ref, controller) if case.truths else {}
+                                  duration_s, ref, controller, act) for t in case.truths}
+    snr_all = floor_snr(case, duration_s, ref, controller, act) if case.truths else {}
     rec = score(case, res.json(), snr_each, snr_all, elapsed)
     rec["truth_values"] = {t.name: t.plant for t in case.truths}
     return rec
@@ -236,19 +240,25 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
 
 def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
         progress: bool = True, effects: list[str] | None = None, controller: str = "ecu",
-        on_result: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
-    """Calibrate on the healthy calibration log, then run `n` blind cases."""
+        on_result: Callable[[dict[str, Any]], None] | None = None,
+        actuator: IndieParams = NOMINAL) -> dict[str, Any]:
+    """Calibrate on the healthy calibration log, then run `n` blind cases. `actuator`:
+    the independent actuator as built (`--indie-set`: e.g. an ablation of one physical
+    feature)."""
     t0 = time.perf_counter()
-    model, cal = calibrated_model(seed, duration_s, controller)
+    model, cal = calibrated_model(seed, duration_s, controller, actuator)
     t_cal = time.perf_counter() - t0
-    held = heldout_residual(model, seed, duration_s, controller)
-    ref = reference(duration_s, seed + 7919, controller)
+    held = heldout_residual(model, seed, duration_s, controller, actuator)
+    ref = reference(duration_s, seed + 7919, controller, actuator)
     cases = make_cases(n, seed)
     job = partial(run_case, duration_s=duration_s, controller=controller, effects=effects)
     results = run_all(job, cases, workers, progress, desc="gap-bench (independent)",
-                      unit="case", initializer=_init, initargs=({"ref": ref, "model": model},),
+                      unit="case", initializer=_init, initargs=({"ref": ref, "model": model, "actuator": actuator},),
                       on_result=on_result, leave=True)
+    changed = {k: v for k, v in dataclasses.asdict(actuator).items()
+               if v != getattr(NOMINAL, k)}
     return {"generator": "independent", "controller": controller, "seed": seed, "cases": n,
+            "actuator_changes": changed,
             "fidelity": "independent physics (indie_plant)", "log_s": duration_s,
             "library": effects or "all", "wall_s": time.perf_counter() - t0,
             "workers": workers, "floor": ref["floor"],
@@ -257,3 +267,4 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
                             "gap_after": cal["gap_after"], "notes": cal["notes"]},
             "heldout_healthy": {"seed": seed + HELDOUT_SEED_OFFSET, "signals": held},
             "summary": summarise(results), "results": results}
+
