@@ -33,6 +33,8 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_gap_cli.py::test_import_calibrate_gap",
     "tests/integration/test_hub_bad_client.py",
     "tests/integration/test_hums_cli.py::test_report_is_self_contained_with_a_verdict",
+    "tests/integration/test_indie_generate.py::test_gap_bench_on_the_independent_generator_smoke",
+    "tests/integration/test_indie_node.py",
     "tests/integration/test_hums_cli.py::test_sweep_writes_json_rows",
     "tests/integration/test_hums_live.py::test_watch_reports_every_period_like_the_log",
     "tests/integration/test_logs_damaged.py::test_decode_counts_the_damage",
