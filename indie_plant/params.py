@@ -127,6 +127,8 @@ class IndieParams:
         return np.array([float(getattr(self, n)) for n in NAMES])
 
 
+# The field order is the vector layout physics.py compiles with; numba's on-disk cache is
+# keyed on physics.py alone, so after adding or moving a field here, touch physics.py.
 NAMES = tuple(f.name for f in dataclasses.fields(IndieParams))
 IDX = {n: i for i, n in enumerate(NAMES)}
 
