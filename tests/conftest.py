@@ -39,6 +39,8 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_hub_bad_client.py",
     "tests/integration/test_hums_figures.py",
     "tests/integration/test_hums_rul.py::test_scoring_leaves_matplotlib_settings_alone",
+    "tests/integration/test_indie_generate.py::test_gap_bench_on_the_independent_generator_smoke",
+    "tests/integration/test_indie_node.py",
     "tests/integration/test_logs_damaged.py::test_decode_counts_the_damage",
     "tests/integration/test_logs_damaged.py::test_gap_noise_free_log_with_a_lost_sync_has_no_significant_gap",
     "tests/integration/test_logs_damaged.py::test_hums_report_bridges_counts_and_keeps_the_intact_numbers",
