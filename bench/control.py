@@ -21,10 +21,10 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
 from bench.paramset import ParamSet
 from bench.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
+from plant_rt.jit import njit
 from plant_rt.params import THESIS, P
 from plant_rt.pi import clamped_pi
 

@@ -37,10 +37,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit
 
 from bench.control import controller_step
 from plant_rt import kernel as K
+from plant_rt.jit import njit
 from plant_rt.params import PlantParams
 
 # the full plant's simulation-only signals sampled at each SYNC (`kernel_truth`)

@@ -1,58 +1,95 @@
-"""The one worker pool of the bench: every long job (HUMS sweep, RUL run, calibration and
-campaign, the gap diagnosis and its blind benchmark) runs its independent pieces here.
+"""The one compute engine of the bench: every long job (HUMS sweep, RUL run, calibration
+and campaign, the gap diagnosis and its blind benchmark, the fleet) runs its independent
+pieces here, on Dask distributed (`bench.cluster`).
 
-`run_all(fn, jobs, ...)` is `[fn(job) for job in jobs]` over worker processes with a
-progress bar (in this process with one worker or one job); `make_pool` gives the pool
-itself to a caller that schedules its own work (the gap diagnosis starts its workers in
-the background while it does the first, serial part).
+`run_all(fn, jobs, ...)` is `[fn(job) for job in jobs]` as Dask tasks with a progress bar:
+on a LocalCluster of its own (127.0.0.1 only, `workers` single-threaded processes,
+dashboard on a free local port) or on an existing cluster (`scheduler=ADDRESS`, or
+``$BENCH_DASK_SCHEDULER``). With ``workers=1`` or a single job everything runs in this
+process (tests, debugging, one-core machines). `make_pool` gives a started (or starting)
+cluster to a caller that schedules its own work: the gap diagnosis starts its workers
+in the background while it does the first, serial part.
 
-Workers are spawned (not forked: numba and threads do not survive a fork well) with one
-BLAS/OpenMP/numba thread each, so two workers use two cores and no more: the fitting
-calls small dense linear algebra whose OpenBLAS threads would otherwise spin and take
-the other core from the second worker (measured: a diagnosis took 2x longer with two
-forked workers than alone).
+Faults are Dask's: a task that raises is retried (`retries`, default 1) before its error
+is reported; a worker process that dies costs only the tasks it was running, which the
+scheduler runs again on another worker (up to ``distributed.scheduler.allowed-failures``
+deaths per task), and the nanny starts a new worker. Results come back complete and in
+job order. The tasks are the same functions on the same inputs as in-process, so the
+results do not depend on the engine or on the number of workers.
+
+The progress bar is tqdm fed from `distributed.as_completed` (not Dask's own
+`progress()`): the loop that collects each result as it arrives (for `on_result`, and
+to name the job that failed) drives the bar, which looks the same in-process and on a
+cluster; Dask's live diagnostics are on its dashboard, whose link is printed once on
+stderr when a job with a progress bar starts a cluster.
 """
 
 from __future__ import annotations
 
-import multiprocessing
-import os
-from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures import TimeoutError as FuturesTimeout
-from concurrent.futures.process import BrokenProcessPool
+import re
+import uuid
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from tqdm import tqdm
 
 from bench import BenchError
+from bench.cluster import Engine, default_workers, scheduler_address
 
-START_TIMEOUT_S = 120.0
-THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
-               "NUMBA_NUM_THREADS")
+RETRIES = 1
 
 
-def default_workers() -> int:
-    """Two workers, or one on a one-core machine."""
-    return max(1, min(2, os.cpu_count() or 1))
+class _Session:
+    """One cluster shared by the `run_all` calls inside `session()` (started lazily)."""
+
+    def __init__(self, workers: int | None, scheduler: str | None) -> None:
+        self.workers = workers
+        self.scheduler = scheduler_address(scheduler)
+        self.engine: Engine | None = None
+
+    def get(self, workers: int) -> Engine:
+        if self.engine is None:
+            self.engine = Engine(self.workers or workers, self.scheduler)
+        return self.engine
+
+
+_SESSIONS: list[_Session] = []
+
+
+@contextmanager
+def session(workers: int | None = None, scheduler: str | None = None) -> Iterator[None]:
+    """Every `run_all` inside (that does not run in-process) shares one cluster, started
+    at the first that needs it and stopped at the end: a command that calls `run_all`
+    several times (calibration, then the campaign's runs) starts its workers once."""
+    s = _Session(workers, scheduler)
+    _SESSIONS.append(s)
+    try:
+        yield
+    finally:
+        _SESSIONS.remove(s)
+        if s.engine is not None:
+            s.engine.close()
 
 
 def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None = None,
             progress: bool = True, desc: str = "runs", unit: str = "run", *,
             initializer: Callable[..., Any] | None = None, initargs: tuple[Any, ...] = (),
-            on_result: Callable[[Any], None] | None = None, leave: bool = False
-            ) -> list[Any]:
-    """[fn(job) for job in jobs], in job order, over `workers` processes, with a tqdm bar
-    (`desc`, `unit`; kept on screen with `leave`). With ``workers=1`` or a single job
-    everything runs in this process (tests, debugging, one-core machines).
+            on_result: Callable[[Any], None] | None = None, leave: bool = False,
+            scheduler: str | None = None, retries: int = RETRIES) -> list[Any]:
+    """[fn(job) for job in jobs], in job order, as Dask tasks on `workers` local
+    processes (default: 2, or 1 on a one-core machine) or on the cluster of `scheduler`
+    (an address, default ``$BENCH_DASK_SCHEDULER``; `workers` is then only the in-process
+    switch), with a tqdm bar (`desc`, `unit`; kept on screen with `leave`).
+    With ``workers=1`` or a single job everything runs in this process.
     `initializer(*initargs)` runs once in each worker (once here when in-process);
-    `on_result(result)` is called as each job finishes (in completion order)."""
+    `on_result(result)` is called as each job finishes (in completion order); a task that
+    raises is retried `retries` times, then its error is a BenchError naming the job."""
     jobs = list(jobs)
-    workers = default_workers() if workers is None else max(1, int(workers))
-    bar = None
-    if progress:
-        bar = tqdm(total=len(jobs), desc=desc, unit=unit, leave=leave)
+    addr = scheduler_address(scheduler)
+    n = (default_workers() if addr is None else 2) if workers is None else int(workers)
     results: list[Any] = [None] * len(jobs)
+    bar: Any = None
 
     def done(k: int, result: Any) -> None:
         results[k] = result
@@ -61,68 +98,139 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
         if bar is not None:
             bar.update(1)
 
+    def new_bar() -> Any:
+        return tqdm(total=len(jobs), desc=desc, unit=unit, leave=leave) if progress else None
+
     try:
-        if workers == 1 or len(jobs) <= 1:
+        if n <= 1 or len(jobs) <= 1:
+            bar = new_bar()
             if initializer is not None:
                 initializer(*initargs)
             for k, job in enumerate(jobs):
                 done(k, fn(job))
             return results
-        with make_pool(workers, initializer, initargs) as pool:
-            futs = {pool.submit(fn, job): k for k, job in enumerate(jobs)}
-            for f in as_completed(futs):
-                try:
-                    result = f.result()
-                except BenchError:
-                    raise
-                except Exception as exc:  # noqa: BLE001 - worker crash, say which job
-                    raise BenchError(f"{desc}: job {futs[f]} failed in a worker: "
-                                     f"{type(exc).__name__}: {exc}") from exc
-                done(futs[f], result)
+        shared = _SESSIONS[-1] if _SESSIONS and _SESSIONS[-1].scheduler == addr else None
+        engine = shared.get(n) if shared is not None else Engine(n, addr)
+        try:
+            client = engine.client(announce=progress)   # the dashboard link before the bar
+            bar = new_bar()
+            _on_dask(client, fn, jobs, done, desc, retries,
+                     None if initializer is None else (initializer, initargs),
+                     own_cluster=engine.cluster is not None and shared is None)
+        finally:
+            if shared is None:
+                engine.close()
         return results
     finally:
         if bar is not None:
             bar.close()
 
 
-def make_pool(workers: int, initializer: Callable[..., Any] | None = None,
-              initargs: tuple[Any, ...] = (), wait: bool = True) -> ProcessPoolExecutor:
-    """A pool of `workers` spawned single-threaded processes. With `wait=False` the
-    workers start in the background (call `ensure_started` before relying on them)."""
-    saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    for k in THREAD_VARS:
-        os.environ[k] = "1"
+def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
+             done: Callable[[int, Any], None], desc: str, retries: int,
+             init: tuple[Callable[..., Any], tuple[Any, ...]] | None, own_cluster: bool
+             ) -> None:
+    """The jobs as tasks of `client`'s cluster; `done(k, result)` as each one finishes."""
+    from distributed import as_completed
+    name = f"{_slug(desc)}-{uuid.uuid4().hex[:8]}"
+    plugin = None
+    if init is not None:
+        from bench.cluster_plugin import Initializer
+        plugin = f"{name}-init"
+        client.register_plugin(Initializer(*init), name=plugin)
+    futs = client.map(fn, jobs, key=[f"{name}-{k}" for k in range(len(jobs))],
+                      retries=max(0, int(retries)))
+    index = {f.key: k for k, f in enumerate(futs)}
     try:
-        ctx = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                                   initializer=initializer, initargs=initargs)
-        # start the workers now, while the environment says one thread
-        pool._bench_ready = [pool.submit(_noop) for _ in range(workers)]  # type: ignore
+        for f, result in as_completed(futs, loop=client.loop, with_results=True,
+                                      raise_errors=False):
+            k = index[f.key]
+            try:
+                if f.status != "finished":   # erred or cancelled: raise its error here
+                    result = f.result()
+            except BenchError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - a task's error: say which job
+                raise BenchError(f"{desc}: job {k} failed in a worker: "
+                                 f"{type(exc).__name__}: {exc}") from exc
+            futs[k] = None                 # the cluster may forget it now
+            done(k, result)
     finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    if wait:
-        ensure_started(pool)
-    return pool
+        left = [f for f in futs if f is not None and not f.done()]
+        if left:
+            client.cancel(left)
+        if plugin is not None and not own_cluster:
+            try:                           # leave a shared cluster as it was
+                client.unregister_worker_plugin(plugin)
+            except Exception:  # noqa: BLE001 - best effort
+                pass
 
 
-def ensure_started(pool: ProcessPoolExecutor) -> None:
-    """Wait for the workers; a worker that cannot start (e.g. a script without a
-    ``__main__`` guard) is a BenchError, not a hang."""
-    try:
-        for f in getattr(pool, "_bench_ready", []):
-            f.result(timeout=START_TIMEOUT_S)
-    except (BrokenProcessPool, FuturesTimeout) as exc:
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
-            proc.kill()
-        raise BenchError(f"worker processes did not start ({type(exc).__name__}); a "
-                         "script using bench.gap or bench.hums with workers > 1 needs an "
-                         "`if __name__ == '__main__':` guard, or use workers=1") from None
+def _slug(desc: str) -> str:
+    """A task-key prefix from a progress label ("hums sweep" -> "hums-sweep")."""
+    return re.sub(r"[^A-Za-z0-9_.]+", "-", desc).strip("-") or "job"
 
 
-def _noop() -> None:
-    return None
+class Pool:
+    """A started (or starting) cluster for a caller that schedules its own tasks:
+    `submit(fn, *args)` gives a Dask future (`.result()`); `shutdown()` stops it."""
+
+    def __init__(self, workers: int, initializer: Callable[..., Any] | None = None,
+                 initargs: tuple[Any, ...] = (), wait: bool = True,
+                 scheduler: str | None = None, retries: int = RETRIES) -> None:
+        self.engine = Engine(workers, scheduler, wait=False)
+        self.init = None if initializer is None else (initializer, initargs)
+        self.retries = retries
+        self._client: Any = None
+        self._plugin: str | None = None
+        if wait:
+            self.started()
+
+    def started(self) -> Any:
+        """The client, once the workers are up (BenchError when they cannot start)."""
+        if self._client is None:
+            client = self.engine.client()
+            if self.init is not None:
+                from bench.cluster_plugin import Initializer
+                self._plugin = f"bench-init-{uuid.uuid4().hex[:8]}"
+                client.register_plugin(Initializer(*self.init), name=self._plugin)
+            self._client = client
+        return self._client
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
+        return self.started().submit(fn, *args, pure=False, retries=self.retries)
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        """Stop the cluster this pool started (`wait` and `cancel_futures` are accepted
+        for concurrent.futures compatibility: pending tasks end with the client)."""
+        if self._plugin is not None and self.engine.cluster is None:
+            try:                           # leave a shared cluster as it was
+                self._client.unregister_worker_plugin(self._plugin)
+            except Exception:  # noqa: BLE001 - best effort
+                pass
+        self.engine.close()
+
+    def __enter__(self) -> Pool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()
+
+
+def make_pool(workers: int, initializer: Callable[..., Any] | None = None,
+              initargs: tuple[Any, ...] = (), wait: bool = True,
+              scheduler: str | None = None) -> Pool:
+    """A Dask cluster of `workers` single-threaded processes (or the one at `scheduler`).
+    With `wait=False` it starts in the background (call `ensure_started` before relying
+    on it)."""
+    return Pool(workers, initializer, initargs, wait, scheduler)
+
+
+def ensure_started(pool: Pool) -> None:
+    """Wait for the workers; workers that cannot start (e.g. a script without a
+    ``__main__`` guard) are a BenchError, not a hang."""
+    pool.started()
+
+
+__all__ = ["RETRIES", "Pool", "default_workers", "ensure_started", "make_pool", "run_all",
+           "session"]

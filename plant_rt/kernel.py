@@ -19,8 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from plant_rt.jit import njit
 from plant_rt.pi import clamped_pi
 from plant_rt.wear import effects_from_depth
 

@@ -128,15 +128,6 @@ class ScrewParams(_Validated):
                                 "eq. 5.10")
     travel_limit_m: float = P(0.05, "m", 1e-3, 10.0, "end-of-stroke limit |x_n| (flag only)",
                               "chosen (stroke not stated)")
-    dynamic_load_rating_n: float = P(
-        22000.0, "N", 100.0, 1e6,
-        "basic dynamic axial load rating C_a of the nut carrying the load (one nut of the "
-        "double nut): 10^6 revolutions at 90 % reliability (ISO 3408-5, Lundberg-Palmgren); "
-        "used by the usage monitoring (bench/usage), not by the physics",
-        "catalogue class of the thesis size (d0 = 2 r_m = 30 mm, nearest ISO size 32 x 5 mm, "
-        "3.5 mm balls, 4 loaded turns): Bosch Rexroth precision ball screw assemblies "
-        "R310EN 3301, FEM-E-S / FDM-E-S 32x5R-3.5-4, about 22 kN; the catalogue page was not "
-        "at hand to check here (docs/usage.md)")
     stiffness_reading: str = P("contact", "-", None, None,
                                "how k* (contact_stiffness_n_per_m) is read: contact: the "
                                "stiffness of each ball contact (eq. 5.21 as implemented so "
@@ -147,6 +138,15 @@ class ScrewParams(_Validated):
     circuits: int = P(6, "-", 1, 100,
                       "ball circuits of the double nut (both nuts; the axial reading "
                       "shares k* over circuits x Z balls, eq. 5.11)", "table 5.4")
+    dynamic_load_rating_n: float = P(
+        22000.0, "N", 100.0, 1e6,
+        "basic dynamic axial load rating C_a of the nut carrying the load (one nut of the "
+        "double nut): 10^6 revolutions at 90 % reliability (ISO 3408-5, Lundberg-Palmgren); "
+        "used by the usage monitoring (bench/usage), not by the physics",
+        "catalogue class of the thesis size (d0 = 2 r_m = 30 mm, nearest ISO size 32 x 5 mm, "
+        "3.5 mm balls, 4 loaded turns): Bosch Rexroth precision ball screw assemblies "
+        "R310EN 3301, FEM-E-S / FDM-E-S 32x5R-3.5-4, about 22 kN; the catalogue page was not "
+        "at hand to check here (docs/usage.md)")
 
     @property
     def lever_m(self) -> float:

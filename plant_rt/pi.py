@@ -9,7 +9,7 @@ A, limit i_max).
 
 from __future__ import annotations
 
-from numba import njit
+from plant_rt.jit import njit
 
 
 @njit(cache=True, inline="always", error_model="numpy")

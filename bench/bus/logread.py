@@ -1,4 +1,7 @@
-"""candump -L lines -> frames: the tolerant line reader of `bench.bus.logs`.
+"""Log files -> frames, for `bench.bus.logs` (decode, HUMS report, gap) and `bench replay`:
+`read_frames` reads candump ``.log`` with the tolerant line reader below and the other
+formats of `bench.bus.logwrite.LOG_FORMATS` (``.asc``, ``.blf``, ``.trc``, ``.mf4``)
+through `can.LogReader`.
 
 The format is ``candump -L`` (python-can's `CanutilsLogWriter`/`CanutilsLogReader`):
 ``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` streams it line by line and,
@@ -10,8 +13,12 @@ stays bounded whatever the file holds.
 
 from __future__ import annotations
 
+import gc
+import logging
 import re
+import sys
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,6 +26,7 @@ from typing import Any
 import can
 
 from bench import BenchError
+from bench.bus.logwrite import LOG_FORMATS, log_format
 
 LINE = re.compile(r"^\((?P<ts>\d+(?:\.\d*)?)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})"
                   r"#(?P<fd>#[0-9A-Fa-f])?(?P<data>[0-9A-Fa-f]*|R\d{0,2})(?:\s+(?P<dir>[RT]))?$")
@@ -161,3 +169,80 @@ def report_issues(issues: Any, limit: int = 20) -> list[str]:
         lines = shown + [f"... and {len(issues) - len(shown)} more bad lines"]
         return lines
     return shown
+
+
+def read_frames(path: str | Path, issues: Any = None) -> Iterator[can.Message]:
+    """The frames of a log in any of LOG_FORMATS, in file order, streamed. A candump
+    ``.log`` goes through the tolerant `read_log` (python-can's reader stops at the first
+    bad line; a rig's log must lose only its bad lines); ``.asc``, ``.blf``, ``.trc`` and
+    ``.mf4`` through `can.LogReader`, whose warnings about records it skipped go to
+    `issues` (numbered by the frame they follow). BenchError in one line for an unknown
+    suffix, a missing file, or a file python-can cannot read on (damaged: the error
+    names the frames read before it)."""
+    path = Path(path)
+    suffix = log_format(path)
+    if suffix == ".log":
+        yield from read_log(path, issues)
+        return
+    if not path.is_file():
+        raise BenchError(f"no such log: {path}")
+    n = 0
+    with _quiet(issues, lambda: n) as failed:
+        try:
+            reader = can.LogReader(path)
+            with reader:
+                for msg in reader:
+                    n += 1
+                    yield msg
+        except BenchError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - any reader's parse error, said in one line
+            failed.append(_reason(exc))
+        if failed:
+            raise BenchError(f"{path}: cannot read this {LOG_FORMATS[suffix]} log "
+                             f"(python-can) after {n} frames: {failed[0]}")
+
+
+def _reason(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if len(text) > 120:
+        text = text[:117] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class _Skipped(logging.Handler):
+    """python-can's and asammdf's log records while a file is read: a skipped record
+    (warning) becomes an issue, nothing reaches stderr."""
+
+    def __init__(self, issues: Any, frames_read: Any) -> None:
+        super().__init__(logging.WARNING)
+        self.issues, self.frames_read = issues, frames_read
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if self.issues is not None and record.levelno < logging.ERROR:
+            n = self.frames_read()
+            self.issues.append(LogIssue(n + 1, f"python-can skipped a record after frame "
+                                               f"{n}", record.getMessage()))
+
+
+@contextmanager
+def _quiet(issues: Any, frames_read: Any) -> Iterator[list[str]]:
+    """Reading through python-can: its loggers' records to `issues` (not stderr), and
+    the clean-up errors of a reader that failed half-built (asammdf's ``__del__``) not
+    printed; yields the list the caller puts the failure's reason in."""
+    handler = _Skipped(issues, frames_read)
+    loggers = [logging.getLogger(n) for n in ("can", "asammdf")]
+    saved = [(lg.handlers, lg.propagate) for lg in loggers]
+    for lg in loggers:
+        lg.handlers, lg.propagate = [handler], False
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: None
+    failed: list[str] = []
+    try:
+        yield failed
+    finally:
+        if failed:
+            gc.collect()        # the failed reader's objects, while their errors are muted
+        sys.unraisablehook = hook
+        for lg, (handlers, propagate) in zip(loggers, saved, strict=True):
+            lg.handlers, lg.propagate = handlers, propagate

@@ -1,4 +1,5 @@
-"""candump logs: tolerant reading, replay and decoding into a `Trace` through the DBC.
+"""Bus logs decoded into a `Trace` through the DBC: candump logs read tolerantly, and the
+other formats python-can reads (`bench.bus.logread.read_frames`).
 
 The format is ``candump -L`` (python-can's `CanutilsLogWriter`/`CanutilsLogReader`):
 ``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` streams it line by line and,
@@ -27,7 +28,6 @@ needs the whole log and is done here only.
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -44,9 +44,11 @@ from bench.bus.logread import (
     LogIssue,
     LogIssues,
     parse_line,
+    read_frames,
     read_log,
     report_issues,
 )
+from bench.bus.logwrite import LOG_FORMATS
 from bench.bus.rows import (
     COLUMNS,
     MAX_EMCY_KEPT,
@@ -56,6 +58,7 @@ from bench.bus.rows import (
     SIGNAL_COLUMNS,
     RowAssembler,
     _OutOfOrder,
+    trace_columns,
 )
 from bench.bus.sdo import SdoTracker, sdo_values, serial_of
 from bench.trace import Trace
@@ -65,11 +68,9 @@ from plant_rt.params import ParameterError, PlantParams
 
 __all__ = ["COLUMNS", "FD_LENGTHS", "LINE", "MAX_EMCY_KEPT", "MAX_LINE", "MAX_LOST_SYNCS",
            "OUT_OF_ORDER_S", "ROW_FRAMES", "SIGNAL_COLUMNS", "LogIssue", "LogIssues",
-           "SdoTracker", "integrity", "load_trace", "parse_line", "read_log", "report_issues",
+           "SdoTracker", "integrity", "load_trace", "parse_line", "read_frames", "read_log",
+           "report_issues",
            "time_ordered", "trace_from_log", "trace_from_messages"]
-
-TWO_PI = 2.0 * math.pi
-
 
 FRAME_DTYPE = np.dtype([("ts", "f8"), ("id", "u4"), ("flags", "u1"), ("dlc", "u1"),
                         ("len", "u1"), ("data", "V8")])
@@ -169,11 +170,7 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
         params = PlantParams()
     ts = period_s or params.sim.sync_period_s
     cpr = counts_per_rev or params.sensors.encoder_counts_per_rev
-    n = len(rows)
-    cols: dict[str, np.ndarray] = {"t_s": np.arange(n) * ts}
-    for c in COLUMNS:
-        cols[c] = np.frombuffer(rows.cols[c], dtype=float).copy() if n else np.zeros(0)
-    cols["motor_angle_rad"] = cols.pop("encoder_counts") * TWO_PI / cpr
+    cols = trace_columns(rows, ts, cpr)
     kept = list(issues or [])[:100]
     meta: dict[str, Any] = {
         "source": source, "node_id": frames.node_id, "period_s": ts, "counts_per_rev": cpr,
@@ -200,7 +197,8 @@ def _counting_order(messages: Iterable[can.Message], dec: RowAssembler
 def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float | None = None,
                    counts_per_rev: int | None = None,
                    issues: Any = None) -> Trace:
-    """The signal table of a candump log (for the HUMS, the gap diagnosis, `bench decode`).
+    """The signal table of a log (for the HUMS, the gap diagnosis, `bench decode`): candump
+    ``.log`` or any other format of LOG_FORMATS (`bench.bus.logread.read_frames`).
 
     Bad lines are skipped, counted and the first ones listed in ``trace.meta["issues"]``
     (and collected in `issues` when given: a list or a `LogIssues`); the rest of the log
@@ -211,10 +209,10 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
     found = LogIssues(100) if issues is None else issues
     first = _Counted(found)
     try:
-        tr = trace_from_messages(read_log(path, first), node_id, period_s, counts_per_rev,
+        tr = trace_from_messages(read_frames(path, first), node_id, period_s, counts_per_rev,
                                  found, source=str(path), stop_on_disorder=True)
     except _OutOfOrder:        # read it all again, in time-stamp order
-        tr = trace_from_messages(read_log(path, _Counted(found, skip=first.seen)), node_id,
+        tr = trace_from_messages(read_frames(path, _Counted(found, skip=first.seen)), node_id,
                                  period_s, counts_per_rev, found, source=str(path),
                                  sort_by_time=True)
     if not len(tr):
@@ -244,18 +242,18 @@ TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
 
 
 def load_trace(path: str | Path) -> Trace:
-    """A candump log (decoded through the DBC) or a saved trace table (.npz, .csv,
-    .parquet) as a Trace; BenchError naming the file when it cannot be read."""
+    """A bus log (LOG_FORMATS, decoded through the DBC) or a saved trace table (.npz,
+    .csv, .parquet) as a Trace; BenchError naming the file when it cannot be read."""
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such file: {path}")
     suffix = path.suffix.lower()
-    if suffix == ".log":
+    if suffix in LOG_FORMATS:
         tr = trace_from_log(path)
     elif suffix in TABLE_SUFFIXES:
         tr = Trace.load(path)
     else:
-        raise BenchError(f"{path}: unknown log format {suffix!r} (a candump .log, or a "
-                         f"trace {', '.join(TABLE_SUFFIXES)})")
+        raise BenchError(f"{path}: unknown log format {suffix!r} (a bus log "
+                         f"{', '.join(LOG_FORMATS)}, or a trace {', '.join(TABLE_SUFFIXES)})")
     tr.meta.setdefault("source", str(path))
     return tr

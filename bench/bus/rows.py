@@ -59,6 +59,7 @@ up to 239 empty rows, so a log of garbage counters would otherwise grow the tabl
 times its SYNC lines; a log that lost more than that is refused (BenchError)."""
 MAX_EMCY_KEPT = 1000
 _MAX_SAME_TS = 4096
+TWO_PI = 2.0 * math.pi
 
 
 @dataclass
@@ -108,6 +109,20 @@ class _Rows:
         mask = np.frombuffer(self.present, dtype=np.uint8) if len(self) else np.zeros(0, int)
         return {name: int(np.sum((mask & (1 << i)) == 0))
                 for i, name in enumerate(ROW_FRAMES) if name in seen}
+
+
+def trace_columns(rows: Any, period_s: float, counts_per_rev: float,
+                  periods: int | None = None) -> dict[str, np.ndarray]:
+    """The trace columns of the rows a `RowAssembler` wrote into its default sink: `t_s`
+    on the SYNC grid of `period_s`, every COLUMNS signal, the encoder counts as
+    `motor_angle_rad` (`counts_per_rev`); the first `periods` rows when given (the ECU's
+    periods done), all of them otherwise."""
+    n = len(rows) if periods is None else min(periods, len(rows))
+    cols: dict[str, np.ndarray] = {"t_s": np.arange(n) * period_s}
+    for c in COLUMNS:
+        cols[c] = np.frombuffer(rows.cols[c], dtype=float)[:n].copy() if n else np.zeros(0)
+    cols["motor_angle_rad"] = cols.pop("encoder_counts") * TWO_PI / counts_per_rev
+    return cols
 
 
 class RowAssembler:

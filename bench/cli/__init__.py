@@ -28,15 +28,17 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "status": ("updown", "show the plant node's state, counters and parameters"),
     "down": ("updown", "stop the background plant and loopback bus"),
     "run": ("run", "run a profile against the plant over the CAN bus (the ECU)"),
-    "log": ("logcmd", "record the bus to a candump log (like candump -L)"),
-    "replay": ("replay", "play a candump log onto the bus (like canplayer)"),
-    "decode": ("decode", "decode a candump log into a signal table (CSV/Parquet)"),
+    "log": ("logcmd", "record the bus to a log (candump -L by default)"),
+    "replay": ("replay", "play a bus log onto the bus (like canplayer)"),
+    "decode": ("decode", "decode a bus log into a signal table (CSV/Parquet)"),
     "hums": ("hums", "health and usage monitoring (thesis chapter 6)"),
     "usage": ("usage", "usage monitoring: travel, reversals, cycles, load spectrum, life used"),
     "gap": ("gap", "diagnose the gap between a log and the nominal model"),
     "gap-bench": ("gapbench", "blind check of the gap diagnosis on generated logs"),
     "calibrate": ("calibrate", "fit the nominal model to a healthy log"),
     "import": ("importcmd", "import a CSV/Parquet table from another rig"),
+    "fleet": ("fleet", "fleet store: ingest logs, status, report, export, synthetic fleet"),
+    "rig": ("rig", "baselines, fault signatures and populations of a real rig's runs"),
 }
 
 

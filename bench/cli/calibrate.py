@@ -1,5 +1,7 @@
 """`bench calibrate`: fit the nominal model's uncertain parameters to a healthy log, so
-later logs of that actuator are diagnosed against its own baseline (issue 5)."""
+later logs of that actuator are diagnosed against its own baseline (issue 5); or, with
+`--actuator`, identify what another actuator's description leaves unknown from one or
+more healthy logs and score held-out ones against their noise floor (issue 11)."""
 
 from __future__ import annotations
 
@@ -7,17 +9,32 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     from bench.gap.calibrate import DEFAULT
+    from bench.gap.rigcal import METHODS
     p = subparsers.add_parser(
         "calibrate", help="fit the nominal model to a healthy log",
         description="Fit the nominal model's uncertain parameters (inertia, friction level, "
                     "torque constant, lead, sensor gains, current offset) to a healthy log "
                     "by closed-loop least squares with a prior tolerance on each (fast plant "
-                    "mode). The output is used by `bench gap --nominal`.")
-    p.add_argument("log", metavar="HEALTHY", help="candump log (.log) or trace of a healthy run")
+                    "mode). The output is used by `bench gap --nominal`. With --actuator "
+                    "DESC (a JSON/TOML description, or a shipped name: cranfield): identify "
+                    "what the description leaves unknown from one or more healthy logs with "
+                    "the generic nut-level model, at the logs' own sample instants, and "
+                    "report the RMS per signal of each --holdout log against its noise floor.")
+    p.add_argument("log", metavar="HEALTHY", nargs="+",
+                   help="candump log (.log) or trace of a healthy run (several with --actuator)")
+    p.add_argument("--actuator", metavar="DESC",
+                   help="another actuator's description (.json/.toml, or: cranfield)")
+    p.add_argument("--holdout", metavar="LOG", nargs="+", default=[],
+                   help="held-out healthy logs to score the calibrated model on (--actuator)")
+    p.add_argument("--controller", choices=METHODS, default="auto",
+                   help="with --actuator and an unknown controller: fit-gains (a generic "
+                        "cascade fitted in closed loop), measured-current (the logged current "
+                        "drives the mechanics), auto (fit-gains when a set-point is logged)")
     p.add_argument("--model", default="plant", metavar="NAME",
                    help="nominal model to calibrate (plant)")
     p.add_argument("--params", metavar="A,B,...", default=",".join(DEFAULT),
@@ -34,20 +51,29 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     from bench.cli.outputs import check_output_file
-    from bench.gap.calibrate import calibrate
     from bench.gap.inputs import load_log, load_nominal
+    check_output_file(args.output, "-o", (".json",), stdout_ok=True)   # before the fit
+    if args.actuator:
+        return _actuator(args)
+    if len(args.log) > 1 or args.holdout:
+        raise BenchError("several healthy logs and --holdout need --actuator DESC (the "
+                         "thesis actuator is calibrated from one log)")
+    from bench.gap.calibrate import calibrate
+    from bench.gap.needs import NEEDS, SYNC_RATE, missing
     names = [n.strip() for n in args.params.split(",") if n.strip()]
     if not names:
         raise BenchError("--params lists no parameter")
-    check_output_file(args.output, "-o", (".json",), stdout_ok=True)   # before the fit
-    log = load_log(args.log)
+    log = load_log(args.log[0])
+    lack = missing(log, NEEDS["calibrate: thesis plant"])
+    # a log of the bench's own at another SYNC period is the thesis plant's to take
+    if missing(log, [n for n in NEEDS["calibrate: thesis plant"] if n != SYNC_RATE]):
+        raise BenchError(f"{args.log[0]}: the thesis plant's calibration not available: "
+                         f"needs {', '.join(lack)}; for another actuator give --actuator "
+                         "DESC (docs/real-data.md)")
     cal = calibrate(log, load_nominal(args.nominal), names, args.model, args.encoder)
-    cal["log"] = str(args.log)
-    text = json.dumps(cal, indent=1)
-    if args.output == "-":
-        print(text)
+    cal["log"] = str(args.log[0])
+    if _write(args.output, cal):
         return 0
-    Path(args.output).write_text(text)
     g0, g1 = cal["gap_before"]["heldout_part"]["total"], cal["gap_after"]["heldout_part"]["total"]
     for k, v in cal["params"].items():
         lo, hi = cal["ci95"][k]
@@ -58,3 +84,57 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: {n}")
     print(f"calibration: {args.output}", file=sys.stderr)
     return 0
+
+
+def _write(output: str, cal: dict[str, Any]) -> bool:
+    """Write the calibration; True when it went to stdout (nothing else to print)."""
+    text = json.dumps(cal, indent=1)
+    if output == "-":
+        print(text)
+        return True
+    Path(output).write_text(text)
+    return False
+
+
+def _actuator(args: argparse.Namespace) -> int:
+    from bench.actuator import load
+    from bench.gap.inputs import load_log
+    from bench.gap.rigcal import calibrate_rig
+    act = load(args.actuator)
+    healthy = [load_log(p) for p in args.log]
+    held = [load_log(p) for p in args.holdout]
+    cal = calibrate_rig(healthy, act, held, args.controller)
+    if _write(args.output, cal):
+        return 0
+    print(f"{act.name} ({act.motor_kind}): {cal['method_text']}")
+    print(f"{len(healthy)} healthy log(s) fitted, {len(held)} held out, "
+          f"{cal['seconds']:.1f} s")
+    from bench.gap.needs import availability
+    lack = {k: v for k, v in availability(healthy[0]).items() if v}
+    if lack:
+        print(f"on these logs ({len(lack)} of the bench's consumers need more):")
+        for k, v in lack.items():
+            print(f"  {k}: {v}")
+    cal["not_available"] = lack
+    for k in cal["fitted"]:
+        lo, hi = cal["ci95"].get(k, [None, None])
+        ci = "no effect on the fit" if lo is None or hi is None else f"{lo:.3g} .. {hi:.3g}"
+        flag = "  (not identified)" if k in cal["not_identified"] else ""
+        print(f"  {k:22s} {cal['values'][k]:.5g}  (95 % CI {ci}){flag}")
+    rows = cal["holdout_summary"] or {}
+    what = "held-out" if rows else "calibration"
+    for sig, r in (rows or _fit_summary(cal)).items():
+        print(f"  {what} {sig:12s} RMS {r['rms']:.4g}  noise floor {r['noise_floor']:.4g}  "
+              f"ratio {r['ratio_median']:.2f} (median), {r['ratio_max']:.2f} (worst)")
+    print("reproduces the healthy logs within "
+          f"{cal['floor_factor']:g} x the noise floor: "
+          + ("yes" if cal["reaches_noise_floor"] else "no"))
+    for n in cal["notes"]:
+        print(f"note: {n}")
+    print(f"calibration: {args.output}", file=sys.stderr)
+    return 0
+
+
+def _fit_summary(cal: dict[str, Any]) -> dict[str, dict[str, float]]:
+    from bench.gap.rigcal import summary
+    return summary(cal["fit_scores"])

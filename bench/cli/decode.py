@@ -1,4 +1,5 @@
-"""`bench decode FILE.log`: a candump log to a table of signals through the DBC."""
+"""`bench decode FILE.log`: a bus log (candump, .asc, .blf, .trc, .mf4) to a table of signals
+through the DBC."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ from bench import BenchError
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("decode", help="decode a candump log into a signal table (CSV/Parquet)",
-                       description="Decode a candump log through ema_contract/dbc/ema.dbc into one row per "
+    p = sub.add_parser("decode", help="decode a bus log into a signal table (CSV/Parquet)",
+                       description="Decode a bus log (candump .log; .asc, .blf, .trc, .mf4 "
+                       "through python-can) through ema_contract/dbc/ema.dbc into one row per "
                        "SYNC period (set-points, demand, current, encoder, LVDT, temperature, "
                        "status). The SYNC period and encoder resolution come from the SDO "
                        "traffic in the log when present. Bad lines are counted and the first "
@@ -19,7 +21,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                        "frames missing from a period, duplicates and frames out of time order "
                        "are counted and printed. Exit status 2 when nothing can be decoded "
                        "(no SYNC period).")
-    p.add_argument("file", metavar="FILE.log", help="candump log")
+    p.add_argument("file", metavar="FILE.log", help="bus log (.log, .asc, .blf, .trc, .mf4)")
     p.add_argument("-o", "--output", metavar="OUT",
                    help="write the table (.csv, .parquet or .npz); default: print a summary")
     p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,

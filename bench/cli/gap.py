@@ -9,6 +9,10 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bench.trace import Trace
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
@@ -20,7 +24,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                     "measure how far the best one shrinks the gap on held-out data. The "
                     "fits use the plant's fast mode (averaged PWM, massless balls).")
     p.add_argument("log", nargs="?", metavar="REAL",
-                   help="candump log (.log) or trace (.npz/.csv/.parquet) of the run")
+                   help="bus log (.log candump, .asc, .blf, .trc, .mf4) or trace "
+                        "(.npz/.csv/.parquet) of the run")
     p.add_argument("--holdout", metavar="OTHER",
                    help="another log for held-out validation (default: the last part of REAL)")
     p.add_argument("--holdout-frac", type=float, default=0.5, metavar="F",
@@ -43,6 +48,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", metavar="PATH", help="write the diagnosis JSON here ('-': stdout)")
     p.add_argument("--report", metavar="DIR", help="write figures (PNG) and index.html here")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    from bench.cluster import SCHEDULER_HELP
+    p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     p.add_argument("--fit-always", action="store_true",
                    help="fit the candidates even when the gap is within the noise floor")
     p.add_argument("--list-effects", action="store_true",
@@ -61,6 +68,17 @@ def list_effects() -> str:
     return "\n".join(lines)
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    from bench import BenchError
+    if args.workers < 1:
+        raise BenchError("--workers must be >= 1")
+    if not (math.isfinite(args.holdout_frac) and 0.0 < args.holdout_frac < 1.0):
+        raise BenchError("--holdout-frac must be a fraction between 0 and 1 (exclusive)")
+    if args.fundamental is not None and not (math.isfinite(args.fundamental)
+                                             and args.fundamental > 0):
+        raise BenchError("--fundamental must be a finite frequency > 0 Hz")
+
+
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     if args.list_effects:
@@ -72,21 +90,17 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap.diagnose import Options, diagnose
     from bench.gap.inputs import load_log, load_nominal
     from bench.gap.summary import text
-    if args.workers < 1:
-        raise BenchError("--workers must be >= 1")
-    if not (math.isfinite(args.holdout_frac) and 0.0 < args.holdout_frac < 1.0):
-        raise BenchError("--holdout-frac must be a fraction between 0 and 1 (exclusive)")
-    if args.fundamental is not None and not (math.isfinite(args.fundamental)
-                                             and args.fundamental > 0):
-        raise BenchError("--fundamental must be a finite frequency > 0 Hz")
+    _check_numbers(args)
     from bench.cli.outputs import check_output_dir, check_output_file
     if args.json:                                   # before the diagnosis, not after
         check_output_file(args.json, "--json", (".json",), stdout_ok=True)
     if args.report:
         check_output_dir(args.report, "--report")
+    if _is_rig(args):
+        return _rig(args)
     names = E.parse_list(args.effects)
     nominal = load_nominal(args.nominal)
-    log = load_log(args.log)
+    log = _thesis_log(args)
     hold = load_log(args.holdout) if args.holdout else None
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
@@ -94,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     res = diagnose(log, hold, nominal, Options(
         model=args.model, effects=names, holdout_frac=args.holdout_frac,
-        workers=args.workers, encoder=args.encoder, fit_always=args.fit_always,
+        workers=args.workers, scheduler=args.scheduler, encoder=args.encoder, fit_always=args.fit_always,
         progress=not args.quiet and sys.stderr.isatty()), log=say)
     js = res.json()
     say(f"done in {time.perf_counter() - t0:.1f} s")
@@ -111,4 +125,56 @@ def run(args: argparse.Namespace) -> int:
         from bench.gap.report import write_report
         idx = write_report(res, js, Path(args.report))
         print(f"report: {idx}", file=sys.stderr if args.json == "-" else sys.stdout)
+    return 0
+
+
+def _is_rig(args: argparse.Namespace) -> bool:
+    """Whether --nominal is another actuator's generic calibration (bench.gap.riggap)."""
+    from bench.gap.riggap import is_rig_calibration
+    return bool(args.nominal) and is_rig_calibration(args.nominal)
+
+
+def _thesis_log(args: argparse.Namespace) -> Trace:
+    """The log for the thesis plant's diagnosis; one it cannot take is refused with what
+    it needs and where to go instead."""
+    from bench import BenchError
+    from bench.gap.inputs import load_log
+    from bench.gap.needs import NEEDS, SYNC_RATE, missing
+    log = load_log(args.log)
+    lack = missing(log, NEEDS["gap: closed-loop re-simulation"])
+    # a log of the bench's own at another SYNC period is the thesis plant's to take
+    if missing(log, [n for n in NEEDS["gap: closed-loop re-simulation"] if n != SYNC_RATE]):
+        raise BenchError(f"{args.log}: the thesis plant's gap diagnosis not available: needs "
+                         f"{', '.join(lack)}; for another actuator: bench calibrate HEALTHY... "
+                         "--actuator DESC, then bench gap LOG --nominal CALIBRATION.json "
+                         "(docs/real-data.md)")
+    return log
+
+
+def _rig(args: argparse.Namespace) -> int:
+    """The log against another actuator's generic calibration (bench.gap.riggap)."""
+    from bench import BenchError
+    from bench.gap.inputs import load_log
+    from bench.gap.riggap import CANDIDATES, diagnose_rig, load_calibration, text
+    cal, act = load_calibration(args.nominal)
+    names = tuple(CANDIDATES)
+    if args.effects:
+        names = tuple(n.strip() for n in args.effects.split(",") if n.strip())
+        bad = [n for n in names if n not in CANDIDATES]
+        if bad:
+            raise BenchError(f"unknown effect(s) {', '.join(bad)} for a generic calibration "
+                             f"(effects: {', '.join(CANDIDATES)})")
+    js = diagnose_rig(load_log(args.log), cal, act, names)
+    js["log"] = str(args.log)
+    if args.json == "-":
+        json.dump(js, sys.stdout, indent=1)
+        print()
+        return 0
+    print(f"log: {args.log}")
+    print(text(js))
+    if args.json:
+        Path(args.json).write_text(json.dumps(js, indent=1))
+        print(f"json: {args.json}")
+    if args.report:
+        print("report: not available for a generic calibration (text and --json only)")
     return 0

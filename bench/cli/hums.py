@@ -39,6 +39,8 @@ def _common(q: argparse.ArgumentParser, workers: bool = True) -> None:
     if workers:
         q.add_argument("--workers", type=int, default=None,
                        help="worker processes (default: 2, or 1 on a one-core machine)")
+        from bench.cluster import SCHEDULER_HELP
+        q.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     q.add_argument("--json", metavar="PATH", help="write the results as JSON")
 
 
@@ -145,7 +147,7 @@ def _add_report(s: argparse._SubParsersAction) -> None:
                      "nothing was commanded gets the verdict UNKNOWN. Exit status: 0 when "
                      "every log has a verdict, 3 when one has none (UNKNOWN; the report is "
                      "still written), 2 on bad input.")
-    q.add_argument("logs", nargs="+", metavar="LOG", help="candump .log or trace file")
+    q.add_argument("logs", nargs="+", metavar="LOG", help="bus log (.log, .asc, .blf, .trc, .mf4) or trace file")
     q.add_argument("--out", default="hums-report", metavar="DIR",
                    help="output directory (default: %(default)s)")
     q.add_argument("--period", type=float, default=None, metavar="S",
@@ -244,7 +246,8 @@ def run_sweep(args: argparse.Namespace) -> int:
     from bench.hums import sweep as S
     from bench.hums.table import check, replace_section
     _check_workers(args)
-    res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers)
+    res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
+                scheduler=args.scheduler)
     rows = S.rows(res)
     _print_rows(rows)
     print(f"{len(res.points)} plant runs in {res.elapsed_s:.1f} s")
@@ -268,8 +271,10 @@ def run_rul(args: argparse.Namespace) -> int:
     from bench.hums import rul_run as R
     from bench.hums.table import replace_section
     _check_workers(args)
-    res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
-                    workers=args.workers)
+    from bench.workers import session
+    with session(args.workers, args.scheduler):     # one cluster: the runs, calibration
+        res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
+                        workers=args.workers, scheduler=args.scheduler)
     rows = R.rows(res)
     _print_rows(rows)
     print(f"done in {res.elapsed_s:.1f} s")
@@ -294,7 +299,10 @@ def run_campaign(args: argparse.Namespace) -> int:
     args.healthy = 10 if args.healthy is None else args.healthy
     if args.runs < 1 or args.healthy < 0:
         raise BenchError("--runs must be >= 1 and --healthy >= 0")
-    res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args), args.workers)
+    from bench.workers import session
+    with session(args.workers, args.scheduler):     # one cluster: calibration, runs
+        res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args),
+                             args.workers, scheduler=args.scheduler)
     text = R.campaign_markdown(res)
     print(text)
     paths = R.campaign_figure(res, args.figures) if args.figures else []

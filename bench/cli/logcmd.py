@@ -1,4 +1,5 @@
-"""`bench log FILE.log`: record every frame on the bus, like `candump -L`."""
+"""`bench log FILE.log`: record every frame on the bus, like `candump -L`, through python-can's
+`can.Logger` (the format from the suffix) or `can.SizedRotatingLogger` (`--max-bytes`)."""
 
 from __future__ import annotations
 
@@ -7,17 +8,26 @@ import math
 import signal
 import sys
 import time
+from pathlib import Path
 
 from bench import BenchError
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     from bench.bus import add_bus_arguments
-    p = sub.add_parser("log", help="record the bus to a candump log (like candump -L)",
+    p = sub.add_parser("log", help="record the bus to a log (candump -L by default)",
                        description="Record every frame on the bus (any bus python-can opens; "
-                       "by default the loopback hub of `bench up` or vcan0) to a candump log, "
-                       "until Ctrl-C, --duration or --count.")
-    p.add_argument("file", metavar="FILE.log", help="candump log to write")
+                       "by default the loopback hub of `bench up` or vcan0) to a log, until "
+                       "Ctrl-C, --duration or --count. The suffix picks the format, as "
+                       "python-can's can.Logger does: .log candump -L (default), .asc and "
+                       ".blf (Vector), .trc (PEAK), .mf4 (ASAM MDF4).")
+    p.add_argument("file", metavar="FILE.log", help="log to write (.log, .asc, .blf, .trc, "
+                   ".mf4)")
+    p.add_argument("--max-bytes", type=int, default=0, metavar="N",
+                   help="start a new file when the current one reaches N bytes (python-can's "
+                        "SizedRotatingLogger; .log, .asc, .blf): the full ones are renamed "
+                        "FILE_<date>T<time>_#NNN.ext, FILE is always the newest (default: "
+                        "one file)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="stop after S seconds")
     p.add_argument("--count", type=int, default=None, metavar="N", help="stop after N frames")
@@ -33,13 +43,18 @@ def check_arguments(args: argparse.Namespace) -> None:
                          f"{args.duration:g} (without it: until Ctrl-C)")
     if args.count is not None and args.count < 1:
         raise BenchError(f"--count must be >= 1 frame, not {args.count}")
-    check_output_file(args.file, "FILE.log", (".log",))     # candump -L text
+    if args.max_bytes < 0:
+        raise BenchError(f"--max-bytes must be >= 0 (0: one file), not {args.max_bytes}")
+    from bench.bus.logwrite import LOG_FORMATS, ROTATING_FORMATS
+    check_output_file(args.file, "FILE.log", tuple(LOG_FORMATS))   # the format from it
+    if args.max_bytes and Path(args.file).suffix.lower() not in ROTATING_FORMATS:
+        raise BenchError(f"--max-bytes: python-can rotates {', '.join(ROTATING_FORMATS)} logs, "
+                         f"not {Path(args.file).suffix.lower()}")
 
 
 def run(args: argparse.Namespace) -> int:
-    import can
-
     from bench.bus import bus_settings, close_bus, connect, find_bus
+    from bench.bus.logwrite import flush, open_writer
 
     check_arguments(args)
     found = find_bus(bus_settings(args))
@@ -47,14 +62,21 @@ def run(args: argparse.Namespace) -> int:
         raise BenchError("no bus to record: no python-can configuration, no vcan0 and no "
                          "loopback hub running (run `bench up`)")
     cfg, source = found
-    bus = connect(cfg)
+    try:
+        writer = open_writer(args.file, args.max_bytes)
+    except OSError as exc:
+        raise BenchError(f"cannot write {args.file}: {exc.strerror or exc}") from None
+    try:
+        bus = connect(cfg)
+    except BaseException:
+        writer.stop()
+        raise
     stop = {"flag": False}
 
     def on_signal(signum, frame):  # noqa: ARG001
         stop["flag"] = True
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    writer = can.CanutilsLogWriter(args.file)
     n = 0
     end = None if args.duration is None else time.monotonic() + args.duration
     print(f"recording {cfg.get('interface')}:{cfg.get('channel')} ({source}) to {args.file}",
@@ -76,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
             n += 1
             now = time.monotonic()
             if now - last_flush > 0.5:
-                writer.file.flush()
+                flush(writer)
                 last_flush = now
     finally:
         writer.stop()

@@ -1,4 +1,5 @@
-"""`bench replay FILE.log`: play a candump log onto the bus, like canplayer."""
+"""`bench replay FILE.log`: play a bus log (candump, or .asc/.blf/.trc/.mf4) onto the bus,
+like canplayer."""
 
 from __future__ import annotations
 
@@ -18,12 +19,15 @@ MAX_GAP_S = 10.0
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     from bench.bus import add_bus_arguments
-    p = sub.add_parser("replay", help="play a candump log onto the bus (like canplayer)",
-                       description="Send the frames of a candump log onto the bus with their "
-                       "original timing (relative to the first frame). Truncated or corrupted "
-                       "lines, and lines whose timestamp is not finite, are reported with "
-                       "their line numbers and skipped.")
-    p.add_argument("file", metavar="FILE.log", help="candump log to play")
+    p = sub.add_parser("replay", help="play a bus log onto the bus (like canplayer)",
+                       description="Send the frames of a bus log onto the bus with their "
+                       "original timing (relative to the first frame). The format comes from "
+                       "the suffix: candump .log (default), .asc, .blf, .trc, .mf4 (read "
+                       "through python-can). Truncated or corrupted candump lines, and frames "
+                       "whose timestamp is not finite, are reported with their line (frame) "
+                       "numbers and skipped.")
+    p.add_argument("file", metavar="FILE.log", help="bus log to play (.log, .asc, .blf, "
+                   ".trc, .mf4)")
     p.add_argument("--speed", type=float, default=1.0, metavar="X",
                    help="time scale: 2 plays twice as fast; 0 sends as fast as possible "
                         "(default: %(default)s)")
@@ -45,17 +49,27 @@ def check_arguments(args: argparse.Namespace) -> Path:
     if not (math.isfinite(args.max_gap) and args.max_gap > 0):
         raise BenchError(f"--max-gap must be a finite number of seconds > 0, not "
                          f"{args.max_gap:g}")
+    from bench.bus.logwrite import log_format
     path = Path(args.file)
+    log_format(path, "FILE")
     if not path.is_file():
         raise BenchError(f"no such log: {path}")
     return path
 
 
 def frames(path: Path, issues: list) -> Iterator[can.Message]:
-    """The frames of a candump log, as `bench.bus.logs.read_log` reads them, and also
+    """The frames of a log: a candump log as `bench.bus.logs.read_log` reads it, and also
     with lines whose timestamp is not finite (a timestamp of 400 digits reads as inf)
-    reported in `issues` and skipped: no time to play them at exists."""
-    from bench.bus.logs import LogIssue, parse_line
+    reported in `issues` and skipped: no time to play them at exists; another format
+    through `bench.bus.logread.read_frames`, with the same check."""
+    from bench.bus.logs import LogIssue, parse_line, read_frames
+    if path.suffix.lower() != ".log":
+        for i, msg in enumerate(read_frames(path, issues), start=1):
+            if math.isfinite(msg.timestamp):
+                yield msg
+            else:
+                issues.append(LogIssue(i, "timestamp is not finite", f"frame {i}"))
+        return
     with path.open("r", errors="replace", newline="") as fh:
         for lineno, line in enumerate(fh, start=1):
             if not line.strip():

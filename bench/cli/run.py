@@ -50,7 +50,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="assignments", action="append", default=[],
                    metavar="NAME=VALUE", help="plant parameter, written by SDO before the run "
                    "(repeatable; see `bench plant --list-params`)")
-    p.add_argument("--log", metavar="FILE.log", help="candump log of every frame")
+    p.add_argument("--log", metavar="FILE.log", help="log of every frame: candump .log, or "
+                   ".asc, .blf, .trc, .mf4 (python-can's writers)")
     p.add_argument("--save", metavar="TRACE", help="save the trace (.csv, .parquet or .npz)")
     p.add_argument("--spin-us", type=int, default=200, metavar="US",
                    help="real-time pacers (ECU and plant): busy-wait window before each "
@@ -149,7 +150,9 @@ def _checked_profile(args: argparse.Namespace):
     if args.save:
         check_save_path(args.save)
     if args.log:
+        from bench.bus.logwrite import log_format
         probe_output(args.log, "log")
+        log_format(args.log, "--log")
     if not 0 <= args.spin_us <= 1000:
         raise BenchError("--spin-us must be within 0..1000 us")
     if not 0 <= args.rt_priority <= 99:

@@ -18,6 +18,7 @@ from bench import BenchError
 from bench.ecu.errors import BusLost
 from bench.ecu.logwriter import _Log
 from bench.ecu.nodeinfo import NodeInfo
+from bench.ecu.rowtap import RowTap
 from bench.ecu.signals import StopSignal
 from bench.trace import Trace
 from ema_contract.frames import FrameError, Frames, load_od
@@ -50,6 +51,8 @@ class EcuLink:
         self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
         self.param_objects = ParamObjects(self.od)
         self.log = _Log(Path(log_path)) if log_path else None
+        self.tap: RowTap | None = None     # the run's rows (`RunLoop.run`), fed like the log
+        self._record_lock = threading.Lock()   # log and rows see the frames in one order
         self.echo = echo               # the bus returns our own frames (for the log)
         self.emcy: list[dict[str, Any]] = []
         self._emcy_seen = 0        # EMCYs already checked by the run (_check_emcy)
@@ -96,21 +99,31 @@ class EcuLink:
             raise BusLost(f"cannot send on the bus: {exc}") from None
 
     def _log_sent(self, msg: can.Message) -> None:
-        """Log an own frame just before it goes out, so that an answer (received on the
-        notifier thread) can never precede its request in the log."""
-        if not self.echo and self.log is not None:
+        """Record an own frame just before it goes out, so that an answer (received on
+        the notifier thread) can never precede its request in the log."""
+        if not self.echo:
             msg.timestamp = time.time()
             msg.is_rx = False
-            self.log.on_message_received(msg)
+            self._record(msg)
+
+    def _record(self, msg: can.Message) -> None:
+        """A frame for the log and the run's rows, in one order whatever the thread."""
+        log, tap = self.log, self.tap
+        if log is None and tap is None:
+            return
+        with self._record_lock:
+            if log is not None:
+                log.on_message_received(msg)
+            if tap is not None:
+                tap.append(msg)
 
     def _on_ecu_frame(self, msg: can.Message) -> None:
         """A frame only an ECU sends (SYNC, set-point, RPDO1, ECU heartbeat): `EcuClaim`
         tells our own echo from another ECU."""
 
     def _monitor(self, msg: can.Message) -> None:
-        """Log a received frame and track the plant's heartbeat and EMCY."""
-        if self.log is not None:
-            self.log.on_message_received(msg)
+        """Record a received frame and track the plant's heartbeat and EMCY."""
+        self._record(msg)
         cid = msg.arbitration_id
         if cid == self._hb_cob and len(msg.data) == 1:
             state = int(msg.data[0]) & 0x7F

@@ -1,4 +1,5 @@
-"""The ECU's candump log writer."""
+"""The ECU's log writer: python-can's `can.Logger` (candump ``.log`` by default; the suffix
+picks ``.asc``, ``.blf``, ``.trc``, ``.mf4``: `bench.bus.logwrite`)."""
 
 from __future__ import annotations
 
@@ -8,11 +9,12 @@ from pathlib import Path
 
 import can
 
+from bench.bus.logwrite import flush, open_writer
 from bench.ecu.errors import LogWriteError
 
 
 class _Log(can.Listener):
-    """Every frame into a candump log (python-can's CanutilsLogWriter).
+    """Every frame into a log (python-can's writer for the path's suffix, `can.Logger`).
 
     A write that fails (disk full, file too large) is kept in `error` and ends the
     logging, never the thread that delivered the frame: the ECU reports it
@@ -20,7 +22,7 @@ class _Log(can.Listener):
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
-        self.writer = can.CanutilsLogWriter(self.path)
+        self.writer = open_writer(self.path)
         self.count = 0
         self.error: Exception | None = None
         self.closed = False
@@ -36,7 +38,7 @@ class _Log(can.Listener):
                 self.count += 1
                 now = time.monotonic()
                 if now - self._last_flush > 0.5:
-                    self.writer.file.flush()
+                    flush(self.writer)
                     self._last_flush = now
             except (OSError, ValueError) as exc:
                 self.error = exc
@@ -60,7 +62,9 @@ class _Log(can.Listener):
                 if self.error is None:
                     self.error = exc
                 try:
-                    self.writer.file.close()
+                    fh = getattr(self.writer, "file", None)
+                    if fh is not None:
+                        fh.close()
                 except (OSError, ValueError):
                     pass
             except Exception:  # noqa: BLE001 - closing must not mask the run's error

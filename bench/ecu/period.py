@@ -2,12 +2,14 @@
 
 Per period k (`bench.ecu.runloop.RunLoop.run` calls them in this order):
 `sync` (SYNC and the set-points), `collect` (TPDO1-3 of this SYNC), `check` (another ECU,
-a signal, a failed log), `control` (the demand as RPDO1, the trace row, the plant's
-failing conditions) and `end` (heartbeat, pacer, progress)."""
+a signal, a failed log), `control` (the demand as RPDO1, the plant's failing conditions)
+and `end` (the period's frames into the rows, heartbeat, pacer, progress). The trace's
+rows are those of the frames as logged (`bench.ecu.rowtap`), not the values the loop
+held: a TPDO that missed its period in real time leaves NaN in that row (the controller
+used the previous value), as in the decoded log."""
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -18,6 +20,7 @@ import numpy as np
 
 from bench.control import Controller, ControllerParams
 from bench.ecu.errors import FAILING_BITS, BusLost, Interrupted, _at
+from bench.ecu.rowtap import RowTap
 from bench.ecu.signals import StopSignal
 from bench.profiles import Profile
 from bench.trace import Trace
@@ -25,10 +28,6 @@ from ema_contract.frames import FrameError
 from ema_contract.states import ControlWord, Pace, StatusWord
 from plant_rt.pacing import RealtimePacer
 from plant_rt.params import PlantParams
-
-TWO_PI = 2.0 * math.pi
-ROWS = ("current_demand_a", "current_a", "motor_speed_rad_s", "motor_angle_rad",
-        "position_m", "winding_temperature_k", "load_force_n", "status_word", "bus_time_s")
 
 
 @dataclass
@@ -53,7 +52,7 @@ def float32_limit(limit: float) -> float:
 
 
 class PeriodSteps:
-    """One run's control loop state (set-points, controller, rows, latest TPDOs, pacer)
+    """One run's control loop state (set-points, controller, row tap, latest TPDOs, pacer)
     and its steps per SYNC period, on the ECU `ecu` (a `bench.ecu.master.Ecu`: its
     link, claim and run-loop parts; typed Any, the Ecu imports this module)."""
 
@@ -70,7 +69,7 @@ class PeriodSteps:
         ctrl = self.ctrl = Controller(cparams)
         ctrl.step(0.0, 0.0, self.mode, 0.0, 0.0)   # load the compiled step before the clock runs
         ctrl.reset()
-        self.rows = {k: np.full(n, np.nan) for k in ROWS}
+        self.tap = RowTap(ecu.frames, ecu._sync_max)
         self.spin_us = spin_us
         self.bar = None
         self.latest: dict[str, dict[str, Any]] = {}
@@ -109,7 +108,6 @@ class PeriodSteps:
         # a loaded machine), so the pre-run latch is tolerated for 20 ms
         self.grace = 1 if self.pacer is None else max(1, round(0.02 / ts))
         self.t_wall0 = time.perf_counter()
-        self.t_first_sync: float | None = None
         self.last_bar = time.monotonic()
 
     def poll(self, timeout: float) -> None:
@@ -147,9 +145,6 @@ class PeriodSteps:
                                  "SetpointSpeed": frames.clamp(
                                      "ECU_Setpoint", "SetpointSpeed", self.sp_spd[k]),
                                  "Mode": self.mode}, strict=True)))
-        if self.t_first_sync is None:
-            self.t_first_sync = time.perf_counter()
-        self.rows["bus_time_s"][k] = time.perf_counter() - self.t_first_sync
 
     def collect(self, k: int) -> None:
         """TPDO1-3 of SYNC k: waited for in lockstep, within 80 % of the period in real
@@ -180,8 +175,8 @@ class PeriodSteps:
             log.raise_error("; stopped" + _at(k, ts))
 
     def control(self, k: int) -> None:
-        """The demand of period k as RPDO1, its trace row, the plant's failing conditions."""
-        ecu, rows, latest = self.ecu, self.rows, self.latest
+        """The demand of period k as RPDO1, the plant's failing conditions."""
+        ecu, latest = self.ecu, self.latest
         t1, t2, t3 = latest["EMA_TPDO1"], latest["EMA_TPDO2"], latest["EMA_TPDO3"]
         pos = float(t3["LvdtPosition"])
         spd = float(t2["EncoderSpeed"])
@@ -200,14 +195,6 @@ class PeriodSteps:
                                  "ControlWord": self.enable if k else self.first_control},
                                  strict=True)))
         word = int(t1["StatusWord"])
-        rows["current_demand_a"][k] = demand32
-        rows["current_a"][k] = t1["MotorCurrent"]
-        rows["status_word"][k] = word
-        rows["motor_speed_rad_s"][k] = spd
-        rows["motor_angle_rad"][k] = t2["EncoderAngle"] * TWO_PI / self.cpr
-        rows["position_m"][k] = pos
-        rows["winding_temperature_k"][k] = t3["WindingTemperature"]
-        rows["load_force_n"][k] = t3["LoadForce"]
         self.stats.periods = k + 1
         fail_bits = self.fail_bits
         if word & fail_bits and (k >= self.grace or word & fail_bits != self.timeout_bit):
@@ -216,7 +203,9 @@ class PeriodSteps:
             self.emcy_seen = ecu._emcy_seen = ecu._check_emcy(self.emcy_seen, k, self.ts)
 
     def end(self, k: int) -> None:
-        """The period's heartbeat (on the SYNC grid in lockstep), pacer, callback, bar."""
+        """The period's frames into the rows, its heartbeat (on the SYNC grid in
+        lockstep), pacer, callback, bar."""
+        self.tap.drain()
         hb_every = self.hb_every
         self.ecu.heartbeat(force=bool(hb_every) and (k + 1) % hb_every == 0)
         if self.pacer is not None:
@@ -244,15 +233,15 @@ class PeriodSteps:
             stats.sync_deadline_misses = pacer.misses
 
     def trace(self) -> Trace:
-        """The run's trace: the periods done (all of them: ``meta["complete"]``)."""
+        """The run's trace: the rows of the periods done (all of them:
+        ``meta["complete"]``), assembled from the frames as logged, with what the
+        assembler counted (``meta["bus_rows"]``)."""
         ecu, stats, m, n = self.ecu, self.stats, self.stats.periods, self.n
-        cols = {"t_s": self.t[:m], "setpoint_position_m": self.sp_pos[:m],
-                "setpoint_speed_rad_s": self.sp_spd[:m], "mode": np.full(m, float(self.mode))}
-        cols.update({k_: v[:m] for k_, v in self.rows.items()})
+        cols = self.tap.columns(self.ts, self.cpr, m)
         profile = self.profile
         meta = {"source": "bus", "pace": Pace(self.pace).name.lower(), "profile": profile.name,
                 "profile_kwargs": profile.kwargs, "fundamental_hz": profile.fundamental_hz,
                 "params": self.params.to_dict(), "controller": asdict(self.cparams),
                 "complete": m == n, "node_id": ecu.node_id, "ecu": asdict(stats),
-                "emcy": list(ecu.emcy)}
+                "emcy": list(ecu.emcy), "bus_rows": self.tap.counts()}
         return Trace(cols, meta)

@@ -7,6 +7,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict
+from typing import Any
 
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
@@ -58,6 +59,7 @@ class RunLoop(EcuClaim):
         self._stop = stop
         steps.setup(progress)
         self.unlisten()
+        self.tap = steps.tap       # from here on every frame logged also makes the rows
         # keep full garbage collections (tens of ms with numba and scipy loaded) out of
         # the control loop: what exists now is not scanned again until the run ends
         gc.collect()
@@ -84,16 +86,25 @@ class RunLoop(EcuClaim):
                 stop.defer = False
             gc.unfreeze()
             steps.close()
-        trace = self.partial = steps.trace()
         if error is not None:
+            trace = self.partial = self._trace(steps)
             trace.meta["error"] = str(error) or type(error).__name__
             if self.log is not None:
                 stats.frames_logged = self.log.count
             trace.meta["ecu"] = asdict(stats)
             self.abort()
             raise error
-        self._finish(trace, stats)
+        end = self._finish(stats)
+        trace = self.partial = self._trace(steps)
+        trace.meta.update(end)
         return trace
+
+    def _trace(self, steps: PeriodSteps) -> Trace:
+        """The run's trace from the rows of the frames recorded so far; the rows stop."""
+        try:
+            return steps.trace()
+        finally:
+            self.tap = None
 
     def _start_run(self, steps: PeriodSteps) -> None:
         """The last checks, the ECU's heartbeat, NMT START, the pacer's first release."""
@@ -129,20 +140,23 @@ class RunLoop(EcuClaim):
                                  f"run is not valid")
         return len(self.emcy)
 
-    def _finish(self, trace: Trace, stats: EcuStats) -> None:
-        """Orderly end: drive to PRE-OPERATIONAL, stop heartbeat monitoring, counters."""
+    def _finish(self, stats: EcuStats) -> dict[str, Any]:
+        """Orderly end: drive to PRE-OPERATIONAL, stop heartbeat monitoring, counters;
+        returns the trace's metadata from it."""
+        meta: dict[str, Any] = {}
         self.listen()
         try:
             self.nmt(NMTCommand.ENTER_PRE_OPERATIONAL)
             self.remote.sdo[0x1016][1].raw = 0   # orderly log-out: stop consuming our heartbeat
-            trace.meta["plant_counters"] = self.read_status()
+            meta["plant_counters"] = self.read_status()
         except (BenchError, SdoAbortedError, SdoCommunicationError) as exc:
-            trace.meta["plant_counters"] = {"error": str(exc)}
-        time.sleep(0.02)   # let the last answers reach the log
-        trace.meta["emcy"] = list(self.emcy)
+            meta["plant_counters"] = {"error": str(exc)}
+        time.sleep(0.02)   # let the last answers reach the log (and the rows)
+        meta["emcy"] = list(self.emcy)
         if self.log is not None:
             stats.frames_logged = self.log.count
-        trace.meta["ecu"] = asdict(stats)
+        meta["ecu"] = asdict(stats)
+        return meta
 
     def _send_sync(self) -> None:
         self._sync_counter = self._sync_counter % self._sync_max + 1
@@ -180,7 +194,7 @@ class RunLoop(EcuClaim):
                                     f"within 10 s although its heartbeat continues")
 
 
-RUN_COLUMNS = 13     # float64 columns of a bus run's trace (Ecu.run)
+RUN_COLUMNS = 16     # float64 columns of a bus run (Ecu.run): 3 set-point, 13 of the rows
 
 
 def run_periods(duration_s: float, period_s: float) -> int:

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import BenchError
+from bench.bus.logwrite import log_format
 from bench.control import ControllerParams
 from bench.ecu.errors import PlantLost
 from bench.ecu.master import Ecu
@@ -73,7 +74,8 @@ def _with_node(trace: Trace | None, info: NodeInfo) -> Trace | None:
 
 def _check_run(profile: Profile, vals: dict[str, Any], duration_s: float | None,
                log_path: str | Path | None, encoder_counts: int | None) -> None:
-    """Before anything starts: `encoder_counts`, the run's length and the log path."""
+    """Before anything starts: `encoder_counts`, the run's length and the log path (its
+    format from the suffix: `bench.bus.logwrite.LOG_FORMATS`)."""
     if encoder_counts is not None:
         try:
             check_value(resolve("sensors.encoder_counts_per_rev"), encoder_counts)
@@ -83,6 +85,7 @@ def _check_run(profile: Profile, vals: dict[str, Any], duration_s: float | None,
                 PlantParams().with_dict(vals).sim.sync_period_s)
     if log_path:
         probe_output(log_path, "log")
+        log_format(log_path)
 
 
 def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace, node_id: int | None,

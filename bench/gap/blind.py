@@ -385,8 +385,9 @@ def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
 def run(n: int, seed: int, workers: int = 2, fidelity: str = "full",
         duration_s: float = LOG_S, progress: bool = True,
         on_result: Callable[[dict[str, Any]], None] | None = None,
-        effects: list[str] | None = None) -> dict[str, Any]:
-    """Run `n` blind cases (seeded) on `workers` processes; results and summary.
+        effects: list[str] | None = None, scheduler: str | None = None) -> dict[str, Any]:
+    """Run `n` blind cases (seeded) on `workers` processes (or the Dask cluster of
+    `scheduler`); results and summary.
     `effects`: restrict the diagnosis' library (default: all; the generator's pool is
     unchanged, so a restricted library scores lower)."""
     cases = make_cases(n, seed)
@@ -395,7 +396,8 @@ def run(n: int, seed: int, workers: int = 2, fidelity: str = "full",
     job = partial(run_case, fidelity=fidelity, duration_s=duration_s, ref=None,
                   effects=effects)
     results = run_all(job, cases, workers, progress, desc="gap-bench", unit="case",
-                      initializer=_init, initargs=(ref,), on_result=on_result, leave=True)
+                      initializer=_init, initargs=(ref,), on_result=on_result, leave=True,
+                      scheduler=scheduler)
     return {"seed": seed, "cases": n, "fidelity": fidelity, "log_s": duration_s,
             "library": effects or "all",
             "wall_s": time.perf_counter() - t0, "workers": workers,

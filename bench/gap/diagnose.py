@@ -59,6 +59,7 @@ class Options:
     effects: Sequence[str] | None = None       # candidate names (None: the whole library)
     holdout_frac: float = 0.5                  # without a holdout log: the last part held out
     workers: int = 2
+    scheduler: str | None = None               # a Dask scheduler (None: local cluster)
     encoder: str = "absolute"
     fit_always: bool = False                   # fit candidates even without a significant gap
     bootstrap: int = 6
@@ -238,7 +239,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     # there is something to fit: a log within the noise floor costs no process start)
     pool = None
     if (sig or o.fit_always) and o.workers > 1 and len(names) > 1:
-        pool = make_pool(o.workers, wait=False)
+        pool = make_pool(o.workers, wait=False, scheduler=o.scheduler)
         pools.append(pool)
     loc, ho_en, ho_ex = _localisation(trace, holdout, p, h, frac, (sig, raw, sm), say)
     skipped = [] if o.model == "plant" else not_representable(p, names)

@@ -1,33 +1,46 @@
 """Import a signal table logged by another rig (`bench import TABLE --map MAP`).
 
-Many rigs do not log CAN. A CSV or Parquet table at any fixed or varying sample rate,
-with a column map, becomes the bench's signal table (`bench.trace.Trace`) at the SYNC
-rate, ready for `bench gap`, `bench calibrate` and the HUMS.
+Many rigs do not log CAN. A CSV or Parquet table (CSV also .xz/.gz/.bz2-compressed) at
+any fixed or varying sample rate, with a column map, becomes the bench's signal table
+(`bench.trace.Trace`), ready for `bench gap`, `bench calibrate` and the HUMS.
 
 The map (JSON or CSV) gives, per bench signal: the source column, its unit and an
-optional scale (and, for angles, an optional wrap period in raw values to unwrap):
+optional scale (for angles an optional wrap period in raw values to unwrap; ``minus``: a
+column subtracted from ``column`` before scaling, e.g. the position from a set-point and
+a position-error column):
 
     JSON  [{"signal": "position_m", "column": "lvdt", "unit": "mm", "scale": 1.0}, ...]
           or {"position_m": {"column": "lvdt", "unit": "mm"}, "t_s": "time", ...}
-    CSV   signal,column,unit,scale[,wrap]
+    CSV   signal,column,unit,scale[,wrap[,minus]]
 
-value_SI = raw x scale x unit factor. The time signal is ``t_s``; without it, give the
-table's fixed rate (``source_rate_hz``). Resampling onto the SYNC grid (the overlap of
-all mapped columns): linear interpolation, except ``mode`` (previous value); each
+value_SI = (raw - minus) x scale x unit factor (force: N, kN, lbf, kgf = 9.80665 N). The
+time signal is ``t_s``; without it, give the table's fixed rate (``source_rate_hz``).
+
+By default the trace keeps the table's own sample instants: nothing is interpolated, a
+25 Hz table stays 25 Hz (``meta["sample_period_s"]``, ``meta["resampled"]`` False), and
+a row where a column has no value stays NaN. `split_table` cuts a table that holds many
+runs into one trace per combination of key columns (``--split-by load,run,group``).
+
+With a SYNC period (``--sync-period``) the table is resampled onto that grid (the overlap
+of all mapped columns): linear interpolation, except ``mode`` (previous value); each
 column's own blank/NaN rows are skipped, so channels logged at different rates in one
-table are fine. Points are interpolated, not averaged: a table much faster than the
-SYNC rate is sampled, as the bench's own sensors are. A NaN block (a run of rows where a
-column that usually has a value has none, `nan_blocks`) is not interpolated over: its
-SYNC samples are left empty, as the lost samples of a decoded log, and the block is
-listed in ``meta["nan_blocks"]`` (table rows, time span); the HUMS and the gap diagnosis
-bridge short ones and refuse or leave out what longer ones hold.
+table are fine. Points are interpolated, not averaged.
+
+Either way a NaN block (a run of rows where a column that usually has a value has none,
+`nan_blocks`) is not interpolated over: its samples are left empty, as the lost samples
+of a decoded log, and the block is listed in ``meta["nan_blocks"]`` (table rows, time
+span); the HUMS and the gap diagnosis bridge short ones and refuse or leave out what
+longer ones hold.
 """
 
 from __future__ import annotations
 
+import bz2
 import csv
+import gzip
 import io
 import json
+import lzma
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,9 +64,11 @@ UNITS: dict[str, dict[str, float]] = {
               "rev/s": 2 * math.pi},
     "angle": {"rad": 1.0, "deg": math.pi / 180, "rev": 2 * math.pi},
     "current": {"A": 1.0, "mA": 1e-3},
-    "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605},
+    "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605, "kgf": 9.80665},
     "mode": {"-": 1.0, "": 1.0},
 }
+
+COMPRESSED: dict[str, Any] = {".xz": lzma.open, ".gz": gzip.open, ".bz2": bz2.open}
 
 
 @dataclass(frozen=True)
@@ -63,6 +78,7 @@ class MapEntry:
     unit: str
     scale: float = 1.0
     wrap: float = 0.0          # wrap period in raw table values (unwrapped), 0: none
+    minus: str = ""            # a column subtracted from `column` before scaling
 
     @property
     def factor(self) -> float:
@@ -98,7 +114,9 @@ def _entry(d: dict[str, Any], where: str) -> MapEntry:
     scale = num("scale", 1.0)
     if scale == 0.0:
         raise BenchError(f"{where}: scale of {sig} is 0")
-    return MapEntry(sig, str(col).strip(), unit, scale, num("wrap", 0.0))
+    minus = d.get("minus")
+    minus = "" if minus is None else str(minus).strip()
+    return MapEntry(sig, str(col).strip(), unit, scale, num("wrap", 0.0), minus)
 
 
 def read_map(path: str | Path) -> list[MapEntry]:
@@ -146,6 +164,8 @@ def read_table(path: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
     if not path.exists():
         raise BenchError(f"no such table: {path}")
     suffix = path.suffix.lower()
+    if suffix in COMPRESSED:
+        suffix = Path(path.stem).suffix.lower()
     if suffix == ".parquet":
         return _read_parquet(path, columns)
     if suffix in (".csv", ".txt", ".tsv"):
@@ -173,7 +193,7 @@ def _read_parquet(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
 
 def _read_delimited(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
     """`read_table` of a CSV-like text file (the delimiter sniffed: , ; tab or space)."""
-    text = path.read_text()
+    text = _text(path)
     sample = text[:4096]
     try:
         dialect: type[csv.Dialect] = csv.Sniffer().sniff(sample, delimiters=",;\t ")
@@ -197,6 +217,18 @@ def _read_delimited(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
     return {c: arr[:, j] for j, c in enumerate(columns)}
 
 
+def _text(path: Path) -> str:
+    """A text table's content, decompressed when it ends in .xz, .gz or .bz2."""
+    opener = COMPRESSED.get(path.suffix.lower())
+    if opener is None:
+        return path.read_text()
+    try:
+        with opener(path, "rt") as fh:
+            return str(fh.read())
+    except (OSError, EOFError, ValueError) as exc:
+        raise BenchError(f"{path}: cannot decompress ({exc})") from None
+
+
 def _row_values(path: Path, lineno: int, row: list[str], idx: list[int],
                 columns: list[str]) -> list[float]:
     """The floats of one text row's wanted cells (blank or missing -> NaN)."""
@@ -218,26 +250,76 @@ def _check_columns(path: Path, wanted: list[str], have: list[str]) -> None:
                          f"(the table has: {', '.join(have)})")
 
 
-def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: float = 1e-3,
+def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: float | None = None,
                  source_rate_hz: float | None = None) -> Trace:
-    """The mapped table resampled to the SYNC grid (see module doc)."""
-    if not (1e-5 <= sync_period_s <= 1.0):
-        raise BenchError("the SYNC period must be between 10 us and 1 s")
+    """The mapped table as a trace: at its own sample instants (``sync_period_s`` None,
+    the default), or resampled to a SYNC grid of that period (see module doc)."""
     by_sig = {e.signal: e for e in mapping}
-    cols = sorted({e.column for e in mapping})
-    raw = read_table(table, cols)
+    raw = read_table(table, map_columns(mapping))
+    return build_trace(raw, by_sig, str(table), sync_period_s, source_rate_hz)
+
+
+def map_columns(mapping: list[MapEntry]) -> list[str]:
+    """Every table column the map reads."""
+    return sorted({e.column for e in mapping} | {e.minus for e in mapping if e.minus})
+
+
+def split_table(table: str | Path, mapping: list[MapEntry], keys: list[str],
+                sync_period_s: float | None = None,
+                source_rate_hz: float | None = None) -> list[tuple[str, Trace]]:
+    """One trace per combination of the `keys` columns' values (a table holding many
+    runs), in the order the combinations first appear; each named ``k1=v1_k2=v2``."""
+    if not keys:
+        raise BenchError("--split-by names no column")
+    by_sig = {e.signal: e for e in mapping}
+    raw = read_table(table, sorted(set(map_columns(mapping)) | set(keys)))
+    kv = np.column_stack([raw[k] for k in keys])
+    bad = ~np.isfinite(kv).all(axis=1)
+    if bad.all():
+        raise BenchError(f"{table}: the split column(s) {', '.join(keys)} have no values")
+    _, first, inverse = np.unique(np.where(bad[:, None], 0.0, kv), axis=0,
+                                  return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    out = []
+    for g in np.argsort(first):
+        rows = (inverse == g) & ~bad
+        if not rows.any():
+            continue
+        vals = kv[np.flatnonzero(rows)[0]]
+        name = "_".join(f"{k}={_key_text(v)}" for k, v in zip(keys, vals, strict=True))
+        part = {c: v[rows] for c, v in raw.items()}
+        try:
+            tr = build_trace(part, by_sig, str(table), sync_period_s, source_rate_hz)
+        except BenchError as exc:
+            raise BenchError(f"{name}: {exc}") from None
+        tr.meta["split"] = {k: float(v) for k, v in zip(keys, vals, strict=True)}
+        out.append((name, tr))
+    return out
+
+
+def _key_text(v: float) -> str:
+    """A split key's value in a file name: 20 -> '20', -40 -> '-40', 2.5 -> '2.5'."""
+    return str(int(v)) if float(v).is_integer() else f"{v:g}"
+
+
+def build_trace(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry], source: str,
+                sync_period_s: float | None, source_rate_hz: float | None) -> Trace:
+    """The trace of the table columns `raw` (see `import_table`)."""
+    if sync_period_s is not None and not (1e-5 <= sync_period_s <= 1.0):
+        raise BenchError("the SYNC period must be between 10 us and 1 s")
     t = _time_column(raw, by_sig, source_rate_hz)
+    values = {sig: _values(raw, e) for sig, e in by_sig.items() if sig != "t_s"}
+    if not values:
+        raise BenchError("the map maps no signal besides time")
+    if sync_period_s is None:
+        return _native(values, by_sig, t, source)
     series = {}
     holes: dict[str, list[tuple[int, int, float, float]]] = {}
-    for sig, e in by_sig.items():
-        if sig == "t_s":
-            continue
-        y = raw[e.column] * e.factor
+    for sig, y in values.items():
+        e = by_sig[sig]
         ok = np.isfinite(y) & np.isfinite(t)
         holes[sig] = nan_blocks(ok, t)
         series[sig] = _signal_series(sig, e, t, y, ok)
-    if not series:
-        raise BenchError("the map maps no signal besides time")
     t0 = max(ts[0] for ts, _ in series.values())
     t1 = min(ts[-1] for ts, _ in series.values())
     if t1 - t0 < sync_period_s:
@@ -246,9 +328,56 @@ def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: floa
     out = {sig: _resample(sig, ts, ys, grid) for sig, (ts, ys) in series.items()}
     blocks = _blank_holes(out, holes, by_sig, grid, t0)
     out["t_s"] = grid - grid[0]
-    meta = {"source": str(table), "imported": True, "sync_period_s": sync_period_s,
+    meta = {"source": source, "imported": True, "sync_period_s": sync_period_s,
+            "sample_period_s": sync_period_s, "resampled": True,
             "time_offset_s": float(t0),
-            "map": [e.__dict__ for e in mapping], "nan_blocks": blocks}
+            "map": [e.__dict__ for e in by_sig.values()], "nan_blocks": blocks}
+    return Trace(out, meta)
+
+
+def _values(raw: dict[str, np.ndarray], e: MapEntry) -> np.ndarray:
+    """One mapped signal in SI: (column - minus column) x scale x unit factor."""
+    y = raw[e.column] - raw[e.minus] if e.minus else raw[e.column]
+    return y * e.factor
+
+
+def _native(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry], t: np.ndarray,
+            source: str) -> Trace:
+    """The trace at the table's own sample instants: no interpolation; a row a signal
+    has no value in stays NaN (its blocks listed as in the resampled case)."""
+    rows = np.flatnonzero(np.isfinite(t))
+    if len(rows) < 2:
+        raise BenchError("the table has fewer than 2 rows with a time")
+    ts = t[rows]
+    d = np.diff(ts)
+    if np.any(d < 0):
+        k = int(np.argmax(d < 0))
+        raise BenchError(f"time goes backwards in the table at row {int(rows[k + 1]) + 2} "
+                         "(sort the table first, or split it: --split-by)")
+    keep = np.concatenate([[True], d > 0])
+    rows, ts = rows[keep], ts[keep]
+    out: dict[str, np.ndarray] = {}
+    blocks = []
+    for sig, y in values.items():
+        e = by_sig[sig]
+        ys = y[rows]
+        ok = np.isfinite(ys)
+        if ok.sum() < 2:
+            raise BenchError(f"column {e.column!r} ({sig}) has fewer than 2 values")
+        if e.wrap:
+            ys[ok] = np.unwrap(ys[ok], period=abs(e.wrap * e.factor))
+        if sig == "mode":
+            ys = np.round(ys)
+        out[sig] = ys
+        for first, n, ta, tb in nan_blocks(ok, ts):
+            blocks.append({"signal": sig, "column": e.column, "first_row": int(rows[first]) + 1,
+                           "last_row": int(rows[first + n - 1]) + 1, "rows": n,
+                           "t0_s": float(ta - ts[0]), "t1_s": float(tb - ts[0]),
+                           "samples": n})
+    out["t_s"] = ts - ts[0]
+    meta = {"source": source, "imported": True, "resampled": False,
+            "sample_period_s": float(np.median(np.diff(ts))), "time_offset_s": float(ts[0]),
+            "map": [e.__dict__ for e in by_sig.values()], "nan_blocks": blocks}
     return Trace(out, meta)
 
 

@@ -22,6 +22,9 @@ from plant_rt.params import ParameterError, PlantParams
 LOG_INTEGRITY = ("sync_gaps", "sync_recovered", "missing_frames", "duplicate_frames",
                  "replaced_frames", "out_of_order", "sorted_by_time", "nan_blocks")
 """Metadata kept from a decoded log or an imported table: what it lost or repeated."""
+SAMPLING = ("sample_period_s", "resampled", "split")
+"""Metadata kept from an imported table: its own sample period, whether it was
+resampled, and the key values it was split by (`bench import --split-by`)."""
 
 
 def load_log(path: str | Path) -> Trace:
@@ -30,6 +33,7 @@ def load_log(path: str | Path) -> Trace:
     tr = load_trace(path)
     meta: dict[str, Any] = {"source": str(path)}
     meta.update({k: v for k, v in (tr.meta or {}).items() if k in LOG_INTEGRITY})
+    meta.update({k: v for k, v in (tr.meta or {}).items() if k in SAMPLING})
     f0 = (tr.meta or {}).get("fundamental_hz")
     if isinstance(f0, (int, float)):
         meta["fundamental_hz"] = float(f0)

@@ -27,7 +27,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from bench.control import NC as CTRL_NC
 from bench.control import ControllerParams
@@ -46,6 +45,7 @@ from bench.loop import (
     table_control,
 )
 from plant_rt import kernel as K
+from plant_rt.jit import njit
 from plant_rt.model import Plant
 from plant_rt.params import PlantParams
 

@@ -76,7 +76,8 @@ def _healthy_record(job: tuple[str, float, float]) -> RunRecord:
 
 def calibrate(base: PlantParams | None = None, kp: float | None = None,
               n_healthy: int = 4, healthy_s: float = 60.0, seed: int = 12345,
-              workers: int | None = None, progress: bool = True) -> Calibration:
+              workers: int | None = None, progress: bool = True,
+              scheduler: str | None = None) -> Calibration:
     """Build the fusion's calibration: the noise-free H4 sweep (11 points) gives each
     feature's map to backlash and b_fail (where its Ci crosses 0.56); `n_healthy` noisy
     healthy runs give each estimate's noise, the weights and the warning level."""
@@ -91,7 +92,7 @@ def calibrate(base: PlantParams | None = None, kp: float | None = None,
     res = run_all(_job, [("h", j) for j in hjobs]
                   + [("c", (float(d), kp, pj, None)) for d in levels]
                   + [("c", (0.0, kp, pj, fr)) for fr in (2.0, 3.0, 4.0)], workers, progress,
-                  desc="hums calibration", unit="run")
+                  desc="hums calibration", unit="run", scheduler=scheduler)
     allpts = [r for r in res if isinstance(r, dict)]
     pts = sorted((r for r in allpts if r["friction"] is None), key=lambda r: r["d"])
     healthy = [r for r in res if isinstance(r, RunRecord)]

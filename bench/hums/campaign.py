@@ -114,7 +114,8 @@ def _alarm_series(method: str, rec: RunRecord, cal: Calibration) -> np.ndarray:
 
 def run_campaign(n_runs: int = 20, n_healthy: int = 10, seed: int = 2024,
                  params: PlantParams | None = None, workers: int | None = None,
-                 progress: bool = True, cal: Calibration | None = None) -> CampaignResult:
+                 progress: bool = True, cal: Calibration | None = None,
+                 scheduler: str | None = None) -> CampaignResult:
     """`n_runs` run-to-failure runs (randomised schedules and noise seeds, each with a
     noise-free twin for its true failure time) and `n_healthy` healthy runs (false
     alarms), scored for the thesis algorithm (on Ci and on harmonic Ci) and the fused
@@ -124,14 +125,15 @@ def run_campaign(n_runs: int = 20, n_healthy: int = 10, seed: int = 2024,
     t0 = time.perf_counter()
     base = params or PlantParams()
     kp = M.fitted(base)[0].gain_rad_s_per_m
-    cal = cal or calibrate(base, kp, workers=workers, progress=progress)
+    cal = cal or calibrate(base, kp, workers=workers, progress=progress,
+                           scheduler=scheduler)
     rng = np.random.default_rng(seed)
     run_params = [campaign_params(base, rng, seed * 1000 + k) for k in range(n_runs)]
     healthy = [healthy_params(base, rng, seed * 1000 + 500 + k).with_dict(
         {"schedule.duration_s": 120.0}) for k in range(n_healthy)]
     jobs = [(p.to_json(), kp, False) for p in run_params]
     jobs += [(p.to_json(), kp, True) for p in healthy]
-    results = _longest_first(jobs, workers, progress)
+    results = _longest_first(jobs, workers, progress, scheduler)
     scores = []
     for k, (p, r) in enumerate(zip(run_params, results[:n_runs], strict=True)):
         rec, t_f = r["record"], r["t_failure_s"]
@@ -153,14 +155,14 @@ def run_campaign(n_runs: int = 20, n_healthy: int = 10, seed: int = 2024,
 
 
 def _longest_first(jobs: list[tuple[str, float, bool]], workers: int | None,
-                   progress: bool) -> list[dict[str, Any]]:
+                   progress: bool, scheduler: str | None = None) -> list[dict[str, Any]]:
     """The runs on the worker pool, longest first (keeps both workers busy to the end; a
     failing run also runs its twin); results in job order."""
     cost = [120.0 if healthy else 2.0 * PlantParams.from_json(pj).schedule.duration_s
             for pj, _, healthy in jobs]
     order = sorted(range(len(jobs)), key=lambda k: -cost[k])
     got = run_all(_campaign_run, [jobs[k] for k in order], workers, progress,
-                  desc="hums campaign", unit="run")
+                  desc="hums campaign", unit="run", scheduler=scheduler)
     results: list[Any] = [None] * len(jobs)
     for k, r in zip(order, got, strict=True):
         results[k] = r

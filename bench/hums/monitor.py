@@ -41,7 +41,6 @@ from functools import lru_cache
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
 from bench import BenchError
 from bench.control import NC as CTRL_NC
@@ -51,6 +50,7 @@ from bench.paramset import ParamSet
 from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K
+from plant_rt.jit import njit
 from plant_rt.model import equivalent_inertia, static_friction, viscous_friction
 from plant_rt.params import P, PlantParams, resolve
 from plant_rt.pi import clamped_pi

@@ -70,7 +70,7 @@ class RulResult:
 
 def run_rul(params: PlantParams | None = None, noise: bool = False, fused: bool = True,
             workers: int | None = None, progress: bool = True,
-            cal: Calibration | None = None) -> RulResult:
+            cal: Calibration | None = None, scheduler: str | None = None) -> RulResult:
     """R1-R2: the 120 s run with the thesis' schedule, its indexes, the thesis' prediction,
     and (with `fused`) the fused prediction with its band."""
     t0 = time.perf_counter()
@@ -81,7 +81,8 @@ def run_rul(params: PlantParams | None = None, noise: bool = False, fused: bool 
     jobs = [(p.to_json(), kp)]
     if noise:
         jobs.append((twin.to_json(), kp))
-    recs = run_all(_rul_job, jobs, workers, progress, desc="hums rul", unit="run")
+    recs = run_all(_rul_job, jobs, workers, progress, desc="hums rul", unit="run",
+                   scheduler=scheduler)
     rec = recs[0]
     truth = recs[1] if noise else rec
     t_f = true_failure_time(truth.t_s, truth.table["ci"])
@@ -89,7 +90,8 @@ def run_rul(params: PlantParams | None = None, noise: bool = False, fused: bool 
     thh = thesis_predict(rec.t_s, rec.table["ci_harmonic"])
     fr = None
     if fused:
-        cal = cal or calibrate(base, kp, workers=workers, progress=progress)
+        cal = cal or calibrate(base, kp, workers=workers, progress=progress,
+                               scheduler=scheduler)
         fr = FusedPredictor(cal).run(rec.t_s, rec.table)
     return RulResult(noise, rec, truth, t_f, th, thh, fr, cal, kp,
                      time.perf_counter() - t0, machine_description())

@@ -117,7 +117,8 @@ def _point(job: tuple[str, str, bool, float, int, float, str]) -> Point:
 
 
 def run(params: PlantParams | None = None, noise: str = "both", points: int = 11,
-        workers: int | None = None, progress: bool = True) -> SweepResult:
+        workers: int | None = None, progress: bool = True,
+        scheduler: str | None = None) -> SweepResult:
     """The whole sweep: H1 fit, then `points` levels x 3 maneuvers x noise settings."""
     if points < 2:
         raise BenchError("the sweep needs at least 2 degradation points")
@@ -140,7 +141,8 @@ def run(params: PlantParams | None = None, noise: str = "both", points: int = 11
     jobs = [(g, name, nz, d, NOISE_SEED0 + k, fit.gain_rad_s_per_m, pj)
             for g, name in MANEUVERS.items() for nz in noises
             for k, d in enumerate(levels)]
-    pts = run_all(_point, jobs, workers, progress, desc="hums sweep", unit="point")
+    pts = run_all(_point, jobs, workers, progress, desc="hums sweep", unit="point",
+                  scheduler=scheduler)
     res = SweepResult(fit, fit_series, pts, noises, levels, time.perf_counter() - t0,
                       machine_description())
     res.extras["step"] = _step_check(base, fit.gain_rad_s_per_m)

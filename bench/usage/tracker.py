@@ -21,7 +21,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from plant_rt.jit import njit
 
 # state vector: y (play output), ext (pending extreme), direction (+1, -1, 0: none yet),
 # lo, hi (range seen before the first direction), started (0/1)

@@ -5,6 +5,7 @@ it, processes always stopped, every wait bounded."""
 from __future__ import annotations
 
 import os
+import select
 import subprocess
 import sys
 import time
@@ -110,3 +111,20 @@ class Collector(can.Listener):
         from ema_contract.transport import close_bus
         self.notifier.stop(1.0)
         close_bus(self.bus)
+
+
+def wait_line(proc, needle: str, timeout: float) -> str:
+    """The child's stderr up to the first line holding `needle` (AssertionError after
+    `timeout` s or when the child exits)."""
+    end = time.monotonic() + timeout
+    seen = ""
+    while time.monotonic() < end:
+        r, _, _ = select.select([proc.stderr], [], [], 0.1)
+        if r:
+            line = proc.stderr.readline()
+            seen += line
+            if needle in line:
+                return seen
+        if proc.poll() is not None:
+            break
+    raise AssertionError(f"no {needle!r} from the watcher within {timeout} s: {seen}")

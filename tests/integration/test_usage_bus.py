@@ -10,8 +10,7 @@ import os
 import sys
 
 import pytest
-from bus_helpers import make_env, spawn
-from test_hums_live import _wait_line
+from bus_helpers import make_env, spawn, wait_line
 from test_minimal_node import start_minimal_node
 
 from bench.bus.logs import read_log, trace_from_log
@@ -45,7 +44,7 @@ def test_serial_in_the_log_and_live_usage_equals_the_log(serial_env, tmp_path, c
                     "--usage", str(live_json), "-i", serial_env.cfg["interface"],
                     "-c", str(serial_env.cfg["channel"]), env=serial_env.env)
     try:
-        _wait_line(watcher, "listening", 60)
+        wait_line(watcher, "listening", 60)
         tr = run_over_bus(make_profile("sine", cycles=3), values=values, pace="sync",
                           settings=serial_env.cfg, log_path=log)
         w_out, w_err = watcher.communicate(timeout=60)

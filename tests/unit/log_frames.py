@@ -1,5 +1,5 @@
 """Synthetic frame sequences of a lockstep run as the ECU logs them, for the log-reader
-tests (tests/unit/test_logs_*.py)."""
+tests (tests/unit/test_logs_*.py, tests/integration/test_logs_fuzz.py)."""
 
 from __future__ import annotations
 

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from bench import BenchError
+from bench.bus.logs import trace_from_log
 from bench.ecu import Ecu, run_over_bus
 from bench.profiles import make_profile
 from ema_contract.frames import Frames, load_od
@@ -291,6 +292,25 @@ def test_own_frames_echoed_by_the_bus_are_not_another_ecu(rig):
     params = ecu.prepare(Pace.SYNC, {})
     tr = ecu.run(make_profile("step", duration_s=0.3), params, pace=Pace.SYNC)
     assert tr.meta["complete"] and ecu.foreign is None
+
+
+@pytest.mark.parametrize("echo", [False, True])
+def test_the_run_trace_is_its_decoded_log(rig, tmp_path, echo):
+    """One row assembler (issue 10): the trace a bus run returns is, column by column and
+    bit for bit, the trace `bench decode` makes of its log, with the ECU's own frames
+    logged as sent or as the bus echoes them."""
+    log = tmp_path / "run.log"
+    tr = run_over_bus(make_profile("sine", duration_s=0.15), pace="sync", settings=rig.cfg,
+                      values={"sensors.noise": True, "sensors.noise_seed": 4},
+                      start_plant=False, log_path=log, echo=echo)
+    dec = trace_from_log(log)
+    assert tr.meta["complete"] and len(tr) == len(dec) == 150
+    assert sorted(tr.columns) == sorted(dec.columns)
+    for col in tr.columns:
+        np.testing.assert_array_equal(tr[col], dec[col], err_msg=col)
+    rows = tr.meta["bus_rows"]
+    assert rows["sync_gaps"] == rows["duplicate_frames"] == 0
+    assert set(rows["missing_frames"].values()) == {0}
 
 
 def test_a_node_left_operational_without_sync_is_taken_over(rig):

@@ -32,7 +32,7 @@ def _table(tmp_path, blank: slice | None, slow: bool = False):
         rows.append(f"{t[k]!r},{x[k]!r},{'' if missing else repr(cur[k])},{x[k]!r},0,1")
     (tmp_path / "rig.csv").write_text("\n".join(rows) + "\n")
     (tmp_path / "map.json").write_text(json.dumps(MAP))
-    return import_table(tmp_path / "rig.csv", read_map(tmp_path / "map.json"))
+    return import_table(tmp_path / "rig.csv", read_map(tmp_path / "map.json"), 1e-3)
 
 
 def test_a_nan_block_is_reported_and_left_empty(tmp_path):

@@ -45,7 +45,7 @@ def table(tmp_path):
 
 def test_import_resamples_and_converts_units(table):
     tmp, t = table
-    tr = import_table(tmp / "rig.csv", read_map(tmp / "map.json"))
+    tr = import_table(tmp / "rig.csv", read_map(tmp / "map.json"), 1e-3)
     assert tr.dt == pytest.approx(1e-3)
     ts = tr.t + tr.meta["time_offset_s"]
     np.testing.assert_allclose(tr["position_m"], 2e-3 * np.sin(ts), atol=2e-9)

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("ema_contract", "plant_rt", "bench")
+PACKAGES = ("ema_contract", "plant_rt", "bench", "indie_plant")
 MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 80
 
@@ -99,7 +99,34 @@ def test_layers_point_one_way():
         if m.startswith("plant_rt"):
             bad += [f"{m} -> {d}" for d in deps if d.startswith("bench")]
         if m.startswith("ema_contract"):
+            bad += [f"{m} -> {d}" for d in deps if d.startswith(("bench", "plant_rt",
+                                                                  "indie_plant"))]
+        if m.startswith("indie_plant"):     # independent physics: ema_contract only
             bad += [f"{m} -> {d}" for d in deps if d.startswith(("bench", "plant_rt"))]
+    assert not bad, "\n".join(bad)
+
+
+INDIE_THIRD_PARTY = {"numpy", "scipy", "numba", "can", "canopen", "cantools"}
+
+
+def test_indie_plant_imports_only_the_contract_and_numeric_libraries():
+    """indie_plant (issue 11's independent actuator) may import ema_contract, numpy, scipy,
+    numba and the bus libraries ema_contract itself uses; nothing of plant_rt or bench."""
+    import sys
+    bad = []
+    for m, path in MODULES.items():
+        if not m.startswith("indie_plant"):
+            continue
+        for st in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in st.names] if isinstance(st, ast.Import) else
+                     [st.module or ""] if isinstance(st, ast.ImportFrom) and not st.level
+                     else [])
+            for name in names:
+                root = name.split(".")[0]
+                if root in ("indie_plant", "ema_contract", "__future__") \
+                        or root in sys.stdlib_module_names or root in INDIE_THIRD_PARTY:
+                    continue
+                bad.append(f"{m} -> {name}")
     assert not bad, "\n".join(bad)
 
 

@@ -72,7 +72,7 @@ def _cases(tmp_path):
         (["log", str(missing / "x.log"), "-i", "virtual", "-c", "t"],
          f"FILE.log: cannot write {missing / 'x.log'}: directory {missing} does not exist"),
         (["log", str(tmp_path / "x.csv"), "-i", "virtual", "-c", "t"],
-         f"FILE.log: {tmp_path / 'x.csv'}: unknown suffix '.csv' (use .log)"),
+         f"FILE.log: {tmp_path / 'x.csv'}: unknown suffix '.csv' (use .log, .asc, .blf, .trc, .mf4)"),
     ]
 
 

@@ -1,12 +1,13 @@
-"""The one worker pool (`bench.workers.run_all`): job order, callbacks, initializer, errors,
-in this process and over spawned workers."""
+"""The compute engine (`bench.workers.run_all`) in this process: job order, callbacks,
+initializer, errors, and when it stays in-process (no cluster: workers=1, one job, even
+with a scheduler configured). The Dask cluster itself: tests/integration/test_workers_dask.py."""
 
 from __future__ import annotations
 
 import pytest
 
-from bench import BenchError
-from bench.workers import run_all
+from bench.cluster import ENV_SCHEDULER, default_workers, scheduler_address
+from bench.workers import _slug, run_all
 
 _STATE: dict[str, str] = {}
 
@@ -35,21 +36,53 @@ def test_in_process_keeps_job_order_and_calls_back():
     assert got == [0, 1, 4, 9, 16]
     assert seen == [0, 1, 4, 9, 16]
     assert run_all(_square, [], workers=2, progress=False) == []
+    assert run_all(_square, [7], workers=2, progress=False) == [49]   # one job: here
 
 
-def test_initializer_runs_here_and_in_each_worker():
+def test_initializer_runs_here_in_process():
     _STATE.clear()
     assert run_all(_read, [1, 2], workers=1, progress=False, initializer=_set,
                    initargs=("here",)) == [("here", 1), ("here", 2)]
-    seen: list[tuple[str | None, int]] = []
-    got = run_all(_read, [1, 2, 3], workers=2, progress=False, initializer=_set,
-                  initargs=("worker",), on_result=seen.append)
-    assert got == [("worker", 1), ("worker", 2), ("worker", 3)]
-    assert sorted(seen) == got          # every result reported, in completion order
 
 
-def test_a_failing_job_is_a_bench_error_that_names_it():
-    with pytest.raises(BenchError, match="job 2 failed in a worker: ValueError: boom"):
-        run_all(_fail_on_two, [0, 1, 2, 3], workers=2, progress=False, desc="t")
-    with pytest.raises(ValueError, match="boom"):      # in-process: the error itself
+def test_in_process_error_is_the_error_itself():
+    with pytest.raises(ValueError, match="boom"):
         run_all(_fail_on_two, [0, 1, 2, 3], workers=1, progress=False)
+
+
+def test_scheduler_address_from_argument_or_environment(monkeypatch):
+    monkeypatch.delenv(ENV_SCHEDULER, raising=False)
+    assert scheduler_address(None) is None
+    assert scheduler_address("tcp://127.0.0.1:8786") == "tcp://127.0.0.1:8786"
+    monkeypatch.setenv(ENV_SCHEDULER, " tcp://127.0.0.1:9999 ")
+    assert scheduler_address(None) == "tcp://127.0.0.1:9999"
+    assert scheduler_address("tcp://127.0.0.1:1") == "tcp://127.0.0.1:1"   # flag wins
+    # workers=1 stays in this process: the (unreachable) scheduler is never contacted
+    assert run_all(_square, [1, 2, 3], workers=1, progress=False) == [1, 4, 9]
+    assert 1 <= default_workers() <= 2
+
+
+def test_task_keys_are_readable_on_the_dashboard():
+    assert _slug("hums sweep") == "hums-sweep"
+    assert _slug("gap-bench") == "gap-bench"
+    assert _slug("  ") == "job"
+
+
+def test_session_starts_nothing_for_in_process_jobs():
+    from bench.workers import _SESSIONS, session
+    with session(2):
+        assert run_all(_square, [3], workers=2, progress=False) == [9]
+        assert _SESSIONS[-1].engine is None         # one job: no cluster was started
+    assert not _SESSIONS
+
+
+@pytest.mark.parametrize("argv", [["hums", "sweep"], ["hums", "rul"], ["hums", "campaign"],
+                                  ["gap", "x.log"], ["gap-bench"],
+                                  ["rig", "study", "d", "--calibrate-runs", "1",
+                                   "--holdout-runs", "2", "-o", "o"]])
+def test_every_command_with_workers_takes_a_scheduler(argv):
+    from bench.cli import build_parser
+    full = [*argv, "--workers", "3", "--scheduler", "tcp://127.0.0.1:8786"]
+    args = build_parser(full).parse_args(full)
+    assert args.workers == 3 and args.scheduler == "tcp://127.0.0.1:8786"
+    assert build_parser(argv).parse_args(argv).scheduler is None

@@ -5,14 +5,12 @@ from __future__ import annotations
 
 import csv
 import os
-import select
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
-from bus_helpers import BUS_KINDS, ROOT, module_bus_env, spawn
+from bus_helpers import BUS_KINDS, ROOT, module_bus_env, spawn, wait_line
 
 from bench.bus.logs import read_log, trace_from_log
 from bench.ecu import run_over_bus
@@ -28,27 +26,12 @@ def bus_env(request, tmp_path_factory):
     yield from module_bus_env(request, tmp_path_factory)
 
 
-def _wait_line(proc, needle: str, timeout: float) -> str:
-    end = time.monotonic() + timeout
-    seen = ""
-    while time.monotonic() < end:
-        r, _, _ = select.select([proc.stderr], [], [], 0.1)
-        if r:
-            line = proc.stderr.readline()
-            seen += line
-            if needle in line:
-                return seen
-        if proc.poll() is not None:
-            break
-    raise AssertionError(f"no {needle!r} from the watcher within {timeout} s: {seen}")
-
-
 def test_watch_reports_every_period_like_the_log(bus_env, tmp_path):
     out = tmp_path / "live.csv"
     proc = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "2",
                  "--out", str(out), *bus_env.flags, env=bus_env.env)
     try:
-        _wait_line(proc, "listening", 60)
+        wait_line(proc, "listening", 60)
         values = {"effects.backlash_m": 50e-6, "sensors.noise": True,
                   "sensors.noise_seed": 5}
         log = tmp_path / "run.log"

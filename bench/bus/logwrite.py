@@ -1,0 +1,56 @@
+"""Bus logs written through python-can: `can.Logger` picks the writer from the file's
+suffix (candump ``.log``, the default; Vector ``.asc`` and ``.blf``; PEAK ``.trc``; ASAM
+``.mf4``), `can.SizedRotatingLogger` starts a new file when one reaches a size (``.log``,
+``.asc``, ``.blf``: the formats python-can rotates). `LOG_FORMATS` are the formats the
+bench writes and reads back (`bench.bus.logread.read_frames`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import can
+
+from bench import BenchError
+
+LOG_FORMATS = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF",
+               ".trc": "PEAK TRC", ".mf4": "ASAM MDF4"}
+"""Suffix -> format, for the messages; ``.log`` is candump -L (`bench.bus.logread`)."""
+ROTATING_FORMATS = (".log", ".asc", ".blf")
+"""The formats `can.SizedRotatingLogger` writes (of LOG_FORMATS)."""
+
+
+def log_format(path: str | Path, what: str = "log") -> str:
+    """The suffix of a log file (lower case) if the bench reads and writes it; BenchError
+    naming the formats otherwise."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in LOG_FORMATS:
+        known = ", ".join(f"{s} ({d})" for s, d in LOG_FORMATS.items())
+        raise BenchError(f"{what} {p}: unknown log format {suffix or '(no suffix)'!r} "
+                         f"(use {known})")
+    return suffix
+
+
+def open_writer(path: str | Path, max_bytes: int = 0) -> Any:
+    """A python-can writer for `path` (its format from the suffix, `log_format`): a
+    `can.SizedRotatingLogger` when `max_bytes` > 0 (a new file each time the current one
+    reaches `max_bytes`; the full ones renamed ``NAME_<date>T<time>_#NNN.ext``), else the
+    format's own writer through `can.Logger`. OSError when the file cannot be opened."""
+    suffix = log_format(path)
+    if max_bytes > 0:
+        if suffix not in ROTATING_FORMATS:
+            raise BenchError(f"--max-bytes: python-can rotates {', '.join(ROTATING_FORMATS)} "
+                             f"logs, not {suffix}")
+        return can.SizedRotatingLogger(str(path), max_bytes=max_bytes)
+    return can.Logger(str(path))
+
+
+def flush(writer: Any) -> None:
+    """Push what `writer` (from `open_writer`) has written so far to the file, where its
+    format writes as it goes (text formats; BLF keeps its open container, MF4 writes on
+    `stop`)."""
+    inner = getattr(writer, "writer", writer)      # a rotating logger's current file
+    fh = getattr(inner, "file", None)
+    if fh is not None and not getattr(fh, "closed", False):
+        fh.flush()

@@ -1,0 +1,170 @@
+"""`bench fleet`: the fleet store of many actuators' ground tests (docs/fleet.md).
+
+    bench fleet ingest PATH...   logs (candump, trace tables), directories, globs -> store
+    bench fleet status           one line per actuator: last test, level, trend, RUL, usage
+    bench fleet report --out D   HTML overview (what to inspect this week) + actuator pages
+    bench fleet export --out D   every table as Parquet
+    bench fleet synth --out D    a synthetic fleet of ground-test candump logs
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from bench import BenchError
+
+
+def add_subparser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("fleet", help="fleet store: ingest logs, status, report, export, "
+                       "synthetic fleet",
+                       description="Many actuators' ground-test logs in one DuckDB store: "
+                       "health indexes, verdict and usage per run; status, HTML report, "
+                       "Parquet export; a synthetic fleet generator (docs/fleet.md).")
+    s = p.add_subparsers(title="fleet commands", dest="fleet_command", metavar="COMMAND")
+    p.set_defaults(func=lambda a: _no_sub(p))
+
+    def db(q: argparse.ArgumentParser) -> None:
+        q.add_argument("--db", default=None, help="the store (default: $BENCH_FLEET_DB, "
+                       "else fleet.duckdb)")
+
+    def pool(q: argparse.ArgumentParser) -> None:
+        q.add_argument("--workers", type=int, default=None,
+                       help="worker processes (default: 2, or 1 on a one-core machine)")
+        q.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="a Dask scheduler address to send the work to (default: "
+                       "$BENCH_DASK_SCHEDULER, else a LocalCluster on 127.0.0.1)")
+
+    q = s.add_parser("ingest", help="ingest logs into the store",
+                     description="Read candump logs and trace tables (files, directories "
+                     "searched recursively, globs), grade each run with the HUMS and store "
+                     "it keyed by actuator, run time and log digest. Idempotent (a log "
+                     "already stored is skipped) and resumable (interrupted: run it again).")
+    q.add_argument("paths", nargs="+", metavar="PATH")
+    db(q)
+    pool(q)
+    q.add_argument("--actuator", metavar="ID", default=None,
+                   help="actuator id for logs that carry none (default: the name of the "
+                   "log's directory)")
+    q.set_defaults(func=run_ingest)
+
+    q = s.add_parser("status", help="one line per actuator",
+                     description="Per actuator: last test, level, Ci trend per day, RUL "
+                     "with its band, usage consumed.")
+    db(q)
+    q.add_argument("--sort", choices=["id", "urgency"], default="id",
+                   help="order of the lines (default: %(default)s)")
+    q.add_argument("--trend-tests", type=int, default=10, metavar="N",
+                   help="tests the Ci trend is fitted over, the last ones (default: "
+                   "%(default)s)")
+    q.set_defaults(func=run_status)
+
+    q = s.add_parser("report", help="HTML report: what to inspect this week, per actuator",
+                     description="Static HTML with PNG figures: an overview (actuators to "
+                     "inspect this week, why, most urgent first) and one page per actuator.")
+    db(q)
+    q.add_argument("--out", required=True, metavar="DIR")
+    q.set_defaults(func=run_report)
+
+    q = s.add_parser("export", help="every table as Parquet",
+                     description="Write runs.parquet, failures.parquet and meta.parquet.")
+    db(q)
+    q.add_argument("--out", required=True, metavar="DIR")
+    q.set_defaults(func=run_export)
+
+    q = s.add_parser("synth", help="a synthetic fleet of ground-test logs",
+                     description="N actuators x D days of daily ground tests (the thesis' "
+                     "2 Hz sine), each actuator with its own wear schedule, simulated "
+                     "in-process and written as candump logs in OUT/<actuator>/.")
+    q.add_argument("--actuators", type=int, required=True, metavar="N")
+    q.add_argument("--days", type=int, required=True, metavar="D")
+    q.add_argument("--out", required=True, metavar="DIR")
+    q.add_argument("--seed", type=int, default=0)
+    pool(q)
+    q.set_defaults(func=run_synth)
+
+
+def _no_sub(p: argparse.ArgumentParser) -> int:
+    p.print_help()
+    return 2
+
+
+def _db(args: argparse.Namespace) -> str:
+    from bench.fleet.store import default_db
+    return str(args.db or default_db())
+
+
+def _workers(args: argparse.Namespace) -> int | None:
+    if args.workers is not None and args.workers < 1:
+        raise BenchError("--workers must be at least 1")
+    return args.workers
+
+
+def run_ingest(args: argparse.Namespace) -> int:
+    from bench.fleet.ingest import ingest
+    res = ingest(args.paths, _db(args), _workers(args), args.scheduler, args.actuator)
+    rate = (res.stored + res.failed) / res.elapsed_s if res.elapsed_s > 0 else 0.0
+    print(f"{res.files} files: {res.skipped} already stored, {res.stored} runs stored, "
+          f"{res.failed} failed, in {res.elapsed_s:.1f} s ({rate:.2f} logs/s) -> {_db(args)}")
+    for path, err in res.failures[:20]:
+        print(f"  failed: {path}: {err}", file=sys.stderr)
+    if len(res.failures) > 20:
+        print(f"  ... and {len(res.failures) - 20} more (table `failures`)", file=sys.stderr)
+    return 0
+
+
+def run_status(args: argparse.Namespace) -> int:
+    from bench.fleet.status import fleet_status, format_table, urgency
+    from bench.fleet.store import Store
+    if args.trend_tests < 2:
+        raise BenchError("--trend-tests must be at least 2")
+    t0 = time.perf_counter()
+    with Store(_db(args), read_only=True) as store:
+        rows = fleet_status(store, args.trend_tests)
+        n_fail = len(store.failures())
+    if args.sort == "urgency":
+        rows.sort(key=urgency)
+    if not rows:
+        print("no runs in the store")
+        return 0
+    print(format_table(rows))
+    print(f"{len(rows)} actuators, {sum(r.tests for r in rows)} runs, {n_fail} failed logs "
+          f"({time.perf_counter() - t0:.2f} s)", file=sys.stderr)
+    return 0
+
+
+def run_report(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
+    from bench.fleet.report import write_report
+    from bench.fleet.store import Store
+    check_output_dir(args.out, "--out")
+    with Store(_db(args), read_only=True) as store:
+        page = write_report(store, args.out)
+    print(f"report: {page}")
+    return 0
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
+    from bench.fleet.store import Store
+    check_output_dir(args.out, "--out")
+    with Store(_db(args), read_only=True) as store:
+        paths = store.export(args.out)
+    for p in paths:
+        print(p)
+    return 0
+
+
+def run_synth(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
+    from bench.fleet.synth import synth
+    if args.actuators < 1 or args.days < 1:
+        raise BenchError("--actuators and --days must be at least 1")
+    check_output_dir(args.out, "--out")
+    t0 = time.perf_counter()
+    paths = synth(args.actuators, args.days, args.out, args.seed, _workers(args),
+                  scheduler=args.scheduler)
+    dt = time.perf_counter() - t0
+    print(f"{len(paths)} logs in {args.out} ({dt:.1f} s, {len(paths) / dt:.2f} logs/s)")
+    return 0

@@ -1,0 +1,200 @@
+"""`bench rig`: real rigs that no physics model fits (issue 11). `baseline` builds the
+healthy baseline (and its thresholds from held-out healthy runs), `assess` diagnoses
+cycles against it, `study` runs a rig's development set end to end. See
+docs/real-data.md."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+
+def add_subparser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "rig", help="baselines, fault signatures and populations of a real rig's runs",
+        description="For a rig no physics model fits: a baseline from several healthy runs "
+                    "aligned by set-point phase (per phase, direction and load), "
+                    "position-locked, position-periodic and direction-split features "
+                    "against it, thresholds from held-out healthy runs, detection and "
+                    "false-alarm rates per condition. Tables: CSV (plain or .xz/.gz/.bz2) "
+                    "or Parquet with set_point, position_error (mm), current (A), load, "
+                    "run, group (one motion cycle), time; or `bench import` traces (.npz/.parquet).")
+    sub = p.add_subparsers(dest="rig_command", metavar="ACTION")
+    b = sub.add_parser("baseline", help="build a healthy baseline and its thresholds")
+    b.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")
+    b.add_argument("--runs", metavar="LIST", help="runs to use (e.g. 1,2; default: all)")
+    b.add_argument("-o", "--out", required=True, metavar="BASE.json", help="baseline file")
+    _common(b)
+    a = sub.add_parser("assess", help="diagnose cycles against a baseline")
+    a.add_argument("tables", nargs="+", metavar="LOG", help="tables or traces to assess")
+    a.add_argument("--baseline", required=True, metavar="BASE.json")
+    a.add_argument("--runs", metavar="LIST", help="only these runs (default: all)")
+    a.add_argument("--json", metavar="PATH", help="write every verdict here ('-': stdout)")
+    a.add_argument("-q", "--quiet", action="store_true", help="only the per-condition rates")
+    s = sub.add_parser("study", help="a rig's development set end to end, with a report")
+    s.add_argument("directory", metavar="DIR", help="folder of the rig's tables")
+    s.add_argument("--calibrate-runs", required=True, metavar="LIST",
+                   help="healthy runs the baseline and thresholds use (e.g. 1,2)")
+    s.add_argument("--holdout-runs", required=True, metavar="LIST",
+                   help="healthy runs kept out of every threshold (e.g. 3,4)")
+    s.add_argument("--healthy", default="normal", metavar="PREFIX",
+                   help="name prefix of the healthy table (default: normal)")
+    s.add_argument("--only", metavar="A,B", help="fault tables to score (default: all)")
+    s.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
+    s.add_argument("--workers", type=int, default=None, help="worker processes (default 2)")
+    from bench.cluster import SCHEDULER_HELP
+    s.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
+    _common(s)
+    for q in (b, a, s):
+        q.set_defaults(func=run)
+    p.set_defaults(func=run, rig_parser=p)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--lead-mm", type=float, metavar="MM",
+                   help="the screw's lead in mm (enables the position-periodic feature; "
+                        "Cranfield: 5)")
+    p.add_argument("--actuator", metavar="DESC",
+                   help="actuator description (.json/.toml or a shipped name, e.g. "
+                        "cranfield): its lead_m when --lead-mm is not given")
+    p.add_argument("--alpha", type=float, default=0.05, metavar="A",
+                   help="false-alarm rate the thresholds aim at (default 0.05)")
+
+
+def runs_list(text: str | None, flag: str) -> list[int] | None:
+    """'1,2' or '1-4' or '1,3-4' -> [1, 2, ...]; None -> None."""
+    from bench import BenchError
+    if text is None:
+        return None
+    out: list[int] = []
+    try:
+        for part in text.split(","):
+            a, _, b = part.strip().partition("-")
+            out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    except ValueError:
+        raise BenchError(f"{flag}: expected run numbers like 1,2 or 1-4, got {text!r}"
+                         ) from None
+    if not out:
+        raise BenchError(f"{flag}: no run given")
+    return sorted(set(out))
+
+
+def _check(args: argparse.Namespace) -> None:
+    from bench import BenchError
+    if getattr(args, "actuator", None) and getattr(args, "lead_mm", None) is None:
+        from bench.actuator import load
+        lead_m = load(args.actuator).get("lead_m")
+        if lead_m is None:
+            raise BenchError(f"{args.actuator}: the description gives no lead_m "
+                             "(use --lead-mm)")
+        args.lead_mm = 1e3 * lead_m
+    lead = getattr(args, "lead_mm", None)
+    if lead is not None and not (math.isfinite(lead) and lead > 0):
+        raise BenchError("--lead-mm must be a finite length > 0")
+    alpha = getattr(args, "alpha", 0.05)
+    if not (math.isfinite(alpha) and 0 < alpha < 0.5):
+        raise BenchError("--alpha must be in (0, 0.5)")
+    if getattr(args, "workers", None) is not None and args.workers < 1:
+        raise BenchError("--workers must be >= 1")
+
+
+def run(args: argparse.Namespace) -> int:
+    cmd = getattr(args, "rig_command", None)
+    if cmd is None:
+        args.rig_parser.print_help()
+        return 2
+    _check(args)
+    return {"baseline": _baseline, "assess": _assess, "study": _study}[cmd](args)
+
+
+def _read(tables: list[str], runs: list[int] | None) -> list[Any]:
+    from bench import BenchError
+    from bench.rig.cycles import read_cycles
+    cycles = []
+    for t in tables:
+        cycles += [c for c in read_cycles(t) if runs is None or c.run in runs]
+    if not cycles:
+        raise BenchError(f"no cycle of run(s) {runs} in {', '.join(tables)}")
+    return cycles
+
+
+def _baseline(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_file
+    from bench.rig import baseline as B
+    from bench.rig import population as P
+    out = Path(args.out)
+    check_output_file(out, "--out", (".json",))
+    cycles = _read(args.tables, runs_list(args.runs, "--runs"))
+    base = B.build(cycles, [Path(t).name for t in args.tables])
+    base.lead_mm = args.lead_mm
+    for load in sorted(base.loads):
+        mine = [c for c in cycles if c.load == load]
+        if len({c.run for c in mine}) < 2:
+            print(f"load {load:g}: one run only, no thresholds (they need a run held out)")
+            continue
+        base.thresholds[f"{load:g}"] = P.calibrate(mine, args.alpha, args.lead_mm).to_json()
+    base.save(out)
+    print(base.describe())
+    for key, cal in base.thresholds.items():
+        thr = ", ".join(f"{k} {v:.3g}" for k, v in cal["thresholds"].items())
+        print(f"load {key}: thresholds (leave-one-run-out over runs "
+              f"{','.join(map(str, cal['runs']))}, alpha {cal['alpha']:g}): {thr}")
+    return 0
+
+
+def _assess(args: argparse.Namespace) -> int:
+    from bench import BenchError
+    from bench.rig.baseline import Baseline
+    from bench.rig.features import cycle_features, verdict
+    base = Baseline.load(args.baseline)
+    cycles = _read(args.tables, runs_list(args.runs, "--runs"))
+    verdicts: list[dict[str, Any]] = []
+    counts: dict[tuple[str, float], tuple[int, int]] = {}
+    for c in cycles:
+        cal = base.thresholds.get(f"{c.load:g}")
+        if cal is None:
+            raise BenchError(f"{args.baseline}: no thresholds for load {c.load:g} (build "
+                             "the baseline from two or more healthy runs of that load)")
+        f = cycle_features(base.for_load(c.load), c, base.lead_mm)
+        v = verdict(base, f, cal["thresholds"])
+        verdicts.append(v)
+        key = (c.source, c.load)
+        n, k = counts.get(key, (0, 0))
+        counts[key] = (n + 1, k + int(v["flagged"]))
+        if not args.quiet:
+            print(f"{c.label}: {'FLAGGED' if v['flagged'] else 'ok'}: {v['verdict']}")
+    if not args.quiet and verdicts:
+        print(f"against {verdicts[0]['baseline']}")
+    for (src, load), (n, k) in sorted(counts.items()):
+        print(f"{src} load {load:g}: {k} / {n} cycles flagged ({100 * k / n:.0f} %)")
+    if args.json:
+        text = json.dumps(verdicts, indent=1, default=str)
+        if args.json == "-":
+            sys.stdout.write(text + "\n")
+        else:
+            Path(args.json).write_text(text)
+    return 0
+
+
+def _study(args: argparse.Namespace) -> int:
+    from bench.rig.report import write
+    from bench.rig.study import run_study
+    cal = runs_list(args.calibrate_runs, "--calibrate-runs") or []
+    hold = runs_list(args.holdout_runs, "--holdout-runs") or []
+    only = [x.strip() for x in args.only.split(",")] if args.only else None
+    from bench.workers import session
+    with session(args.workers, args.scheduler):     # one cluster for every condition
+        study = run_study(args.directory, cal, hold, args.healthy, args.workers,
+                          args.alpha, progress=sys.stderr.isatty(), conditions=only,
+                          lead_mm=args.lead_mm, scheduler=args.scheduler)
+    command = "bench rig " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["rig"] \
+        else f"bench rig study {args.directory} --calibrate-runs {args.calibrate_runs} " \
+             f"--holdout-runs {args.holdout_runs} --out {args.out}"
+    paths = write(study, Path(args.out), command)
+    print(paths["md"].read_text().split("![residual]")[0])
+    print("written: " + ", ".join(str(p) for p in paths.values()))
+    return 0

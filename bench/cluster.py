@@ -1,0 +1,167 @@
+"""The bench's connection to Dask distributed: a `distributed.Client` on a LocalCluster of
+its own (this machine, 127.0.0.1 only) or on an existing scheduler (`--scheduler ADDRESS`
+or ``$BENCH_DASK_SCHEDULER``). `bench.workers` runs the jobs on it.
+
+The local cluster has one worker process per core (at most `workers`), one thread each,
+and one BLAS/OpenMP/numba thread per worker, so two workers use two cores and no more:
+the fitting calls small dense linear algebra whose OpenBLAS threads would otherwise spin
+and take the other core from the second worker (measured with the old pool: a diagnosis
+took 2x longer with two multi-threaded workers than alone). Dask sets OMP, MKL and
+OpenBLAS to one thread before it spawns a worker (``distributed.nanny.pre-spawn-environ``);
+numba's thread count is set here (the nanny's ``env``, before any bench module is
+imported in the worker). An existing cluster is the operator's: start its workers with
+``--nthreads 1`` and the same variables (docs/performance.md, "Running on a cluster").
+
+Workers are spawned processes (Dask's default; numba and threads do not survive a fork
+well), so a script that starts a cluster needs an ``if __name__ == '__main__':`` guard.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import threading
+from typing import Any
+
+from bench import BenchError
+
+ENV_SCHEDULER = "BENCH_DASK_SCHEDULER"
+START_TIMEOUT_S = 120.0           # a local cluster's workers (spawn, imports)
+CONNECT_TIMEOUT_S = 20.0          # an existing scheduler
+CLOSE_TIMEOUT_S = 30.0
+THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+               "NUMBA_NUM_THREADS")
+PRE_SPAWN_VARS = (*THREAD_VARS, "MALLOC_TRIM_THRESHOLD_", "PYTHONHASHSEED")
+DASHBOARD = "127.0.0.1:0"          # a free port on the loopback interface
+
+SCHEDULER_HELP = ("run on the existing Dask cluster of this scheduler (e.g. "
+                  "tcp://127.0.0.1:8786; default: $BENCH_DASK_SCHEDULER, else a local "
+                  "cluster of --workers processes on 127.0.0.1)")
+
+_shown: set[str] = set()           # dashboard links already printed by this process
+
+
+def scheduler_address(scheduler: str | None = None) -> str | None:
+    """The scheduler to use: `scheduler`, else ``$BENCH_DASK_SCHEDULER``, else None (a
+    local cluster)."""
+    addr = scheduler or os.environ.get(ENV_SCHEDULER, "").strip()
+    return addr or None
+
+
+def default_workers() -> int:
+    """Two workers, or one on a one-core machine."""
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+class Engine:
+    """A Dask client, on a LocalCluster of `workers` processes it owns or on the existing
+    scheduler `scheduler`. With `wait=False` the cluster starts in a background thread
+    (`client()` waits for it); `close()` stops what this engine started."""
+
+    def __init__(self, workers: int, scheduler: str | None = None, wait: bool = True,
+                 announce: bool = False, timeout: float | None = None) -> None:
+        self.workers = max(1, int(workers))
+        self.scheduler = scheduler_address(scheduler)
+        self.announce = announce
+        self.timeout = timeout if timeout is not None else (
+            START_TIMEOUT_S if self.scheduler is None else CONNECT_TIMEOUT_S)
+        self.cluster: Any = None
+        self._client: Any = None
+        self._error: BaseException | None = None
+        self._lock = threading.Lock()
+        self._closed = False              # close() was called
+        self._done = False                # _start has finished (started or failed)
+        self._thread = threading.Thread(target=self._start, name="bench-dask-start",
+                                        daemon=True)
+        self._thread.start()
+        if wait:
+            self.client()
+
+    def _start(self) -> None:
+        try:
+            from distributed import Client
+            if self.scheduler is not None:
+                self._client = Client(self.scheduler, timeout=self.timeout,
+                                      set_as_default=False)
+            else:
+                self.cluster = _local_cluster(self.workers)
+                self._client = Client(self.cluster, set_as_default=False)
+        except BaseException as exc:  # noqa: BLE001 - reported by client()
+            self._error = exc
+        with self._lock:
+            self._done = True
+            closed = self._closed
+        if closed:                            # closed while starting
+            self._shutdown()
+
+    def client(self, announce: bool | None = None) -> Any:
+        """The started `distributed.Client`; a cluster that does not start (or a
+        scheduler that cannot be reached) is a BenchError, not a hang. With `announce`
+        (default: the engine's) the dashboard link is printed on stderr, once per
+        process."""
+        self._thread.join(1.5 * self.timeout + 10.0)
+        if self._thread.is_alive() or self._error is not None or self._client is None:
+            why = ("timed out" if self._thread.is_alive() else
+                   f"{type(self._error).__name__}: {self._error}")
+            self.close()
+            if self.scheduler is not None:
+                raise BenchError(f"cannot use the Dask scheduler {self.scheduler} ({why})")
+            raise BenchError(f"the Dask workers did not start ({why}); a script using "
+                             "bench.gap or bench.hums with workers > 1 needs an `if "
+                             "__name__ == '__main__':` guard, or use workers=1") from None
+        if self.announce if announce is None else announce:
+            link = self._client.dashboard_link
+            if link not in _shown:
+                _shown.add(link)
+                print(f"dask dashboard: {link}", file=sys.stderr)
+        return self._client
+
+    def close(self) -> None:
+        """Close the client and the cluster this engine started (an existing cluster is
+        left running; its workers keep nothing of ours)."""
+        with self._lock:
+            self._closed = True
+            done = self._done
+        if done:                              # else the starting thread closes it
+            self._shutdown()
+
+    def _shutdown(self) -> None:
+        client, cluster, self._client, self.cluster = self._client, self.cluster, None, None
+        if client is not None:
+            try:
+                client.close(timeout=CLOSE_TIMEOUT_S)
+            except Exception:  # noqa: BLE001 - best effort at the end of a job
+                pass
+        if cluster is not None:
+            try:
+                cluster.close(timeout=CLOSE_TIMEOUT_S)
+            except Exception:  # noqa: BLE001 - best effort at the end of a job
+                pass
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _local_cluster(workers: int) -> Any:
+    """A LocalCluster of `workers` single-threaded worker processes, every socket (the
+    scheduler, the workers, the dashboard) on 127.0.0.1. The nannies set their pre-spawn
+    variables in this process's environment to spawn the workers; they are put back
+    afterwards, so that processes this one starts later do not inherit them (a nanny
+    that restarts a dead worker sets them again)."""
+    from distributed import LocalCluster
+    saved = {k: os.environ.get(k) for k in PRE_SPAWN_VARS}
+    try:
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            host="127.0.0.1", dashboard_address=DASHBOARD,
+                            silence_logs=logging.CRITICAL,
+                            env={k: "1" for k in THREAD_VARS})
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v

@@ -1,0 +1,257 @@
+"""`bench fleet ingest PATH...`: logs into the fleet store, idempotent and resumable.
+
+PATHs are files, directories (searched recursively for LOG_SUFFIXES) and globs (``**``
+allowed). Each file is keyed by its digest (sha256 of its bytes): digests already in
+the store are skipped before any work, so the same log twice is stored once, under
+whatever name. The rest are analysed on the worker pool (`bench.workers.run_all`):
+decoded (`bench.bus.logs.load_trace`: candump through the DBC, or a trace table) and
+graded by the HUMS report's own analysis (`bench.hums.report.analyse`: the indexes of
+eq. 6.4-6.7 against the monitoring model driven by the log's set-points, and the verdict
+of `bench.hums.verdict.judge`), without the per-log fused RUL (a ground test is too
+short for it; the fleet's RUL is over days, `bench.fleet.status`). Results are written
+by this process in batches of whole runs, one transaction each (`Store.write`): a
+killed ingest loses only its open batch, and the next ingest redoes exactly those logs.
+A log that cannot be read or graded is stored in ``failures`` with its one-line error
+(and skipped next time, by digest) and the ingest goes on.
+
+The actuator id, in order: the log's own (``actuator_id``, ``actuator_serial`` or
+``serial_number`` in the decoded trace's metadata: the 0x1018 serial number the ECU
+reads by SDO, once the log decoder reports it), else
+``--actuator``, else the name of the file's parent directory.
+The run time: the first time stamp of a candump log (the bus clock, UTC), else a trace
+table's ``run_time``/``start_time`` metadata (epoch seconds or ISO 8601), else the
+file's modification time.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import glob
+import hashlib
+import math
+import os
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+from bench.bus.logs import TABLE_SUFFIXES
+from bench.trace import Trace
+
+LOG_SUFFIXES = (".log", *TABLE_SUFFIXES)
+"""What `bench.bus.logs.load_trace` reads: candump logs and the trace table formats."""
+BATCH_RUNS = 64
+BATCH_S = 5.0
+"""A batch is committed after BATCH_RUNS results (``$BENCH_FLEET_BATCH`` overrides it)
+or BATCH_S seconds, whichever comes first."""
+
+
+HOT_K = 400.0
+"""`time_hot_s` counts the winding above 400 K (127 degC): the usage monitor's 10 K
+temperature bin edge nearest below the 403 K (130 degC) limit of class B insulation."""
+
+
+def usage_columns(trace: Trace) -> dict[str, Any]:
+    """The usage of one run (`bench.usage.usage_of_trace`, docs/usage.md), by the schema's
+    usage column names (`schema.USAGE_COLUMNS`); a value the run cannot give (L10 of a
+    run without load, a signal it lacks) is NULL."""
+    from bench.usage.accumulator import usage_of_trace
+    from bench.usage.settings import TEMP_EDGES_K
+    u = usage_of_trace(trace)
+    d = u.as_dict()
+    hot = sum(float(t) for lo, t in zip(TEMP_EDGES_K[:-1], u.temperature_time_s, strict=True)
+              if lo >= HOT_K)
+    row = {"travel_m": d["nut_travel_m"], "screw_revs": d["screw_revolutions"],
+           "reversals": int(d["reversals"]), "equivalent_load_n": d["fm_n"],
+           "life_consumed": d["life_consumed"], "i2t_a2s": d["i2t_a2s"],
+           "time_hot_s": hot}
+    return {k: (v if isinstance(v, int) or math.isfinite(v) else None)
+            for k, v in row.items()}
+
+
+# --- finding the files ---------------------------------------------------------------------
+
+def expand(paths: Iterable[str]) -> list[Path]:
+    """The log files named by `paths` (files, directories searched recursively, globs),
+    each once, sorted; BenchError naming a path that matches nothing."""
+    found: set[Path] = set()
+    for p in paths:
+        hits = [Path(h) for h in glob.glob(p, recursive=True)] if glob.has_magic(p) \
+            else [Path(p)]
+        if not any(h.exists() for h in hits):
+            raise BenchError(f"no such file or directory: {p}")
+        for h in hits:
+            if h.is_dir():
+                found.update(f for f in h.rglob("*")
+                             if f.is_file() and f.suffix.lower() in LOG_SUFFIXES)
+            elif h.is_file():
+                found.add(h)
+    return sorted(found)
+
+
+def digest(path: str | Path) -> str:
+    """sha256 of the file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+# --- one log ---------------------------------------------------------------------------------
+
+def actuator_id(trace: Trace | None, path: Path, given: str | None) -> str:
+    """The actuator id (module docstring: the log's, else `given`, else the parent
+    directory's name)."""
+    if trace is not None:
+        for key in ("actuator_id", "actuator_serial", "serial_number"):
+            v = trace.meta.get(key)
+            if v not in (None, ""):
+                return str(v)
+    if given:
+        return given
+    return path.resolve().parent.name or "unknown"
+
+
+def run_time(path: Path, trace: Trace | None) -> float:
+    """The run's start, epoch seconds (module docstring)."""
+    if path.suffix.lower() == ".log":
+        from bench.bus.logread import parse_line
+        with open(path, errors="replace") as f:
+            for _, line in zip(range(1000), f, strict=False):
+                try:
+                    ts = float(parse_line(line).timestamp)
+                except ValueError:
+                    continue
+                if ts > 0:
+                    return ts
+    elif trace is not None:
+        for key in ("run_time", "start_time"):
+            v = trace.meta.get(key)
+            if isinstance(v, (int, float)) and math.isfinite(v):
+                return float(v)
+            if isinstance(v, str):
+                try:
+                    return dt.datetime.fromisoformat(v).timestamp()
+                except ValueError:
+                    pass
+    return path.stat().st_mtime
+
+
+def _mode(trace: Trace) -> int | None:
+    if "mode" not in trace:
+        return None
+    m = np.asarray(trace["mode"], dtype=float)
+    m = m[np.isfinite(m)]
+    return int(np.bincount(m.astype(int)).argmax()) if len(m) else None
+
+
+def _finite(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def ingest_one(job: tuple[str, str, str | None]) -> dict[str, Any]:
+    """Worker: one log (path, digest, --actuator) -> its row, or its failure."""
+    from bench.bus.logs import load_trace
+    from bench.hums.report import analyse
+    from bench.hums.verdict import LEVELS
+    path_s, dig, given = job
+    path = Path(path_s)
+    trace = None
+    try:
+        trace = load_trace(path)
+        a = analyse(trace, path.name, rul=False)
+    except Exception as exc:  # noqa: BLE001 - any failure is the log's, recorded
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        return {"digest": dig, "path": str(path), "error": f"{type(exc).__name__}: {msg}"[:500],
+                "actuator_id": actuator_id(trace, path, given)}
+    tr = a.trace
+    row: dict[str, Any] = {
+        "digest": dig, "actuator_id": actuator_id(trace, path, given),
+        "run_time": dt.datetime.fromtimestamp(run_time(path, trace), dt.UTC)
+        .replace(tzinfo=None),
+        "path": str(path.resolve()), "bytes": path.stat().st_size, "rows": len(tr),
+        "duration_s": len(tr) * tr.dt if len(tr) > 1 else 0.0, "mode": _mode(tr),
+        "f0_hz": _finite(a.f0_hz), "verdict": a.verdict,
+        "level": LEVELS.index(a.verdict) if a.verdict in LEVELS else None,
+        "reasons": "; ".join(a.reasons), "notes": "; ".join(a.notes)}
+    from bench.fleet.schema import INDEX_COLUMNS
+    for c in INDEX_COLUMNS:
+        row[c] = _finite(float(getattr(a.indexes, c)))
+    row.update(usage_columns(tr))
+    return row
+
+
+# --- the ingest --------------------------------------------------------------------------------
+
+@dataclass
+class IngestResult:
+    files: int
+    skipped: int
+    stored: int
+    failed: int
+    elapsed_s: float
+    failures: list[tuple[str, str]]
+
+
+def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
+           scheduler: str | None = None, actuator: str | None = None,
+           progress: bool = True) -> IngestResult:
+    """Ingest every log `paths` names into the store `db` (module docstring)."""
+    from bench.fleet.store import Store
+    t0 = time.perf_counter()
+    files = expand(paths)
+    with Store(db) as store:
+        known = store.known()
+        jobs = []
+        seen: set[str] = set()
+        for f in files:
+            d = digest(f)
+            if d not in known and d not in seen:
+                seen.add(d)
+                jobs.append((str(f), d, actuator))
+        batch = _Batch(store)
+        try:
+            run_jobs(ingest_one, jobs, workers, progress, scheduler, batch.add)
+        finally:
+            batch.flush()
+    fails = [(r["path"], r["error"]) for r in batch.done if "error" in r]
+    return IngestResult(len(files), len(files) - len(jobs), batch.stored - len(fails),
+                        len(fails), time.perf_counter() - t0, fails)
+
+
+class _Batch:
+    """Results gathered and written a batch at a time (one transaction each)."""
+
+    def __init__(self, store: Any) -> None:
+        self.store, self.open, self.done = store, [], []   # type: ignore[var-annotated]
+        self.stored = 0
+        self.t_last = time.monotonic()
+        self.size = max(1, int(os.environ.get("BENCH_FLEET_BATCH") or BATCH_RUNS))
+
+    def add(self, result: dict[str, Any]) -> None:
+        self.open.append(result)
+        if len(self.open) >= self.size or time.monotonic() - self.t_last > BATCH_S:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.open:
+            self.stored += self.store.write(self.open)
+            self.done.extend({"path": r["path"], "error": r["error"]} if "error" in r
+                             else {"path": r["path"]} for r in self.open)
+            self.open = []
+        self.t_last = time.monotonic()
+
+
+def run_jobs(fn: Any, jobs: list[Any], workers: int | None, progress: bool,
+             scheduler: str | None, on_result: Any = None, desc: str = "fleet ingest",
+             unit: str = "log") -> list[Any]:
+    """`bench.workers.run_all` (Dask: a LocalCluster on 127.0.0.1 of `workers` processes,
+    or the cluster at `scheduler`), with `on_result` called as each job finishes."""
+    from bench.workers import run_all
+    return run_all(fn, jobs, workers, progress, desc=desc, unit=unit, on_result=on_result,
+                   scheduler=scheduler)

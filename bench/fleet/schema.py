@@ -1,0 +1,127 @@
+"""The fleet store's schema and its migrations (DuckDB).
+
+The schema is versioned: the `meta` table holds ``schema_version``; `MIGRATIONS` are
+ordered functions, migration k takes a store from version k to k + 1, each in one
+transaction with the version bump, so a store is always at a version it claims.
+`migrate` brings any older store up to `SCHEMA_VERSION` and refuses a newer one (a
+store written by a later bench).
+
+Tables (docs/fleet.md has every column with its unit):
+
+- ``runs``: one row per ingested log, primary key ``digest`` (sha256 of the file's
+  bytes), with ``actuator_id`` and ``run_time`` (UTC, indexed together): health indexes,
+  verdict and the usage columns (version 2; NULL until the usage computation lands);
+- ``failures``: logs that could not be ingested, with their one-line error;
+- ``meta``: ``schema_version`` and when the store was created.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from bench import BenchError
+
+INDEX_COLUMNS = ("cp", "ci", "ci_harmonic", "peak_ratio", "mean_error_m", "lost_motion_m",
+                 "harmonic_distortion", "friction_current_a")
+USAGE_COLUMNS = {
+    "travel_m": "DOUBLE",           # nut travel, sum |dx| (m)
+    "screw_revs": "DOUBLE",         # screw revolutions
+    "reversals": "BIGINT",          # direction reversals
+    "equivalent_load_n": "DOUBLE",  # cubic-mean equivalent axial load (N)
+    "life_consumed": "DOUBLE",      # fraction of the L10 life used by this run
+    "i2t_a2s": "DOUBLE",            # integral of current squared (A^2 s)
+    "time_hot_s": "DOUBLE",         # time with the winding above its hot limit (s)
+}
+
+
+def _v1(con: Any) -> None:
+    """Version 1: meta, runs (indexes and verdict), failures."""
+    con.execute("CREATE TABLE IF NOT EXISTS meta (key VARCHAR PRIMARY KEY, value VARCHAR)")
+    idx = ", ".join(f"{c} DOUBLE" for c in INDEX_COLUMNS)
+    con.execute(
+        "CREATE TABLE runs (digest VARCHAR PRIMARY KEY, actuator_id VARCHAR NOT NULL, "
+        "run_time TIMESTAMP NOT NULL, path VARCHAR, bytes BIGINT, "
+        "ingested_at TIMESTAMP, rows BIGINT, "
+        "duration_s DOUBLE, mode INTEGER, f0_hz DOUBLE, verdict VARCHAR, level INTEGER, "
+        f"reasons VARCHAR, notes VARCHAR, {idx})")
+    con.execute("CREATE INDEX runs_actuator_time ON runs (actuator_id, run_time)")
+    con.execute(
+        "CREATE TABLE failures (digest VARCHAR PRIMARY KEY, path VARCHAR, "
+        "actuator_id VARCHAR, error VARCHAR, ingested_at TIMESTAMP)")
+    con.execute("INSERT OR REPLACE INTO meta VALUES ('created_at', ?)",
+                [_utc_now().isoformat(timespec="seconds")])
+
+
+def _utc_now() -> dt.datetime:
+    """Now, UTC, without a zone (the store's times are all UTC)."""
+    return dt.datetime.now(dt.UTC).replace(tzinfo=None)
+
+
+def _v2(con: Any) -> None:
+    """Version 2: the usage columns on `runs` (NULL for the runs stored before)."""
+    for name, kind in USAGE_COLUMNS.items():
+        con.execute(f"ALTER TABLE runs ADD COLUMN {name} {kind}")
+
+
+MIGRATIONS: list[Callable[[Any], None]] = [_v1, _v2]
+"""MIGRATIONS[k] takes a store from version k to k + 1 (0: an empty file)."""
+SCHEMA_VERSION = len(MIGRATIONS)
+
+
+def version(con: Any) -> int:
+    """The store's schema version (0 for an empty database)."""
+    has = con.execute("SELECT count(*) FROM information_schema.tables "
+                      "WHERE table_name = 'meta'").fetchone()[0]
+    if not has:
+        return 0
+    row = con.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+    return int(row[0]) if row else 0
+
+
+def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
+    """Apply the migrations from the store's version up to `target`, each with its
+    version bump in one transaction; returns the version reached."""
+    have = version(con)
+    if have > SCHEMA_VERSION:
+        raise BenchError(f"the fleet store has schema version {have}, newer than this "
+                         f"bench's {SCHEMA_VERSION}: update the bench")
+    for k in range(have, target):
+        con.execute("BEGIN TRANSACTION")
+        try:
+            MIGRATIONS[k](con)
+            con.execute("INSERT OR REPLACE INTO meta VALUES ('schema_version', ?)",
+                        [str(k + 1)])
+            con.execute("COMMIT")
+        except Exception:
+            con.execute("ROLLBACK")
+            raise
+    return max(have, target)
+
+
+def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERSION
+            ) -> Any:
+    """A DuckDB connection to the store at `path`, migrated to `target` (read-only: not
+    migrated, and BenchError when it does not exist or is older than this bench)."""
+    import duckdb
+    p = Path(path)
+    if read_only and not p.exists():
+        raise BenchError(f"no fleet store at {p} (make one with `bench fleet ingest`)")
+    if not read_only and p.parent and not p.parent.exists():
+        raise BenchError(f"{p.parent}: no such directory for the fleet store")
+    try:
+        con = duckdb.connect(str(p), read_only=read_only)
+    except duckdb.Error as exc:
+        raise BenchError(f"{p}: cannot open the fleet store: "
+                         f"{str(exc).splitlines()[0]}") from None
+    if read_only:
+        have = version(con)
+        if have != SCHEMA_VERSION:
+            con.close()
+            raise BenchError(f"{p}: fleet store schema version {have}, this bench reads "
+                             f"{SCHEMA_VERSION} (run `bench fleet ingest` on it to migrate)")
+        return con
+    migrate(con, target)
+    return con

@@ -1,0 +1,182 @@
+"""`bench fleet status`: one line per actuator from the fleet store.
+
+For each actuator: its last test (UTC), the level of that test (the verdict of
+`bench.hums.verdict.judge`), the trend (least-squares slope of Ci per day over its last
+`n_trend` tests, with its sign), the RUL with its band, the usage consumed.
+
+Ci here is the index the verdict rests on in position mode: Ci over the command
+frequency and its first 15 harmonics where the log gives it, else the broadband Ci
+(eq. 6.6; `bench.hums.verdict`). The RUL is the thesis' algorithm (section 6.5,
+`bench.hums.rul.thesis_predict`) applied to the actuator's series of daily tests
+instead of the command periods of one run: once Ci has crossed the threshold 0.93 and
+then the warning level 0.80, a cubic fitted to Ci(t) from the threshold crossing to the
+latest test is extrapolated to the failure level 0.56; the band is the 5-95 % spread of
+a residual bootstrap of that fit. Where the algorithm does not apply (no crossing yet,
+or too few tests between the crossings) the RUL is "n/a" with the reason.
+The usage consumed is the sum of the runs' ``life_consumed`` (fraction of L10, Palmgren-
+Miner; docs/usage.md); n/a when no run had a load signal.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.hums import rul as R
+from bench.hums.verdict import LEVELS, UNKNOWN
+
+DAY_S = 86400.0
+N_TREND = 10
+"""Tests the trend's slope is fitted over (the last ones)."""
+
+
+@dataclass
+class ActuatorStatus:
+    """One actuator's state in the store (times in epoch seconds, RUL in days)."""
+    ident: str
+    tests: int
+    last_time_s: float
+    verdict: str
+    ci_last: float
+    slope_per_day: float
+    rul_days: float = math.nan
+    rul_band_days: tuple[float, float] = (math.nan, math.nan)
+    rul_why: str = ""
+    life_consumed: float = math.nan
+    reasons: str = ""
+    t_threshold_s: float = math.nan
+    t_warning_s: float = math.nan
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def level(self) -> int:
+        """0-3 (HEALTHY..FAILURE), -1 for UNKNOWN."""
+        return LEVELS.index(self.verdict) if self.verdict in LEVELS else -1
+
+
+def judged_ci(ci: np.ndarray, ci_harmonic: np.ndarray) -> np.ndarray:
+    """The Ci the verdict reads: harmonic Ci where finite, else broadband Ci."""
+    ci = np.asarray(ci, dtype=float)
+    h = np.asarray(ci_harmonic, dtype=float)
+    return np.where(np.isfinite(h), h, ci)
+
+
+def slope_per_day(t_s: np.ndarray, y: np.ndarray, n: int = N_TREND) -> float:
+    """Least-squares slope of y per day over the last `n` finite points (NaN if < 2)."""
+    m = np.isfinite(y)
+    t, v = t_s[m][-n:], y[m][-n:]
+    if len(t) < 2 or np.ptp(t) <= 0:
+        return math.nan
+    return float(np.polyfit((t - t[-1]) / DAY_S, v, 1)[0])
+
+
+def rul_of(t_s: np.ndarray, ci: np.ndarray) -> tuple[float, tuple[float, float], str,
+                                                    float, float]:
+    """The thesis' RUL over the daily tests (module docstring): (RUL days, band days,
+    why not, threshold crossing, warning crossing)."""
+    m = np.isfinite(ci)
+    t, y = t_s[m], ci[m]
+    nan2 = (math.nan, math.nan)
+    if len(t) == 0:
+        return math.nan, nan2, "n/a: no Ci in any test", math.nan, math.nan
+    if y[-1] < R.FAILURE:
+        hit = np.flatnonzero(y >= R.FAILURE)
+        since = t[hit[-1] + 1] if len(hit) else t[0]
+        return (0.0, (0.0, 0.0), f"failure level {R.FAILURE} reached on {_date(since)}",
+                math.nan, math.nan)
+    days = (t - t[0]) / DAY_S
+    res = R.thesis_predict(days, y, t_pred_s=float(days[-1]))
+    if res is None:
+        return (math.nan, nan2, f"n/a: Ci above the threshold {R.THRESHOLD} in every test "
+                "(no degradation to extrapolate)", math.nan, math.nan)
+    t_thr = t[0] + res.t_threshold_s * DAY_S
+    if math.isnan(res.t_warning_s):
+        return (math.nan, nan2, f"n/a: below the threshold {R.THRESHOLD} since "
+                f"{_date(t_thr)}, not yet below the warning level {R.WARNING} (the thesis "
+                "predicts from the warning crossing)", t_thr, math.nan)
+    t_warn = t[0] + res.t_warning_s * DAY_S
+    if res.prediction is None:
+        return (math.nan, nan2, "n/a: fewer than 5 tests between the threshold and "
+                "warning crossings (a cubic needs them)", t_thr, t_warn)
+    p = res.prediction
+    lo, hi = p.band()
+    return (p.rul_s, (max(lo - p.t_pred_s, 0.0), hi - p.t_pred_s), "", t_thr, t_warn)
+
+
+def _date(t_s: float) -> str:
+    return dt.datetime.fromtimestamp(t_s, dt.UTC).strftime("%Y-%m-%d")
+
+
+def fleet_status(store: Any, n_trend: int = N_TREND) -> list[ActuatorStatus]:
+    """Every actuator's status, by actuator id."""
+    s = store.series(("ci", "ci_harmonic", "verdict", "life_consumed", "reasons"))
+    ids = np.asarray(s["actuator_id"], dtype=object)
+    if not len(ids):
+        return []
+    t_all = np.asarray(s["run_time"], dtype=float)
+    ci_all = judged_ci(floats(s["ci"]), floats(s["ci_harmonic"]))
+    life_all = floats(s["life_consumed"])
+    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+    ends = np.r_[starts[1:], len(ids)]
+    out = []
+    for a, b in zip(starts, ends, strict=True):
+        t, ci = t_all[a:b], ci_all[a:b]
+        life = life_all[a:b]
+        rul, band, why, t_thr, t_warn = rul_of(t, ci)
+        out.append(ActuatorStatus(
+            str(ids[a]), int(b - a), float(t[-1]), str(s["verdict"][b - 1] or UNKNOWN),
+            float(ci[-1]), slope_per_day(t, ci, n_trend), rul, band, why,
+            float(np.nansum(life)) if np.isfinite(life).any() else math.nan,
+            str(s["reasons"][b - 1] or ""), t_thr, t_warn))
+    return out
+
+
+def floats(col: Any) -> np.ndarray:
+    """A fetched column (masked where NULL) as floats with NaN for NULL."""
+    if isinstance(col, np.ma.MaskedArray):
+        return np.asarray(np.ma.filled(col.astype(float), np.nan), dtype=float)
+    return np.asarray(col, dtype=float)
+
+
+def urgency(st: ActuatorStatus) -> tuple[float, float, float]:
+    """Sort key, most urgent first: level of the last test, then RUL, then Ci falling."""
+    rul = st.rul_days if math.isfinite(st.rul_days) else math.inf
+    slope = st.slope_per_day if math.isfinite(st.slope_per_day) else 0.0
+    return (-st.level, rul, slope)
+
+
+def rul_text(st: ActuatorStatus) -> str:
+    if not math.isfinite(st.rul_days) or st.rul_days == 0.0 and st.rul_why:
+        return st.rul_why or "n/a"
+    lo, hi = st.rul_band_days
+    return f"{st.rul_days:.1f} d [{lo:.1f}, {hi:.1f}]"
+
+
+def usage_text(st: ActuatorStatus) -> str:
+    if not math.isfinite(st.life_consumed):
+        return "n/a (no run with a load signal)"
+    return f"{100.0 * st.life_consumed:.2f} % of L10"
+
+
+HEADER = ("actuator", "tests", "last test (UTC)", "level", "Ci", "trend Ci/day",
+          "RUL [90 % band]", "usage consumed")
+
+
+def format_table(rows: list[ActuatorStatus]) -> str:
+    """The status lines, one per actuator, with a header."""
+    body = [(st.ident, str(st.tests),
+             dt.datetime.fromtimestamp(st.last_time_s, dt.UTC).strftime(
+                 "%Y-%m-%d %H:%M"), st.verdict,
+             "-" if not math.isfinite(st.ci_last) else f"{st.ci_last:.3f}",
+             "-" if not math.isfinite(st.slope_per_day) else f"{st.slope_per_day:+.4f}",
+             rul_text(st), usage_text(st)) for st in rows]
+    widths = [max(len(r[k]) for r in [HEADER, *body]) for k in range(len(HEADER) - 2)]
+    lines = []
+    for r in [HEADER, *body]:
+        lines.append("  ".join(c.ljust(w) for c, w in zip(r[:-2], widths, strict=True))
+                     + "  " + r[-2] + "  |  " + r[-1])
+    return "\n".join(lines)

@@ -1,0 +1,270 @@
+"""Blind check of the gap diagnosis on logs from an independent actuator
+(`bench gap-bench --generator independent`, issue 11).
+
+The logs come from `indie_plant`, physics written apart from `plant_rt` on purpose
+(LuGre friction, a Hertzian preloaded double nut, cogging and torque ripple, ADC,
+encoder and LVDT quantisation; docs/independent-plant.md) and another actuator (1:3,
+4 mm lead, a lighter motor). The bench does not know that model: it starts from the
+actuator's datasheet values (`datasheet_model`: what a vendor gives, put into the
+bench's own model family) and first calibrates them on healthy logs of the actuator
+(`bench.gap.calibrate`, on seeds the judged cases never use), then diagnoses every case
+against the calibrated model.
+
+The controller: by default the cases run under the bench's ECU (its structure and gains,
+`indie_plant.controller.Cascade.like_bench_ecu`), as `bench run gap-excitation` against
+`python -m indie_plant` over the bus gives; `controller="own"` runs the actuator's own
+PI + PI cascade at 2 ms, which the bench's re-simulation cannot represent until the
+calibration identifies controllers (docs/gap.md says what that measured).
+
+Cases: 30 % nominal (noise only), 70 % one effect of `POOL` at a random magnitude, the
+effect implemented in the independent physics (not by the library). "Above the noise
+floor" as in `bench.gap.blind`: the noise-free log with the effect against the noise-free
+nominal log over the RMS difference of two noisy nominal logs / sqrt 2.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from bench.control import ControllerParams
+from bench.gap.blind import Case, Truth, score, summarise
+from bench.gap.calibrate import calibrate
+from bench.gap.diagnose import Options, diagnose
+from bench.gap.maneuvers import LOAD_HZ, excitation
+from bench.trace import Trace
+from bench.workers import run_all
+from indie_plant.controller import Cascade
+from indie_plant.generate import simulate as indie_simulate
+from indie_plant.params import IndieParams
+from plant_rt.params import PlantParams
+
+LOG_S = 10.0
+LOAD_N = 2000.0
+NOMINAL = IndieParams()
+CALIBRATION_SEED_OFFSET = 100_003     # healthy calibration log: seed + this
+HELDOUT_SEED_OFFSET = 100_004         # healthy held-out log (goal 4): seed + this
+SNR_SIGNALS = ("current_a", "motor_speed_rad_s", "position_m", "motor_angle_rad")
+
+
+def datasheet_model() -> PlantParams:
+    """The bench's model of the independent actuator from its datasheet: ratio, lead,
+    motor constants, rotor and screw inertias, nut mass, preload, supply and limits. The
+    bench's friction laws and contact model stay its own (the thesis' tables): friction
+    and the rest are what calibration is for."""
+    n = NOMINAL
+    return PlantParams().with_dict({
+        "motor.kt_nm_per_a": n.kt_nm_per_a, "motor.ke_v_s_per_rad": n.ke_v_s_per_rad,
+        "motor.resistance_ohm": n.resistance_ohm, "motor.inductance_h": n.inductance_h,
+        "motor.inertia_kg_m2": 2.4e-3,            # rotor alone on the datasheet
+        "reducer.inertia_kg_m2": 2e-5, "screw.screw_inertia_kg_m2": 5e-5,
+        "motor.current_max_a": n.current_limit_a, "motor.supply_voltage_v": n.supply_v,
+        "reducer.ratio": n.ratio, "screw.lead_m": n.lead_m,
+        "screw.nut_mass_kg": n.nut_mass_kg, "effects.preload_n": n.preload_n,
+        "drive.current_kp_v_per_a": 2 * math.pi * n.current_bw_hz * n.inductance_h,
+        "drive.current_ki_v_per_as": 2 * math.pi * n.current_bw_hz * n.resistance_ohm,
+        "sensors.encoder_counts_per_rev": n.encoder_counts})
+
+
+def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:
+    """The bench's ECU (position P on the LVDT, speed PI, every SYNC) as numbers."""
+    cp = cp or ControllerParams()
+    return Cascade.like_bench_ecu(cp.position_kp_rad_s_per_m, cp.speed_kp_a_s_per_rad,
+                                  cp.speed_ki_a_per_rad, cp.speed_limit_rad_s,
+                                  cp.current_limit_a)
+
+
+def maneuver(duration_s: float) -> dict[str, np.ndarray]:
+    """The diagnosis maneuver's set-points and the rig's 2 kN sine load per period."""
+    prof = excitation(duration_s, LOAD_N)
+    dt = NOMINAL.sync_period_s
+    t = np.arange(int(round(duration_s / dt))) * dt
+    return {"sp_pos": prof.position(t), "sp_spd": prof.speed(t),
+            "mode": np.full(len(t), float(prof.mode)),
+            "load": LOAD_N * np.sin(2 * math.pi * LOAD_HZ * t)}
+
+
+# --- effects in the independent physics ------------------------------------------------
+def _lu(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _pm(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(rng.uniform(lo, hi) * rng.choice([-1.0, 1.0]))
+
+
+def _draws(rng: np.random.Generator) -> dict[str, Callable[[], dict[str, float]]]:
+    n = NOMINAL
+    return {
+        "backlash": lambda: {"backlash_m": rng.uniform(5e-6, 100e-6)},
+        "friction": lambda: {"friction_scale": _lu(rng, 1.5, 4.0)},
+        "viscous": lambda: {"viscous_scale": _lu(rng, 10.0, 200.0)},
+        "stiffness": lambda: {"hertz_n_per_m15": n.hertz_n_per_m15 * _lu(rng, 3e-3, 0.1)},
+        "preload": lambda: {"preload_n": n.preload_n * rng.uniform(0.0, 0.5)},
+        "sensor_delay": lambda: {"sensor_delay_periods": float(rng.integers(1, 6))},
+        "lvdt_lag": lambda: {"lvdt_extra_lag_s": rng.uniform(1e-3, 10e-3)},
+        "lvdt_gain": lambda: {"lvdt_gain": 1.0 + _pm(rng, 0.005, 0.05)},
+        "lvdt_offset": lambda: {"lvdt_offset_m": _pm(rng, 5e-6, 200e-6)},
+        "encoder_gain": lambda: {"encoder_gain": 1.0 + _pm(rng, 0.005, 0.05)},
+        "current_offset": lambda: {"current_offset_a": _pm(rng, 0.05, 0.5)},
+        "resistance": lambda: {"resistance_ohm": n.resistance_ohm * _lu(rng, 1.5, 4.0)},
+        "kt": lambda: (lambda f: {"kt_nm_per_a": n.kt_nm_per_a * f,
+                                  "ke_v_s_per_rad": n.ke_v_s_per_rad * f})(
+            1.0 + _pm(rng, 0.02, 0.15)),
+        "inertia": lambda: {"inertia_kg_m2": n.inertia_kg_m2 * (1.0 + _pm(rng, 0.05, 0.5))},
+        "lead": lambda: {"lead_m": n.lead_m * (1.0 + _pm(rng, 0.002, 0.02))},
+    }
+
+
+POOL = ("backlash", "friction", "viscous", "stiffness", "preload", "sensor_delay",
+        "lvdt_lag", "lvdt_gain", "lvdt_offset", "encoder_gain", "current_offset",
+        "resistance", "kt", "inertia", "lead")
+"""Effects injected (the library's names, in the independent physics). Not injected:
+stribeck, thermal_drift (no thermal model here), log_skew (a logger's fault, not the
+actuator's)."""
+
+
+def draw(name: str, rng: np.random.Generator) -> Truth:
+    """One effect at a random magnitude: its indie parameter overrides."""
+    return Truth(name, plant=_draws(rng)[name]())
+
+
+def make_cases(n: int, seed: int) -> list[Case]:
+    """`n` cases, 30 % nominal and 70 % single, in a shuffled order fixed by `seed`."""
+    rng = np.random.default_rng(seed)
+    kinds = ["nominal"] * round(0.3 * n)
+    kinds = (kinds + ["single"] * (n - len(kinds)))[:n]
+    rng.shuffle(kinds)
+    cases = []
+    for i, kind in enumerate(kinds):
+        truths = [] if kind == "nominal" else [draw(str(rng.choice(POOL)), rng)]
+        cases.append(Case(i, kind, truths, int(rng.integers(1, 2**31 - 1))))
+    return cases
+
+
+def generate(case: Case, noise: bool = True, duration_s: float = LOG_S,
+             controller: str = "ecu", actuator: IndieParams = NOMINAL) -> Trace:
+    """The case's log from the independent `actuator` (healthy, as built) with the case's
+    effects: measured columns, no metadata."""
+    over: dict[str, float] = {"noise": 1.0 if noise else 0.0}
+    for t in case.truths:
+        over.update(t.plant)
+    params = actuator.with_dict(over)
+    m = maneuver(duration_s)
+    ctrl = bench_ecu_cascade() if controller == "ecu" else Cascade.own(params)
+    cols = indie_simulate(params, m["sp_pos"], m["sp_spd"], m["mode"], m["load"], ctrl,
+                          seed=case.noise_seed)
+    return Trace(cols, {})
+
+
+def reference(duration_s: float, seed: int, controller: str,
+              actuator: IndieParams = NOMINAL) -> dict[str, Any]:
+    """Noise-free nominal log and the generator's noise floor per signal."""
+    clean = generate(Case(-1, "nominal", [], seed), False, duration_s, controller, actuator)
+    a = generate(Case(-1, "nominal", [], seed + 1), True, duration_s, controller, actuator)
+    b = generate(Case(-1, "nominal", [], seed + 2), True, duration_s, controller, actuator)
+    floor = {s: float(np.sqrt(np.mean((a[s] - b[s]) ** 2)) / math.sqrt(2.0))
+             for s in SNR_SIGNALS}
+    return {"clean": {s: clean[s] for s in SNR_SIGNALS}, "floor": floor}
+
+
+def floor_snr(case: Case, duration_s: float, ref: dict[str, Any], controller: str,
+              actuator: IndieParams = NOMINAL) -> dict[str, float]:
+    clean = generate(case, False, duration_s, controller, actuator)
+    return {s: float(np.sqrt(np.mean((clean[s] - ref["clean"][s]) ** 2)) / ref["floor"][s])
+            for s in SNR_SIGNALS}
+
+
+def calibrated_model(seed: int, duration_s: float = LOG_S, controller: str = "ecu",
+                     actuator: IndieParams = NOMINAL) -> tuple[PlantParams, dict[str, Any]]:
+    """The datasheet model calibrated (bench.gap.calibrate, its default parameters) on one
+    healthy log of the actuator with noise seed `seed + CALIBRATION_SEED_OFFSET`."""
+    log = generate(Case(-1, "nominal", [], seed + CALIBRATION_SEED_OFFSET), True,
+                   duration_s, controller, actuator)
+    base = datasheet_model()
+    cal = calibrate(log, base)
+    return base.with_dict(cal["params"]), cal
+
+
+def heldout_residual(model: PlantParams, seed: int, duration_s: float = LOG_S,
+                     controller: str = "ecu", actuator: IndieParams = NOMINAL
+                     ) -> dict[str, Any]:
+    """Goal 4: the model's closed-loop re-simulation of a held-out healthy log (noise seed
+    `seed + HELDOUT_SEED_OFFSET`): RMS residual per signal, the noise floor per signal
+    (the diagnosis' bootstrap of the noise estimated from that log, without the fast
+    model's own error) and their ratio."""
+    from bench.gap.problem import build
+    log = generate(Case(-1, "nominal", [], seed + HELDOUT_SEED_OFFSET), True, duration_s,
+                   controller, actuator)
+    p = build(log.measured(), model, holdout_frac=0.5)
+    nominal = p.info["nominal"]
+    out: dict[str, Any] = {}
+    for s, meas in p.meas.items():
+        if s not in nominal or s == "current_demand_a":
+            continue
+        r = float(np.sqrt(np.nanmean((meas - nominal[s]) ** 2)))
+        noise = float(np.sqrt(np.mean([np.mean(b[s] ** 2) for b in p.info["bootstrap"]])))
+        out[s] = {"rms": r, "noise_floor": noise, "ratio": r / noise if noise else math.inf,
+                  "diagnosis_floor": p.sigma[s]}
+    return out
+
+
+_STATE: dict[str, Any] = {}
+
+
+def _init(state: dict[str, Any]) -> None:
+    _STATE.update(state)
+
+
+def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
+             effects: list[str] | None = None) -> dict[str, Any]:
+    """Generate, diagnose against the calibrated model (seeing only the log), score."""
+    ref, model, act = _STATE["ref"], _STATE["model"], _STATE["actuator"]
+    log = generate(case, True, duration_s, controller, act)
+    t0 = time.perf_counter()
+    res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects))
+    elapsed = time.perf_counter() - t0
+    snr_each = {t.name: floor_snr(Case(case.index, case.kind, [t], case.noise_seed),
+                                  duration_s, ref, controller, act) for t in case.truths}
+    snr_all = floor_snr(case, duration_s, ref, controller, act) if case.truths else {}
+    rec = score(case, res.json(), snr_each, snr_all, elapsed)
+    rec["truth_values"] = {t.name: t.plant for t in case.truths}
+    return rec
+
+
+def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
+        progress: bool = True, effects: list[str] | None = None, controller: str = "ecu",
+        on_result: Callable[[dict[str, Any]], None] | None = None,
+        actuator: IndieParams = NOMINAL, scheduler: str | None = None) -> dict[str, Any]:
+    """Calibrate on the healthy calibration log, then run `n` blind cases. `actuator`:
+    the independent actuator as built (`--indie-set`: e.g. an ablation of one physical
+    feature)."""
+    t0 = time.perf_counter()
+    model, cal = calibrated_model(seed, duration_s, controller, actuator)
+    t_cal = time.perf_counter() - t0
+    held = heldout_residual(model, seed, duration_s, controller, actuator)
+    ref = reference(duration_s, seed + 7919, controller, actuator)
+    cases = make_cases(n, seed)
+    job = partial(run_case, duration_s=duration_s, controller=controller, effects=effects)
+    results = run_all(job, cases, workers, progress, desc="gap-bench (independent)",
+                      unit="case", initializer=_init, initargs=({"ref": ref, "model": model, "actuator": actuator},),
+                      on_result=on_result, leave=True, scheduler=scheduler)
+    changed = {k: v for k, v in dataclasses.asdict(actuator).items()
+               if v != getattr(NOMINAL, k)}
+    return {"generator": "independent", "controller": controller, "seed": seed, "cases": n,
+            "actuator_changes": changed,
+            "fidelity": "independent physics (indie_plant)", "log_s": duration_s,
+            "library": effects or "all", "wall_s": time.perf_counter() - t0,
+            "workers": workers, "floor": ref["floor"],
+            "calibration": {"seed": seed + CALIBRATION_SEED_OFFSET, "wall_s": t_cal,
+                            "params": cal["params"], "ci95": cal["ci95"],
+                            "gap_after": cal["gap_after"], "notes": cal["notes"]},
+            "heldout_healthy": {"seed": seed + HELDOUT_SEED_OFFSET, "signals": held},
+            "summary": summarise(results), "results": results}
+

@@ -1,0 +1,272 @@
+"""The healthy baseline of a rig that no physics model fits (issue 11, the fallback).
+
+When no model of the family reaches the noise floor on healthy data (a stepper's load
+angle, the rig's own friction law), the bench compares a log with the rig's own healthy
+runs instead. The runs are aligned by set-point phase (`cycles.phases`: out-stroke,
+dwell at the top, in-stroke, dwell at the bottom; direction is part of the phase) and,
+for each load, the baseline keeps per phase and per aligned sample the mean and the
+spread of each signal (motor current, position error), and per phase the mean and spread
+of each phase index (mean, RMS and peak current; mean and peak position error; the mean
+current of the acceleration, constant-speed and deceleration parts of a stroke).
+
+Aligned sample k of a phase is the k-th logged sample after the phase starts: the rig's
+set-point repeats from cycle to cycle, so sample k is at the same set-point position in
+every cycle and nothing is interpolated. The spread of a sample is pooled over its
+`POOL` neighbours (a per-sample standard deviation from ten cycles is itself uncertain by
+about 25 %). A residual is standardised by that spread times sqrt(1 + 1/n), n the number
+of baseline cycles, because the baseline mean is itself an estimate.
+
+Every verdict against a baseline names it (`Baseline.describe`): the file, the source
+tables, the runs, the loads and the number of cycles.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+from bench.rig.cycles import Cycle, phases, ramps
+
+SIGNALS = ("current_a", "position_error_mm")
+POOL = 7                    # samples pooled into one sample's spread
+MIN_CYCLES = 3              # cycles per load a baseline needs
+FORMAT = "bench-rig-baseline/1"
+
+
+def signal(cycle: Cycle, name: str) -> np.ndarray:
+    return cycle.current_a if name == "current_a" else cycle.position_error_mm
+
+
+@dataclass
+class PhaseStats:
+    """One phase of one load: per aligned sample, the mean and pooled spread."""
+    name: str
+    direction: int
+    setpoint_mm: np.ndarray
+    position_mm: np.ndarray
+    mean: dict[str, np.ndarray]
+    std: dict[str, np.ndarray]
+    n: int
+
+    def __len__(self) -> int:
+        return len(self.setpoint_mm)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"name": self.name, "direction": self.direction, "n": self.n,
+                "setpoint_mm": _r(self.setpoint_mm), "position_mm": _r(self.position_mm),
+                "mean": {k: _r(v) for k, v in self.mean.items()},
+                "std": {k: _r(v) for k, v in self.std.items()}}
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> PhaseStats:
+        arr = np.asarray
+        return cls(d["name"], int(d["direction"]), arr(d["setpoint_mm"], float),
+                   arr(d["position_mm"], float),
+                   {k: arr(v, float) for k, v in d["mean"].items()},
+                   {k: arr(v, float) for k, v in d["std"].items()}, int(d["n"]))
+
+
+@dataclass
+class LoadBaseline:
+    """The baseline of one load."""
+    load: float
+    runs: list[int]
+    cycles: list[str]
+    phases: dict[str, PhaseStats]
+    indexes: dict[str, dict[str, tuple[float, float]]]     # phase -> index -> (mean, sd)
+
+    @property
+    def n(self) -> int:
+        return len(self.cycles)
+
+
+@dataclass
+class Baseline:
+    """Healthy baselines per load, with where they came from."""
+    loads: dict[float, LoadBaseline]
+    sources: list[str]
+    path: str = ""                         # the file it was read from / written to
+    lead_mm: float | None = None           # the screw's lead (position-periodic feature)
+    thresholds: dict[str, Any] = field(default_factory=dict)   # set by population
+
+    def for_load(self, load: float) -> LoadBaseline:
+        for k, v in self.loads.items():
+            if math.isclose(k, load, abs_tol=1e-6):
+                return v
+        raise BenchError(f"the baseline has no load {load:g} (it has "
+                         f"{', '.join(f'{k:g}' for k in sorted(self.loads))})")
+
+    def describe(self, load: float | None = None) -> str:
+        """Which baseline: file, tables, runs, loads and cycles (named in every verdict)."""
+        where = self.path or "(in memory)"
+        src = ", ".join(self.sources)
+        if load is None:
+            parts = [f"load {k:g}: runs {_runs(v.runs)}, {v.n} cycles"
+                     for k, v in sorted(self.loads.items())]
+            return f"baseline {where} from {src}; " + "; ".join(parts)
+        lb = self.for_load(load)
+        return (f"baseline {where} from {src}, load {load:g}, runs {_runs(lb.runs)}, "
+                f"{lb.n} healthy cycles")
+
+    def to_json(self) -> dict[str, Any]:
+        return {"format": FORMAT, "sources": self.sources, "thresholds": self.thresholds,
+                "lead_mm": self.lead_mm,
+                "loads": [{"load": lb.load, "runs": lb.runs, "cycles": lb.cycles,
+                           "indexes": lb.indexes,
+                           "phases": [p.to_json() for p in lb.phases.values()]}
+                          for lb in self.loads.values()]}
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        self.path = str(path)
+        path.write_text(json.dumps(self.to_json()))
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Baseline:
+        path = Path(path)
+        try:
+            d = json.loads(path.read_text())
+        except FileNotFoundError:
+            raise BenchError(f"no such baseline: {path}") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise BenchError(f"{path}: not a baseline JSON ({exc})") from None
+        if not isinstance(d, dict) or d.get("format") != FORMAT:
+            raise BenchError(f"{path}: not a baseline written by `bench rig baseline`")
+        loads = {}
+        try:
+            for e in d["loads"]:
+                ph = {p["name"]: PhaseStats.from_json(p) for p in e["phases"]}
+                idx = {k: {i: (float(m), float(s)) for i, (m, s) in v.items()}
+                       for k, v in e["indexes"].items()}
+                loads[float(e["load"])] = LoadBaseline(float(e["load"]), list(e["runs"]),
+                                                       list(e["cycles"]), ph, idx)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise BenchError(f"{path}: damaged baseline ({type(exc).__name__}: {exc})"
+                             ) from None
+        lead = d.get("lead_mm")
+        return cls(loads, list(d["sources"]), str(path),
+                   None if lead is None else float(lead), dict(d.get("thresholds") or {}))
+
+
+def _r(a: np.ndarray) -> list[float]:
+    return [round(float(x), 6) for x in a]
+
+
+def _runs(runs: list[int]) -> str:
+    return ",".join(str(r) for r in sorted(set(runs)))
+
+
+def phase_indexes(cycle: Cycle) -> dict[str, dict[str, float]]:
+    """Per phase of a cycle: mean, RMS and peak current, mean and peak position error, and
+    for a stroke the mean current of its acceleration, constant-speed and deceleration
+    parts (NaN for an empty part)."""
+    out: dict[str, dict[str, float]] = {}
+    i, e = cycle.current_a, cycle.position_error_mm
+    for seg in phases(cycle.setpoint_mm):
+        s = slice(seg.start, seg.stop)
+        d = {"current_mean": float(np.mean(i[s])),
+             "current_rms": float(np.sqrt(np.mean(i[s] ** 2))),
+             "current_peak": float(np.max(np.abs(i[s]))),
+             "position_error_mean": float(np.mean(e[s])),
+             "position_error_peak": float(np.max(np.abs(e[s])))}
+        if seg.direction:
+            for part, sl in ramps(cycle.setpoint_mm, seg).items():
+                d[f"current_{part}"] = float(np.mean(i[sl])) if sl.stop > sl.start \
+                    else float("nan")
+        out[seg.name] = d
+    return out
+
+
+def aligned(cycles: list[Cycle]) -> dict[str, tuple[int, list[np.ndarray]]]:
+    """Per phase name: (direction, the cycles' sample index arrays), cut to the shortest
+    cycle's phase. Every cycle must have the same phase sequence."""
+    seqs = [phases(c.setpoint_mm) for c in cycles]
+    names = [s.name for s in seqs[0]]
+    for c, s in zip(cycles, seqs, strict=True):
+        if [x.name for x in s] != names:
+            raise BenchError(f"{c.label}: its set-point phases ({', '.join(x.name for x in s)}) "
+                             f"differ from the other cycles' ({', '.join(names)})")
+    out = {}
+    for j, name in enumerate(names):
+        length = min(len(s[j]) for s in seqs)
+        out[name] = (seqs[0][j].direction, [np.arange(s[j].start, s[j].start + length)
+                                             for s in seqs])
+    return out
+
+
+def pooled_std(x: np.ndarray) -> np.ndarray:
+    """Per-sample spread (ddof 1) of a cycles x samples array, its variance averaged over
+    `POOL` neighbouring samples."""
+    var = np.var(x, axis=0, ddof=1) if x.shape[0] > 1 else np.zeros(x.shape[1])
+    k = min(POOL, x.shape[1])
+    pad = k // 2
+    padded = np.pad(var, (pad, k - 1 - pad), mode="edge")
+    smooth = np.convolve(padded, np.ones(k) / k, mode="valid")
+    floor = 1e-6 + 1e-3 * float(np.sqrt(np.mean(var))) if len(var) else 1e-6
+    return np.maximum(np.sqrt(smooth), floor)
+
+
+def build_load(cycles: list[Cycle]) -> LoadBaseline:
+    """The baseline of one load from its healthy cycles."""
+    if len(cycles) < MIN_CYCLES:
+        raise BenchError(f"load {cycles[0].load:g}: a baseline needs at least {MIN_CYCLES} "
+                         f"healthy cycles, got {len(cycles)}")
+    ph = {}
+    for name, (direction, idx) in aligned(cycles).items():
+        mean, std = {}, {}
+        for sig in SIGNALS:
+            x = np.array([signal(c, sig)[k] for c, k in zip(cycles, idx, strict=True)])
+            mean[sig] = x.mean(axis=0)
+            std[sig] = pooled_std(x)
+        sp = np.mean([c.setpoint_mm[k] for c, k in zip(cycles, idx, strict=True)], axis=0)
+        pos = np.mean([c.position_mm[k] for c, k in zip(cycles, idx, strict=True)], axis=0)
+        ph[name] = PhaseStats(name, direction, sp, pos, mean, std, len(cycles))
+    per = [phase_indexes(c) for c in cycles]
+    indexes: dict[str, dict[str, tuple[float, float]]] = {}
+    for name in ph:
+        indexes[name] = {}
+        for key in per[0][name]:
+            vals = np.array([p[name][key] for p in per], float)
+            if np.isfinite(vals).all():
+                indexes[name][key] = (float(vals.mean()), float(vals.std(ddof=1)))
+    return LoadBaseline(cycles[0].load, sorted({c.run for c in cycles}),
+                        [c.label for c in cycles], ph, indexes)
+
+
+def build(cycles: list[Cycle], sources: list[str] | None = None) -> Baseline:
+    """Baselines per load from healthy cycles (any number of runs and loads)."""
+    if not cycles:
+        raise BenchError("no healthy cycles to build a baseline from")
+    loads: dict[float, list[Cycle]] = {}
+    for c in cycles:
+        if not math.isfinite(c.load):
+            raise BenchError(f"{c.label}: the cycle has no load; a baseline is per load")
+        loads.setdefault(c.load, []).append(c)
+    srcs = sources if sources is not None else sorted({c.source for c in cycles})
+    return Baseline({k: build_load(v) for k, v in sorted(loads.items())}, srcs)
+
+
+def residuals(lb: LoadBaseline, cycle: Cycle, sig: str = "current_a"
+              ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per phase of `cycle` that the baseline has: (standardised residual of `sig` per
+    aligned sample, the cycle's measured position there in mm). A phase shorter than the
+    baseline's is compared over its own length."""
+    out = {}
+    x = signal(cycle, sig)
+    infl = math.sqrt(1.0 + 1.0 / lb.n)
+    for seg in phases(cycle.setpoint_mm):
+        ps = lb.phases.get(seg.name)
+        if ps is None:
+            continue
+        m = min(len(seg), len(ps))
+        k = np.arange(seg.start, seg.start + m)
+        z = (x[k] - ps.mean[sig][:m]) / (ps.std[sig][:m] * infl)
+        out[seg.name] = (z, cycle.position_mm[k])
+    return out

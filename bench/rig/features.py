@@ -1,0 +1,253 @@
+"""Fault signatures of one cycle against a healthy baseline (issue 11, "Signatures of real
+faults"), all on the standardised residual of `baseline.residuals`:
+
+- localised (position-locked): a spall on the screw gives a current transient at the
+  same nut position on every pass. Each stroke's current residual, less its median (a
+  level shift is not localised), is scanned with windows of `SCALES` samples (the
+  window's sum over sqrt(width): unit variance under the baseline's noise); so is the
+  sum of the out- and in-stroke residuals at the same set-point position (the nut passes
+  the same place in both directions). The score is the largest |scan|; its window gives
+  the position in mm of travel (measured position, not set-point) and the width.
+- level (direction-split): friction raises the current in both directions: the mean of
+  the out- and in-stroke current residuals.
+- reversal: backlash shows where the motion reverses: the mean position-error residual
+  over the first `REVERSAL_SAMPLES` samples of each stroke, the larger of the two.
+- periodic (position-periodic, at the screw's lead): a defect on the screw's raceway
+  passes under the nut's balls once per screw revolution, i.e. once per lead of travel.
+  The current residual of each stroke (less its mean) is projected on cos/sin of
+  2 pi x / lead at the measured positions x (a least-squares line at the logged samples,
+  no resampling); 2 |sum z e^(-i theta)|^2 / N is chi-square with 2 degrees of freedom
+  under the baseline's noise, and the score is the sum over both strokes. Where: the same
+  projection over a sliding window of `PERIODIC_WINDOW` samples, out- and in-stroke
+  added at the same position, its largest value. This feature was added after the
+  first study had been run on the spall stages (docs/real-data.md says so).
+
+`judge` names one effect: a specific signature above its threshold (periodic, then
+localised) before an unspecific one (level, reversal), because a level change comes
+with any mechanical change while friction and backlash give no position-locked
+signature; among the unspecific ones the one furthest above its threshold. This order
+was also set after the first study. The verdict lists every feature against its
+threshold and names the baseline used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.rig.baseline import Baseline, LoadBaseline, residuals
+from bench.rig.cycles import Cycle
+
+SCALES = (1, 3, 9, 27)          # scan window widths, samples
+REVERSAL_SAMPLES = 5            # samples after a reversal that show backlash
+PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
+FEATURES = ("localised", "level", "reversal", "periodic")
+SPECIFIC = ("periodic", "localised")
+EFFECTS = {
+    "periodic": "position-periodic effect at the screw's lead (once per revolution)",
+    "localised": "localised (position-locked) effect",
+    "level": "friction-like effect (current raised in both directions)",
+    "reversal": "backlash-like effect (position error at the reversals)",
+}
+
+
+@dataclass
+class CycleFeatures:
+    """The features of one cycle and where its localised effect is."""
+    label: str
+    source: str
+    load: float
+    run: int
+    group: int
+    scores: dict[str, float]
+    location_mm: float          # centre of the strongest localised window
+    width_mm: float
+    where: str                  # out, in or both (the profile the window is in)
+    out_mm: float               # strongest window of each stroke alone
+    in_mm: float
+    level_out: float
+    level_in: float
+    periodic_mm: float = float("nan")     # where the lead-periodic residual is largest
+    periodic_out_mm: float = float("nan")
+    periodic_in_mm: float = float("nan")
+    notes: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def scan(z: np.ndarray) -> tuple[float, int, int]:
+    """The largest |window sum / sqrt(width)| over `SCALES`: (score, centre index, width)."""
+    best = (0.0, 0, 1)
+    zz = np.nan_to_num(z)
+    c = np.r_[0.0, np.cumsum(zz)]
+    for w in SCALES:
+        if w > len(zz):
+            break
+        s = (c[w:] - c[:-w]) / math.sqrt(w)
+        k = int(np.argmax(np.abs(s)))
+        if abs(s[k]) > best[0]:
+            best = (float(abs(s[k])), k + w // 2, w)
+    return best
+
+
+def _strokes(res: dict[str, tuple[np.ndarray, np.ndarray]]
+             ) -> tuple[tuple[np.ndarray, np.ndarray] | None, tuple[np.ndarray, np.ndarray] | None]:
+    return res.get("out"), res.get("in")
+
+
+def _matched(lb: LoadBaseline, z_in: np.ndarray) -> np.ndarray:
+    """The in-stroke residual at the out-stroke's set-point positions (nearest aligned
+    sample within half a set-point step; 0 where none)."""
+    sp_out, sp_in = lb.phases["out"].setpoint_mm, lb.phases["in"].setpoint_mm[:len(z_in)]
+    step = float(np.median(np.abs(np.diff(sp_out)))) if len(sp_out) > 1 else 1.0
+    order = np.argsort(sp_in)
+    j = np.clip(np.searchsorted(sp_in[order], sp_out), 0, len(order) - 1)
+    j0 = np.clip(j - 1, 0, len(order) - 1)
+    pick = np.where(np.abs(sp_in[order][j0] - sp_out) < np.abs(sp_in[order][j] - sp_out),
+                    j0, j)
+    idx = order[pick]
+    ok = np.abs(sp_in[idx] - sp_out) <= 0.5 * step + 1e-9
+    return np.where(ok, z_in[idx], 0.0)
+
+
+def periodic(z: np.ndarray, pos: np.ndarray, lead_mm: float
+             ) -> tuple[float, np.ndarray]:
+    """(2 |sum z e^(-i 2 pi x / lead)|^2 / N over the stroke, the same over a sliding
+    window of `PERIODIC_WINDOW` samples at each sample (NaN where it does not fit))."""
+    z = z - np.mean(z)
+    e = z * np.exp(-2j * np.pi * pos / lead_mm)
+    whole = float(2.0 * abs(e.sum()) ** 2 / len(z)) if len(z) else float("nan")
+    w = min(PERIODIC_WINDOW, len(z))
+    local = np.full(len(z), np.nan)
+    if w >= 3:
+        c = np.r_[0, np.cumsum(e)]
+        vals = 2.0 * np.abs(c[w:] - c[:-w]) ** 2 / w
+        local[w // 2: w // 2 + len(vals)] = vals
+    return whole, local
+
+
+def _periodic(res: dict[str, tuple[np.ndarray, np.ndarray]], lead_mm: float | None
+              ) -> tuple[float, float, float, float]:
+    """(score, where both strokes agree best, out-stroke alone, in-stroke alone)."""
+    nan = float("nan")
+    if not lead_mm or "out" not in res or "in" not in res:
+        return nan, nan, nan, nan
+    (zo, po), (zi, pi) = res["out"], res["in"]
+    so, lo = periodic(zo, po, lead_mm)
+    si, li = periodic(zi, pi, lead_mm)
+    order = np.argsort(pi)
+    ok = np.isfinite(li[order])
+    both = lo + (np.interp(po, pi[order][ok], li[order][ok], left=np.nan, right=np.nan)
+                 if ok.sum() > 1 else np.nan)
+
+    def at(prof: np.ndarray, pos: np.ndarray) -> float:
+        return float(pos[int(np.nanargmax(prof))]) if np.isfinite(prof).any() else nan
+
+    return so + si, at(both, po), at(lo, po), at(li, pi)
+
+
+def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
+                   ) -> CycleFeatures:
+    """The features of `cycle` against the baseline of its load (periodic only with the
+    screw's lead)."""
+    res = residuals(lb, cycle, "current_a")
+    out, inn = _strokes(res)
+    notes: list[str] = []
+    nan = float("nan")
+    loc: tuple[float, float, float, str] = (0.0, nan, nan, "-")   # score, mm, width, where
+    side = {"out": nan, "in": nan}
+    levels = {"out": nan, "in": nan}
+    profiles: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for name, r in (("out", out), ("in", inn)):
+        if r is None:
+            notes.append(f"no {name}-stroke in the cycle or the baseline")
+            continue
+        z, pos = r
+        levels[name] = float(np.mean(z))
+        profiles[name] = (z - np.median(z), pos)
+    if out is not None and inn is not None:
+        z_in = profiles["in"][0]
+        both = (profiles["out"][0][:len(lb.phases["out"])] + _matched(lb, z_in)
+                [:len(profiles["out"][0])]) / math.sqrt(2.0)
+        profiles["both"] = (both, profiles["out"][1][:len(both)])
+    for name, (z, pos) in profiles.items():
+        s, k, w = scan(z)
+        if name in side:
+            side[name] = float(pos[min(k, len(pos) - 1)])
+        if s > loc[0]:
+            step = float(np.median(np.abs(np.diff(pos)))) if len(pos) > 1 else nan
+            loc = (s, float(pos[min(k, len(pos) - 1)]), w * step, name)
+    level = (float(np.nanmean([levels["out"], levels["in"]]))
+             if np.isfinite([levels["out"], levels["in"]]).any() else nan)
+    per = _periodic(res, lead_mm)
+    scores = {"localised": loc[0], "level": abs(level),
+              "reversal": _reversal(lb, cycle), "periodic": per[0]}
+    if lead_mm is None:
+        notes.append("periodic: not available (the screw's lead was not given)")
+    return CycleFeatures(cycle.label, cycle.source, cycle.load, cycle.run, cycle.group,
+                         scores, loc[1], loc[2], loc[3],
+                         side["out"], side["in"], levels["out"], levels["in"],
+                         per[1], per[2], per[3], notes)
+
+
+def _reversal(lb: LoadBaseline, cycle: Cycle) -> float:
+    """The larger |mean position-error residual| over the first samples of a stroke."""
+    res = residuals(lb, cycle, "position_error_mm")
+    vals = [abs(float(np.mean(res[n][0][:REVERSAL_SAMPLES]))) for n in ("out", "in")
+            if n in res and len(res[n][0])]
+    return max(vals) if vals else float("nan")
+
+
+def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, list[str]]:
+    """(flagged, the effect named, reasons): the effect is the feature furthest above its
+    threshold (by ratio); no effect when none is above."""
+    ratios = {k: f.scores[k] / thresholds[k] for k in FEATURES
+              if k in thresholds and math.isfinite(f.scores.get(k, nan_))
+              and thresholds[k] > 0}
+    above = {k: r for k, r in ratios.items() if r > 1.0}
+    reasons = [f"{k} {f.scores[k]:.2f} vs threshold {thresholds[k]:.2f}" for k in ratios]
+    if not above:
+        return False, "none", reasons
+    for k in SPECIFIC:
+        if k in above:
+            return True, k, reasons
+    return True, max(above, key=lambda k: above[k]), reasons
+
+
+nan_ = float("nan")
+
+
+def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> dict[str, Any]:
+    """The verdict of one cycle: flagged or not, the effect, where (for a localised one),
+    the scores against their thresholds, and the baseline used."""
+    flagged, effect, reasons = judge(f, thresholds)
+    if not flagged:
+        text = "no significant deviation from the healthy baseline"
+    elif effect == "localised":
+        agree = (abs(f.out_mm - f.in_mm) if math.isfinite(f.out_mm + f.in_mm) else nan_)
+        text = (f"{EFFECTS[effect]} at {f.location_mm:.1f} mm of travel "
+                f"({'both strokes' if f.where == 'both' else f.where + '-stroke'}, "
+                f"about {f.width_mm:.0f} mm wide; out-stroke alone {f.out_mm:.1f} mm, "
+                f"in-stroke alone {f.in_mm:.1f} mm, {agree:.1f} mm apart)")
+    elif effect == "periodic":
+        text = (f"{EFFECTS[effect]}, strongest at {f.periodic_mm:.1f} mm of travel "
+                f"(out-stroke alone {f.periodic_out_mm:.1f} mm, in-stroke alone "
+                f"{f.periodic_in_mm:.1f} mm)")
+    else:
+        text = EFFECTS[effect]
+    others = [k for k in FEATURES if k != effect and k in thresholds
+              and f.scores.get(k, 0.0) > thresholds[k]]
+    if flagged and others:
+        text += "; also above threshold: " + ", ".join(others)
+    return {"cycle": f.label, "flagged": flagged, "effect": effect, "verdict": text,
+            "reasons": reasons, "baseline": base.describe(f.load),
+            "location_mm": location(f, effect)}
+
+
+def location(f: CycleFeatures, effect: str) -> float | None:
+    """Where the named effect is along the stroke (mm), None for an unlocated one."""
+    return {"localised": f.location_mm, "periodic": f.periodic_mm}.get(effect)

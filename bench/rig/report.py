@@ -1,0 +1,199 @@
+"""The study's figures (matplotlib `Figure` API) and its markdown report:
+the current residual against position with the located effect, the detection rate per
+stage and load beside the plain z-score's, the tables of docs/real-data.md."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.rig.cycles import stage_number
+from bench.rig.study import Study, mean_profile
+
+
+def residual_figure(study: Study, path: Path) -> Path:
+    """Per load: the mean current residual (z) against measured position, out- and
+    in-stroke, of the held-out healthy runs and of the first, middle and last fault
+    stage, with each stage's located position (median) marked."""
+    from matplotlib.figure import Figure
+    loads = study.loads
+    fig = Figure(figsize=(12, 3.2 * len(loads)))
+    axes = fig.subplots(len(loads), 2, squeeze=False)
+    faults = study.fault_conditions
+    picked = sorted({0, len(faults) // 2, len(faults) - 1}) if faults else []
+    conds = [study.healthy_condition] + [faults[i] for i in picked]
+    cmap = __import__("matplotlib").colormaps["viridis"]
+    for i, load in enumerate(loads):
+        row = study.summary["loads"][f"{load:g}"]
+        for j, stroke in enumerate(("out", "in")):
+            ax = axes[i][j]
+            for k, cond in enumerate(conds):
+                rs = study.results.get(cond, {}).get(load, [])
+                z, pos = mean_profile(rs, stroke)
+                if not len(z):
+                    continue
+                healthy = cond == study.healthy_condition
+                color = "k" if healthy else cmap(k / max(1, len(conds) - 1))
+                ax.plot(pos, z + 0 * k, color=color, lw=1.6 if healthy else 0.9,
+                        label=f"{cond} (held-out runs)" if healthy else cond)
+                where = row["stages"].get(cond, {}).get("position_mm", float("nan"))
+                if not healthy and math.isfinite(where):
+                    ax.axvline(where, color=color, ls=":", lw=0.8)
+            ax.set_title(f"load {load:g}, {stroke}-stroke: mean current residual")
+            ax.set_xlabel("measured position (mm)")
+            ax.set_ylabel("residual (baseline sd)")
+            ax.grid(alpha=0.3)
+        axes[i][1].legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=72)
+    return path
+
+
+def detection_figure(study: Study, path: Path) -> Path:
+    """Detection rate per stage and load, the bench's detector beside the z-score."""
+    from matplotlib.figure import Figure
+    conds = study.fault_conditions
+    fig = Figure(figsize=(10, 3.6))
+    ax = fig.subplots()
+    x = np.arange(len(conds))
+    width = 0.8 / max(1, len(study.loads))
+    for i, load in enumerate(study.loads):
+        st = study.summary["loads"][f"{load:g}"]["stages"]
+        ours = [st.get(c, {}).get("rate", np.nan) for c in conds]
+        zs = [st.get(c, {}).get("zscore_rate", np.nan) for c in conds]
+        bars = ax.bar(x + (i - (len(study.loads) - 1) / 2) * width, ours, width,
+                      label=f"baseline features, load {load:g}")
+        ax.plot(x + (i - (len(study.loads) - 1) / 2) * width, zs, "_", ms=14, mew=2,
+                color=bars.patches[0].get_facecolor(), markeredgecolor="k")
+    ax.axhline(0.9, color="r", ls="--", lw=0.8, label="goal 90 % (stages 6-8)")
+    ax.set_xticks(x, [str(stage_number(c) or c) for c in conds])
+    ax.set_xlabel("stage (black ticks: plain z-score at the same false-alarm rate)")
+    ax.set_ylabel("cycles flagged")
+    ax.set_ylim(0, 1.05)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def _pct(x: float) -> str:
+    return "-" if not math.isfinite(x) else f"{100 * x:.0f} %"
+
+
+def _mm(x: float) -> str:
+    return "-" if not math.isfinite(x) else f"{x:.1f}"
+
+
+def markdown(study: Study, command: str) -> str:
+    """The report: thresholds, false alarms, detection per stage, location, cost."""
+    sm = study.summary
+    lines = [f"Command: `{command}`", "",
+             f"Baseline: {sm['baseline']}. Thresholds from the calibration runs "
+             f"{sm['calibrate_runs']} only (leave-one-run-out); held-out healthy runs "
+             f"{sm['holdout_runs']}.", "",
+             "| load | held-out healthy cycles flagged | z-score threshold (matched) | "
+             "thresholds |", "|---|---|---|---|"]
+    for load, row in sm["loads"].items():
+        h = row["holdout"]
+        thr = ", ".join(f"{k} {v:.3g}" for k, v in row["thresholds"].items())
+        lines.append(f"| {load} | {h['flagged']} / {h['cycles']} ({_pct(h['rate'])}) | "
+                     f"{row['zscore_threshold']:.3g} | {thr} |")
+    lines += ["", "Detection rate per stage (cycles flagged; in brackets the plain z-score "
+              "at the same false-alarm rate) and the effect named:", "",
+              "| stage | " + " | ".join(f"load {k}" for k in sm["loads"]) + " |",
+              "|---|" + "---|" * len(sm["loads"])]
+    for cond in study.fault_conditions:
+        cells = []
+        for row in sm["loads"].values():
+            d = row["stages"].get(cond)
+            if d is None:
+                cells.append("-")
+                continue
+            eff = ", ".join(f"{k} {v}" for k, v in sorted(d["effects"].items(),
+                                                          key=lambda kv: -kv[1]))
+            cells.append(f"{_pct(d['rate'])} ({_pct(d['zscore_rate'])}); {eff or 'none'}")
+        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+    lines += ["", "Where the named effect lies (flagged cycles with a located effect: "
+              "median position and interquartile range, mm of measured travel; out- and "
+              "in-stroke alone):", "",
+              "| stage | load | located cycles | position mm | IQR mm | out-stroke mm | "
+              "in-stroke mm |", "|---|---|---|---|---|---|---|"]
+    for cond in study.fault_conditions:
+        for load, row in sm["loads"].items():
+            d = row["stages"].get(cond)
+            if d is None:
+                continue
+            n = sum(v for k, v in d["effects"].items() if k in ("localised", "periodic"))
+            lines.append(f"| {stage_number(cond) or cond} | {load} | {n} | "
+                         f"{_mm(d['position_mm'])} | {_mm(d['position_iqr_mm'])} | "
+                         f"{_mm(d['out_mm'])} | {_mm(d['in_mm'])} |")
+    c = sm["cost"]
+    lines += ["", f"Cost: one cycle's features and verdict {1e3 * c['cycle_s_median']:.2f} ms "
+              f"median, {1e3 * c['cycle_s_max']:.0f} ms max (in a worker, {c['cycles']} "
+              "cycles); wall time per condition over `bench.workers.run_all` (the start of "
+              "the two Dask workers, once per study, is in the first condition's):", "",
+              "| condition | cycles | wall s |", "|---|---|---|"]
+    for k, v in c["wall_s"].items():
+        lines.append(f"| {k} | {c['cycles_per_condition'][k]} | {v:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def write(study: Study, out: Path, command: str) -> dict[str, Path]:
+    """baseline.json, study.json, residual.png, detection.png and report.md/.html."""
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"baseline": study.baseline.save(out / "baseline.json")}
+    study.summary["baseline"] = study.baseline.describe()      # now with its file
+    paths["json"] = out / "study.json"
+    paths["json"].write_text(json.dumps(_jsonable(study.summary), indent=1))
+    paths["residual"] = residual_figure(study, out / "residual.png")
+    paths["detection"] = detection_figure(study, out / "detection.png")
+    md = markdown(study, command)
+    md += "\n![residual](residual.png)\n\n![detection](detection.png)\n"
+    paths["md"] = out / "report.md"
+    paths["md"].write_text("# Rig study\n\n" + md)
+    paths["html"] = out / "report.html"
+    paths["html"].write_text(_html(md))
+    return paths
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def _html(md: str) -> str:
+    """A plain HTML page of the markdown (tables and images; no markdown library)."""
+    import html
+    body, in_table = [], False
+    for line in md.splitlines():
+        if line.startswith("|"):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            if set("".join(cells)) <= {"-"}:
+                continue
+            if not in_table:
+                body.append("<table border=1 cellpadding=3>")
+                in_table = True
+            body.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
+            continue
+        if in_table:
+            body.append("</table>")
+            in_table = False
+        if line.startswith("!["):
+            src = line[line.index("(") + 1: line.rindex(")")]
+            body.append(f'<p><img src="{html.escape(src)}" style="max-width:100%"></p>')
+        elif line.strip():
+            body.append(f"<p>{html.escape(line)}</p>")
+    if in_table:
+        body.append("</table>")
+    return ("<!doctype html><meta charset=utf-8><title>Rig study</title><h1>Rig study</h1>"
+            + "\n".join(body))

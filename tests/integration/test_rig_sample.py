@@ -1,0 +1,131 @@
+"""bench.rig on the shipped Cranfield sample (tests/data/cranfield_sample, PROVENANCE.md):
+baseline build, thresholds from healthy runs 1-2 only, no false alarm on held-out healthy
+runs 3-4, the spall found, located and named as a position-locked/periodic effect."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench import BenchError
+from bench.rig import baseline as B
+from bench.rig import population as P
+from bench.rig.cycles import phases, read_cycles
+from bench.rig.features import cycle_features, verdict
+
+SAMPLE = Path(__file__).resolve().parents[1] / "data" / "cranfield_sample"
+LEAD_MM = 5.0               # RM1605: 5 mm lead (the rig's description)
+# the whole development set, load 40, stage 5: median 120.7 mm, IQR 4.8 mm
+SPALL_MM, TOL_MM = 120.7, 10.0
+
+
+@pytest.fixture(scope="module")
+def sample():
+    healthy = read_cycles(SAMPLE / "normal_load40_runs1-4.csv.xz")
+    spall = read_cycles(SAMPLE / "spalling5_load40_runs1-2.csv.xz")
+    cal = [c for c in healthy if c.run in (1, 2)]
+    hold = [c for c in healthy if c.run in (3, 4)]
+    base = B.build(cal, ["normal_load40_runs1-4.csv.xz"])
+    base.lead_mm = LEAD_MM
+    thr = P.calibrate(cal, lead_mm=LEAD_MM).thresholds
+    return base, thr, hold, spall
+
+
+def test_cycles_and_phases_from_the_setpoint():
+    cyc = read_cycles(SAMPLE / "normal_load40_runs1-4.csv.xz")
+    assert len(cyc) == 20 and {c.run for c in cyc} == {1, 2, 3, 4}
+    names = [s.name for s in phases(cyc[0].setpoint_mm)]
+    assert names == ["out", "dwell_top", "in"]
+    assert all(len(c) == 324 for c in cyc)           # the logged samples, none invented
+
+
+def test_baseline_per_phase_direction_and_load(sample, tmp_path):
+    base, _, _, _ = sample
+    lb = base.for_load(40)
+    assert lb.n == 10 and lb.runs == [1, 2]
+    assert set(lb.phases) == {"out", "dwell_top", "in"}
+    assert lb.phases["out"].direction == 1 and lb.phases["in"].direction == -1
+    assert np.all(lb.phases["out"].std["current_a"] > 0)
+    assert "current_constant" in lb.indexes["out"]
+    again = B.Baseline.load(base.save(tmp_path / "b.json"))
+    assert again.lead_mm == LEAD_MM
+    np.testing.assert_allclose(again.for_load(40).phases["in"].mean["current_a"],
+                               lb.phases["in"].mean["current_a"], atol=1e-6)
+    with pytest.raises(BenchError, match="no load 20"):
+        base.for_load(20)
+
+
+def test_held_out_healthy_cycles_are_not_flagged(sample):
+    base, thr, hold, _ = sample
+    feats = [cycle_features(base.for_load(40), c, LEAD_MM) for c in hold]
+    r = P.rates(feats, thr)
+    assert r["cycles"] == 10
+    assert r["flagged"] <= 1                         # at most 10 %, measured 0
+
+
+def test_spall_is_detected_located_and_named_localised(sample):
+    base, thr, _, spall = sample
+    out = [verdict(base, cycle_features(base.for_load(40), c, LEAD_MM), thr) for c in spall]
+    assert sum(v["flagged"] for v in out) >= 9
+    for v in out:
+        if v["flagged"]:
+            assert v["effect"] in ("periodic", "localised"), v
+            assert "backlash" not in v["verdict"].split(";")[0]
+            assert "friction" not in v["verdict"].split(";")[0]
+            assert "runs 1,2" in v["baseline"] and "normal_load40" in v["baseline"]
+    where = np.median([v["location_mm"] for v in out if v["flagged"]])
+    assert abs(where - SPALL_MM) < TOL_MM, where
+
+
+def test_cli_baseline_and_assess(tmp_path, capsys):
+    from bench.cli import main
+    b = tmp_path / "base.json"
+    assert main(["rig", "baseline", str(SAMPLE / "normal_load40_runs1-4.csv.xz"),
+                 "--runs", "1,2", "--lead-mm", "5", "--out", str(b)]) == 0
+    assert "periodic" in json.loads(b.read_text())["thresholds"]["40"]["thresholds"]
+    assert main(["rig", "assess", str(SAMPLE / "spalling5_load40_runs1-2.csv.xz"),
+                 "--baseline", str(b), "-q"]) == 0
+    text = capsys.readouterr().out
+    assert "spalling5_load40_runs1-2 load 40:" in text
+    assert main(["rig", "assess", str(SAMPLE / "spalling5_load40_runs1-2.csv.xz"),
+                 "--baseline", str(tmp_path / "none.json")]) == 2
+    assert "error: no such baseline" in capsys.readouterr().err
+    assert main(["rig", "baseline", str(SAMPLE / "normal_load40_runs1-4.csv.xz"),
+                 "--runs", "x", "--out", str(b)]) == 2
+
+
+def test_study_on_the_sample_writes_the_report(tmp_path, capsys):
+    from bench.cli import main
+    out = tmp_path / "study"
+    assert main(["rig", "study", str(SAMPLE), "--calibrate-runs", "1,2", "--holdout-runs",
+                 "3,4", "--lead-mm", "5", "--workers", "1", "--out", str(out)]) == 0
+    sm = json.loads((out / "study.json").read_text())
+    row = sm["loads"]["40"]
+    assert row["holdout"]["cycles"] == 10 and row["holdout"]["flagged"] <= 1
+    assert row["stages"]["spalling5_load40_runs1-2"]["rate"] >= 0.9
+    for name in ("report.md", "report.html", "residual.png", "detection.png",
+                 "baseline.json"):
+        assert (out / name).stat().st_size > 0
+    assert "runs 1,2" in (out / "report.md").read_text()
+    assert main(["rig", "study", str(SAMPLE), "--calibrate-runs", "1,2", "--holdout-runs",
+                 "2,3", "--out", str(out)]) == 2
+    assert "overlap" in capsys.readouterr().err
+
+
+def test_imported_traces_give_the_same_baseline(tmp_path, sample):
+    """`bench import --split-by load,run,group` traces -> the same cycles and thresholds as
+    the table itself."""
+    from bench.cli import main
+    assert main(["import", str(SAMPLE / "normal_load40_runs1-4.csv.xz"), "--map",
+                 str(Path(__file__).resolve().parents[2] / "bench" / "actuators"
+                     / "cranfield_map.json"),
+                 "--split-by", "load,run,group", "-o", str(tmp_path)]) == 0
+    cycles = [c for p in sorted(tmp_path.glob("*.parquet")) for c in read_cycles(p)]
+    assert len(cycles) == 20 and {c.load for c in cycles} == {40.0}
+    cal = [c for c in cycles if c.run in (1, 2)]
+    thr = P.calibrate(cal, lead_mm=LEAD_MM).thresholds
+    for k, v in sample[1].items():
+        assert thr[k] == pytest.approx(v, rel=1e-6), k

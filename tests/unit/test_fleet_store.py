@@ -1,0 +1,183 @@
+"""The fleet store on tiny hand-made stores: schema versions and migration, idempotent
+writes, export, the status (trend, RUL over days), the ingest's path and id rules."""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+
+import duckdb
+import numpy as np
+import pytest
+
+from bench import BenchError
+from bench.fleet import ingest as G
+from bench.fleet import schema as S
+from bench.fleet import status as T
+from bench.fleet.store import Store
+
+T0 = dt.datetime(2026, 1, 5, 8, 0)
+
+
+def run_row(k: int, actuator: str = "A1", ci: float = 1.0, verdict: str = "HEALTHY",
+            **extra: object) -> dict[str, object]:
+    return {"digest": f"d{actuator}{k:05d}", "actuator_id": actuator,
+            "run_time": T0 + dt.timedelta(days=k), "path": f"/logs/{actuator}/{k}.log",
+            "bytes": 100, "rows": 2000, "duration_s": 2.0, "mode": 1, "f0_hz": 2.0,
+            "verdict": verdict, "level": 0, "reasons": "r", "notes": "", "ci": ci,
+            "ci_harmonic": ci, "cp": 1.0, **extra}
+
+
+def test_new_store_is_at_the_current_version(tmp_path):
+    with Store(tmp_path / "f.duckdb") as st:
+        assert S.version(st.con) == S.SCHEMA_VERSION == 2
+        cols = {r[0] for r in st.con.execute("DESCRIBE runs").fetchall()}
+    assert set(S.USAGE_COLUMNS) <= cols and {"digest", "actuator_id", "run_time"} <= cols
+
+
+def test_v1_store_migrates_and_keeps_its_data(tmp_path):
+    path = tmp_path / "v1.duckdb"
+    con = S.connect(path, target=1)
+    assert S.version(con) == 1
+    con.execute("INSERT INTO runs (digest, actuator_id, run_time, ci, verdict) VALUES "
+                "('abc', 'A7', TIMESTAMP '2026-01-05 08:00:00', 0.91, 'DEGRADED')")
+    con.execute("INSERT INTO failures (digest, path, error) VALUES ('bad', '/x.log', 'e')")
+    assert "travel_m" not in {r[0] for r in con.execute("DESCRIBE runs").fetchall()}
+    con.close()
+    with Store(path) as st:                    # opening for writing migrates
+        assert S.version(st.con) == 2
+        row = st.con.execute("SELECT actuator_id, ci, verdict, travel_m, life_consumed "
+                             "FROM runs").fetchall()
+        assert row == [("A7", 0.91, "DEGRADED", None, None)]
+        assert st.known() == {"abc", "bad"}
+
+
+def test_a_newer_store_is_refused(tmp_path):
+    path = tmp_path / "new.duckdb"
+    Store(path).close()
+    con = duckdb.connect(str(path))
+    con.execute("UPDATE meta SET value = '99' WHERE key = 'schema_version'")
+    con.close()
+    with pytest.raises(BenchError, match="newer"):
+        Store(path)
+
+
+def test_read_only_needs_an_existing_current_store(tmp_path):
+    with pytest.raises(BenchError, match="no fleet store"):
+        Store(tmp_path / "none.duckdb", read_only=True)
+    S.connect(tmp_path / "old.duckdb", target=1).close()
+    with pytest.raises(BenchError, match="schema version 1"):
+        Store(tmp_path / "old.duckdb", read_only=True)
+
+
+def test_the_same_digest_is_stored_once(tmp_path):
+    with Store(tmp_path / "f.duckdb") as st:
+        assert st.write([run_row(0), run_row(1)]) == 2
+        assert st.write([run_row(1), run_row(2)]) == 1
+        assert st.write([{"digest": "dA100002", "path": "p", "error": "x"}]) == 1
+        assert st.con.execute("SELECT count(*), count(DISTINCT digest) FROM runs"
+                              ).fetchone() == (3, 3)
+
+
+def test_a_failing_batch_leaves_nothing(tmp_path):
+    with Store(tmp_path / "f.duckdb") as st:
+        bad = run_row(1)
+        bad["run_time"] = None                 # NOT NULL
+        with pytest.raises(duckdb.Error):
+            st.write([run_row(0), bad])
+        assert st.count() == 0
+
+
+def test_export_is_plain_parquet(tmp_path):
+    with Store(tmp_path / "f.duckdb") as st:
+        st.write([run_row(k) for k in range(3)])
+        paths = st.export(tmp_path / "out")
+    assert sorted(p.name for p in paths) == ["failures.parquet", "meta.parquet",
+                                              "runs.parquet"]
+    con = duckdb.connect()
+    n, a = con.execute(f"SELECT count(*), min(actuator_id) FROM "
+                       f"'{tmp_path / 'out' / 'runs.parquet'}'").fetchone()
+    assert (n, a) == (3, "A1")
+
+
+def test_status_trend_and_rul_over_days(tmp_path):
+    days = np.arange(40)
+    ci = np.where(days < 20, 1.0, 1.0 - 0.02 * (days - 20))   # 0.93 at day 23.5
+    with Store(tmp_path / "f.duckdb") as st:
+        st.write([run_row(int(k), "A1", float(c)) for k, c in zip(days[:32], ci[:32], strict=True)])
+        st.write([run_row(int(k), "B2", 1.0) for k in days[:5]])
+        rows = T.fleet_status(st)
+    a, b = rows
+    assert (a.ident, a.tests, b.ident, b.tests) == ("A1", 32, "B2", 5)
+    assert a.slope_per_day == pytest.approx(-0.02, rel=1e-6)
+    assert math.isfinite(a.rul_days) and a.rul_days > 0     # warning crossed on day 31
+    lo, hi = a.rul_band_days
+    assert lo <= a.rul_days <= hi
+    # the line reaches 0.56 on day 42: 11 days after the last test
+    assert a.rul_days == pytest.approx(11.0, abs=1.0)
+    assert not math.isfinite(b.rul_days) and "above the threshold" in b.rul_why
+    assert b.slope_per_day == pytest.approx(0.0, abs=1e-12)
+    text = T.format_table(rows)
+    assert "A1" in text.splitlines()[1] and "n/a (no run with a load signal)" in text
+
+
+def test_usage_columns_of_a_constant_load_run():
+    """2 rev/s for 5 s under 5 kN, winding 410 K for the second half: the store's usage
+    columns by hand (L10 = (22 kN / 5 kN)^3 10^6 rev, docs/usage.md)."""
+
+    from bench.trace import Trace
+    from plant_rt.params import PlantParams
+    p = PlantParams()
+    n, dt = 5001, 1e-3
+    rev = np.arange(n) * 0.002
+    temp = np.where(np.arange(n) < 2500, 300.0, 410.0)
+    tr = Trace({"t_s": np.arange(n) * dt,
+                "motor_angle_rad": rev * 2 * math.pi / p.reducer.ratio,
+                "load_force_n": np.full(n, 5000.0), "current_a": np.full(n, 2.0),
+                "winding_temperature_k": temp}, {"period_s": dt})
+    u = G.usage_columns(tr)
+    assert set(u) == set(S.USAGE_COLUMNS)
+    assert u["screw_revs"] == pytest.approx(10.0, abs=1e-3)
+    assert u["travel_m"] == pytest.approx(10.0 * p.screw.lead_m, rel=1e-3)
+    assert u["equivalent_load_n"] == pytest.approx(5000.0, rel=1e-9)
+    assert u["life_consumed"] == pytest.approx(u["screw_revs"] / (4.4 ** 3 * 1e6), rel=1e-9)
+    assert u["reversals"] == 0
+    assert u["i2t_a2s"] == pytest.approx(4.0 * 5.0, rel=1e-2)
+    assert u["time_hot_s"] == pytest.approx(2.5, abs=0.01)
+
+
+def test_expand_files_dirs_globs_and_missing(tmp_path):
+    (tmp_path / "a" / "b").mkdir(parents=True)
+    for p in ("a/x.log", "a/b/y.log", "a/b/z.npz", "a/b/notes.txt"):
+        (tmp_path / p).write_text("x")
+    got = G.expand([str(tmp_path / "a")])
+    assert [p.name for p in got] == ["y.log", "z.npz", "x.log"]
+    assert [p.name for p in G.expand([str(tmp_path / "**" / "*.log")])] == ["y.log", "x.log"]
+    with pytest.raises(BenchError, match="no such file"):
+        G.expand([str(tmp_path / "nope")])
+
+
+def test_actuator_id_rule(tmp_path):
+    from bench.trace import Trace
+    f = tmp_path / "EMA-7" / "run.log"
+    tr = Trace({"t_s": np.zeros(2)})
+    assert G.actuator_id(tr, f, None) == "EMA-7"
+    assert G.actuator_id(tr, f, "X1") == "X1"
+    tr.meta["serial_number"] = 123456
+    assert G.actuator_id(tr, f, "X1") == "123456"
+
+
+def test_ingest_passes_workers_and_scheduler_to_the_pool(tmp_path, monkeypatch):
+    import bench.workers
+    seen = {}
+
+    def fake_run_all(fn, jobs, workers=None, progress=True, **kw):
+        seen.update(workers=workers, jobs=list(jobs), **kw)
+        return []
+    monkeypatch.setattr(bench.workers, "run_all", fake_run_all)
+    (tmp_path / "A3").mkdir()
+    (tmp_path / "A3" / "x.log").write_text("(1.0) can0 080#01\n")
+    res = G.ingest([str(tmp_path / "A3")], tmp_path / "f.duckdb", workers=3,
+                   scheduler="tcp://127.0.0.1:1", progress=False)
+    assert seen["workers"] == 3 and seen["scheduler"] == "tcp://127.0.0.1:1"
+    assert [j[2] for j in seen["jobs"]] == [None] and res.files == 1

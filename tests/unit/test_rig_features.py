@@ -1,0 +1,90 @@
+"""bench.rig on synthetic trapezoid cycles: phases with ramps, a localised transient
+located where it was put, a level shift named friction-like, not localised."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bench import BenchError
+from bench.rig import baseline as B
+from bench.rig.cycles import Cycle, phases, ramps
+from bench.rig.features import cycle_features, judge
+
+
+def trapezoid(rng, bump_mm=None, level=0.0, run=1, group=1):
+    up = np.linspace(20, 140, 126)[:-1]
+    sp = np.r_[up, np.full(75, 140.0), up[::-1] + 0.96]
+    pos = sp - 0.05
+    d = np.sign(np.r_[np.diff(sp), 0.0])
+    cur = 0.8 + 0.15 * d + 0.05 * rng.standard_normal(len(sp)) + level * (d != 0)
+    if bump_mm is not None:
+        cur += 0.25 * np.exp(-0.5 * ((pos - bump_mm) / 2.0) ** 2) * (d != 0)
+    return Cycle(np.arange(len(sp)) * 0.04, sp, pos, cur, 20.0, run, group, "synthetic")
+
+
+@pytest.fixture(scope="module")
+def base():
+    rng = np.random.default_rng(7)
+    return B.build([trapezoid(rng, run=r, group=g) for r in (1, 2) for g in range(5)])
+
+
+def test_phases_and_ramps():
+    sp = np.r_[np.zeros(5), np.linspace(0, 1, 5) ** 2 * 2, 2 + np.arange(1, 20),
+               np.full(6, 21.0)]
+    segs = phases(sp)
+    assert [s.name for s in segs] == ["dwell_bottom", "out", "dwell_top"]
+    r = ramps(sp, segs[1])
+    assert r["accel"].stop > r["accel"].start and r["constant"].stop > r["constant"].start
+
+
+def test_localised_transient_is_located(base):
+    rng = np.random.default_rng(11)
+    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
+    f = cycle_features(base.for_load(20), trapezoid(rng, bump_mm=95.0))
+    hit, effect, _ = judge(f, thr)
+    assert hit and effect == "localised"
+    assert abs(f.location_mm - 95.0) < 4.0
+    assert abs(f.out_mm - f.in_mm) < 6.0
+
+
+def test_level_shift_is_friction_like_not_localised(base):
+    rng = np.random.default_rng(12)
+    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
+    f = cycle_features(base.for_load(20), trapezoid(rng, level=0.2))
+    hit, effect, _ = judge(f, thr)
+    assert hit and effect == "level"
+    assert f.scores["localised"] < thr["localised"]
+
+
+def test_healthy_cycle_is_not_flagged(base):
+    rng = np.random.default_rng(13)
+    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
+    assert not judge(cycle_features(base.for_load(20), trapezoid(rng)), thr)[0]
+
+
+def test_baseline_needs_cycles_and_a_load():
+    rng = np.random.default_rng(1)
+    with pytest.raises(BenchError, match="at least 3"):
+        B.build([trapezoid(rng), trapezoid(rng)])
+    c = trapezoid(rng)
+    c.load = float("nan")
+    with pytest.raises(BenchError, match="no load"):
+        B.build([c] * 3)
+
+
+def test_runs_list():
+    from bench.cli.rig import runs_list
+    assert runs_list("1,3-4", "--runs") == [1, 3, 4]
+    with pytest.raises(BenchError, match="--runs"):
+        runs_list("a", "--runs")
+
+
+def test_a_damaged_or_foreign_baseline_is_a_clear_error(tmp_path):
+    p = tmp_path / "b.json"
+    p.write_text('{"format": "bench-rig-baseline/1", "sources": [], "loads": [{"load": 1}]}')
+    with pytest.raises(BenchError, match="damaged baseline"):
+        B.Baseline.load(p)
+    p.write_text('{"hello": 1}')
+    with pytest.raises(BenchError, match="not a baseline"):
+        B.Baseline.load(p)
