@@ -16,8 +16,8 @@ A log that cannot be read or graded is stored in ``failures`` with its one-line 
 
 The actuator id, in order: the log's own (``actuator_id``, ``actuator_serial`` or
 ``serial_number`` in the decoded trace's metadata: the 0x1018 serial number the ECU
-reads by SDO, once the log decoder reports it), else
-``--actuator``, else the name of the file's parent directory.
+reads by SDO, which the log decoder reports; "unknown" and the default 0 name no
+actuator), else ``--actuator``, else the name of the file's parent directory.
 The run time: the first time stamp of a candump log (the bus clock, UTC), else a trace
 table's ``run_time``/``start_time`` metadata (epoch seconds or ISO 8601), else the
 file's modification time.
@@ -104,13 +104,19 @@ def digest(path: str | Path) -> str:
 
 # --- one log ---------------------------------------------------------------------------------
 
+NO_ID = ("", "unknown", "0")
+"""Serial numbers that name no actuator: none in the log ("unknown": a node without
+0x1018, or a log without the ECU's start-up) and 0, the plant's default when no
+``--serial`` was given (every such plant would otherwise be one actuator)."""
+
+
 def actuator_id(trace: Trace | None, path: Path, given: str | None) -> str:
     """The actuator id (module docstring: the log's, else `given`, else the parent
     directory's name)."""
     if trace is not None:
         for key in ("actuator_id", "actuator_serial", "serial_number"):
             v = trace.meta.get(key)
-            if v not in (None, ""):
+            if v is not None and str(v) not in NO_ID:
                 return str(v)
     if given:
         return given

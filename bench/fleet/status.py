@@ -159,7 +159,7 @@ def rul_text(st: ActuatorStatus) -> str:
 def usage_text(st: ActuatorStatus) -> str:
     if not math.isfinite(st.life_consumed):
         return "n/a (no run with a load signal)"
-    return f"{100.0 * st.life_consumed:.2f} % of L10"
+    return f"{100.0 * st.life_consumed:.3g} % of L10"
 
 
 HEADER = ("actuator", "tests", "last test (UTC)", "level", "Ci", "trend Ci/day",

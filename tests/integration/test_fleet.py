@@ -45,7 +45,7 @@ def test_synth_ingest_status_report_export(fleet, tmp_path, capsys):
     assert main(["fleet", "status", "--db", db]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 3 and lines[1].startswith("EMA-0000") and " 3 " in lines[1]
-    assert "HEALTHY" in lines[1] and "n/a (usage not computed yet)" in lines[1]
+    assert "HEALTHY" in lines[1] and "% of L10" in lines[1]      # usage from the logs
     rep = tmp_path / "rep"
     assert main(["fleet", "report", "--db", db, "--out", str(rep)]) == 0
     page = (rep / "index.html").read_text()

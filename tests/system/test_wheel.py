@@ -54,11 +54,11 @@ def venv(tmp_path_factory) -> tuple[Path, dict[str, str], Path]:
     return tmp / "venv", env, wheels[0]
 
 
-def test_wheel_holds_the_three_packages_and_the_bus_description(venv):
+def test_wheel_holds_the_four_packages_and_the_bus_description(venv):
     root, env, wheel = venv
     names = zipfile.ZipFile(wheel).namelist()
     top = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
-    assert top == {"bench", "plant_rt", "ema_contract"}, top
+    assert top == {"bench", "plant_rt", "ema_contract", "indie_plant"}, top
     assert {"ema_contract/dbc/ema.dbc", "ema_contract/dbc/ema.eds"} <= set(names)
     code = ("import bench, ema_contract; "
             "from ema_contract.frames import dbc_path, eds_path, load_od, Frames; "
