@@ -28,6 +28,7 @@ from bench.hums.fusion import Calibration, FusedPredictor, causal_median, fused_
 from bench.hums.metrics import score_run
 from bench.hums.records import RunRecord, simulate_record, true_failure_time
 from bench.hums.rul import N_BOOT, WARNING, Prediction, thesis_predict, thesis_profile
+from bench.jsonsafe import json_safe
 from bench.workers import run_all
 from plant_rt.params import PlantParams
 
@@ -318,19 +319,7 @@ def campaign_markdown(res: CampaignResult) -> str:
 
 def campaign_json(res: CampaignResult) -> dict[str, Any]:
     """The campaign as JSON (non-finite numbers as null)."""
-    def enc(v: Any) -> Any:
-        if isinstance(v, float) and not math.isfinite(v):
-            return None
-        if isinstance(v, dict):
-            return {k: enc(x) for k, x in v.items()}
-        if isinstance(v, (list, tuple)):
-            return [enc(x) for x in v]
-        if isinstance(v, (np.floating, np.integer)):
-            return enc(v.item())
-        if isinstance(v, np.bool_):
-            return bool(v)
-        return v
-    return enc({"summary": res.summary, "healthy_alarm": res.healthy_alarm,
+    return json_safe({"summary": res.summary, "healthy_alarm": res.healthy_alarm,
                 "runs": [{"index": s.index, "params": s.params, "t_failure_s": s.t_failure_s,
                           "methods": s.per_method} for s in res.scores],
                 "calibration": {k: v for k, v in res.cal.to_json().items()

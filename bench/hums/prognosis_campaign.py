@@ -38,6 +38,7 @@ from bench.hums.prognosis import (
     index_wear,
 )
 from bench.hums.rul import FAILURE, Prediction
+from bench.jsonsafe import json_safe
 from plant_rt.params import PlantParams
 
 CAL_SWEEP_SEED = 9990
@@ -405,18 +406,6 @@ def markdown(res: UsageCampaignResult) -> str:
 
 def to_json(res: UsageCampaignResult) -> dict[str, Any]:
     """The campaign as JSON (non-finite numbers as null)."""
-    def enc(v: Any) -> Any:
-        if isinstance(v, float) and not math.isfinite(v):
-            return None
-        if isinstance(v, dict):
-            return {str(k): enc(x) for k, x in v.items()}
-        if isinstance(v, list | tuple):
-            return [enc(x) for x in v]
-        if isinstance(v, np.floating | np.integer):
-            return enc(v.item())
-        if isinstance(v, np.bool_):
-            return bool(v)
-        return v
-    return enc({"summary": res.summary, "false_alarms": res.false_alarms,
+    return json_safe({"summary": res.summary, "false_alarms": res.false_alarms,
                 "runs": res.runs, "calibration": res.cal.to_json(), "args": res.args,
                 "elapsed_s": res.elapsed_s, "sim_s": res.sim_s, "machine": res.machine})

@@ -28,6 +28,7 @@ from bench import BenchError
 from bench.hums import indexes as I
 from bench.hums import monitor as M
 from bench.hums.verdict import LEVELS, UNKNOWN, judge  # noqa: F401  (LEVELS, UNKNOWN: re-exported)
+from bench.jsonsafe import json_safe
 from bench.trace import MEASURED, MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
 
@@ -438,16 +439,8 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
     js = [{"log": a.name, "verdict": a.verdict, "reasons": a.reasons, "log_notes": a.notes,
            "bridged_samples": a.bridged,
            "fundamental_hz": a.f0_hz if math.isfinite(a.f0_hz) else None,
-           "indexes": _clean(a.indexes.to_json()), "rul": _rul_text(a)} for a in analyses]
+           "indexes": json_safe(a.indexes.to_json()), "rul": _rul_text(a)} for a in analyses]
     (out / "indexes.json").write_text(json.dumps(js, indent=2))
     return page, analyses
 
 
-def _clean(v: Any) -> Any:
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: _clean(x) for k, x in v.items()}
-    if isinstance(v, list):
-        return [_clean(x) for x in v]
-    return v
