@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import can
+from can.util import channel2int
 
 from bench import BenchError
 
@@ -42,8 +43,39 @@ def open_writer(path: str | Path, max_bytes: int = 0) -> Any:
         if suffix not in ROTATING_FORMATS:
             raise BenchError(f"--max-bytes: python-can rotates {', '.join(ROTATING_FORMATS)} "
                              f"logs, not {suffix}")
-        return can.SizedRotatingLogger(str(path), max_bytes=max_bytes)
-    return can.Logger(str(path))
+        return ChannelSafe(can.SizedRotatingLogger(str(path), max_bytes=max_bytes))
+    return ChannelSafe(can.Logger(str(path)))
+
+
+MAX_CHANNEL = 255
+"""The largest channel number every format stores (ASAM MDF4 keeps it in a byte)."""
+
+
+class ChannelSafe(can.Listener):
+    """A writer that stores a frame whose bus channel number it cannot hold with no
+    channel. python-can's binary writers take the number from the channel name's trailing
+    digits (`can.util.channel2int`): a virtual bus named ``bench-624`` made the MF4 writer
+    raise OverflowError (a byte) and lose the log. The bench reads no channel back."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+
+    def on_message_received(self, msg: can.Message) -> None:
+        ch = channel2int(msg.channel)
+        if ch is not None and not 0 <= ch <= MAX_CHANNEL:
+            msg = can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
+                              is_extended_id=msg.is_extended_id, is_remote_frame=
+                              msg.is_remote_frame, is_error_frame=msg.is_error_frame,
+                              dlc=msg.dlc, data=msg.data, is_fd=msg.is_fd, is_rx=msg.is_rx,
+                              bitrate_switch=msg.bitrate_switch,
+                              error_state_indicator=msg.error_state_indicator)
+        self.inner.on_message_received(msg)
+
+    def stop(self) -> None:
+        self.inner.stop()
+
+    def __getattr__(self, name: str) -> Any:       # file, writer, file_size, ...
+        return getattr(self.inner, name)
 
 
 def flush(writer: Any) -> None:
