@@ -58,7 +58,7 @@ class ChannelSafe(can.Listener):
     raise OverflowError (a byte) and lose the log. The bench reads no channel back."""
 
     def __init__(self, inner: Any) -> None:
-        self.inner = inner
+        object.__setattr__(self, "inner", inner)
 
     def on_message_received(self, msg: can.Message) -> None:
         ch = channel2int(msg.channel)
@@ -76,6 +76,9 @@ class ChannelSafe(can.Listener):
 
     def __getattr__(self, name: str) -> Any:       # file, writer, file_size, ...
         return getattr(self.inner, name)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        setattr(self.inner, name, value)
 
 
 def flush(writer: Any) -> None:
