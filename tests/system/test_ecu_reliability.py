@@ -73,23 +73,27 @@ def test_a_second_ecu_is_refused_and_the_first_run_stays_clean(env, tmp_path):
     second is refused before it sends a frame, so the first run is not disturbed and
     ends as an honest success (its log has no foreign frame and no lost SYNC)."""
     watch = Collector(env)
-    first, log, saved = run_proc(env, tmp_path, "sine", "--duration", "3", name="first")
+    # 20 s of lockstep periods: on an idle machine a 3 s run ended before the second
+    # ECU had started (2-4 s of imports), which then rightly ran alone
+    first, log, saved = run_proc(env, tmp_path, "sine", "--duration", "20", name="first")
     try:
         wait_until(lambda: watch.ids().count(SYNC) > 300, 60, "the first run's SYNCs")
         second = bench("run", "step", "--pace", "sync", "--log", str(tmp_path / "b.log"),
                        *env.flags, env=env.env, timeout=60)
+        still_running = first.poll() is None
         out, err = finish(first, 120)
     finally:
         watch.close()
+    assert still_running, "the first run ended before the second ECU was done: lengthen it"
     assert second.returncode == 2, second.stderr
     assert second.stderr.strip().splitlines()[-1] == (
         "error: another ECU is driving node 0x10 (SYNC from another producer); "
         "stop it first"), second.stderr
     assert first.returncode == 0, err
     tr = Trace.load(saved)
-    assert tr.meta["complete"] and len(tr) == 3000
+    assert tr.meta["complete"] and len(tr) == 20000
     dec = trace_from_log(log)
-    assert dec.meta["sync_gaps"] == 0 and dec.meta["runs"] == 1 and len(dec) == 3000
+    assert dec.meta["sync_gaps"] == 0 and dec.meta["runs"] == 1 and len(dec) == 20000
     # the refused ECU never sent NMT: only the first run's reset, start and pre-op
     cmds = [m.data[0] for m in watch.msgs if m.arbitration_id == NMT]
     assert cmds == [int(NMTCommand.RESET_NODE), int(NMTCommand.START),
