@@ -291,7 +291,6 @@ def run_rul(args: argparse.Namespace) -> int:
 
 def run_campaign(args: argparse.Namespace) -> int:
     from bench.hums import campaign as R
-    from bench.hums.table import replace_section
     _check_workers(args)
     if args.usage:
         return _run_usage_campaign(args)
@@ -310,25 +309,31 @@ def run_campaign(args: argparse.Namespace) -> int:
         print(f"wrote {p}")
     _write_json(args.json, R.campaign_json(res))
     if args.doc:
-        body = text
-        if paths:
-            from bench.hums.table import figure_links
-            body += "\n" + "\n".join(figure_links(paths, _doc_dir(args.doc))) + "\n"
-        replace_section(args.doc, "campaign", body)
-        print(f"updated {args.doc}")
+        _doc_section(args.doc, "campaign", text, paths)
     return 0
+
+
+def _doc_section(doc: str, name: str, text: str, paths: list[Path]) -> None:
+    """Replace section `name` of `doc` with `text` and links to the figures `paths`."""
+    from bench.hums.table import figure_links, replace_section
+    body = text
+    if paths:
+        body += "\n" + "\n".join(figure_links(paths, _doc_dir(doc))) + "\n"
+    replace_section(doc, name, body)
+    print(f"updated {doc}")
 
 
 def _run_usage_campaign(args: argparse.Namespace) -> int:
     from bench.hums import prognosis_campaign as PC
     from bench.hums.prognosis_trends import default_calibration_path
-    from bench.hums.table import replace_section
     n = 50 if args.runs is None else args.runs
     nh = 5 if args.healthy is None else args.healthy
     if n < 1 or nh < 0 or args.max_days < 2:
         raise BenchError("--runs must be >= 1, --healthy >= 0 and --max-days >= 2")
-    res = PC.run_usage_campaign(n, n_healthy=nh, seed=args.seed, params=_params(args),
-                                workers=args.workers, max_days=args.max_days)
+    from bench.workers import session
+    with session(args.workers, args.scheduler):     # one cluster: simulation, prognosis
+        res = PC.run_usage_campaign(n, n_healthy=nh, seed=args.seed, params=_params(args),
+                                    workers=args.workers, max_days=args.max_days)
     text = PC.markdown(res)
     print(text)
     cal_path = Path(args.calibration_out or default_calibration_path())
@@ -342,12 +347,7 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
     for p in paths:
         print(f"wrote {p}")
     if args.doc:
-        body = text
-        if paths:
-            from bench.hums.table import figure_links
-            body += "\n" + "\n".join(figure_links(paths, _doc_dir(args.doc))) + "\n"
-        replace_section(args.doc, "usage-campaign", body)
-        print(f"updated {args.doc}")
+        _doc_section(args.doc, "usage-campaign", text, paths)
     return 0
 
 

@@ -86,3 +86,22 @@ def test_every_command_with_workers_takes_a_scheduler(argv):
     args = build_parser(full).parse_args(full)
     assert args.workers == 3 and args.scheduler == "tcp://127.0.0.1:8786"
     assert build_parser(argv).parse_args(argv).scheduler is None
+
+
+def test_the_usage_campaign_runs_on_the_given_scheduler(monkeypatch):
+    """`bench hums campaign --usage --scheduler ADDR` took the flag and ignored it (its
+    run_all calls started a local cluster): its work now runs inside the command's
+    session, as the other campaign does."""
+    from bench import BenchError
+    from bench import workers as W
+    from bench.cli import main
+    from bench.hums import prognosis_campaign as PC
+    seen = []
+
+    def fake(*a, **kw):
+        seen.append([s.scheduler for s in W._SESSIONS])
+        raise BenchError("stop here")
+    monkeypatch.setattr(PC, "run_usage_campaign", fake)
+    assert main(["hums", "campaign", "--usage", "--runs", "2",
+                 "--scheduler", "tcp://127.0.0.1:8786"]) != 0
+    assert seen == [["tcp://127.0.0.1:8786"]]
