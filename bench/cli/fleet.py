@@ -75,12 +75,17 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
     q = s.add_parser("synth", help="a synthetic fleet of ground-test logs",
                      description="N actuators x D days of daily ground tests (the thesis' "
-                     "2 Hz sine), each actuator with its own wear schedule, simulated "
+                     "2 Hz sine), each actuator with its own wear (driven by its own "
+                     "flights by default), simulated "
                      "in-process and written as candump logs in OUT/<actuator>/.")
     q.add_argument("--actuators", type=int, required=True, metavar="N")
     q.add_argument("--days", type=int, required=True, metavar="D")
     q.add_argument("--out", required=True, metavar="DIR")
     q.add_argument("--seed", type=int, default=0)
+    q.add_argument("--wear", choices=["use", "time"], default="use",
+                   help="use: wear driven by each actuator's flights (life consumed, "
+                   "ISO 3408-5 L10 with Palmgren-Miner); time: the thesis' schedule in "
+                   "days (default: %(default)s; docs/fleet.md)")
     pool(q)
     q.set_defaults(func=run_synth)
 
@@ -164,7 +169,7 @@ def run_synth(args: argparse.Namespace) -> int:
     check_output_dir(args.out, "--out")
     t0 = time.perf_counter()
     paths = synth(args.actuators, args.days, args.out, args.seed, _workers(args),
-                  scheduler=args.scheduler)
+                  scheduler=args.scheduler, wear=args.wear)
     dt = time.perf_counter() - t0
     print(f"{len(paths)} logs in {args.out} ({dt:.1f} s, {len(paths) / dt:.2f} logs/s)")
     return 0
