@@ -58,6 +58,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     q.add_argument("--trend-tests", type=int, default=10, metavar="N",
                    help="tests the Ci trend is fitted over, the last ones (default: "
                    "%(default)s)")
+    q.add_argument("--as-of", metavar="TIME", default=None,
+                   help="the status as it was then: only tests up to TIME count (ISO "
+                   "8601, UTC; a date alone is the end of that day)")
     q.set_defaults(func=run_status)
 
     q = s.add_parser("report", help="HTML report: what to inspect this week, per actuator",
@@ -120,18 +123,19 @@ def run_ingest(args: argparse.Namespace) -> int:
 
 
 def run_status(args: argparse.Namespace) -> int:
-    from bench.fleet.status import fleet_status, format_table, urgency
+    from bench.fleet.status import fleet_status, format_table, parse_as_of, urgency
     from bench.fleet.store import Store
     if args.trend_tests < 2:
         raise BenchError("--trend-tests must be at least 2")
+    as_of = parse_as_of(args.as_of) if args.as_of is not None else None
     t0 = time.perf_counter()
     with Store(_db(args), read_only=True) as store:
-        rows = fleet_status(store, args.trend_tests)
+        rows = fleet_status(store, args.trend_tests, as_of)
         n_fail = len(store.failures())
     if args.sort == "urgency":
         rows.sort(key=urgency)
     if not rows:
-        print("no runs in the store")
+        print("no runs in the store" + (f" up to {args.as_of}" if as_of is not None else ""))
         return 0
     print(format_table(rows))
     print(f"{len(rows)} actuators, {sum(r.tests for r in rows)} runs, {n_fail} failed logs "

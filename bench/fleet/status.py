@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from bench import BenchError
 from bench.hums import rul as R
 from bench.hums.verdict import LEVELS, UNKNOWN
 
@@ -111,15 +112,32 @@ def _date(t_s: float) -> str:
     return dt.datetime.fromtimestamp(t_s, dt.UTC).strftime("%Y-%m-%d")
 
 
-def fleet_status(store: Any, n_trend: int = N_TREND) -> list[ActuatorStatus]:
-    """Every actuator's status, by actuator id."""
-    s = store.series(("ci", "ci_harmonic", "verdict", "life_consumed", "reasons"))
+def fleet_status(store: Any, n_trend: int = N_TREND, as_of: float | None = None
+                 ) -> list[ActuatorStatus]:
+    """Every actuator's status, by actuator id; with `as_of` (epoch seconds) as it was
+    then: only the tests up to and including `as_of` count (an actuator with none is
+    left out)."""
+    return status_of_series(store.series(SERIES_COLUMNS), n_trend, as_of)
+
+
+SERIES_COLUMNS = ("ci", "ci_harmonic", "verdict", "life_consumed", "reasons")
+"""The columns `status_of_series` needs from `Store.series`."""
+
+
+def status_of_series(s: dict[str, Any], n_trend: int = N_TREND, as_of: float | None = None
+                     ) -> list[ActuatorStatus]:
+    """`fleet_status` on columns already fetched (`Store.series(SERIES_COLUMNS)`), so
+    that a study can ask for the status as of many dates with one query."""
     ids = np.asarray(s["actuator_id"], dtype=object)
+    t_all = np.asarray(s["run_time"], dtype=float)
+    keep = np.ones(len(ids), dtype=bool) if as_of is None else t_all <= as_of
+    ids, t_all = ids[keep], t_all[keep]
     if not len(ids):
         return []
-    t_all = np.asarray(s["run_time"], dtype=float)
-    ci_all = judged_ci(floats(s["ci"]), floats(s["ci_harmonic"]))
-    life_all = floats(s["life_consumed"])
+    ci_all = judged_ci(floats(s["ci"]), floats(s["ci_harmonic"]))[keep]
+    life_all = floats(s["life_consumed"])[keep]
+    verdicts = np.asarray(s["verdict"], dtype=object)[keep]
+    reasons = np.asarray(s["reasons"], dtype=object)[keep]
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
     ends = np.r_[starts[1:], len(ids)]
     out = []
@@ -128,11 +146,26 @@ def fleet_status(store: Any, n_trend: int = N_TREND) -> list[ActuatorStatus]:
         life = life_all[a:b]
         rul, band, why, t_thr, t_warn = rul_of(t, ci)
         out.append(ActuatorStatus(
-            str(ids[a]), int(b - a), float(t[-1]), str(s["verdict"][b - 1] or UNKNOWN),
+            str(ids[a]), int(b - a), float(t[-1]), str(verdicts[b - 1] or UNKNOWN),
             float(ci[-1]), slope_per_day(t, ci, n_trend), rul, band, why,
             float(np.nansum(life)) if np.isfinite(life).any() else math.nan,
-            str(s["reasons"][b - 1] or ""), t_thr, t_warn))
+            str(reasons[b - 1] or ""), t_thr, t_warn))
     return out
+
+
+def parse_as_of(text: str) -> float:
+    """`--as-of`: an ISO 8601 time (UTC unless it says otherwise) as epoch seconds; a
+    date alone is the end of that day (its tests count)."""
+    try:
+        if len(text) == 10:
+            day = dt.datetime.strptime(text, "%Y-%m-%d").replace(tzinfo=dt.UTC)
+            return (day + dt.timedelta(days=1)).timestamp() - 1e-6
+        t = dt.datetime.fromisoformat(text)
+    except ValueError:
+        raise BenchError(f"--as-of: not a date or ISO 8601 time: {text!r}") from None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=dt.UTC)
+    return t.timestamp()
 
 
 def floats(col: Any) -> np.ndarray:
