@@ -116,14 +116,15 @@ class Actuator:
     s: tuple[float, ...] = ()
 
 
-def flight_life_table(grid: tuple[float, ...] = SEVERITY_GRID) -> dict[float, float]:
+def flight_life_table(grid: tuple[float, ...] | None = None) -> dict[float, float]:
     """Life consumed (fraction of L10, Palmgren-Miner) by one simulated flight at each
     severity of `grid`: the `flight` profile under the aero load, usage by `bench.usage`.
-    Simulated once per severity per process (cached)."""
+    Simulated once per severity per process (cached); `grid` defaults to SEVERITY_GRID."""
     from bench.harness import simulate
     from bench.profiles import make_profile
     from bench.usage import usage_of_trace
     from plant_rt.params import PlantParams
+    grid = SEVERITY_GRID if grid is None else grid
     for sev in grid:
         if sev not in _LIFE_TABLE:
             p = PlantParams().with_dict({
