@@ -1,7 +1,7 @@
 """The use-driven synthetic fleet (`bench.fleet.synth`, wear="use"), the status as of a
 date (`bench.fleet.status`) and the RUL check against the truth (`bench.fleet.truthcheck`).
 The flight's life table is a fixed stand-in here (the simulated one is checked in
-tests/integration/test_fleet_usesynth.py), so nothing is simulated."""
+tests/integration/test_fleet_usesynth_flight.py), so nothing is simulated."""
 
 from __future__ import annotations
 
