@@ -24,7 +24,8 @@ from bench.rig.cycles import phases
 
 STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
          "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;"
-         "padding:3px 8px;text-align:right}th{background:#eee}td.l{text-align:left}"
+         "padding:3px 8px;text-align:right}th{background:#eee;text-align:center}"
+         "td.l{text-align:left}code{white-space:nowrap}"
          ".v{display:inline-block;padding:4px 12px;border-radius:4px;color:#fff;"
          "font-weight:bold}.HEALTHY{background:#2a7}.DEGRADED{background:#c90}"
          ".UNKNOWN{background:#777}.na{color:#777}img{max-width:100%}"
@@ -77,7 +78,7 @@ def signals_figure(a: H.RigAnalysis) -> str:
         axis.set_ylabel(unit)
         axis.grid(alpha=0.3)
         if axis.lines:
-            axis.legend(fontsize=8, loc="upper right")
+            axis.legend(fontsize=8, loc="best")
     ax[2].set_xlabel("t (s)")
     return _png(fig)
 
@@ -160,7 +161,7 @@ def _model(a: H.RigAnalysis, e: Any) -> list[str]:
     for k, v in m["indexes"].items():
         scale = 1e3 if k == "mean_error_m" else 1.0
         parts.append(f"<tr><td class='l'>{e(MODEL_LABELS.get(k, k))}</td>"
-                     f"<td>{_fmt(v * scale)}</td></tr>")
+                     f"<td>{_fmt(v * scale, 6 if k == 'cp' else 4)}</td></tr>")
     parts.append("</table><table><tr><th>signal</th><th>RMS / noise floor</th>"
                  "<th>threshold</th><th>noise floor</th></tr>")
     for s, r in m["rms_ratio"].items():
