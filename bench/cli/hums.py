@@ -423,10 +423,10 @@ def _run_rig_report(args: argparse.Namespace) -> int:
 
 def run_report(args: argparse.Namespace) -> int:
     from bench.hums.report import write_report
-    if _rig_report(args):
-        return _run_rig_report(args)
     if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
         raise BenchError("--period must be > 0 s")
+    if _rig_report(args):
+        return _run_rig_report(args)
     page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,
                                   period_s=args.period)
     for a in analyses:

@@ -176,7 +176,7 @@ def _has_load(base: B.Baseline, load: float) -> bool:
 
 def _ratio_text(cal: dict[str, Any]) -> str:
     held = "held-out" if cal.get("holdout_summary") else "calibration"
-    return f"on {held} healthy logs (x{model_ratio(cal):.2g})"
+    return f"on {held} healthy logs (x{model_ratio(cal):.3g})"
 
 
 def choose(cal: dict[str, Any] | None, cal_path: str | Path | None,
@@ -310,7 +310,7 @@ def text(res: dict[str, Any]) -> str:
     if res["judged"]:
         eff = ", ".join(f"{k} {n}" for k, n in res["effects"].items())
         lines.append(f"verdict: {res['flagged']} / {res['cycles']} cycle(s) flagged"
-                     + (f" ({eff})" if eff else "") + f" (baseline: {res['baseline']})")
+                     + (f" ({eff})" if eff else "") + f" (against the {res['baseline']})")
     else:
         lines.append(f"verdict: not available ({res['notes'][-1]})")
     return "\n".join(lines)

@@ -223,7 +223,7 @@ def summary_text(a: RigAnalysis) -> str:
         lines.append(f"  model-free, {d} ({int(row['samples'])} samples): {vals}")
     if a.model is not None:
         lines.append("  calibrated model indexes: " + ", ".join(
-            f"{k} {v:.4g}" for k, v in a.model["indexes"].items()))
+            f"{k} {v:.{6 if k == 'cp' else 4}g}" for k, v in a.model["indexes"].items()))
     if a.baseline is not None:
         eff = ", ".join(f"{k} {n}" for k, n in a.baseline["effects"].items()) or "none"
         lines.append(f"  against the baseline: {a.baseline['flagged']} / "

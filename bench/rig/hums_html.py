@@ -154,7 +154,7 @@ def _model(a: H.RigAnalysis, e: Any) -> list[str]:
     parts = [f"<h3>Against the calibrated model ({e(m['calibration'])})</h3>"]
     if not m["reaches_noise_floor"]:
         parts.append(f"<p>This model does not reach the noise floor on the calibration's "
-                     f"healthy logs (worst x{m['healthy_ratio']:.2g}): its indexes are shown "
+                     f"healthy logs (worst x{m['healthy_ratio']:.3g}): its indexes are shown "
                      "for information; the verdict comes from the healthy baseline where "
                      "there is one.</p>")
     parts.append("<table><tr><th>index</th><th>value</th></tr>")
