@@ -229,6 +229,16 @@ def calibration_baseline(cal: dict[str, Any], cal_path: str
         return None, f"the calibration's baseline cannot be read: {exc}"
 
 
+NEWTONS = {"N": 1.0, "kN": 1e3, "kgf": 9.80665, "lbf": 4.4482216152605}
+
+
+def in_unit(load: float, unit: str, target: str) -> float:
+    """`load` in `unit` expressed in `target` (unchanged when either is unknown)."""
+    if unit == target or unit not in NEWTONS or target not in NEWTONS:
+        return load
+    return load * NEWTONS[unit] / NEWTONS[target]
+
+
 def match_load(base: B.Baseline, load: float) -> tuple[float | None, str]:
     """The baseline load a log's load is judged at (exact, else the nearest within
     `LOAD_TOLERANCE`, else the only one when the log's load is unknown), and a note."""
@@ -271,7 +281,8 @@ def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
     indexes against the baseline's, and the log's result (flagged cycles, effects). Raises
     BenchError with the reason when the log cannot be judged against it."""
     cycles = log_cycles(trace, name)
-    load, note = match_load(base, cycles[0].load)
+    load, note = match_load(base, in_unit(cycles[0].load, load_unit(trace.meta),
+                                          base.load_unit))
     if load is None:
         raise BenchError(note)
     for c in cycles:

@@ -160,3 +160,21 @@ def test_cycles_that_do_not_repeat_one_setpoint_make_no_baseline(data):
     cycles[0].setpoint_mm = cycles[0].setpoint_mm * 0.8 + 4.0   # a shorter stroke
     with pytest.raises(BenchError, match="do not repeat one set-point profile"):
         build(cycles)
+
+
+def test_a_log_of_several_cycles_with_its_load_in_newtons(data, calibrated, tmp_path):
+    """Three cycles in one trace, no split keys: cycles from the set-point, the logged load
+    (N) converted to the kgf of the baseline `bench calibrate` wrote (its logs' import map
+    gives the unit)."""
+    from bench.trace import Trace
+    parts = [Trace.load(data / "s" / f"load=40_run=1_group={g}.parquet") for g in (51, 52, 53)]
+    cols = {k: np.concatenate([t[k] for t in parts])
+            for k in ("setpoint_position_m", "position_m", "current_a", "load_force_n")}
+    cols["t_s"] = np.arange(len(cols["current_a"])) * 0.04
+    Trace(cols, {"source": "three cycles"}).save(tmp_path / "three.npz")
+    code, js, _ = _report([tmp_path / "three.npz", "--baseline",
+                           calibrated.parent / "cal.baseline.json"], tmp_path / "r")
+    b = js["baseline"]
+    assert code == 0 and b["cycles"] == 3 and b["load"] == 40.0
+    assert any("judged at the baseline's 40" in n for n in b["notes"])
+    assert js["verdict"] == "DEGRADED" and b["flagged"] >= 2
