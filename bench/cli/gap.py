@@ -145,9 +145,9 @@ def _is_rig(args: argparse.Namespace) -> bool:
         if args.nominal:
             raise BenchError(f"--baseline/--against need a calibration of another actuator "
                              f"(bench calibrate --actuator); {args.nominal} is not one")
-        if args.against == "model":
-            raise BenchError("--against model needs --nominal CAL.json (bench calibrate "
-                             "--actuator)")
+        if not args.baseline:
+            raise BenchError(f"--against {args.against} needs --nominal CAL.json of another "
+                             "actuator (bench calibrate --actuator) or --baseline BASE.json")
     return rig or bool(args.baseline)
 
 
