@@ -97,25 +97,32 @@ def _write(output: str, cal: dict[str, Any]) -> bool:
 
 
 def _actuator(args: argparse.Namespace) -> int:
+    """Another actuator: calibrate, score the held-out logs and, when no model of the
+    family reaches the noise floor on them, build the healthy baseline from the
+    calibration logs beside the calibration (bench.rig.fallback)."""
     from bench.actuator import load
     from bench.gap.inputs import load_log
+    from bench.gap.needs import availability
     from bench.gap.rigcal import calibrate_rig
+    from bench.rig.fallback import baseline_for_calibration
     act = load(args.actuator)
     healthy = [load_log(p) for p in args.log]
     held = [load_log(p) for p in args.holdout]
     cal = calibrate_rig(healthy, act, held, args.controller)
+    lack = {k: v for k, v in availability(healthy[0]).items() if v}
+    cal["not_available"] = lack
+    lead_m = act.values.get("lead_m")
+    cal["notes"] += baseline_for_calibration(cal, args.log, args.output,
+                                             1e3 * lead_m if lead_m else None)
     if _write(args.output, cal):
         return 0
     print(f"{act.name} ({act.motor_kind}): {cal['method_text']}")
     print(f"{len(healthy)} healthy log(s) fitted, {len(held)} held out, "
           f"{cal['seconds']:.1f} s")
-    from bench.gap.needs import availability
-    lack = {k: v for k, v in availability(healthy[0]).items() if v}
     if lack:
         print(f"on these logs ({len(lack)} of the bench's consumers need more):")
         for k, v in lack.items():
             print(f"  {k}: {v}")
-    cal["not_available"] = lack
     for k in cal["fitted"]:
         lo, hi = cal["ci95"].get(k, [None, None])
         ci = "no effect on the fit" if lo is None or hi is None else f"{lo:.3g} .. {hi:.3g}"

@@ -39,6 +39,13 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "--list-effects)")
     p.add_argument("--nominal", metavar="CALIBRATION.json",
                    help="nominal parameters from `bench calibrate` (default: thesis values)")
+    p.add_argument("--baseline", metavar="BASE.json",
+                   help="judge the log against this healthy baseline (bench rig baseline, or "
+                        "the one `bench calibrate --actuator` wrote beside its calibration)")
+    p.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
+                   help="with a calibration of another actuator (--nominal): the model when it "
+                        "reaches the noise floor on held-out healthy logs, else the healthy "
+                        "baseline the calibration wrote (auto, default); or force one")
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference: absolute (zero at nut zero, the bench's "
                         "plant) or relative (start of the log)")
@@ -86,18 +93,18 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.log:
         raise BenchError("bench gap needs a log (REAL): a candump .log or a trace file")
-    from bench.gap import effects as E
-    from bench.gap.diagnose import Options, diagnose
-    from bench.gap.inputs import load_log, load_nominal
-    from bench.gap.summary import text
     _check_numbers(args)
     from bench.cli.outputs import check_output_dir, check_output_file
     if args.json:                                   # before the diagnosis, not after
         check_output_file(args.json, "--json", (".json",), stdout_ok=True)
     if args.report:
         check_output_dir(args.report, "--report")
-    if _is_rig(args):
+    if _is_rig(args):                   # before the thesis plant's diagnosis is imported
         return _rig(args)
+    from bench.gap import effects as E
+    from bench.gap.diagnose import Options, diagnose
+    from bench.gap.inputs import load_log, load_nominal
+    from bench.gap.summary import text
     names = E.parse_list(args.effects)
     nominal = load_nominal(args.nominal)
     log = _thesis_log(args)
@@ -129,9 +136,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _is_rig(args: argparse.Namespace) -> bool:
-    """Whether --nominal is another actuator's generic calibration (bench.gap.riggap)."""
+    """Whether --nominal is another actuator's generic calibration (bench.gap.riggap) or
+    a healthy baseline is given."""
+    from bench import BenchError
     from bench.gap.riggap import is_rig_calibration
-    return bool(args.nominal) and is_rig_calibration(args.nominal)
+    rig = bool(args.nominal) and is_rig_calibration(args.nominal)
+    if not rig and (args.baseline or args.against != "auto"):
+        if args.nominal:
+            raise BenchError(f"--baseline/--against need a calibration of another actuator "
+                             f"(bench calibrate --actuator); {args.nominal} is not one")
+        if not args.baseline:
+            raise BenchError(f"--against {args.against} needs --nominal CAL.json of another "
+                             "actuator (bench calibrate --actuator) or --baseline BASE.json")
+    return rig or bool(args.baseline)
 
 
 def _thesis_log(args: argparse.Namespace) -> Trace:
@@ -152,11 +169,18 @@ def _thesis_log(args: argparse.Namespace) -> Trace:
 
 
 def _rig(args: argparse.Namespace) -> int:
-    """The log against another actuator's generic calibration (bench.gap.riggap)."""
+    """The log against another actuator's generic calibration (bench.gap.riggap), or
+    against the healthy baseline when the calibration's model does not reach the noise
+    floor or a baseline is given (bench.rig.fallback)."""
     from bench import BenchError
     from bench.gap.inputs import load_log
     from bench.gap.riggap import CANDIDATES, diagnose_rig, load_calibration, text
-    cal, act = load_calibration(args.nominal)
+    from bench.rig import fallback as FB
+    cal, act = load_calibration(args.nominal) if args.nominal else (None, None)
+    ref = FB.choose(cal, args.nominal, args.baseline, args.against)
+    if ref.kind == "baseline":
+        return _rig_baseline(args, ref)
+    assert cal is not None and act is not None
     names = tuple(CANDIDATES)
     if args.effects:
         names = tuple(n.strip() for n in args.effects.split(",") if n.strip())
@@ -166,15 +190,38 @@ def _rig(args: argparse.Namespace) -> int:
                              f"(effects: {', '.join(CANDIDATES)})")
     js = diagnose_rig(load_log(args.log), cal, act, names)
     js["log"] = str(args.log)
+    js["reference"] = ref.line()
+    return _rig_out(args, js, ref.line() + "\n" + text(js))
+
+
+def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
+    """The log's cycles against the healthy baseline (bench.rig.fallback.assess)."""
+    from bench import BenchError
+    from bench.rig import fallback as FB
+    assert isinstance(ref, FB.Reference) and ref.baseline is not None
+    t0 = time.perf_counter()
+    try:
+        res = FB.assess(ref.baseline, FB.read_log(args.log), Path(args.log).name)
+    except BenchError as exc:
+        raise BenchError(f"{args.log}: the gap against the healthy baseline not available: "
+                         f"{exc}") from None
+    res["log"] = str(args.log)
+    res["reference"] = ref.line(res["load"])
+    res["seconds"] = round(time.perf_counter() - t0, 3)
+    return _rig_out(args, res, res["reference"] + "\n" + FB.text(res))
+
+
+def _rig_out(args: argparse.Namespace, js: dict, text: str) -> int:
     if args.json == "-":
-        json.dump(js, sys.stdout, indent=1)
+        json.dump(js, sys.stdout, indent=1, default=str)
         print()
         return 0
     print(f"log: {args.log}")
-    print(text(js))
+    print(text)
     if args.json:
-        Path(args.json).write_text(json.dumps(js, indent=1))
+        Path(args.json).write_text(json.dumps(js, indent=1, default=str))
         print(f"json: {args.json}")
     if args.report:
-        print("report: not available for a generic calibration (text and --json only)")
+        print("report: not available for a generic calibration or a baseline (text and "
+              "--json only; bench hums report LOG --nominal CAL.json writes an HTML report)")
     return 0

@@ -146,7 +146,11 @@ def _add_report(s: argparse._SubParsersAction) -> None:
                      "speed mode) is not available, that is shorter than 0.1 s or in which "
                      "nothing was commanded gets the verdict UNKNOWN. Exit status: 0 when "
                      "every log has a verdict, 3 when one has none (UNKNOWN; the report is "
-                     "still written), 2 on bad input.")
+                     "still written), 2 on bad input. A log the thesis' monitoring model cannot take (no "
+                     "ECU mode or speed set-point, e.g. a rig's table at 25 Hz imported with "
+                     "`bench import`) gets the model-free indexes, and with --nominal or "
+                     "--baseline the calibrated model's indexes or the healthy baseline's "
+                     "features and verdict; what it cannot support is listed as not available.")
     q.add_argument("logs", nargs="+", metavar="LOG", help="bus log (.log, .asc, .blf, .trc, .mf4) or trace file")
     q.add_argument("--out", default="hums-report", metavar="DIR",
                    help="output directory (default: %(default)s)")
@@ -155,6 +159,16 @@ def _add_report(s: argparse._SubParsersAction) -> None:
     q.add_argument("--no-rul", action="store_true", help="skip the trend/RUL part")
     q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
                    help="nominal plant parameter override")
+    q.add_argument("--nominal", metavar="CAL.json",
+                   help="another actuator's calibration (bench calibrate --actuator): its "
+                        "calibrated model is the monitoring model, or its healthy baseline "
+                        "when the model does not reach the noise floor (docs/real-data.md)")
+    q.add_argument("--baseline", metavar="BASE.json",
+                   help="judge against this healthy baseline (bench rig baseline, or the one "
+                        "bench calibrate --actuator wrote)")
+    q.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
+                   help="with --nominal: the model when it reaches the noise floor, else its "
+                        "healthy baseline (auto, default); or force one")
     q.set_defaults(func=run_report)
 
 
@@ -364,10 +378,55 @@ def run_prognose(args: argparse.Namespace) -> int:
     return 0
 
 
+def _rig_report(args: argparse.Namespace) -> bool:
+    """Whether the logs go to the report of another actuator (bench.rig.hums): a
+    calibration or baseline is given, or a trace lacks what the monitoring model needs.
+    A mix of both kinds of log is refused (one report each)."""
+    from bench.rig.fallback import read_log
+    from bench.rig.hums import is_rig_log
+    if args.nominal or args.baseline or args.against != "auto":
+        return True
+    kinds = {}
+    for p in args.logs:
+        if Path(p).suffix.lower() in (".npz", ".csv", ".parquet"):
+            kinds[p] = is_rig_log(read_log(p))
+        else:
+            kinds[p] = False                 # a bus log decodes to the bench's signals
+    if len(set(kinds.values())) > 1:
+        rig = [p for p, k in kinds.items() if k]
+        raise BenchError(f"{', '.join(rig)}: logs without the ECU's mode and speed "
+                         "set-point, mixed with bench logs: report them separately")
+    return any(kinds.values())
+
+
+def _run_rig_report(args: argparse.Namespace) -> int:
+    import sys
+
+    from bench.rig.hums import summary_text
+    from bench.rig.hums_html import write_rig_report
+    if args.set or args.period is not None:
+        raise BenchError("--set and --period are for the thesis actuator's report; a log "
+                         "of another actuator takes --nominal CAL.json / --baseline BASE.json")
+    page, analyses = write_rig_report(args.logs, args.out, args.nominal, args.baseline,
+                                      args.against)
+    for a in analyses:
+        print(summary_text(a))
+    print(f"wrote {page}")
+    unknown = [a for a in analyses if a.verdict == "UNKNOWN"]
+    if unknown:
+        print(f"error: no verdict for {', '.join(a.name for a in unknown)} ("
+              + "; ".join(a.reasons[-1] for a in unknown) + f"); the report is in {page}",
+              file=sys.stderr)
+        return 3
+    return 0
+
+
 def run_report(args: argparse.Namespace) -> int:
     from bench.hums.report import write_report
     if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
         raise BenchError("--period must be > 0 s")
+    if _rig_report(args):
+        return _run_rig_report(args)
     page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,
                                   period_s=args.period)
     for a in analyses:

@@ -240,8 +240,9 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
         notes.append(f"no model of this family reaches {FLOOR_FACTOR:g} x the noise floor on "
                      f"the {'held-out' if held else 'calibration'} logs: diagnose against a "
                      "baseline built from several healthy runs (the healthy-baseline "
-                     "fallback: bench rig baseline, docs/real-data.md) rather than against "
-                     "this model")
+                     "fallback, docs/real-data.md: bench calibrate builds it from the "
+                     "calibration logs when they repeat one set-point cycle) rather than "
+                     "against this model")
     return {
         "model": "generic nut-level model (bench.gap.rigmodel)",
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,

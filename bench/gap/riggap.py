@@ -166,6 +166,35 @@ def _fit_candidate(tr: Trace, act: Actuator, cal: dict[str, Any], names: tuple[s
     return float(np.sum(sol.fun ** 2)), {n: v[n] for n in names}
 
 
+def model_signals(tr: Trace, cal: dict[str, Any], act: Actuator
+                  ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """(the calibrated model's signals at `tr`'s instants, `tr`'s noise floor per signal);
+    the closed loop's initial nut position fitted within the first sample's noise."""
+    theta = RC.theta_of(cal)
+    method, period = cal["method"], cal["sample_period_s"]
+    sim = RC.simulate(theta, tr, act, method, period,
+                      RC.fit_x0(theta, tr, act, method, period))
+    return sim, RC.floors(tr)
+
+
+def rms_ratios(tr: Trace, sim: dict[str, np.ndarray], fl: dict[str, float]
+               ) -> dict[str, float]:
+    """RMS residual / noise floor per signal (the measured samples only)."""
+    out = {}
+    for s, y in sim.items():
+        r = (np.asarray(tr[s], float) - y) / fl[s]
+        r = r[np.isfinite(r)]
+        out[s] = float(np.sqrt(np.mean(r ** 2))) if len(r) else float("nan")
+    return out
+
+
+def thresholds(cal: dict[str, Any], ratios: dict[str, float]) -> dict[str, float]:
+    """Per signal: the larger of `rigcal.FLOOR_FACTOR` and the worst ratio the
+    calibration's held-out healthy logs left (its calibration logs without any)."""
+    healthy = cal.get("holdout_summary") or RC.summary(cal.get("fit_scores", []))
+    return {s: max(RC.FLOOR_FACTOR, healthy.get(s, {}).get("ratio_max", 0.0)) for s in ratios}
+
+
 def diagnose_rig(tr: Trace, cal: dict[str, Any], act: Actuator,
                  candidates: tuple[str, ...] = tuple(CANDIDATES)) -> dict[str, Any]:
     """Localisation, indexes, ranking and verdict of `tr` against `cal` (module doc)."""
@@ -174,15 +203,10 @@ def diagnose_rig(tr: Trace, cal: dict[str, Any], act: Actuator,
     if lack:
         raise BenchError(f"the gap against a generic calibration not available: needs "
                          f"{', '.join(lack)}")
-    theta = RC.theta_of(cal)
-    method, period = cal["method"], cal["sample_period_s"]
-    fl = RC.floors(tr)
-    sim = RC.simulate(theta, tr, act, method, period,
-                      RC.fit_x0(theta, tr, act, method, period))
+    sim, fl = model_signals(tr, cal, act)
     loc = localise(tr, sim, fl)
     ratios = {s: math.sqrt(e) for s, e in loc["energy"].items()}
-    healthy = cal.get("holdout_summary") or RC.summary(cal.get("fit_scores", []))
-    thr = {s: max(RC.FLOOR_FACTOR, healthy.get(s, {}).get("ratio_max", 0.0)) for s in ratios}
+    thr = thresholds(cal, ratios)
     significant = any(ratios[s] > thr[s] for s in ratios)
     n = sum(int(np.isfinite(tr[s]).sum()) for s in ratios)
     rss0, _ = _fit_candidate(tr, act, cal, (), fl, 0.0)

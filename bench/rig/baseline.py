@@ -94,6 +94,7 @@ class Baseline:
     path: str = ""                         # the file it was read from / written to
     lead_mm: float | None = None           # the screw's lead (position-periodic feature)
     thresholds: dict[str, Any] = field(default_factory=dict)   # set by population
+    load_unit: str = ""                    # the unit of the loads (e.g. kgf), "" unknown
 
     def for_load(self, load: float) -> LoadBaseline:
         for k, v in self.loads.items():
@@ -107,16 +108,24 @@ class Baseline:
         where = self.path or "(in memory)"
         src = ", ".join(self.sources)
         if load is None:
-            parts = [f"load {k:g}: runs {_runs(v.runs)}, {v.n} cycles"
+            parts = [f"load {self.load_text(k)}: runs {_runs(v.runs)}, {v.n} cycles"
                      for k, v in sorted(self.loads.items())]
             return f"baseline {where} from {src}; " + "; ".join(parts)
         lb = self.for_load(load)
-        return (f"baseline {where} from {src}, load {load:g}, runs {_runs(lb.runs)}, "
-                f"{lb.n} healthy cycles")
+        return (f"baseline {where} from {src}, load {self.load_text(load)}, runs "
+                f"{_runs(lb.runs)}, {lb.n} healthy cycles")
+
+    def load_text(self, load: float) -> str:
+        return f"{load:g} {self.load_unit}".strip()
+
+    def short(self, load: float) -> str:
+        """'runs 1,2, load 40 kgf, 10 cycles': the baseline of one load in a few words."""
+        lb = self.for_load(load)
+        return f"runs {_runs(lb.runs)}, load {self.load_text(load)}, {lb.n} cycles"
 
     def to_json(self) -> dict[str, Any]:
         return {"format": FORMAT, "sources": self.sources, "thresholds": self.thresholds,
-                "lead_mm": self.lead_mm,
+                "lead_mm": self.lead_mm, "load_unit": self.load_unit,
                 "loads": [{"load": lb.load, "runs": lb.runs, "cycles": lb.cycles,
                            "indexes": lb.indexes,
                            "phases": [p.to_json() for p in lb.phases.values()]}
@@ -152,7 +161,8 @@ class Baseline:
                              ) from None
         lead = d.get("lead_mm")
         return cls(loads, list(d["sources"]), str(path),
-                   None if lead is None else float(lead), dict(d.get("thresholds") or {}))
+                   None if lead is None else float(lead), dict(d.get("thresholds") or {}),
+                   str(d.get("load_unit") or ""))
 
 
 def _r(a: np.ndarray) -> list[float]:
@@ -219,7 +229,9 @@ def build_load(cycles: list[Cycle]) -> LoadBaseline:
         raise BenchError(f"load {cycles[0].load:g}: a baseline needs at least {MIN_CYCLES} "
                          f"healthy cycles, got {len(cycles)}")
     ph = {}
-    for name, (direction, idx) in aligned(cycles).items():
+    al = aligned(cycles)
+    _check_repeats(cycles, al)
+    for name, (direction, idx) in al.items():
         mean, std = {}, {}
         for sig in SIGNALS:
             x = np.array([signal(c, sig)[k] for c, k in zip(cycles, idx, strict=True)])
@@ -238,6 +250,30 @@ def build_load(cycles: list[Cycle]) -> LoadBaseline:
                 indexes[name][key] = (float(vals.mean()), float(vals.std(ddof=1)))
     return LoadBaseline(cycles[0].load, sorted({c.run for c in cycles}),
                         [c.label for c in cycles], ph, indexes)
+
+
+REPEAT_STEPS = 2.0
+"""Aligned set-points may differ by this many set-point steps between cycles (a sampling
+instant's jitter); more, and the cycles do not repeat one set-point profile."""
+
+
+def _check_repeats(cycles: list[Cycle], al: dict[str, tuple[int, list[np.ndarray]]]) -> None:
+    """BenchError when the cycles' set-points differ at an aligned sample by more than
+    `REPEAT_STEPS` set-point steps: aligned sample k must be the same set-point position
+    in every cycle (the baseline compares them sample by sample)."""
+    moving = [float(np.max(np.abs(np.diff(c.setpoint_mm)))) for c in cycles if len(c) > 1]
+    tol = REPEAT_STEPS * max(moving, default=0.0) + 1e-9
+    for name, (_, idx) in al.items():
+        sp = np.array([c.setpoint_mm[k] for c, k in zip(cycles, idx, strict=True)])
+        if not sp.size:
+            continue
+        spread = np.ptp(sp, axis=0)
+        k = int(np.argmax(spread))
+        if spread[k] > tol:
+            raise BenchError(f"the cycles do not repeat one set-point profile (phase {name}, "
+                             f"aligned sample {k}: set-points {spread[k]:.3g} mm apart, more "
+                             f"than {REPEAT_STEPS:g} set-point steps): a baseline needs "
+                             "repeated set-point cycles")
 
 
 def build(cycles: list[Cycle], sources: list[str] | None = None) -> Baseline:

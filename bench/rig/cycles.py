@@ -176,25 +176,56 @@ def read_cycles(path: str | Path, columns: dict[str, str] | None = None) -> list
 
 
 def _trace_cycles(path: Path) -> list[Cycle]:
-    """Cycles of a `bench import` trace (metres -> mm), split by set-point."""
+    """Cycles of a `bench import` trace file (metres -> mm), split by set-point."""
     from bench.trace import Trace
-    tr = Trace.load(path)
+    return cycles_from_trace(Trace.load(path), condition_name(path))
+
+
+def cycles_from_trace(tr: Any, name: str, run: int | None = None) -> list[Cycle]:
+    """Cycles of a trace (`bench.trace.Trace`, metres -> mm): one per `group` key of a
+    `bench import --split-by` trace, else split where an out-stroke starts. The load and
+    the run come from the split keys (the table's own units), else the metadata, else
+    the median logged load (N, 3 significant digits) and `run`."""
     tr.require(("setpoint_position_m", "position_m", "current_a"), "a rig baseline")
     sp = tr["setpoint_position_m"] * 1e3
     pos = tr["position_m"] * 1e3
     keys = tr.meta.get("split") or {}            # `bench import --split-by` keys
     group = (np.full(len(sp), float(keys["group"])) if "group" in keys
              else _cycles_from_setpoint(sp))
-    load = float(keys.get("load", tr.meta.get("load", float("nan"))))
-    run = int(keys.get("run", tr.meta.get("run", 0)))
+    load = float(keys.get("load", tr.meta.get("load", _logged_load(tr))))
+    run_no = int(keys.get("run", tr.meta.get("run", 0 if run is None else run)))
     out = []
     for g in np.unique(group):
         m = group == g
         if m.sum() >= 8:
             out.append(Cycle(tr.t[m] - tr.t[m][0], sp[m], pos[m], tr["current_a"][m], load,
-                             run, int(g), str(tr.meta.get("source_name", condition_name(path))),
+                             run_no, int(g), str(tr.meta.get("source_name", name)),
                              dict(tr.meta)))
     return out
+
+
+def _logged_load(tr: Any) -> float:
+    """The median logged load (N, rounded to 3 significant digits), NaN without one."""
+    if "load_force_n" not in tr:
+        return float("nan")
+    f = np.asarray(tr["load_force_n"], float)
+    f = f[np.isfinite(f)]
+    if not len(f):
+        return float("nan")
+    med = float(np.median(f))
+    return float(f"{med:.3g}")
+
+
+def load_unit(meta: dict[str, Any]) -> str:
+    """The unit of a trace's `load` split key: the import map's unit for that column
+    ("" when unknown; "N" for a load taken from the logged load_force_n)."""
+    keys = meta.get("split") or {}
+    if "load" not in keys:
+        return "" if "load" in meta else "N"
+    for entry in meta.get("map") or []:
+        if isinstance(entry, dict) and entry.get("column") == "load":
+            return str(entry.get("unit", ""))
+    return ""
 
 
 def _cycles_from_setpoint(sp: np.ndarray) -> np.ndarray:

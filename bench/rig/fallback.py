@@ -1,0 +1,327 @@
+"""The healthy-baseline fallback, chosen automatically (issue 11).
+
+When `bench calibrate HEALTHY... --actuator DESC --holdout ...` finds that no model of the
+family reaches `FLOOR_FACTOR` x the noise floor on the held-out healthy logs, it also
+builds the healthy baseline (`bench.rig.baseline`) from the healthy logs it fitted, with
+thresholds set as `bench.rig.population` sets them (leave-one-run-out over the
+calibration runs only; the held-out logs enter neither the baseline nor a threshold),
+writes it next to the calibration (CAL.baseline.json) and names it in the calibration
+(`baseline_for_calibration`). `bench gap LOG --nominal CAL.json` and `bench hums report
+LOG --nominal CAL.json` then judge a log against that baseline, and say so in one line
+(`choose` -> `Reference.line`).
+
+Where the healthy logs cannot make a baseline (fewer than `baseline.MIN_CYCLES` cycles
+of a load, cycles that do not repeat one set-point profile, no load known) or cannot set
+its thresholds (one run only), the calibration says why and the verdicts stay against
+the model.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+from bench.rig import baseline as B
+from bench.rig import population as P
+from bench.rig.cycles import Cycle, cycles_from_trace, load_unit, phases
+from bench.rig.features import cycle_features, verdict
+
+FLOOR_FACTOR = 2.0       # as bench.gap.rigcal.FLOOR_FACTOR (the calibration carries its own)
+AGAINST = ("auto", "model", "baseline")
+LOAD_TOLERANCE = 0.05    # a log's load matches a baseline load within 5 %
+
+
+def read_log(path: str | Path) -> Any:
+    """A trace file (read directly: no bus decoder to import) or a bus log."""
+    from bench.trace import Trace
+    if Path(path).suffix.lower() in (".npz", ".csv", ".parquet") and Path(path).exists():
+        tr = Trace.load(path)
+        tr.meta.setdefault("source", str(path))
+        return tr
+    from bench.bus.logs import load_trace
+    return load_trace(path)
+
+
+def log_cycles(trace: Any, name: str, run: int | None = None) -> list[Cycle]:
+    """The motion cycles of one log (`cycles.cycles_from_trace`), BenchError when none."""
+    cycles = cycles_from_trace(trace, name, run)
+    if not cycles:
+        raise BenchError(f"{name}: no motion cycle of 8 samples or more in the log")
+    return cycles
+
+
+def build_from_logs(paths: Sequence[str | Path], lead_mm: float | None,
+                    alpha: float = P.ALPHA) -> tuple[B.Baseline, list[str]]:
+    """The healthy baseline of `paths` and its thresholds per load (notes: which runs set
+    them, or why a load has none). A log without a run key is its own run (its position
+    in `paths`, from 1)."""
+    cycles: list[Cycle] = []
+    sources: list[str] = []
+    unit = ""
+    for k, p in enumerate(paths, start=1):
+        tr = read_log(p)
+        cycles += log_cycles(tr, Path(p).name, run=k)
+        src = Path(str(tr.meta.get("source", p))).name
+        if src not in sources:
+            sources.append(src)
+        unit = unit or load_unit(tr.meta)
+    base = B.build(cycles, sources)
+    base.lead_mm = lead_mm
+    base.load_unit = unit
+    notes = []
+    for load in sorted(base.loads):
+        mine = [c for c in cycles if c.load == load]
+        runs = sorted({c.run for c in mine})
+        if len(runs) < 2:
+            notes.append(f"load {base.load_text(load)}: one healthy run only (run "
+                         f"{runs[0]}): no thresholds (they need two or more runs, one held "
+                         "out at a time)")
+            continue
+        cal = P.calibrate(mine, alpha, lead_mm)
+        base.thresholds[f"{load:g}"] = cal.to_json()
+        notes.append(f"load {base.load_text(load)}: thresholds from calibration runs "
+                     f"{','.join(map(str, runs))} only (leave-one-run-out, alpha "
+                     f"{alpha:g}): " + ", ".join(f"{k} {v:.3g}"
+                                                  for k, v in cal.thresholds.items()))
+    return base, notes
+
+
+def baseline_path(cal_output: str | Path) -> Path:
+    """CAL.json -> CAL.baseline.json beside it."""
+    p = Path(cal_output)
+    return p.with_name(p.name[: -len(".json")] + ".baseline.json"
+                       if p.name.endswith(".json") else p.name + ".baseline.json")
+
+
+def baseline_for_calibration(cal: dict[str, Any], healthy: Sequence[str | Path],
+                             cal_output: str, lead_mm: float | None) -> list[str]:
+    """Build, write and reference the healthy baseline when the calibration does not reach
+    the floor (module doc); the notes to print. Sets cal["baseline"] (file name relative
+    to the calibration, runs, loads, cycles) or cal["baseline_not_available"]. `lead_mm`,
+the screw's lead, enables the position-periodic feature."""
+    if cal.get("reaches_noise_floor"):
+        return []
+    try:
+        base, notes = build_from_logs(healthy, lead_mm)
+    except BenchError as exc:
+        cal["baseline"] = None
+        cal["baseline_not_available"] = str(exc)
+        return [f"no healthy baseline from these logs ({exc}): the verdicts stay against "
+                "the model"]
+    if cal_output == "-":
+        cal["baseline"] = None
+        cal["baseline_not_available"] = "the calibration went to stdout (give -o FILE.json)"
+        return ["no healthy baseline written: the calibration went to stdout (give -o "
+                "FILE.json to write one beside it)"]
+    out = base.save(baseline_path(cal_output))
+    cal["baseline"] = {"file": out.name, "sources": base.sources,
+                       "loads": {f"{k:g}": {"runs": v.runs, "cycles": v.n,
+                                            "thresholds": f"{k:g}" in base.thresholds}
+                                 for k, v in base.loads.items()},
+                       "load_unit": base.load_unit, "lead_mm": lead_mm,
+                       "built_because": "no model of the family reaches "
+                                        f"{cal.get('floor_factor', FLOOR_FACTOR):g} x the "
+                                        "noise floor on the held-out healthy logs",
+                       "notes": notes}
+    cal.pop("baseline_not_available", None)
+    return [f"healthy baseline written: {out} ({base.describe()}); bench gap and bench "
+            "hums report with --nominal this calibration judge logs against it"] + notes
+
+
+def model_ratio(cal: dict[str, Any]) -> float:
+    """The worst RMS / noise floor the calibrated model left on the held-out healthy logs
+    (the calibration logs when none was held out)."""
+    rows = cal.get("holdout_summary") or {}
+    if rows:
+        return max(float(r["ratio_max"]) for r in rows.values())
+    vals = [float(v["ratio"]) for s in cal.get("fit_scores", []) for v in s.values()]
+    return max(vals) if vals else float("nan")
+
+
+@dataclass
+class Reference:
+    """What a log's verdict is judged against, and the one line saying so."""
+    kind: str                                  # "model", "baseline" or "none"
+    why: str                                   # the reason, for the line
+    baseline: B.Baseline | None = None
+    calibration: dict[str, Any] | None = None
+    cal_path: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    def line(self, load: float | None = None) -> str:
+        """One line: what the verdict is judged against (and why)."""
+        if self.kind == "baseline" and self.baseline is not None:
+            base = self.baseline
+            what = (base.short(load) if load is not None and _has_load(base, load)
+                    else "; ".join(base.short(k) for k in sorted(base.loads)))
+            return f"{self.why}: judged against the healthy baseline {base.path} ({what})"
+        if self.kind == "model":
+            return f"{self.why}: judged against the calibrated model {self.cal_path}"
+        return self.why
+
+
+def _has_load(base: B.Baseline, load: float) -> bool:
+    try:
+        base.for_load(load)
+    except BenchError:
+        return False
+    return True
+
+
+def _ratio_text(cal: dict[str, Any]) -> str:
+    held = "held-out" if cal.get("holdout_summary") else "calibration"
+    return f"on {held} healthy logs (x{model_ratio(cal):.3g})"
+
+
+def choose(cal: dict[str, Any] | None, cal_path: str | Path | None,
+           baseline: str | Path | None = None, against: str = "auto") -> Reference:
+    """The reference of the verdicts (module doc): an explicit --baseline, else the
+    calibration's own baseline when its model does not reach the floor, else the model."""
+    if against not in AGAINST:
+        raise BenchError(f"--against must be one of {', '.join(AGAINST)}")
+    if baseline is not None and against != "model":
+        return Reference("baseline", "given with --baseline", B.Baseline.load(baseline),
+                         cal, str(cal_path or ""))
+    if cal is None:
+        if against != "auto":
+            raise BenchError(f"--against {against} needs " + (
+                "--nominal CAL.json" if against == "model" else "--baseline BASE.json or a "
+                "calibration that wrote one"))
+        return Reference("none", "no reference given (--nominal CAL.json or --baseline "
+                         "BASE.json): model-free indexes only, no verdict")
+    path = str(cal_path)
+    factor = float(cal.get("floor_factor", FLOOR_FACTOR))
+    if cal.get("reaches_noise_floor"):
+        if against == "baseline":
+            raise BenchError(f"{path}: the model reaches the noise floor, so the calibration "
+                             "wrote no healthy baseline; give --baseline BASE.json")
+        return Reference("model", f"model within {factor:g} x the noise floor "
+                         f"{_ratio_text(cal)}", None, cal, path)
+    above = f"model above the noise floor {_ratio_text(cal)}"
+    if against == "model":
+        return Reference("model", f"{above}; --against model", None, cal, path)
+    base, why_not = calibration_baseline(cal, path)
+    if base is None:
+        if against == "baseline":
+            raise BenchError(f"{path}: no healthy baseline ({why_not})")
+        return Reference("model", f"{above}, and no healthy baseline ({why_not})", None,
+                         cal, path)
+    return Reference("baseline", above, base, cal, path)
+
+
+def calibration_baseline(cal: dict[str, Any], cal_path: str
+                         ) -> tuple[B.Baseline | None, str]:
+    """The baseline a calibration names (read from beside it), or None and why not."""
+    ref = cal.get("baseline")
+    if not isinstance(ref, dict) or not ref.get("file"):
+        return None, str(cal.get("baseline_not_available")
+                         or "the calibration names none: re-run bench calibrate")
+    where = Path(cal_path).parent / str(ref["file"])
+    try:
+        return B.Baseline.load(where), ""
+    except BenchError as exc:
+        return None, f"the calibration's baseline cannot be read: {exc}"
+
+
+NEWTONS = {"N": 1.0, "kN": 1e3, "kgf": 9.80665, "lbf": 4.4482216152605}
+
+
+def in_unit(load: float, unit: str, target: str) -> float:
+    """`load` in `unit` expressed in `target` (unchanged when either is unknown)."""
+    if unit == target or unit not in NEWTONS or target not in NEWTONS:
+        return load
+    return load * NEWTONS[unit] / NEWTONS[target]
+
+
+def match_load(base: B.Baseline, load: float) -> tuple[float | None, str]:
+    """The baseline load a log's load is judged at (exact, else the nearest within
+    `LOAD_TOLERANCE`, else the only one when the log's load is unknown), and a note."""
+    loads = sorted(base.loads)
+    if math.isfinite(load):
+        for k in loads:
+            if math.isclose(k, load, abs_tol=1e-6):
+                return k, ""
+        near = min(loads, key=lambda k: abs(k - load))
+        if abs(near - load) <= LOAD_TOLERANCE * max(abs(load), 1e-9):
+            return near, f"the log's load {load:g} judged at the baseline's {near:g}"
+        return None, (f"the log's load {load:g} is not in the baseline (it has "
+                      f"{', '.join(f'{k:g}' for k in loads)})")
+    if len(loads) == 1:
+        return loads[0], f"the log's load is unknown: judged at the baseline's only load {loads[0]:g}"
+    return None, ("the log's load is unknown and the baseline has several "
+                  f"({', '.join(f'{k:g}' for k in loads)})")
+
+
+def phase_index_table(lb: B.LoadBaseline, cycles: Sequence[Cycle]
+                      ) -> list[dict[str, Any]]:
+    """Per phase and index: the log's mean over its cycles, the baseline's mean and spread,
+    and z = (value - mean) / spread (None where the spread is 0)."""
+    per = [B.phase_indexes(c) for c in cycles]
+    rows = []
+    for ph, idx in lb.indexes.items():
+        for key, (m, s) in idx.items():
+            vals = [p[ph][key] for p in per if ph in p and key in p[ph]]
+            vals = [v for v in vals if math.isfinite(v)]
+            if not vals:
+                continue
+            v = float(np.mean(vals))
+            rows.append({"phase": ph, "index": key, "value": v, "baseline_mean": m,
+                         "baseline_sd": s, "z": (v - m) / s if s > 0 else None})
+    return rows
+
+
+def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
+    """A log's cycles against the baseline: per cycle the features and verdict, the phase
+    indexes against the baseline's, and the log's result (flagged cycles, effects). Raises
+    BenchError with the reason when the log cannot be judged against it."""
+    cycles = log_cycles(trace, name)
+    load, note = match_load(base, in_unit(cycles[0].load, load_unit(trace.meta),
+                                          base.load_unit))
+    if load is None:
+        raise BenchError(note)
+    for c in cycles:
+        c.load = load                 # judged at the baseline's load (note says so)
+    lb = base.for_load(load)
+    thr = (base.thresholds.get(f"{load:g}") or {}).get("thresholds")
+    notes = [note] if note else []
+    have = {s.name for s in phases(cycles[0].setpoint_mm)}
+    if not {"out", "in"} <= have:
+        notes.append(f"the log's cycles have phases {', '.join(sorted(have))}: the features "
+                     "need an out- and an in-stroke")
+    feats = [cycle_features(lb, c, base.lead_mm) for c in cycles]
+    verdicts = [verdict(base, f, thr) for f in feats] if thr else []
+    if not thr:
+        notes.append(f"no thresholds for load {base.load_text(load)} in {base.path} (they "
+                     "need two or more healthy runs): features without a verdict")
+    flagged = [v for v in verdicts if v["flagged"]]
+    effects: dict[str, int] = {}
+    for v in flagged:
+        effects[v["effect"]] = effects.get(v["effect"], 0) + 1
+    return {"against": "baseline", "baseline": base.describe(load), "load": load,
+            "thresholds": thr, "cycles": len(cycles), "flagged": len(flagged),
+            "effects": effects, "verdicts": verdicts,
+            "features": [f.to_json() for f in feats],
+            "phase_indexes": phase_index_table(lb, cycles), "notes": notes,
+            "judged": bool(thr)}
+
+
+def text(res: dict[str, Any]) -> str:
+    """The baseline diagnosis of a log in a few lines."""
+    lines = []
+    for v in res["verdicts"]:
+        lines.append(f"  {v['cycle']}: {'FLAGGED' if v['flagged'] else 'ok'}: {v['verdict']}")
+        lines.append("    " + "; ".join(v["reasons"]))
+    lines += [f"  note: {n}" for n in res["notes"]]
+    if res["judged"]:
+        eff = ", ".join(f"{k} {n}" for k, n in res["effects"].items())
+        lines.append(f"verdict: {res['flagged']} / {res['cycles']} cycle(s) flagged"
+                     + (f" ({eff})" if eff else "") + f" (against the {res['baseline']})")
+    else:
+        lines.append(f"verdict: not available ({res['notes'][-1]})")
+    return "\n".join(lines)

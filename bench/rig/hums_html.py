@@ -1,0 +1,272 @@
+"""The HTML page of `bench hums report` on a rig's log (`bench.rig.hums`): summary, what
+each verdict was judged against, the sections with their indexes or the reason they are
+not available, and figures (matplotlib `Figure` API, embedded as base64 PNG so the HTML
+file is all there is)."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench import BenchError
+from bench.jsonsafe import json_safe
+from bench.rig import fallback as FB
+from bench.rig import hums as H
+from bench.rig.baseline import residuals
+from bench.rig.cycles import phases
+
+STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+         "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;"
+         "padding:3px 8px;text-align:right}th{background:#eee;text-align:center}"
+         "td.l{text-align:left}code{white-space:nowrap}"
+         ".v{display:inline-block;padding:4px 12px;border-radius:4px;color:#fff;"
+         "font-weight:bold}.HEALTHY{background:#2a7}.DEGRADED{background:#c90}"
+         ".UNKNOWN{background:#777}.na{color:#777}img{max-width:100%}"
+         "p.ref{background:#f4f4f4;border-left:4px solid #888;padding:6px 10px}")
+MF_LABELS = [("position_error_mean_mm", "position error, mean (mm)"),
+             ("position_error_peak_mm", "position error, peak |e| (mm)"),
+             ("position_error_rms_mm", "position error, RMS (mm)"),
+             ("current_rms_a", "current, RMS (A)"), ("current_peak_a", "current, peak |i| (A)")]
+MODEL_LABELS = {"cp": "Cp (eq. 6.5)", "mean_error_m": "|e|, mean position error (mm, eq. 6.4)",
+                "ci": "Ci (eq. 6.6)", "peak_ratio": "peak-current ratio (eq. 6.7)"}
+
+
+def _png(fig: Any) -> str:
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png", dpi=80)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _fmt(v: Any, digits: int = 4) -> str:
+    return f"{v:.{digits}g}" if isinstance(v, (int, float)) and math.isfinite(v) else "-"
+
+
+def signals_figure(a: H.RigAnalysis) -> str:
+    """Position, position error and current against time: the log, and the calibrated
+    model where there is one."""
+    from matplotlib.figure import Figure
+    tr = a.trace
+    t = tr.t
+    fig = Figure(figsize=(11, 6.6))
+    ax = fig.subplots(3, 1, sharex=True)
+    sp = 1e3 * np.asarray(tr["setpoint_position_m"], float)
+    ax[0].plot(t, sp, "C7--", lw=1, label="set-point")
+    if "position_m" in tr:
+        x = 1e3 * np.asarray(tr["position_m"], float)
+        ax[0].plot(t, x, "k", lw=1.2, label="log")
+        ax[1].plot(t, sp - x, "k", lw=1, label="log")
+    if "position_m" in a.sim:
+        xm = 1e3 * a.sim["position_m"]
+        ax[0].plot(t, xm, "C0:", lw=1.5, label="calibrated model")
+        ax[1].plot(t, sp - xm, "C0", lw=1, label="calibrated model")
+    if "current_a" in tr:
+        ax[2].plot(t, tr["current_a"], "k", lw=1, label="log")
+    if "current_a" in a.sim:
+        ax[2].plot(t, a.sim["current_a"], "C0", lw=1, label="calibrated model")
+    for axis, (title, unit) in zip(ax, (("nut position", "mm"),
+                                        ("position error (set-point - position)", "mm"),
+                                        ("motor current", "A")), strict=True):
+        axis.set_title(title, fontsize=10)
+        axis.set_ylabel(unit)
+        axis.grid(alpha=0.3)
+        if axis.lines:
+            axis.legend(fontsize=8, loc="best")
+    ax[2].set_xlabel("t (s)")
+    return _png(fig)
+
+
+def baseline_figure(a: H.RigAnalysis) -> str | None:
+    """The log's first cycle against the baseline: current with the baseline's mean and
+    +-2 spread per aligned sample, and the standardised residual against the measured
+    position in each stroke with the located effect marked."""
+    from matplotlib.figure import Figure
+
+    from bench.rig.fallback import log_cycles
+    b, base = a.baseline, a.base_obj
+    if b is None or base is None:
+        return None
+    cyc = log_cycles(a.trace, a.name)[0]
+    cyc.load = b["load"]
+    lb = base.for_load(b["load"])
+    fig = Figure(figsize=(11, 6.2))
+    ax = fig.subplots(2, 1)
+    ax[0].plot(cyc.t_s, cyc.current_a, "k", lw=1.2, label="log")
+    first = True
+    for seg in phases(cyc.setpoint_mm):
+        ps = lb.phases.get(seg.name)
+        if ps is None:
+            continue
+        m = min(len(seg), len(ps))
+        tt = cyc.t_s[seg.start:seg.start + m]
+        mu, sd = ps.mean["current_a"][:m], ps.std["current_a"][:m]
+        ax[0].plot(tt, mu, "C2", lw=1, label="baseline mean" if first else None)
+        ax[0].fill_between(tt, mu - 2 * sd, mu + 2 * sd, color="C2", alpha=0.25,
+                           label="baseline +-2 sd" if first else None)
+        first = False
+    ax[0].set(title=f"motor current against the healthy baseline ({cyc.label})",
+              xlabel="t in the cycle (s)", ylabel="A")
+    ax[0].legend(fontsize=8, loc="upper right")
+    res = residuals(lb, cyc, "current_a")
+    for stroke, color in (("out", "C0"), ("in", "C3")):
+        if stroke in res:
+            z, pos = res[stroke]
+            ax[1].plot(pos, z, color, lw=1, label=f"{stroke}-stroke")
+    v = b["verdicts"][0] if b["verdicts"] else None
+    if v is not None and v.get("location_mm") is not None:
+        ax[1].axvline(v["location_mm"], color="C1", ls="--", lw=1.2,
+                      label=f"located effect {v['location_mm']:.1f} mm")
+    ax[1].axhline(0, color="k", lw=0.5)
+    ax[1].set(title="current residual against the baseline, standardised by its spread",
+              xlabel="measured position (mm)", ylabel="residual (baseline sd)")
+    ax[1].grid(alpha=0.3)
+    ax[1].legend(fontsize=8, loc="upper right")
+    return _png(fig)
+
+
+def _model_free(a: H.RigAnalysis, e: Any) -> list[str]:
+    dirs = [d for d in ("extend", "retract", "dwell", "all") if d in a.model_free]
+    if not dirs:
+        return []
+    parts = ["<h3>Model-free indexes (no model, no baseline)</h3><table><tr><th>index</th>"
+             + "".join(f"<th>{d} ({int(a.model_free[d]['samples'])} samples)</th>"
+                       for d in dirs) + "</tr>"]
+    for key, label in MF_LABELS:
+        if any(key in a.model_free[d] for d in dirs):
+            parts.append(f"<tr><td class='l'>{e(label)}</td>" + "".join(
+                f"<td>{_fmt(a.model_free[d].get(key, math.nan))}</td>" for d in dirs)
+                + "</tr>")
+    parts.append("</table>")
+    return parts
+
+
+def _model(a: H.RigAnalysis, e: Any) -> list[str]:
+    m = a.model
+    if m is None:
+        return []
+    parts = [f"<h3>Against the calibrated model ({e(m['calibration'])})</h3>"]
+    if not m["reaches_noise_floor"]:
+        parts.append(f"<p>This model does not reach the noise floor on the calibration's "
+                     f"healthy logs (worst x{m['healthy_ratio']:.3g}): its indexes are shown "
+                     "for information; the verdict comes from the healthy baseline where "
+                     "there is one.</p>")
+    parts.append("<table><tr><th>index</th><th>value</th></tr>")
+    for k, v in m["indexes"].items():
+        scale = 1e3 if k == "mean_error_m" else 1.0
+        parts.append(f"<tr><td class='l'>{e(MODEL_LABELS.get(k, k))}</td>"
+                     f"<td>{_fmt(v * scale, 6 if k == 'cp' else 4)}</td></tr>")
+    parts.append("</table><table><tr><th>signal</th><th>RMS / noise floor</th>"
+                 "<th>threshold</th><th>noise floor</th></tr>")
+    for s, r in m["rms_ratio"].items():
+        parts.append(f"<tr><td class='l'>{e(s)}</td><td>{_fmt(r, 3)}</td>"
+                     f"<td>{_fmt(m['threshold'][s], 3)}</td>"
+                     f"<td>{_fmt(m['noise_floor'][s], 3)}</td></tr>")
+    parts.append("</table>")
+    return parts
+
+
+def _baseline(a: H.RigAnalysis, e: Any) -> list[str]:
+    b = a.baseline
+    if b is None:
+        return []
+    parts = [f"<h3>Against the healthy baseline</h3><p>{e(b['baseline'])}</p>"]
+    if b["verdicts"]:
+        parts.append("<table><tr><th>cycle</th><th>flagged</th><th>effect</th>"
+                     "<th>features against their thresholds</th></tr>")
+        for v in b["verdicts"]:
+            parts.append(f"<tr><td class='l'>{e(v['cycle'])}</td><td>"
+                         f"{'yes' if v['flagged'] else 'no'}</td><td class='l'>"
+                         f"{e(v['verdict'])}</td><td class='l'>{e('; '.join(v['reasons']))}"
+                         "</td></tr>")
+        parts.append("</table>")
+    for n in b["notes"]:
+        parts.append(f"<p class='na'>{e(n)}</p>")
+    rows = b["phase_indexes"]
+    if rows:
+        parts.append("<p>Phase indexes (mean over the log's cycles) against the baseline's "
+                     "mean and spread (information; the verdict rests on the features "
+                     "above):</p><table><tr><th>phase</th><th>index</th><th>log</th>"
+                     "<th>baseline mean</th><th>baseline sd</th><th>z</th></tr>")
+        for r in rows:
+            z = r["z"]
+            style = " style='background:#fdd'" if z is not None and abs(z) > 3 else ""
+            parts.append(f"<tr><td class='l'>{e(r['phase'])}</td><td class='l'>"
+                         f"{e(r['index'])}</td><td>{_fmt(r['value'])}</td>"
+                         f"<td>{_fmt(r['baseline_mean'])}</td><td>{_fmt(r['baseline_sd'], 3)}"
+                         f"</td><td{style}>{_fmt(z, 3)}</td></tr>")
+        parts.append("</table>")
+    return parts
+
+
+def _log(a: H.RigAnalysis, e: Any) -> list[str]:
+    parts = [f"<h2>{e(a.name)}</h2><p><span class='v {a.verdict}'>{a.verdict}</span></p>",
+             f"<p class='ref'><b>Judged against:</b> {e(a.reference)}</p>",
+             "<ul>" + "".join(f"<li>{e(r)}</li>" for r in a.reasons) + "</ul>"]
+    parts += _model_free(a, e) + _model(a, e) + _baseline(a, e)
+    na = {k: v for k, v in a.sections.items() if v}
+    if na:
+        parts.append("<h3>Not available on this log</h3><ul>" + "".join(
+            f"<li><b>{e(k)}</b>: {e(v)}</li>" for k, v in na.items()) + "</ul>")
+    parts.append("<h3>Signals" + (" against the calibrated model" if a.sim else "")
+                 + f"</h3><img alt='signals' src='data:image/png;base64,{signals_figure(a)}'>")
+    png = baseline_figure(a)
+    if png:
+        parts.append("<h3>First cycle against the healthy baseline</h3>"
+                     f"<img alt='baseline' src='data:image/png;base64,{png}'>")
+    return parts
+
+
+def render(analyses: list[H.RigAnalysis]) -> str:
+    """The HTML text of the report."""
+    e = html.escape
+    parts = ["<!doctype html><html><head><meta charset='utf-8'>",
+             f"<title>Actuator HUMS report</title><style>{STYLE}</style></head><body>",
+             "<h1>Actuator health report</h1>",
+             "<p>These logs come from an actuator the bench did not simulate. Each is "
+             "compared with what was given: a calibration of its generic model "
+             "(<code>bench calibrate --actuator</code>), a healthy baseline built from its "
+             "own healthy runs, or neither (then only indexes that need no model). What a "
+             "log cannot support is listed as not available, with the reason.</p>",
+             "<h2>Summary</h2><table><tr><th>log</th><th>samples</th><th>duration (s)</th>"
+             "<th>verdict</th><th>judged against</th></tr>"]
+    for a in analyses:
+        dur = len(a.trace) * a.trace.dt if len(a.trace) > 1 else 0.0
+        parts.append(f"<tr><td class='l'>{e(a.name)}</td><td>{len(a.trace)}</td>"
+                     f"<td>{dur:.1f}</td><td><span class='v {a.verdict}'>{a.verdict}</span>"
+                     f"</td><td class='l'>{e(a.reference)}</td></tr>")
+    parts.append("</table>")
+    for a in analyses:
+        parts += _log(a, e)
+    parts.append("<p><small>Levels: HEALTHY within the reference (the calibrated model's "
+                 "healthy threshold, or every feature within the baseline's thresholds); "
+                 "DEGRADED outside it; UNKNOWN without a reference. Baseline thresholds come "
+                 "from healthy calibration runs only (docs/real-data.md).</small></p>"
+                 "</body></html>")
+    return "\n".join(parts)
+
+
+def write_rig_report(paths: list[str], out_dir: str | Path, nominal: str | None = None,
+                     baseline: str | None = None, against: str = "auto"
+                     ) -> tuple[Path, list[H.RigAnalysis]]:
+    """Analyse every log against the references given and write ``report.html``,
+    ``indexes.json`` and ``summary.txt`` into out_dir."""
+    if not paths:
+        raise BenchError("give at least one log")
+    cal = H.calibration_file(nominal) if nominal is not None else None
+    ref = FB.choose(cal, nominal, baseline, against)
+    analyses = [H.analyse_rig(FB.read_log(p), Path(p).name, ref) for p in paths]
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    page = out / "report.html"
+    page.write_text(render(analyses))
+    (out / "indexes.json").write_text(json.dumps(
+        [json_safe(a.to_json()) for a in analyses], indent=1, default=str))
+    (out / "summary.txt").write_text("\n\n".join(H.summary_text(a) for a in analyses) + "\n")
+    return page, analyses

@@ -1,0 +1,180 @@
+"""`bench hums report` and `bench gap` on the Cranfield sample's 25 Hz cycles (issue 11),
+CLI in-process: the report with neither a calibration nor a baseline (model-free
+indexes, every model-based section "not available" with its reason), with a baseline,
+with a calibration whose model stays above the noise floor (then `bench calibrate` wrote
+the healthy baseline from its calibration runs and both commands judge against it and
+say so), and the reference choice on its own (`bench.rig.fallback.choose`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench import BenchError
+from bench.cli import main
+from bench.rig import fallback as FB
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE = ROOT / "tests" / "data" / "cranfield_sample"
+MAP = ROOT / "bench" / "actuators" / "cranfield_map.json"
+SPALL = "load=40_run=1_group=51.parquet"      # spalling stage 5, run 1, first cycle
+HELD = "load=40_run=3_group=61.parquet"       # healthy run 3: never in a baseline here
+# calibration logs: three cycles of healthy runs 1 and 2 (a baseline needs 3 cycles a
+# load, its thresholds two runs, one held out at a time)
+FIT = [f"load=40_run={r}_group={g}.parquet" for r, gs in ((1, (51, 52, 53)), (2, (56, 57, 58)))
+       for g in gs]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rigreport")
+    for table, sub in (("normal_load40_runs1-4.csv.xz", "n"), ("spalling5_load40_runs1-2.csv.xz",
+                                                               "s")):
+        assert main(["import", str(SAMPLE / table), "--map", str(MAP), "--split-by",
+                     "load,run,group", "-o", str(d / sub)]) == 0
+    base = d / "base.json"
+    assert main(["rig", "baseline", str(SAMPLE / "normal_load40_runs1-4.csv.xz"), "--runs",
+                 "1,2", "--actuator", "cranfield", "--out", str(base)]) == 0
+    return d
+
+
+@pytest.fixture(scope="module")
+def calibrated(data):
+    """`bench calibrate --actuator cranfield` on 6 healthy cycles, 1 held out."""
+    cal = data / "cal.json"
+    assert main(["calibrate", *[str(data / "n" / f) for f in FIT], "--actuator", "cranfield",
+                 "--holdout", str(data / "n" / HELD), "-o", str(cal)]) == 0
+    return cal
+
+
+def _report(args, out):
+    code = main(["hums", "report", *map(str, args), "--out", str(out)])
+    js = json.loads((out / "indexes.json").read_text())
+    return code, js[0], (out / "report.html").read_text()
+
+
+def test_report_without_a_reference_gives_model_free_indexes_and_reasons(data, tmp_path,
+                                                                          capsys):
+    code, js, page = _report([data / "s" / SPALL], tmp_path)
+    assert code == 3                               # written, but no verdict: UNKNOWN
+    assert js["verdict"] == "UNKNOWN" and "no reference" in js["judged_against"]
+    mf = js["model_free"]
+    assert set(mf) == {"extend", "retract", "dwell", "all"}
+    assert mf["extend"]["samples"] + mf["retract"]["samples"] + mf["dwell"]["samples"] == 324
+    assert mf["retract"]["current_rms_a"] > mf["extend"]["current_rms_a"] > 0   # 40 kgf
+    sec = js["sections"]
+    assert sec["model-free indexes: position error per direction"] == "available"
+    assert "needs a calibration" in sec["calibrated model: Cp, mean error (eq. 6.4-6.5)"]
+    assert "needs a healthy baseline" in sec["healthy baseline: phase indexes, features, verdict"]
+    assert "needs setpoint_speed_rad_s, mode" in sec[
+        "thesis monitoring model: Cp, Ci, peak ratio, harmonics (eq. 6.3-6.7)"]
+    assert "motor_angle_rad" in sec["lost motion (encoder against LVDT)"]
+    assert "not available" in page and "data:image/png;base64," in page
+    assert (tmp_path / "summary.txt").read_text().startswith(SPALL + ": UNKNOWN")
+    assert "error: no verdict" in capsys.readouterr().err
+
+
+def test_report_against_a_baseline_names_it(data, tmp_path):
+    base = data / "base.json"
+    code, js, page = _report([data / "s" / SPALL, "--baseline", base], tmp_path / "s")
+    assert code == 0 and js["verdict"] == "DEGRADED"
+    assert "runs 1,2, load 40" in js["judged_against"] and "base.json" in js["judged_against"]
+    b = js["baseline"]
+    assert b["flagged"] == 1 and b["effects"] == {"periodic": 1}
+    assert "runs 1,2" in b["verdicts"][0]["baseline"]
+    rows = {(r["phase"], r["index"]) for r in b["phase_indexes"]}
+    assert ("out", "current_constant") in rows and ("in", "position_error_peak") in rows
+    assert "Against the healthy baseline" in page and "periodic" in page
+    code, js, _ = _report([data / "n" / HELD, "--baseline", base], tmp_path / "h")
+    assert code == 0 and js["verdict"] == "HEALTHY"       # held-out healthy run 3
+    assert "needs a calibration" in js["sections"]["calibrated model: Ci, peak ratio (eq. 6.6-6.7)"]
+
+
+def test_calibrate_writes_the_baseline_when_above_the_floor(calibrated, capsys):
+    cal = json.loads(calibrated.read_text())
+    assert cal["reaches_noise_floor"] is False
+    ref = cal["baseline"]
+    assert ref["file"] == "cal.baseline.json" and ref["loads"]["40"]["runs"] == [1, 2]
+    assert ref["loads"]["40"]["cycles"] == 6 and ref["loads"]["40"]["thresholds"]
+    assert any("thresholds from calibration runs 1,2 only" in n for n in cal["notes"])
+    base = FB.B.Baseline.load(calibrated.parent / ref["file"])
+    assert base.lead_mm == pytest.approx(5.0) and base.load_unit == "kgf"
+    assert set(base.thresholds["40"]["thresholds"]) == {"localised", "level", "reversal",
+                                                        "periodic"}
+    assert HELD.split(".")[0] not in " ".join(base.for_load(40).cycles)   # held out stays out
+
+
+def test_gap_and_report_judge_against_the_calibration_baseline(data, calibrated, tmp_path,
+                                                              capsys):
+    capsys.readouterr()
+    assert main(["gap", str(data / "s" / SPALL), "--nominal", str(calibrated)]) == 0
+    out = capsys.readouterr().out
+    line = out.splitlines()[1]
+    assert line.startswith("model above the noise floor on held-out healthy logs (x")
+    assert "judged against the healthy baseline" in line and "(runs 1,2, load 40 kgf, 6 cycles)" in line
+    assert "FLAGGED" in out and "periodic" in out
+    js_path = tmp_path / "g.json"
+    assert main(["gap", str(data / "n" / HELD), "--nominal", str(calibrated), "--json",
+                 str(js_path)]) == 0
+    js = json.loads(js_path.read_text())
+    assert js["against"] == "baseline" and js["flagged"] == 0 and "runs 1,2" in js["baseline"]
+    code, rep, page = _report([data / "s" / SPALL, "--nominal", calibrated], tmp_path / "r")
+    assert code == 0 and rep["verdict"] == "DEGRADED"
+    assert rep["judged_against"] == line
+    assert set(rep["model"]["indexes"]) == {"cp", "mean_error_m", "ci", "peak_ratio"}
+    assert np.isfinite(rep["model"]["indexes"]["ci"])
+    assert "does not reach the noise floor" in page
+    # forced onto the model: its verdict, and it says so
+    code, rep, _ = _report([data / "s" / SPALL, "--nominal", calibrated, "--against", "model"],
+                           tmp_path / "m")
+    assert "--against model: judged against the calibrated model" in rep["judged_against"]
+    assert rep["baseline"] is None and any("RMS" in r for r in rep["reasons"])
+
+
+def test_reference_choice_and_a_log_set_that_cannot_make_a_baseline(data, tmp_path):
+    cal = {"reaches_noise_floor": True, "floor_factor": 2.0,
+           "holdout_summary": {"position_m": {"ratio_max": 1.4}}}
+    ref = FB.choose(cal, "c.json")
+    assert ref.kind == "model" and ref.line().startswith(
+        "model within 2 x the noise floor on held-out healthy logs (x1.4)")
+    with pytest.raises(BenchError, match="wrote no healthy baseline"):
+        FB.choose(cal, "c.json", against="baseline")
+    # one cycle per run: no set of repeated cycles a baseline can be built from
+    above = {"reaches_noise_floor": False, "floor_factor": 2.0,
+             "holdout_summary": {"current_a": {"ratio_max": 2.9}}}
+    notes = FB.baseline_for_calibration(above, [data / "n" / HELD, data / "n" / SPALL],
+                                        str(tmp_path / "c.json"), 5.0)
+    assert above["baseline"] is None and "at least 3" in above["baseline_not_available"]
+    assert "verdicts stay against the model" in notes[0]
+    ref = FB.choose(above, tmp_path / "c.json")
+    assert ref.kind == "model" and "(x2.9), and no healthy baseline (" in ref.line()
+    assert not (tmp_path / "c.baseline.json").exists()
+
+
+def test_cycles_that_do_not_repeat_one_setpoint_make_no_baseline(data):
+    from bench.rig.baseline import build
+    cycles = [c for f in FIT[:4] for c in FB.log_cycles(FB.read_log(data / "n" / f), f)]
+    cycles[0].setpoint_mm = cycles[0].setpoint_mm * 0.8 + 4.0   # a shorter stroke
+    with pytest.raises(BenchError, match="do not repeat one set-point profile"):
+        build(cycles)
+
+
+def test_a_log_of_several_cycles_with_its_load_in_newtons(data, calibrated, tmp_path):
+    """Three cycles in one trace, no split keys: cycles from the set-point, the logged load
+    (N) converted to the kgf of the baseline `bench calibrate` wrote (its logs' import map
+    gives the unit)."""
+    from bench.trace import Trace
+    parts = [Trace.load(data / "s" / f"load=40_run=1_group={g}.parquet") for g in (51, 52, 53)]
+    cols = {k: np.concatenate([t[k] for t in parts])
+            for k in ("setpoint_position_m", "position_m", "current_a", "load_force_n")}
+    cols["t_s"] = np.arange(len(cols["current_a"])) * 0.04
+    Trace(cols, {"source": "three cycles"}).save(tmp_path / "three.npz")
+    code, js, _ = _report([tmp_path / "three.npz", "--baseline",
+                           calibrated.parent / "cal.baseline.json"], tmp_path / "r")
+    b = js["baseline"]
+    assert code == 0 and b["cycles"] == 3 and b["load"] == 40.0
+    assert any("judged at the baseline's 40" in n for n in b["notes"])
+    assert js["verdict"] == "DEGRADED" and b["flagged"] >= 2
