@@ -193,7 +193,8 @@ def _candump_body(fr: Frames, values: dict[str, dict[str, np.ndarray]],
     stamps = [_stamp_chars(t) for _, t, _ in kinds]
     if n == 0:
         return ""
-    if any(st is None for st in stamps):
+    ready = [st for st in stamps if st is not None]
+    if len(ready) < len(stamps):
         mids = [mid for mid, _, _ in kinds]
         times = [t.tolist() for _, t, _ in kinds]
         texts = [[h.tobytes().decode("ascii") for h in hexed] for _, _, hexed in kinds]
@@ -205,7 +206,7 @@ def _candump_body(fr: Frames, values: dict[str, dict[str, np.ndarray]],
                                (n, len(text)))
 
     parts = []
-    for (mid, _, hexed), st in zip(kinds, stamps, strict=True):
+    for (mid, _, hexed), st in zip(kinds, ready, strict=True):
         parts += [const("("), st, const(mid), hexed, const(" T\n")]
     return np.concatenate(parts, axis=1).tobytes().decode("ascii")
 
