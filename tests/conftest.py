@@ -50,6 +50,7 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_rig_calibrate.py::test_cli_calibrate_then_gap_finds_a_localised_resistance",
     "tests/integration/test_rig_calibrate.py::test_unknown_cascade_gains_recovered_at_25_hz",
     "tests/integration/test_usage_bus.py",
+    "tests/integration/test_workers_chunks.py",
     "tests/integration/test_usage_campaign.py::test_mini_campaign_runs_to_failure_and_scores_every_method",
     "tests/integration/test_prognosis.py::test_particle_filter_recovers_a_known_wear_coefficient",
     "tests/integration/test_usage_cli.py::test_usage_per_run_and_per_actuator",
