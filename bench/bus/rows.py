@@ -108,6 +108,7 @@ class _Rows:
         self.stride = [frames.by_name[n].length for n in ROW_FRAMES]
         self.payload = [bytearray() for _ in ROW_FRAMES]
         self.length = [array("B") for _ in ROW_FRAMES]
+        self._slots = list(zip(ROW_FRAMES, self.stride, self.length, self.payload, strict=True))
 
     def __len__(self) -> int:
         return len(self.present)
@@ -117,16 +118,15 @@ class _Rows:
         self.run.append(float(run))
         got = group.frames if group is not None else {}
         mask = 0
-        for i, name in enumerate(ROW_FRAMES):
+        for i, (name, stride, length, payload) in enumerate(self._slots):
             frame = got.get(name)
-            stride = self.stride[i]
             if frame is None:
-                self.length[i].append(0)
-                self.payload[i] += bytes(stride)
+                length.append(0)
+                payload += bytes(stride)
             else:
                 data = frame[0]
-                self.length[i].append(len(data))
-                self.payload[i] += data + bytes(stride - len(data))
+                length.append(len(data))
+                payload += data if len(data) == stride else data + bytes(stride - len(data))
                 mask |= 1 << i
         self.present.append(mask)
 
@@ -198,6 +198,7 @@ class RowAssembler:
         self.row_ids = {cob[n]: n for n in ROW_FRAMES}
         self.sync_max = sync_max
         self.sdo = SdoTracker(frames.sdo_rx, frames.sdo_tx)
+        self._sdo_ids = (frames.sdo_rx, frames.sdo_tx)
         self.rows = _Rows(frames) if rows is None else rows
         self._values = not getattr(self.rows, "takes_payloads", False)
         self._kinds = _frame_kinds(frames, self.row_ids, (self.nmt_cob, self.emcy_cob))
@@ -264,13 +265,15 @@ class RowAssembler:
             return
         if sync:
             self._sync(data, ts)
+        elif cid in self._sdo_ids:
+            self.sdo.feed(can.Message(arbitration_id=cid, data=data, is_extended_id=False))
         else:
-            self._route(cid, data, ts)
+            self._data(cid, data)
 
     def _route(self, cid: int, data: bytes, ts: float) -> None:
         if cid == self.sync_cob:
             self._sync(data, ts)
-        elif cid in (self.f.sdo_rx, self.f.sdo_tx):
+        elif cid in self._sdo_ids:
             self.sdo.feed(can.Message(arbitration_id=cid, data=data, is_extended_id=False))
         else:
             self._data(cid, data)
