@@ -303,7 +303,10 @@ Workers: the Dask LocalCluster of `bench.workers.run_all` (1 worker: in-process)
 logs sent {r.get('chunk_note', 'several per task')}; one BLAS thread per process.
 Speed-up of the second worker: {s2 / s1:.2f} x ({s2 / s1 / 2:.2f} per worker). Both
 times include the workers' start (spawn, imports, numba compilation, the monitoring
-model's gain fit: paid once per worker per ingest); on 2 shared cores at this load the
+model's gain fit: paid once per worker per ingest, and a LocalCluster's start besides),
+which weighs on {r['scaling_logs']} logs of ~{r.get('cpu_per_log_s', 0.0):.2f} s each:
+the {n}-log ingest on 2 workers ran at {n / r['ingest_s']:.2f} logs/s,
+{n / r['ingest_s'] / s1:.2f} x the 1-worker rate above; on 2 shared cores at this load the
 second worker cannot add a full core.{_pool(r)}{_cpu(r)}{_before(r)}
 End to end, synth + ingest of {n} logs: {e2e:.0f} s ({n / e2e:.2f} logs/s).
 Store: {r['big_db_bytes'] / r['status_runs']:.0f} bytes per run in the DuckDB file of
