@@ -76,7 +76,8 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
             progress: bool = True, desc: str = "runs", unit: str = "run", *,
             initializer: Callable[..., Any] | None = None, initargs: tuple[Any, ...] = (),
             on_result: Callable[[Any], None] | None = None, leave: bool = False,
-            scheduler: str | None = None, retries: int = RETRIES) -> list[Any]:
+            scheduler: str | None = None, retries: int = RETRIES,
+            chunk: int = 1) -> list[Any]:
     """[fn(job) for job in jobs], in job order, as Dask tasks on `workers` local
     processes (default: 2, or 1 on a one-core machine) or on the cluster of `scheduler`
     (an address, default ``$BENCH_DASK_SCHEDULER``; `workers` is then only the in-process
@@ -84,7 +85,11 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
     With ``workers=1`` or a single job everything runs in this process.
     `initializer(*initargs)` runs once in each worker (once here when in-process);
     `on_result(result)` is called as each job finishes (in completion order); a task that
-    raises is retried `retries` times, then its error is a BenchError naming the job."""
+    raises is retried `retries` times, then its error is a BenchError naming the job.
+    `chunk` > 1: on a cluster, each task runs that many consecutive jobs (jobs of ~0.1 s
+    would otherwise pay Dask's per-task cost, a few ms of scheduler and transfer each);
+    their results still come one by one (bar, `on_result`) as their task finishes, and a
+    worker that dies costs the tasks it held (`chunk` jobs each), run again elsewhere."""
     jobs = list(jobs)
     addr = scheduler_address(scheduler)
     n = (default_workers() if addr is None else 2) if workers is None else int(workers)
@@ -116,7 +121,8 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
             bar = new_bar()
             _on_dask(client, fn, jobs, done, desc, retries,
                      None if initializer is None else (initializer, initargs),
-                     own_cluster=engine.cluster is not None and shared is None)
+                     own_cluster=engine.cluster is not None and shared is None,
+                     chunk=chunk)
         finally:
             if shared is None:
                 engine.close()
@@ -128,9 +134,10 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
 
 def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
              done: Callable[[int, Any], None], desc: str, retries: int,
-             init: tuple[Callable[..., Any], tuple[Any, ...]] | None, own_cluster: bool
-             ) -> None:
-    """The jobs as tasks of `client`'s cluster; `done(k, result)` as each one finishes."""
+             init: tuple[Callable[..., Any], tuple[Any, ...]] | None, own_cluster: bool,
+             chunk: int = 1) -> None:
+    """The jobs as tasks of `client`'s cluster (`chunk` consecutive jobs per task);
+    `done(k, result)` as each one finishes."""
     from distributed import as_completed
     name = f"{_slug(desc)}-{uuid.uuid4().hex[:8]}"
     plugin = None
@@ -138,23 +145,30 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
         from bench.cluster_plugin import Initializer
         plugin = f"{name}-init"
         client.register_plugin(Initializer(*init), name=plugin)
-    futs = client.map(fn, jobs, key=[f"{name}-{k}" for k in range(len(jobs))],
-                      retries=max(0, int(retries)))
-    index = {f.key: k for k, f in enumerate(futs)}
+    size = max(1, int(chunk))
+    starts = list(range(0, len(jobs), size))
+    futs = client.map(_run_chunk, [fn] * len(starts), starts,
+                      [jobs[k:k + size] for k in starts],
+                      key=[f"{name}-{k}" for k in starts], retries=max(0, int(retries)))
+    index = {f.key: i for i, f in enumerate(futs)}
     try:
         for f, result in as_completed(futs, loop=client.loop, with_results=True,
                                       raise_errors=False):
-            k = index[f.key]
+            i = index[f.key]
             try:
                 if f.status != "finished":   # erred or cancelled: raise its error here
                     result = f.result()
             except BenchError:
                 raise
+            except _JobFailed as exc:
+                raise BenchError(f"{desc}: job {exc.args[0]} failed in a worker: "
+                                 f"{exc.args[1]}") from exc
             except Exception as exc:  # noqa: BLE001 - a task's error: say which job
-                raise BenchError(f"{desc}: job {k} failed in a worker: "
+                raise BenchError(f"{desc}: job {starts[i]} failed in a worker: "
                                  f"{type(exc).__name__}: {exc}") from exc
-            futs[k] = None                 # the cluster may forget it now
-            done(k, result)
+            futs[i] = None                 # the cluster may forget it now
+            for j, r in enumerate(result):
+                done(starts[i] + j, r)
     finally:
         left = [f for f in futs if f is not None and not f.done()]
         if left:
@@ -164,6 +178,24 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
                 client.unregister_worker_plugin(plugin)
             except Exception:  # noqa: BLE001 - best effort
                 pass
+
+
+class _JobFailed(Exception):
+    """A job of a chunk raised: args (job index, "ErrorType: message")."""
+
+
+def _run_chunk(fn: Callable[[Any], Any], first: int, jobs: list[Any]) -> list[Any]:
+    """A task: `fn` on `chunk` consecutive jobs (the first is job `first`), their results
+    in order; a job's error names the job (`_JobFailed`)."""
+    out = []
+    for j, job in enumerate(jobs):
+        try:
+            out.append(fn(job))
+        except BenchError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - re-raised naming the job
+            raise _JobFailed(first + j, f"{type(exc).__name__}: {exc}") from None
+    return out
 
 
 def _slug(desc: str) -> str:

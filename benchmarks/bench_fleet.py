@@ -11,6 +11,12 @@ and all its descendants, sampled every 0.2 s from /proc.
 
 The 10,000-run store for the status timing is built from the measured store by copying
 its runs under new digests and actuator ids (a status reads only the stored rows).
+
+Every stage, and the in-process cost measurement, runs with one BLAS/OpenMP/numba thread
+(`bench.cluster.THREAD_VARS` = 1, as the Dask workers run): one worker is one core, also
+for the 1-worker ingest, which runs in the CLI's own process (with OpenBLAS' default two
+threads the HUMS analysis of a log spends ~4x the CPU spinning, and the 1-worker row
+would measure a worker on two cores).
 """
 
 from __future__ import annotations
@@ -25,9 +31,16 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from perfdoc import write_section  # noqa: E402
+
+from bench.cluster import THREAD_VARS  # noqa: E402  (imports neither numpy nor dask)
+
+for _var in THREAD_VARS:             # before numpy is imported: one thread per process
+    os.environ[_var] = "1"
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -113,6 +126,32 @@ def ingest_cost(logdir: Path, n: int = 44) -> dict[str, float]:
             "wall_per_log_s": (time.perf_counter() - w0) / k, "cpu_load": os.getloadavg()[0]}
 
 
+def synth_cost(n: int = 10) -> dict[str, float]:
+    """CPU time per log of `bench.fleet.synth._job` (simulate + write_candump) and of
+    write_candump alone in this process, after one warm-up log."""
+    from bench.fleet import synth as S
+    from bench.harness import simulate
+    from bench.profiles import sine
+    from plant_rt.params import PlantParams
+    act = S.draw_fleet(1, n, 0)[0]
+    with tempfile.TemporaryDirectory(prefix="bench-fleet-cost-") as tmp:
+        jobs = [(f"{tmp}/{d}.log", S.wear_at(act, d), d, 1.7e9 + d * 86400.0, act.ident)
+                for d in range(n + 1)]
+        S._job(jobs[0])
+        c0 = time.process_time()
+        for job in jobs[1:]:
+            S._job(job)
+        job_s = (time.process_time() - c0) / n
+        p = PlantParams().with_dict({**jobs[1][1], "sensors.noise": True,
+                                     "sensors.noise_seed": 1})
+        tr = simulate(sine(cycles=S.GROUND_TEST_CYCLES), p)
+        c0 = time.process_time()
+        for d in range(n):
+            S.write_candump(tr, f"{tmp}/w{d}.log", 1.7e9 + d)
+        write_s = (time.process_time() - c0) / n
+    return {"synth_cpu_per_log_s": job_s, "write_cpu_per_log_s": write_s}
+
+
 def rul_check(db: Path) -> dict[str, float]:
     """The fleet RUL (`bench.fleet.status.rul_of`) re-made after every test of each
     actuator that reached the failure level, from the tests up to then only, against the
@@ -165,9 +204,12 @@ def main() -> None:  # long: the benchmark's stages in order, each timed
                     "cost in this process, over 44 logs of LOGDIR")
     ap.add_argument("--from-json", metavar="PATH", help="write the section of an earlier "
                     "run's JSON (with --write) instead of running")
+    ap.add_argument("--before", metavar="PATH", help="JSON of earlier --cost-only runs to "
+                    "quote in the section: {label: {cpu_per_log_s, wall_per_log_s, "
+                    "cpu_load}}")
     a = ap.parse_args()
     if a.cost_only:
-        print(json.dumps(ingest_cost(Path(a.cost_only))))
+        print(json.dumps({**ingest_cost(Path(a.cost_only)), **synth_cost()}))
         return
     if a.from_json:
         res = json.loads(Path(a.from_json).read_text())
@@ -178,8 +220,8 @@ def main() -> None:  # long: the benchmark's stages in order, each timed
     work.mkdir(parents=True, exist_ok=True)
     logs, db = work / "logs", work / "fleet.duckdb"
     n_logs = a.actuators * a.days
-    res: dict[str, float | int | str] = {"actuators": a.actuators, "days": a.days,
-                                         "logs": n_logs}
+    from bench.fleet.ingest import chunk_size
+    res: dict[str, Any] = {"actuators": a.actuators, "days": a.days, "logs": n_logs}
     load0 = os.getloadavg()[0]
     t_synth, rss_synth, _ = run(["synth", "--actuators", str(a.actuators), "--days",
                                  str(a.days), "--out", str(logs), "--seed", "1",
@@ -200,6 +242,8 @@ def main() -> None:  # long: the benchmark's stages in order, each timed
         print(f"ingest {len(files)} logs on {w} worker(s): {t:.1f} s "
               f"({len(files) / t:.2f} logs/s), peak {rss / 2**20:.0f} MiB", flush=True)
     res["scaling_logs"] = len(files)
+    res["chunk_note"] = (f"{chunk_size(len(files), 2)} per Dask task for the {len(files)}, "
+                         f"{chunk_size(n_logs, 2)} for the {n_logs}")
     db.unlink(missing_ok=True)
     t_ing, rss_ing, _ = run(["ingest", str(logs), "--db", str(db), "--workers", "2"])
     res.update(ingest_s=t_ing, ingest_rss=rss_ing)
@@ -221,6 +265,9 @@ def main() -> None:  # long: the benchmark's stages in order, each timed
     res["load_start"], res["load_end"] = load0, os.getloadavg()[0]
     res.update(rul_check(db))
     res.update(ingest_cost(logs))
+    res.update(synth_cost())
+    if a.before:
+        res["before"] = json.loads(Path(a.before).read_text())
     print(json.dumps(res, indent=1))
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1))
@@ -252,17 +299,21 @@ lines, {r['log_bytes'] / n / 1e3:.0f} kB.
 | `fleet status`, {r['actuators']} actuators | {n} runs | {r['status_s']:.2f} | | |
 | `fleet status`, {r['status_runs']} runs | {r['status_runs']} runs | {r['status_big_s']:.2f} | | |
 
-Workers: the Dask LocalCluster of `bench.workers.run_all` (1 worker: in-process).
+Workers: the Dask LocalCluster of `bench.workers.run_all` (1 worker: in-process), the
+logs sent {r.get('chunk_note', 'several per task')}; one BLAS thread per process.
 Speed-up of the second worker: {s2 / s1:.2f} x ({s2 / s1 / 2:.2f} per worker). Both
 times include the workers' start (spawn, imports, numba compilation, the monitoring
-model's gain fit: paid once per worker per ingest); on 2 shared cores at this load the
-second worker cannot add a full core.{_pool(r)}{_cpu(r)}
+model's gain fit: paid once per worker per ingest, and a LocalCluster's start besides),
+which weighs on {r['scaling_logs']} logs of ~{r.get('cpu_per_log_s', 0.0):.2f} s each:
+the {n}-log ingest on 2 workers ran at {n / r['ingest_s']:.2f} logs/s,
+{n / r['ingest_s'] / s1:.2f} x the 1-worker rate above; on 2 shared cores at this load the
+second worker cannot add a full core.{_pool(r)}{_cpu(r)}{_before(r)}
 End to end, synth + ingest of {n} logs: {e2e:.0f} s ({n / e2e:.2f} logs/s).
 Store: {r['big_db_bytes'] / r['status_runs']:.0f} bytes per run in the DuckDB file of
 {r['status_runs']} runs ({r['db_bytes'] / 2**20:.1f} MiB for {n}: DuckDB allocates in
 256 kB blocks), {r['parquet_runs_bytes'] / n:.0f} bytes per run as Parquet. The `fleet status` on {r['status_runs']} runs reads a store
 grown from the measured one by copying its runs under new digests and actuator ids.
-{_full(n, e2e)}
+{_full(n, e2e)}{_projection(r)}
 
 The fleet RUL checked on this synthetic fleet (the thesis' algorithm and levels as they
 are, nothing fitted to it): {r['rul_failed']} actuators reached Ci < 0.56 within the
@@ -303,6 +354,25 @@ def _cpu(r: dict) -> str:  # type: ignore[type-arg]
             f"({r['wall_per_log_s']:.2f} s wall at load {r['cpu_load']:.0f}; "
             "`python benchmarks/bench_fleet.py --cost-only`): the figure docs/scale.md "
             "scales with.")
+
+
+def _before(r: dict) -> str:  # type: ignore[type-arg]
+    if "before" not in r:
+        return ""
+    parts = [f"{label}: {v['cpu_per_log_s']:.3f} s CPU ({v['wall_per_log_s']:.3f} s wall, "
+             f"load {v['cpu_load']:.1f})" for label, v in r["before"].items()]
+    return " The same `--cost-only` measurement, per log: " + "; ".join(parts) + "."
+
+
+def _projection(r: dict) -> str:  # type: ignore[type-arg]
+    if "synth_cpu_per_log_s" not in r or "cpu_per_log_s" not in r:
+        return ""
+    cpu = r["synth_cpu_per_log_s"] + r["cpu_per_log_s"]
+    return (f" On two cores of their own, the CPU per log (synth {r['synth_cpu_per_log_s']:.3f}"
+            f" s, of which write_candump {r['write_cpu_per_log_s']:.4f} s; ingest "
+            f"{r['cpu_per_log_s']:.3f} s) gives 10,000 x {cpu:.3f} s / 2 = "
+            f"{10_000 * cpu / 2 / 60:.0f} min end to end, plus the workers' start and the "
+            "parent's digests and writes (a projection, not a measurement).")
 
 
 def _full(n: int, e2e: float) -> str:

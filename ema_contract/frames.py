@@ -21,6 +21,7 @@ from typing import Any
 
 import can
 import cantools
+import numpy as np
 
 DBC_DIR_ENV = "EMA_BENCH_DBC_DIR"
 PACKAGE_DBC_DIR = Path(__file__).resolve().parent / "dbc"   # ema.dbc, ema.eds (package data)
@@ -110,6 +111,7 @@ class Frames:
             self.by_cob[cob] = m
         self.sdo_rx = 0x600 + self.node_id   # client -> server (CiA 301 default)
         self.sdo_tx = 0x580 + self.node_id
+        self._codecs: dict[str, PayloadCodec | None] = {}
 
     # -- encoding -----------------------------------------------------------------------
     def encode(self, name: str, values: dict[str, Any]) -> can.Message:
@@ -148,16 +150,23 @@ class Frames:
         (reading logs): a shorter frame gives the signals that fit whole in it (none:
         FrameError), as a frame of an older layout whose later signals were appended
         since (EMA_TPDO3 before the load cell)."""
-        m = self.by_cob.get(msg.arbitration_id)
-        if m is None or msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             return None
-        short = allow_truncated and 0 < len(msg.data) < m.length
+        return self.decode_payload(msg.arbitration_id, bytes(msg.data), allow_truncated)
+
+    def decode_payload(self, can_id: int, data: bytes, allow_truncated: bool = False
+                       ) -> tuple[str, dict[str, Any]] | None:
+        """`decode` of a data frame with an 11-bit id given as its id and payload."""
+        m = self.by_cob.get(can_id)
+        if m is None:
+            return None
+        short = allow_truncated and 0 < len(data) < m.length
         sig = None
-        if len(msg.data) == m.length or short:
-            sig = m.decode_simple(bytes(msg.data), decode_choices=False, scaling=True,
+        if len(data) == m.length or short:
+            sig = m.decode_simple(data, decode_choices=False, scaling=True,
                                   allow_truncated=short)
         if sig is None or (short and not sig):   # wrong length, or no signal fits
-            raise FrameError(f"{m.name} (0x{msg.arbitration_id:03X}) with {len(msg.data)} "
+            raise FrameError(f"{m.name} (0x{can_id:03X}) with {len(data)} "
                              f"bytes, expected {m.length}")
         return m.name, sig
 
@@ -177,6 +186,141 @@ class Frames:
 
     def cycle_time_ms(self, name: str) -> int:
         return int(self.by_name[name].cycle_time or 0)
+
+    # -- many frames at once ------------------------------------------------------------
+    def codec(self, name: str) -> PayloadCodec | None:
+        """The vectorised codec of message `name` (`PayloadCodec`), None for a message it
+        does not handle (multiplexed, a container, over 8 bytes): use `decode`/`encode`."""
+        if name not in self._codecs:
+            m = self.by_name[name]
+            self._codecs[name] = PayloadCodec(m) if PayloadCodec.handles(m) else None
+        return self._codecs[name]
+
+
+class PayloadCodec:
+    """One DBC message's signals decoded from (and encoded into) many payloads at once with
+    numpy, from the DBC's own signal specs (start bit, length, byte order, sign, IEEE
+    float, scale, offset): the same arithmetic cantools does for one payload
+    (`decode_simple(decode_choices=False, scaling=True)`, `encode(strict=False)`), to the
+    bit (tests/unit/test_fast_decode.py compares them). For messages of up to 8 bytes,
+    neither multiplexed nor containers (`handles`)."""
+
+    def __init__(self, msg: cantools.database.can.Message) -> None:
+        if not self.handles(msg):
+            raise ValueError(f"{msg.name}: no vectorised codec (multiplexed, container or "
+                             f"over 8 bytes)")
+        self.name, self.length = msg.name, msg.length
+        self.signals = [_SignalSpec(s) for s in msg.signals]
+        self.names = tuple(s.name for s in self.signals)
+
+    @staticmethod
+    def handles(msg: cantools.database.can.Message) -> bool:
+        return (not msg.is_multiplexed() and not msg.is_container and msg.length <= 8
+                and all(not s.conversion.is_float or s.length in (16, 32, 64)
+                        for s in msg.signals))
+
+    def fits(self, n_bytes: int) -> tuple[str, ...]:
+        """The signals whole in a payload of `n_bytes` (cantools' rule for a truncated
+        frame: the signal's bits, numbered in transmission order, all within it)."""
+        return tuple(s.name for s in self.signals if s.seq_start + s.length <= 8 * n_bytes)
+
+    def decode(self, payloads: np.ndarray, lengths: np.ndarray | None = None
+               ) -> dict[str, np.ndarray]:
+        """Signal name -> float64 values of `payloads` (uint8, shape (n, length); bytes
+        past a frame's end of any value), NaN where the frame's length (`lengths`, default
+        all whole) does not hold the signal whole (0: no frame)."""
+        words = self._words(payloads)
+        out: dict[str, np.ndarray] = {}
+        for s in self.signals:
+            v = s.scaled(words[s.byte_order])
+            if lengths is not None:
+                v[s.seq_start + s.length > 8 * lengths.astype(np.int64)] = np.nan
+            out[s.name] = v
+        return out
+
+    def encode(self, values: dict[str, np.ndarray]) -> np.ndarray:
+        """The payloads (uint8, shape (n, length)) of per-frame signal values (every
+        signal given, as `encode(strict=False)` would take them: no range check)."""
+        n = len(next(iter(values.values()))) if values else 0
+        words = {"little_endian": np.zeros(n, np.uint64), "big_endian": np.zeros(n, np.uint64)}
+        for s in self.signals:
+            words[s.byte_order] |= s.packed(np.asarray(values[s.name]))
+        raw = (words["little_endian"].astype("<u8").view(np.uint8).reshape(n, 8)
+               | words["big_endian"].astype(">u8").view(np.uint8).reshape(n, 8))
+        return raw[:, :self.length]
+
+    def _words(self, payloads: np.ndarray) -> dict[str, np.ndarray]:
+        p = np.asarray(payloads, dtype=np.uint8).reshape(-1, self.length)
+        full = np.zeros((len(p), 8), np.uint8)
+        full[:, :self.length] = p
+        return {"little_endian": full.view("<u8")[:, 0].astype(np.uint64),
+                "big_endian": full.view(">u8")[:, 0].astype(np.uint64)}
+
+
+class _SignalSpec:
+    """One signal's place and scaling, from its DBC spec (see `PayloadCodec`)."""
+
+    def __init__(self, s: Any) -> None:
+        self.name, self.length, self.byte_order = s.name, s.length, s.byte_order
+        self.signed, self.is_float = bool(s.is_signed), bool(s.conversion.is_float)
+        if s.byte_order == "little_endian":
+            self.seq_start = s.start
+            self.shift = s.start                              # from the little-endian LSB
+        else:   # cantools' sawtooth -> sequential bit number of the MSB
+            self.seq_start = 8 * (s.start // 8) + (7 - s.start % 8)
+            self.shift = 64 - self.seq_start - self.length    # of the big-endian 64-bit word
+        self.mask = (1 << self.length) - 1
+        conv = s.conversion
+        self.scale, self.offset = getattr(conv, "scale", 1), getattr(conv, "offset", 0)
+        ints = (isinstance(self.scale, int) and isinstance(self.offset, int)
+                and not self.is_float)
+        self.int_math = ints and self.length + abs(self.scale).bit_length() < 62 \
+            and abs(self.offset) < 2 ** 61
+        self.object_math = ints and not self.int_math         # exact Python ints
+
+    def raw(self, word: np.ndarray) -> np.ndarray:
+        """The raw values: int64 (or Python ints past 62 bits), float64 for IEEE signals."""
+        bits = (word >> np.uint64(self.shift)) & np.uint64(self.mask)
+        if self.is_float:
+            ftype = {16: np.float16, 32: np.float32, 64: np.float64}[self.length]
+            utype = {16: np.uint16, 32: np.uint32, 64: np.uint64}[self.length]
+            with np.errstate(invalid="ignore"):     # a signalling NaN is made quiet, as in C
+                return bits.astype(utype).view(ftype).astype(np.float64)
+        if self.length >= 63 or self.object_math:
+            vals = [int(b) for b in bits.tolist()]
+            if self.signed:
+                vals = [v - (1 << self.length) if v >> (self.length - 1) else v for v in vals]
+            return np.array(vals, dtype=object)
+        r = bits.astype(np.int64)
+        if self.signed:
+            r = np.where(r >> (self.length - 1) != 0, r - (1 << self.length), r)
+        return r
+
+    def scaled(self, word: np.ndarray) -> np.ndarray:
+        """raw * scale + offset as cantools computes it (exact ints when both are ints)."""
+        r = self.raw(word)
+        if self.is_float:
+            return r * self.scale + self.offset if (self.scale, self.offset) != (1, 0) \
+                else r
+        if self.int_math or self.object_math:
+            v = r * self.scale + self.offset
+            return np.array([float(x) for x in v], dtype=np.float64) if v.dtype == object \
+                else v.astype(np.float64)
+        return r.astype(np.float64) * self.scale + self.offset
+
+    def packed(self, v: np.ndarray) -> np.ndarray:
+        """The signal's bits in its 64-bit word, of values as cantools' scaled_to_raw
+        takes them (round half to even, like Python's round)."""
+        if self.is_float:
+            x = v.astype(np.float64) if (self.scale, self.offset) == (1, 0) \
+                else (v - self.offset) / self.scale
+            ftype = {16: np.float16, 32: np.float32, 64: np.float64}[self.length]
+            utype = {16: np.uint16, 32: np.uint32, 64: np.uint64}[self.length]
+            bits = x.astype(ftype).view(utype).astype(np.uint64)
+        else:
+            raw = np.rint((v.astype(np.float64) - self.offset) / self.scale).astype(np.int64)
+            bits = raw.view(np.uint64) & np.uint64(self.mask)
+        return bits << np.uint64(self.shift)
 
 
 def exclude_filters(ids: list[int]) -> list[dict[str, int]]:

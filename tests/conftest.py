@@ -51,6 +51,7 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_rig_calibrate.py::test_unknown_cascade_gains_recovered_at_25_hz",
     "tests/integration/test_rig_hums_report.py::test_calibrate_writes_the_baseline_when_above_the_floor",
     "tests/integration/test_usage_bus.py",
+    "tests/integration/test_workers_chunks.py",
     "tests/integration/test_usage_campaign.py::test_mini_campaign_runs_to_failure_and_scores_every_method",
     "tests/integration/test_prognosis.py::test_particle_filter_recovers_a_known_wear_coefficient",
     "tests/integration/test_usage_cli.py::test_usage_per_run_and_per_actuator",

@@ -125,11 +125,13 @@ def _codec(node_id: int | None) -> tuple[Frames, Any, ParamObjects]:
     return frames, od, ParamObjects(od)
 
 
-def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = None,
+def trace_from_messages(messages: Iterable[Any], node_id: int | None = None,
                         period_s: float | None = None, counts_per_rev: int | None = None,
                         issues: Any = None, source: str = "log",
                         sort_by_time: bool = False, stop_on_disorder: bool = False) -> Trace:
-    """The signal table of a frame sequence, one row per SYNC period (module docstring).
+    """The signal table of a frame sequence, one row per SYNC period (module docstring):
+    can.Message objects, or the plain frames `read_log` gives as tuples with ``raw=True``
+    (not with `sort_by_time`).
 
     Damage is counted in ``trace.meta``, never guessed away:
     - ``sync_gaps``: lost SYNCs (counter jumps); each leaves a row so time stays aligned.
@@ -160,8 +162,12 @@ def trace_from_messages(messages: Iterable[can.Message], node_id: int | None = N
         messages = time_ordered(_counting_order(messages, dec))
         dec.check_order = False
     dec.stop_on_disorder = stop_on_disorder
+    feed, feed_frame = dec.feed, dec.feed_frame
     for msg in messages:
-        dec.feed(msg)
+        if type(msg) is tuple:      # a plain frame as values (`read_log` with raw=True)
+            feed_frame(*msg)
+        else:
+            feed(msg)
     rows = dec.finish()
     values = sdo_values(dec.sdo, pobj, od)
     try:
@@ -209,8 +215,9 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
     found = LogIssues(100) if issues is None else issues
     first = _Counted(found)
     try:
-        tr = trace_from_messages(read_frames(path, first), node_id, period_s, counts_per_rev,
-                                 found, source=str(path), stop_on_disorder=True)
+        tr = trace_from_messages(read_frames(path, first, raw=True), node_id, period_s,
+                                 counts_per_rev, found, source=str(path),
+                                 stop_on_disorder=True)
     except _OutOfOrder:        # read it all again, in time-stamp order
         tr = trace_from_messages(read_frames(path, _Counted(found, skip=first.seen)), node_id,
                                  period_s, counts_per_rev, found, source=str(path),

@@ -11,6 +11,15 @@ frames and frames out of time order are counted in ``count`` (see
 `bench.bus.logs.trace_from_messages` for each word). Sorting a shuffled log by time
 stamp needs the whole log: that step is the log decoder's (`bench.bus.logs.time_ordered`),
 not this module's; a live listener gets the frames in bus order.
+
+Speed (issue 13: a fleet's logs are mostly clean): a classic data frame can be fed as
+plain values (`RowAssembler.feed_frame`, what `bench.bus.logread.read_log` gives with
+``raw=True``) instead of a can.Message; the default row sink (`_Rows`) keeps each row
+frame's payload and decodes them all at once when the table is asked for
+(`trace_columns`), through the DBC's vectorised codec (`ema_contract.frames.PayloadCodec`,
+bit-identical to cantools'); frames are checked by length only until then. A row sink
+of its own (the live HUMS) still gets each frame's values as it comes, decoded by
+cantools.
 """
 
 from __future__ import annotations
@@ -64,8 +73,9 @@ TWO_PI = 2.0 * math.pi
 
 @dataclass
 class _Group:
-    """The row frames of one SYNC period: frame name -> (payload, {column: value})."""
-    frames: dict[str, tuple[bytes, dict[str, float]]] = field(default_factory=dict)
+    """The row frames of one SYNC period: frame name -> (payload, {column: value}, or
+    None when the row sink decodes the payloads itself)."""
+    frames: dict[str, tuple[bytes, dict[str, float] | None]] = field(default_factory=dict)
 
     def holds(self, name: str, data: bytes) -> bool:
         got = self.frames.get(name)
@@ -83,32 +93,83 @@ class _Period:
 
 
 class _Rows:
-    """The signal table as it grows: one compact column per signal, plus which row
-    frames each row received (bit i: ROW_FRAMES[i])."""
+    """The signal table as it grows: per row its bus time, its run and the payload of
+    each row frame it received (zeros and length 0 for none; bit i of `present`:
+    ROW_FRAMES[i] received), decoded column by column by `columns`."""
 
-    def __init__(self) -> None:
-        self.cols = {c: array("d") for c in COLUMNS}
+    takes_payloads = True
+    """The assembler gives this sink payloads, not values (it decodes them itself)."""
+
+    def __init__(self, frames: Frames) -> None:
+        self.frames = frames
+        self.bus_time = array("d")
+        self.run = array("d")
         self.present = array("B")
+        self.stride = [frames.by_name[n].length for n in ROW_FRAMES]
+        self.payload = [bytearray() for _ in ROW_FRAMES]
+        self.length = [array("B") for _ in ROW_FRAMES]
+        self._slots = list(zip(ROW_FRAMES, self.stride, self.length, self.payload, strict=True))
 
     def __len__(self) -> int:
         return len(self.present)
 
     def add(self, bus_time_s: float, run: int, group: _Group | None) -> None:
-        values: dict[str, float] = {"bus_time_s": bus_time_s, "run": float(run)}
+        self.bus_time.append(bus_time_s)
+        self.run.append(float(run))
+        got = group.frames if group is not None else {}
         mask = 0
-        if group is not None:
-            for name, (_, vals) in group.frames.items():
-                values.update(vals)
-                mask |= 1 << ROW_FRAMES.index(name)
-        for c, col in self.cols.items():
-            col.append(values.get(c, math.nan))
+        for i, (name, stride, length, payload) in enumerate(self._slots):
+            frame = got.get(name)
+            if frame is None:
+                length.append(0)
+                payload += bytes(stride)
+            else:
+                data = frame[0]
+                length.append(len(data))
+                payload += data if len(data) == stride else data + bytes(stride - len(data))
+                mask |= 1 << i
         self.present.append(mask)
+
+    def columns(self, n: int) -> dict[str, np.ndarray]:
+        """The COLUMNS of the first `n` rows (float64; NaN where a row has no frame, or a
+        shorter frame of an older layout lacks the signal)."""
+        if n == 0:
+            return {c: np.zeros(0) for c in COLUMNS}
+        out = {"bus_time_s": np.frombuffer(self.bus_time, dtype=float)[:n].copy(),
+               "run": np.frombuffer(self.run, dtype=float)[:n].copy()}
+        for i, name in enumerate(ROW_FRAMES):
+            lengths = np.frombuffer(self.length[i], dtype=np.uint8)[:n]
+            payloads = np.frombuffer(bytes(self.payload[i]), dtype=np.uint8)
+            payloads = payloads.reshape(-1, self.stride[i])[:n]
+            sig = _decode_rows(self.frames, name, payloads, lengths)
+            for s, col in SIGNAL_COLUMNS[name]:
+                out[col] = sig[s] if s in sig else np.full(n, math.nan)
+        return {c: out[c] for c in COLUMNS}
 
     def missing(self, seen: set[str]) -> dict[str, int]:
         """Per row frame seen in the log: the rows (SYNC periods) without it."""
         mask = np.frombuffer(self.present, dtype=np.uint8) if len(self) else np.zeros(0, int)
         return {name: int(np.sum((mask & (1 << i)) == 0))
                 for i, name in enumerate(ROW_FRAMES) if name in seen}
+
+
+def _decode_rows(frames: Frames, name: str, payloads: np.ndarray, lengths: np.ndarray
+                 ) -> dict[str, np.ndarray]:
+    """Signal -> values of frame `name` in each row (NaN: no frame, or a signal a short
+    frame does not hold): the DBC's vectorised codec, or cantools frame by frame for a
+    message it does not handle (multiplexed, over 8 bytes)."""
+    codec = frames.codec(name)
+    if codec is not None:
+        return codec.decode(payloads, lengths)
+    m = frames.by_name[name]
+    out = {s.name: np.full(len(lengths), math.nan) for s in m.signals}
+    for k in np.flatnonzero(lengths):
+        n = int(lengths[k])
+        sig = m.decode_simple(payloads[k, :n].tobytes(), decode_choices=False, scaling=True,
+                              allow_truncated=n < m.length)
+        for s, v in sig.items():
+            out[s][k] = float(v)  # type: ignore[arg-type]  # numbers: no choices
+    return out
 
 
 def trace_columns(rows: Any, period_s: float, counts_per_rev: float,
@@ -119,8 +180,7 @@ def trace_columns(rows: Any, period_s: float, counts_per_rev: float,
     periods done), all of them otherwise."""
     n = len(rows) if periods is None else min(periods, len(rows))
     cols: dict[str, np.ndarray] = {"t_s": np.arange(n) * period_s}
-    for c in COLUMNS:
-        cols[c] = np.frombuffer(rows.cols[c], dtype=float)[:n].copy() if n else np.zeros(0)
+    cols.update(rows.columns(n))
     cols["motor_angle_rad"] = cols.pop("encoder_counts") * TWO_PI / counts_per_rev
     return cols
 
@@ -138,7 +198,10 @@ class RowAssembler:
         self.row_ids = {cob[n]: n for n in ROW_FRAMES}
         self.sync_max = sync_max
         self.sdo = SdoTracker(frames.sdo_rx, frames.sdo_tx)
-        self.rows = _Rows() if rows is None else rows
+        self._sdo_ids = (frames.sdo_rx, frames.sdo_tx)
+        self.rows = _Rows(frames) if rows is None else rows
+        self._values = not getattr(self.rows, "takes_payloads", False)
+        self._kinds = _frame_kinds(frames, self.row_ids, (self.nmt_cob, self.emcy_cob))
         self.open: _Period | None = None
         self.first_ts: float | None = None
         self.last_counter: int | None = None
@@ -157,25 +220,63 @@ class RowAssembler:
 
     # -- frame by frame --------------------------------------------------------------
     def feed(self, msg: can.Message) -> None:
-        c = self.count
+        data = bytes(msg.data)
+        if not (msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame
+                or msg.is_fd) and msg.dlc == len(data):
+            self.feed_frame(float(msg.timestamp), msg.arbitration_id, data, msg.is_rx)
+            return
+        c = self.count                       # any other frame: counted, then CAN FD decoded
         c["frames"] += 1
         ts = float(msg.timestamp)
         if self.check_order:
             self.order(msg)
             if self.stop_on_disorder and c["out_of_order"]:
                 raise _OutOfOrder
-        if self._exact_duplicate(msg, ts):
+        key = (msg.arbitration_id, data, msg.is_extended_id, msg.is_remote_frame,
+               msg.is_error_frame, msg.is_fd, msg.dlc, msg.is_rx)
+        sync = msg.arbitration_id == self.sync_cob and not msg.is_extended_id
+        if self._exact_duplicate(key, ts, sync):
             c["duplicate_frames"] += 1
             return
         if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
             return
-        cid = msg.arbitration_id
-        if cid == self.sync_cob:
-            self._sync(msg, ts)
-        elif cid in (self.f.sdo_rx, self.f.sdo_tx):
-            self.sdo.feed(msg)
+        self._route(msg.arbitration_id, data, ts)
+
+    def feed_frame(self, ts: float, cid: int, data: bytes, is_rx: bool = True) -> None:
+        """`feed` of a classic data frame with an 11-bit id given as plain values (its
+        time stamp, id, payload and direction): the same, without a can.Message."""
+        c = self.count
+        c["frames"] += 1
+        sync = cid == self.sync_cob
+        if self.check_order:
+            late = ts < self._max_ts - OUT_OF_ORDER_S
+            if sync:
+                late = late or ts < self._max_sync_ts
+                if ts > self._max_sync_ts:
+                    self._max_sync_ts = ts
+            if ts > self._max_ts:
+                self._max_ts = ts
+            if late:
+                c["out_of_order"] += 1
+                if self.stop_on_disorder:
+                    raise _OutOfOrder
+        if self._exact_duplicate((cid, data, is_rx), ts, sync):
+            c["duplicate_frames"] += 1
+            return
+        if sync:
+            self._sync(data, ts)
+        elif cid in self._sdo_ids:
+            self.sdo.feed(can.Message(arbitration_id=cid, data=data, is_extended_id=False))
         else:
-            self._data(msg, cid)
+            self._data(cid, data)
+
+    def _route(self, cid: int, data: bytes, ts: float) -> None:
+        if cid == self.sync_cob:
+            self._sync(data, ts)
+        elif cid in self._sdo_ids:
+            self.sdo.feed(can.Message(arbitration_id=cid, data=data, is_extended_id=False))
+        else:
+            self._data(cid, data)
 
     def order(self, msg: can.Message) -> None:
         """Count `msg` as out of time order: stamped more than OUT_OF_ORDER_S before an
@@ -188,29 +289,28 @@ class RowAssembler:
         self.count["out_of_order"] += late
         self._max_ts = max(self._max_ts, ts)
 
-    def _exact_duplicate(self, msg: can.Message, ts: float) -> bool:
-        """The same frame with the same time stamp as one already read in this SYNC
-        period: one frame logged twice (a classic CAN frame lasts >= 47 us at 1 Mbit/s,
-        so two frames never share a microsecond stamp)."""
-        key = (msg.arbitration_id, bytes(msg.data), msg.is_extended_id, msg.is_remote_frame,
-               msg.is_error_frame, msg.is_fd, msg.dlc, msg.is_rx)
-        if ts != self._last_ts or len(self._same_ts) > _MAX_SAME_TS:
-            self._same_ts.clear()
+    def _exact_duplicate(self, key: tuple, ts: float, sync: bool) -> bool:
+        """The same frame (`key`: its id, payload and flags) with the same time stamp as
+        one already read in this SYNC period: one frame logged twice (a classic CAN frame
+        lasts >= 47 us at 1 Mbit/s, so two frames never share a microsecond stamp)."""
+        same = self._same_ts
+        if ts != self._last_ts or len(same) > _MAX_SAME_TS:
+            same.clear()
             self._last_ts = ts
-        elif key in self._same_ts:
+        elif key in same:
             return True
-        if msg.arbitration_id == self.sync_cob and not msg.is_extended_id:
-            self._same_ts.clear()      # a new SYNC period; its copy still matches below
-        self._same_ts.add(key)
+        if sync:
+            same.clear()      # a new SYNC period; its copy still matches below
+        same.add(key)
         return False
 
-    def _sync(self, msg: can.Message, ts: float) -> None:
-        if len(msg.data) not in (0, 1):
+    def _sync(self, data: bytes, ts: float) -> None:
+        if len(data) > 1:
             self.count["bad_frames"] += 1
             return
         lost = None
-        if len(msg.data) == 1:
-            counter = int(msg.data[0])
+        if data:
+            counter = data[0]
             if self.last_counter is not None:
                 step = (counter - self.last_counter) % self.sync_max
                 if step == 0:                       # the same SYNC again
@@ -269,16 +369,34 @@ class RowAssembler:
             raise BenchError(f"the SYNC counters make no sense: {self.count['sync_gaps']} "
                              f"SYNCs lost for {self.syncs_read} read (a corrupted log?)")
 
-    def _data(self, msg: can.Message, cid: int) -> None:
-        try:
+    def _data(self, cid: int, data: bytes) -> None:
+        kind = self._kinds.get(cid)
+        if kind is None:                  # an id the DBC does not describe
+            return
+        name, length, fits, row = kind
+        n = len(data)
+        if fits is None:                  # NMT, EMCY, a message without a codec: cantools
+            self._decoded(cid, data)
+            return
+        if n != length:
             # process data of an older, shorter layout: keep the signals it carries
-            decoded = self.f.decode(msg, allow_truncated=cid in self.row_ids)
+            if not row or n == 0 or n > length or not fits[n]:
+                self.count["bad_frames"] += 1
+                return
+            self.count["short_frames"] += 1
+        if row and self.open is not None:
+            self._row_frame(name, data, None)
+
+    def _decoded(self, cid: int, data: bytes) -> None:
+        """A frame decoded as it comes (cantools, `Frames.decode_payload`)."""
+        try:
+            decoded = self.f.decode_payload(cid, data, allow_truncated=cid in self.row_ids)
         except FrameError:
             self.count["bad_frames"] += 1
             return
         if decoded is None:
             return
-        if len(msg.data) < self.f.by_cob[cid].length:   # older layout: the rest stays NaN
+        if len(data) < self.f.by_cob[cid].length:   # older layout: the rest stays NaN
             self.count["short_frames"] += 1
         name, sig = decoded
         if cid == self.nmt_cob:
@@ -286,7 +404,7 @@ class RowAssembler:
         elif cid == self.emcy_cob:
             self._emcy(sig)
         elif cid in self.row_ids and self.open is not None:
-            self._row_frame(name, bytes(msg.data), sig)
+            self._row_frame(name, data, sig)
 
     def _nmt(self, sig: dict[str, Any]) -> None:
         if (sig["NMT_Command"] == NMTCommand.START
@@ -306,17 +424,25 @@ class RowAssembler:
                                                    sig["EMCY_ErrorCode"]),
                               "status_word": int(sig["EMCY_StatusWord"])})
 
-    def _row_frame(self, name: str, data: bytes, sig: dict[str, Any]) -> None:
+    def _row_frame(self, name: str, data: bytes, sig: dict[str, Any] | None) -> None:
+        """A row frame of the open period; `sig` its signals when already decoded."""
         assert self.open is not None
         groups = self.open.groups
-        if any(g.holds(name, data) for g in groups):     # the same frame again
-            self.count["duplicate_frames"] += 1
-            return
+        for g in groups:
+            got = g.frames.get(name)
+            if got is not None and got[0] == data:     # the same frame again
+                self.count["duplicate_frames"] += 1
+                return
         if name in groups[-1].frames:
             groups.append(_Group())
         self.seen.add(name)
-        groups[-1].frames[name] = (data, {col: float(sig[s]) for s, col in
-                                          SIGNAL_COLUMNS[name] if s in sig})
+        vals = None
+        if self._values:                  # a sink of values: decoded now
+            if sig is None:
+                decoded = self.f.decode_payload(self.f.cob[name], data, True)
+                sig = decoded[1] if decoded is not None else {}
+            vals = {col: float(sig[s]) for s, col in SIGNAL_COLUMNS[name] if s in sig}
+        groups[-1].frames[name] = (data, vals)
 
     def close_period(self) -> None:
         """Write the open period's rows now (a live listener at an NMT stop: no SYNC
@@ -326,6 +452,22 @@ class RowAssembler:
     def finish(self) -> Any:
         self._close(None)
         return self.rows
+
+
+def _frame_kinds(frames: Frames, row_ids: dict[int, str], decoded: tuple[int, ...]
+                 ) -> dict[int, tuple[str, int, list[bool] | None, bool]]:
+    """Frame id -> (message name, DBC length, whether a payload of n bytes holds a whole
+    signal (n = 0..length), is it a row frame) for the DBC's messages: a frame is checked
+    by its length only (its signals are decoded later, or never); None in place of the
+    list for the ids decoded as they come (`decoded`: NMT, EMCY; messages without a
+    vectorised codec)."""
+    out: dict[int, tuple[str, int, list[bool] | None, bool]] = {}
+    for cid, m in frames.by_cob.items():
+        codec = frames.codec(m.name)
+        fits = None if codec is None or cid in decoded else \
+            [bool(codec.fits(n)) for n in range(m.length + 1)]
+        out[cid] = (m.name, m.length, fits, cid in row_ids)
+    return out
 
 
 class _OutOfOrder(Exception):

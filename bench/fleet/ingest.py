@@ -253,11 +253,25 @@ class _Batch:
         self.t_last = time.monotonic()
 
 
+CHUNK_LOGS = 16
+"""Logs per Dask task at most: a log costs ~0.06 s of CPU to ingest or to synthesise
+(docs/performance.md, "Fleet"), so a task of 16 lasts ~1 s, and Dask's per-task cost
+(scheduling, transfer: a few ms) is a small share of it."""
+
+
+def chunk_size(n_jobs: int, workers: int | None) -> int:
+    """Logs per task: CHUNK_LOGS, but at least 8 tasks per worker (a worker must not wait
+    idle for another's last long task, and a killed worker costs little)."""
+    per = max(1, workers or 2)
+    return max(1, min(CHUNK_LOGS, -(-n_jobs // (8 * per))))
+
+
 def run_jobs(fn: Any, jobs: list[Any], workers: int | None, progress: bool,
              scheduler: str | None, on_result: Any = None, desc: str = "fleet ingest",
              unit: str = "log") -> list[Any]:
     """`bench.workers.run_all` (Dask: a LocalCluster on 127.0.0.1 of `workers` processes,
-    or the cluster at `scheduler`), with `on_result` called as each job finishes."""
+    or the cluster at `scheduler`), with `on_result` called as each job finishes; the
+    jobs go to the workers `chunk_size` at a time."""
     from bench.workers import run_all
     return run_all(fn, jobs, workers, progress, desc=desc, unit=unit, on_result=on_result,
-                   scheduler=scheduler)
+                   scheduler=scheduler, chunk=chunk_size(len(jobs), workers))
