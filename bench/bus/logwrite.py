@@ -6,6 +6,7 @@ bench writes and reads back (`bench.bus.logread.read_frames`)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -51,25 +52,42 @@ MAX_CHANNEL = 255
 """The largest channel number every format stores (ASAM MDF4 keeps it in a byte)."""
 
 
+STEP_S = 1e-6
+"""What a frame stamped before the line ahead of it is written at, after that line: the
+candump log's resolution, so that it never shares that line's stamp (a decoder takes the
+same frame with the same stamp for one frame logged twice)."""
+
+
 class ChannelSafe(can.Listener):
     """A writer that stores a frame whose bus channel number it cannot hold with no
     channel. python-can's binary writers take the number from the channel name's trailing
     digits (`can.util.channel2int`): a virtual bus named ``bench-624`` made the MF4 writer
-    raise OverflowError (a byte) and lose the log. The bench reads no channel back."""
+    raise OverflowError (a byte) and lose the log. The bench reads no channel back.
+
+    Its time stamps never go backwards, as a real candump log's (stamped at reception):
+    a frame stamped before the last one written is written STEP_S after it (a wall clock
+    stepped back; the ECU stamps what it logs as it logs it, `EcuLink._record`)."""
 
     def __init__(self, inner: Any) -> None:
         object.__setattr__(self, "inner", inner)
+        object.__setattr__(self, "last_ts", -math.inf)
 
     def on_message_received(self, msg: can.Message) -> None:
         ch = channel2int(msg.channel)
-        if ch is not None and not 0 <= ch <= MAX_CHANNEL:
-            msg = can.Message(timestamp=msg.timestamp, arbitration_id=msg.arbitration_id,
+        ts = msg.timestamp
+        if ts < self.last_ts:
+            ts = self.last_ts + STEP_S
+        if ts != msg.timestamp or (ch is not None and not 0 <= ch <= MAX_CHANNEL):
+            keep = ch is None or 0 <= ch <= MAX_CHANNEL
+            msg = can.Message(timestamp=ts, arbitration_id=msg.arbitration_id,
+                              channel=msg.channel if keep else None,
                               is_extended_id=msg.is_extended_id, is_remote_frame=
                               msg.is_remote_frame, is_error_frame=msg.is_error_frame,
                               dlc=msg.dlc, data=msg.data, is_fd=msg.is_fd, is_rx=msg.is_rx,
                               bitrate_switch=msg.bitrate_switch,
                               error_state_indicator=msg.error_state_indicator)
         self.inner.on_message_received(msg)
+        object.__setattr__(self, "last_ts", ts)
 
     def stop(self) -> None:
         self.inner.stop()

@@ -102,16 +102,19 @@ class EcuLink:
         """Record an own frame just before it goes out, so that an answer (received on
         the notifier thread) can never precede its request in the log."""
         if not self.echo:
-            msg.timestamp = time.time()
             msg.is_rx = False
             self._record(msg)
 
     def _record(self, msg: can.Message) -> None:
-        """A frame for the log and the run's rows, in one order whatever the thread."""
+        """A frame for the log and the run's rows, in one order whatever the thread, and
+        stamped as it is recorded (as candump stamps at reception): the bus's stamp of a
+        received frame is earlier than that of an own frame the main thread logged while
+        the frame waited for the receive thread, so the log's stamps went backwards."""
         log, tap = self.log, self.tap
         if log is None and tap is None:
             return
         with self._record_lock:
+            msg.timestamp = time.time()
             if log is not None:
                 log.on_message_received(msg)
             if tap is not None:
