@@ -295,7 +295,7 @@ def identify_cascade(trace: Trace, base: PlantParams, encoder: str = "absolute"
     the table of all and whether the fit was to the logged demand. With a logged current
     demand the law alone is fitted to it (`fit_cascade_to_demand`: error in A), else in
     closed loop with the model `base` (`fit_cascade`: the gap excess)."""
-    tried = []
+    tried: list[dict[str, Any]] = []
     has_demand = ("current_demand_a" in trace
                   and float(np.isfinite(np.asarray(trace["current_demand_a"], float)).mean())
                   > 0.9)

@@ -67,9 +67,9 @@ class Cascade:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Cascade:
         """The cascade of a `describe()` dict (other keys ignored)."""
-        return cls(str(d["source"]), *(float(d[k]) for k in (
-            "kp_pos", "ki_pos", "kp_spd", "ki_spd", "speed_limit_rad_s", "current_limit_a")),
-            int(d["every_periods"]))
+        return cls(str(d["source"]), float(d["kp_pos"]), float(d["ki_pos"]),
+                   float(d["kp_spd"]), float(d["ki_spd"]), float(d["speed_limit_rad_s"]),
+                   float(d["current_limit_a"]), int(d["every_periods"]))
 
     def describe(self) -> dict[str, float | str]:
         """The gains with their units and the corner frequencies of the integrals."""

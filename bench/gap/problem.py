@@ -264,12 +264,14 @@ def drive_of(trace: Trace, encoder: str = "absolute",
     load = col.get("load_force_n")
     if load is not None and not np.isfinite(load).any():
         load = None
+    by_current = resim == "measured-current"
     return R.Drive(trace.t - trace.t[0], get("setpoint_position_m"), get("setpoint_speed_rad_s"),
                    np.round(get("mode")), np.full(n, np.nan) if demand is None
                    else np.asarray(demand, float), x0, x0_true,
-                   None if load is None else get("load_force_n"), resim,
-                   *((get("current_a"), get("motor_angle_rad")) if resim == "measured-current"
-                     else (None, None)), cascade)
+                   None if load is None else get("load_force_n"), resim=resim,
+                   current_meas=get("current_a") if by_current else None,
+                   angle_meas=get("motor_angle_rad") if by_current else None,
+                   cascade=cascade)
 
 
 def with_rate(base: PlantParams, dt: float) -> PlantParams:

@@ -36,6 +36,7 @@ import numpy as np
 
 from bench.control import NC as CTRL_NC
 from bench.control import ControllerParams
+from bench.gap.cascade import NGC, Cascade, cascade_on_plant
 from bench.loop import (
     NT,
     delay_periods,
@@ -50,7 +51,6 @@ from bench.loop import (
     run_loop,
     table_control,
 )
-from bench.gap.cascade import NGC, Cascade, cascade_on_plant
 from plant_rt import kernel as K
 from plant_rt.jit import njit
 from plant_rt.model import Plant
