@@ -14,8 +14,8 @@ The controller: by default the cases run under the bench's ECU (its structure an
 `indie_plant.controller.Cascade.like_bench_ecu`), as `bench run gap-excitation` against
 `python -m indie_plant` over the bus gives; `controller="own"` runs the actuator's own
 PI + PI cascade at 2 ms, which the bench does not know: its calibration and goal 4 then
-re-simulate with the measured current driving the model (`RESIM`), while the blind
-diagnoses still re-simulate under the bench's ECU (docs/gap.md says what that measured).
+identify it (`RESIM`: a fitted generic cascade, or the measured current driving the
+model), and the blind diagnoses re-simulate under what it identified.
 
 Cases: 30 % nominal (noise only), 70 % one effect of `POOL` at a random magnitude, the
 effect implemented in the independent physics (not by the library). "Above the noise
@@ -169,12 +169,19 @@ def generate(case: Case, noise: bool = True, duration_s: float = LOG_S,
 
 def reference(duration_s: float, seed: int, controller: str,
               actuator: IndieParams = NOMINAL) -> dict[str, Any]:
-    """Noise-free nominal log and the generator's noise floor per signal."""
+    """Noise-free nominal log and the generator's noise floor per signal (at least the
+    encoder's resolution)."""
     clean = generate(Case(-1, "nominal", [], seed), False, duration_s, controller, actuator)
     a = generate(Case(-1, "nominal", [], seed + 1), True, duration_s, controller, actuator)
     b = generate(Case(-1, "nominal", [], seed + 2), True, duration_s, controller, actuator)
-    floor = {s: float(np.sqrt(np.mean((a[s] - b[s]) ** 2)) / math.sqrt(2.0))
-             for s in SNR_SIGNALS}
+    # at least the encoder's resolution (step / sqrt 12): under the actuator's own loop
+    # on the encoder no noise reaches the angle or the speed, whose RMS difference is 0
+    step = 2.0 * math.pi / actuator.encoder_counts
+    res = {"motor_angle_rad": step / math.sqrt(12.0),
+           "motor_speed_rad_s": step / (actuator.speed_window * actuator.sync_period_s)
+           / math.sqrt(12.0)}
+    floor = {s: max(float(np.sqrt(np.mean((a[s] - b[s]) ** 2)) / math.sqrt(2.0)),
+                    res.get(s, 0.0)) for s in SNR_SIGNALS}
     return {"clean": {s: clean[s] for s in SNR_SIGNALS}, "floor": floor}
 
 
@@ -243,6 +250,8 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
     """Generate, diagnose against the calibrated model (seeing only the log), score."""
     ref, model, act = _STATE["ref"], _STATE["model"], _STATE["actuator"]
     log = generate(case, True, duration_s, controller, act)
+    if _STATE.get("controller", {}).get("method", "bench-ecu") != "bench-ecu":
+        log.meta["controller"] = _STATE["controller"]   # re-simulated as calibrated
     t0 = time.perf_counter()
     res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects))
     elapsed = time.perf_counter() - t0
@@ -262,7 +271,8 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
     """Calibrate on the healthy calibration log, then run `n` blind cases. `actuator`:
     the independent actuator as built (`--indie-set`: e.g. an ablation of one physical
     feature). `identify`: what the calibration does about the controller (default
-    `RESIM[controller]`); the blind diagnoses always re-simulate under the bench's ECU."""
+    `RESIM[controller]`); the blind diagnoses re-simulate as the calibration says (the
+    log's ``meta["controller"]``, `bench.gap.problem.drive_of`)."""
     t0 = time.perf_counter()
     identify = identify or RESIM[controller]
     model, cal = calibrated_model(seed, duration_s, controller, actuator, identify)
@@ -272,7 +282,8 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
     cases = make_cases(n, seed)
     job = partial(run_case, duration_s=duration_s, controller=controller, effects=effects)
     results = run_all(job, cases, workers, progress, desc="gap-bench (independent)",
-                      unit="case", initializer=_init, initargs=({"ref": ref, "model": model, "actuator": actuator},),
+                      unit="case", initializer=_init, initargs=({"ref": ref, "model": model, "actuator": actuator,
+                                          "controller": cal["controller"]},),
                       on_result=on_result, leave=True, scheduler=scheduler)
     changed = {k: v for k, v in dataclasses.asdict(actuator).items()
                if v != getattr(NOMINAL, k)}

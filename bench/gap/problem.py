@@ -25,6 +25,7 @@ from scipy.ndimage import uniform_filter1d
 from bench import BenchError
 from bench.gap import resim as R
 from bench.gap.autocorr import corr_length
+from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect
 from bench.trace import MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
@@ -242,12 +243,20 @@ def drive_of(trace: Trace, encoder: str = "absolute",
     position is the median LVDT reading of the first 20 samples.
     resim: `bench.gap.resim.RESIMS` (measured-current: the logged current and encoder
     angle drive the re-simulation instead of the bench's ECU); cascade: an identified
-    controller (`bench.gap.cascade.Cascade`) in the ECU's place.
+    controller (`bench.gap.cascade.Cascade`) in the ECU's place. Without either, a log
+    whose metadata names its controller (``meta["controller"]``: a calibration's
+    `controller` entry, `bench.gap.calibrate`) is re-simulated under that one.
     """
     if encoder not in ("absolute", "relative"):
         raise BenchError(f"encoder reference must be absolute or relative, not {encoder!r}")
     if resim not in R.RESIMS:
         raise BenchError(f"re-simulation must be one of {', '.join(R.RESIMS)}, not {resim!r}")
+    ctrl = trace.meta.get("controller")
+    if cascade is None and resim == "closed-loop" and isinstance(ctrl, dict):
+        if ctrl.get("cascade"):
+            cascade = Cascade.from_dict(ctrl["cascade"])
+        elif ctrl.get("method") == "measured-current":
+            resim = "measured-current"
     n = len(trace)
     col = trace.columns
 

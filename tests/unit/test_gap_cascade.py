@@ -92,3 +92,17 @@ def test_measured_current_follows_the_log():
         log["current_a"])
     err = np.sqrt(np.mean((out["motor_speed_rad_s"] - log["motor_speed_rad_s"]) ** 2))
     assert err < 0.05 * np.ptp(log["motor_speed_rad_s"])
+
+
+def test_a_log_naming_its_controller_is_re_simulated_under_it():
+    from bench.gap.problem import drive_of
+    n = 300
+    cols = {"t_s": np.arange(n) * 1e-3, "mode": np.ones(n), "position_m": np.zeros(n),
+            "motor_angle_rad": np.zeros(n), "current_a": np.zeros(n),
+            "setpoint_position_m": np.zeros(n)}
+    assert drive_of(Trace(cols, {}), params=FAST).cascade is None
+    d = drive_of(Trace(cols, {"controller": {"method": "fitted-cascade",
+                                             "cascade": TRUE.describe()}}), params=FAST)
+    assert d.cascade == TRUE and d.resim == "closed-loop"
+    d = drive_of(Trace(cols, {"controller": {"method": "measured-current"}}), params=FAST)
+    assert d.resim == "measured-current" and d.current_meas is not None
