@@ -61,6 +61,11 @@ MECHANISM: dict[str, Field] = {
     "viscous_friction_n_s_per_m": Field("N s/m", 0.0, 1e8, "viscous friction at the nut"),
     "current_offset_a": Field("A", -100.0, 100.0, "offset of the logged current"),
     "load_sign": Field("-", -1.0, 1.0, "+1: a positive logged load pushes the nut to +x"),
+    "encoder_speed_window_periods": Field(
+        "sample periods", 0.0, 16.0,
+        "how the drive computes the logged motor speed: N >= 1 = the encoder count "
+        "difference over the last N sample periods / (N T); 0 = a continuous speed "
+        "sensor (the thesis' filtered encoder speed)"),
 }
 CONTROLLER: dict[str, Field] = {
     "position_kp_1_s": Field("1/s", 0.0, 1e5, "position gain: speed demand per position error"),
@@ -185,6 +190,18 @@ def load(spec: str | Path) -> Actuator:
     except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:
         raise BenchError(f"{path}: not valid {path.suffix[1:].upper()} ({exc})") from None
     return from_dict(data, path.name)
+
+
+def sensor_params(a: Actuator) -> dict[str, Any]:
+    """The bench plant's sensor parameters (`plant_rt.params`) the description fixes:
+    the speed estimator's window where it is known (a whole number of periods)."""
+    n = a.values.get("encoder_speed_window_periods")
+    if n is None:
+        return {}
+    if n != round(n):
+        raise BenchError(f"{a.name}: encoder_speed_window_periods must be a whole number "
+                         f"of sample periods, got {n:g}")
+    return {"sensors.encoder_speed_window": int(n)}
 
 
 def model_values(a: Actuator) -> dict[str, float | None]:

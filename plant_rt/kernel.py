@@ -33,7 +33,12 @@ _effects_from_depth = njit(cache=True, inline="always", error_model="numpy",
  LY, LYD, EY, EYD, STS, STN1, STN2, T,
  E_IN, E_R, E_FRS, E_FRN, E_EXT, E_EMF, E_MIS, E_ETA, E_PR, E_CLAMP, E_MOT, E_DAMP,
  WEAR_V) = range(36)
-NX = 36
+NHIST = 16
+"""Screw angles of the last NHIST SYNCs kept for a count-difference speed estimator
+(`sensors.encoder_speed_window` <= NHIST): x[TH_HIST + j] is the screw angle at the SYNC
+j + 1 periods before the state's time."""
+TH_HIST = 36
+NX = TH_HIST + NHIST
 STATE_NAMES = (
     "current_a", "current_pi_integrator_v", "current_sensor_a", "motor_torque_nm",
     "temperature_k", "screw_angle_rad", "screw_speed_rad_s", "nut1_position_m",
@@ -43,7 +48,7 @@ STATE_NAMES = (
     "e_electrical_in_j", "e_joule_j", "e_screw_friction_j", "e_nut_friction_j",
     "e_external_j", "e_back_emf_j", "e_lever_mismatch_j", "e_reducer_loss_j",
     "e_preload_j", "e_current_clamp_j", "e_motor_torque_j", "e_contact_damping_j",
-    "wear_volume_m3")
+    "wear_volume_m3") + tuple(f"screw_angle_{j + 1}_syncs_ago_rad" for j in range(NHIST))
 # WEAR_V: worn volume of the ball tracks (m^3, Archard; `plant_rt.wear`), accumulated per
 # sub-step when p[P_WEAR_GAIN] != 0
 
@@ -225,6 +230,10 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     pmax1 = 0.0
     pmax2 = 0.0
     acc_w = 0.0
+    # the angle at this SYNC joins the count-difference estimator's history (I/O only)
+    for j in range(NHIST - 1, 0, -1):
+        x[TH_HIST + j] = x[TH_HIST + j - 1]
+    x[TH_HIST] = x[TH]
 
     for _ in range(nsub):
         t = x[T]
@@ -423,24 +432,39 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
 
 
 # --- sensor vector for measure() ---------------------------------------------------------
-S_IGAIN, S_IOFF, S_LGAIN, S_LOFF, S_EGAIN, S_RATIO, S_COUNTS = range(7)
-NS = 7
+S_IGAIN, S_IOFF, S_LGAIN, S_LOFF, S_EGAIN, S_RATIO, S_COUNTS, S_WIN, S_SYNC = range(9)
+NS = 9
+# S_WIN: encoder speed window in SYNC periods (0: the sensor filter of eq. 5.1);
+# S_SYNC: the SYNC period (s)
 # --- measurement vector ------------------------------------------------------------------
 M_CUR, M_SPEED, M_ANGLE, M_POS, M_TEMP = range(5)
 NM = 5
+
+
+@njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
+def _counts_angle(screw_angle: float, s: np.ndarray) -> float:
+    """The encoder's motor angle (rad) quantised to whole counts."""
+    counts = s[S_COUNTS]
+    return math.floor(screw_angle / s[S_RATIO] / TWO_PI * counts) * TWO_PI / counts
 
 
 @njit(cache=True, error_model="numpy", fastmath=FM)
 def measure(x: np.ndarray, s: np.ndarray, noise: np.ndarray, m: np.ndarray) -> None:
     """Sensor readings of state x: current (eq. 5.2), encoder speed and angle, LVDT (eq. 5.1).
 
+    The encoder speed is the second-order filter of eq. 5.1 on the shaft speed, or, with
+    a window of N = s[S_WIN] >= 1 SYNC periods, the count difference
+    (theta_q[k] - theta_q[k - N]) / (N T) of the quantised angle.
     noise = (current A, position m, speed rad/s) white-noise samples for this SYNC.
     """
     m[M_CUR] = s[S_IGAIN] * x[IM] + s[S_IOFF] + noise[0]
-    m[M_SPEED] = s[S_EGAIN] * x[EY] + noise[2]
-    counts = s[S_COUNTS]
-    ang = x[TH] / s[S_RATIO]
-    m[M_ANGLE] = math.floor(ang / TWO_PI * counts) * TWO_PI / counts
+    m[M_ANGLE] = _counts_angle(x[TH], s)
+    win = int(s[S_WIN])
+    if win > 0:
+        old = _counts_angle(x[TH_HIST + win - 1], s)
+        m[M_SPEED] = s[S_EGAIN] * (m[M_ANGLE] - old) / (win * s[S_SYNC]) + noise[2]
+    else:
+        m[M_SPEED] = s[S_EGAIN] * x[EY] + noise[2]
     m[M_POS] = s[S_LGAIN] * x[LY] + s[S_LOFF] + noise[1]
     m[M_TEMP] = x[TEMP]
 

@@ -127,13 +127,15 @@ def ball_substeps(params: PlantParams, dt: float) -> int:
 
 
 def sensor_vector(params: PlantParams) -> np.ndarray:
-    """The kernel's sensor vector (gains, offsets, encoder resolution)."""
+    """The kernel's sensor vector (gains, offsets, encoder resolution and speed window)."""
     se = params.sensors
     s = np.zeros(K.NS)
     s[K.S_IGAIN], s[K.S_IOFF] = se.current_gain, se.current_offset_a
     s[K.S_LGAIN], s[K.S_LOFF] = se.lvdt_gain, se.lvdt_offset_m
     s[K.S_EGAIN], s[K.S_RATIO] = se.encoder_gain, params.reducer.ratio
     s[K.S_COUNTS] = se.encoder_counts_per_rev
+    s[K.S_WIN] = se.encoder_speed_window
+    s[K.S_SYNC] = params.sim.sync_period_s
     return s
 
 

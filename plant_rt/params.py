@@ -187,6 +187,12 @@ class SensorParams(_Validated):
                             "load cell (strain-gauge bridge, section 4.4) noise std per "
                             "SYNC sample; the cell reads F_ext averaged over the period",
                             "chosen")
+    encoder_speed_window: int = P(
+        0, "SYNC periods", 0, 16,
+        "how the drive computes the encoder speed: 0 = the second-order sensor filter of "
+        "eq. 5.1 on the shaft speed; N >= 1 = the quantised count difference over the "
+        "last N SYNC periods / (N T) (a drive's datasheet fact, e.g. 'speed from the "
+        "counts over 4 SYNC periods')", "table 5.1 (0); a drive's datasheet (N >= 1)")
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,7 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_hums_figures.py",
     "tests/integration/test_hums_rul.py::test_scoring_leaves_matplotlib_settings_alone",
     "tests/integration/test_indie_generate.py::test_gap_bench_on_the_independent_generator_smoke",
+    "tests/integration/test_indie_controller.py::test_the_own_controller_is_identified_and_closes_the_model_loop",
     "tests/integration/test_indie_node.py",
     "tests/integration/test_logs_damaged.py::test_decode_counts_the_damage",
     "tests/integration/test_logs_damaged.py::test_gap_noise_free_log_with_a_lost_sync_has_no_significant_gap",

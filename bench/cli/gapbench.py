@@ -34,6 +34,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--controller", choices=("ecu", "own"), default="ecu",
                    help="independent generator: the bench's ECU closes the loops, as over "
                         "the bus (ecu, default), or the actuator's own PI+PI cascade (own)")
+    p.add_argument("--identify", choices=("fitted-cascade", "measured-current"),
+                   help="independent generator, --controller own: how the calibration deals "
+                        "with the controller it does not know: fit a generic cascade "
+                        "(fitted-cascade, default) or drive the model by the measured current")
     p.add_argument("--indie-set", dest="indie_set", action="append", default=[],
                    metavar="NAME=VALUE",
                    help="independent generator: change the actuator as built (all logs, "
@@ -67,8 +71,10 @@ def independent_markdown(out: dict) -> str:
         f"{cal['seed']}, {cal['wall_s']:.0f} s: "
         + ", ".join(f"{k} = {v:.4g}" for k, v in cal["params"].items()) + ".",
         "",
+        _controller_line(cal.get("controller")),
+        "",
         f"Held-out healthy log (noise seed {held['seed']}), calibrated model re-simulated "
-        "closed loop:",
+        "as the calibration says:",
         "",
         "| signal | RMS residual | noise floor | ratio | goal <= 2 |",
         "|---|---|---|---|---|",
@@ -78,6 +84,22 @@ def independent_markdown(out: dict) -> str:
                      f"| {'met' if d['ratio'] <= 2.0 else 'NOT met'} |")
     lines.append("")
     return "\n".join(lines) + "\n" + _table(out, top1_goal=0.8, nominal_goal=0.9)
+
+
+def _controller_line(ctrl: dict | None) -> str:
+    """What the calibration did about the controller (bench.gap.calibrate)."""
+    if not ctrl:
+        return "Controller: the bench's ECU."
+    line = f"Controller: {ctrl['method']} ({ctrl['doc']})"
+    c = ctrl.get("cascade")
+    if c:
+        line += (f"; identified: position {'PI' if c['ki_pos'] else 'P'} on the "
+                 f"{c['source']} (kp {c['kp_pos']:.4g} (rad/s)/m, integral zero "
+                 f"{c['position_integral_zero_hz']:.3g} Hz), speed PI (kp {c['kp_spd']:.4g} "
+                 f"A s/rad, zero {c['speed_integral_zero_hz']:.3g} Hz), limits "
+                 f"{c['speed_limit_rad_s']:.4g} rad/s and {c['current_limit_a']:.4g} A, every "
+                 f"{c['every_periods']} SYNC periods, fitted to {ctrl.get('fitted_to', '?')}")
+    return line + "."
 
 
 def _table(out: dict, top1_goal: float = 0.9, nominal_goal: float = 0.95) -> str:
@@ -144,6 +166,8 @@ def run(args: argparse.Namespace) -> int:
         raise BenchError("--log-s must be between 2 and 120 s")
     from bench.gap import effects as E
     lib = E.parse_list(args.effects) if args.effects else None
+    if args.identify and (args.generator != "independent" or args.controller != "own"):
+        raise BenchError("--identify is for --generator independent --controller own")
     if args.generator == "independent":
         from bench.gap.indiebench import NOMINAL
         from bench.gap.indiebench import run as indie_run
@@ -153,7 +177,8 @@ def run(args: argparse.Namespace) -> int:
             raise BenchError(f"--indie-set: {exc}") from None
         out = indie_run(args.cases, args.seed, args.workers, args.log_s,
                         progress=sys.stderr.isatty(), effects=lib, controller=args.controller,
-                        actuator=actuator, scheduler=args.scheduler)
+                        actuator=actuator, scheduler=args.scheduler,
+                        identify=args.identify)
     else:
         out = bench_run(args.cases, args.seed, args.workers, args.fidelity, args.log_s,
                         progress=sys.stderr.isatty(), effects=lib, scheduler=args.scheduler)

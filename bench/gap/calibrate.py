@@ -10,6 +10,15 @@ once and a Gaussian prior on each (its tolerance, below) that keeps aliased para
 well posed: on a log without a force measurement, torque constant and inertia act
 through their ratio, and screw lead and LVDT gain through their product, so the data fix
 the ratio/product and the prior shares it out. The output states this.
+
+The controller (`controller`, CONTROLLERS): by default the log is re-simulated under
+the bench's ECU (`bench-ecu`: the log was run under it, as over the bus). For a log run
+under a controller the bench does not know, either its gains are identified
+(`fitted-cascade`: a generic position/speed cascade, `bench.gap.cascade`, fitted in
+closed loop by `fit_cascade` before the plant's parameters, then refitted with them), or
+the log is re-simulated without one (`measured-current`: the logged current drives the
+plant, the mechanics re-started from the measured encoder angle every
+`bench.gap.resim.RESTART_S`). The output says which (`controller`).
 """
 
 from __future__ import annotations
@@ -23,9 +32,10 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap import resim as R
+from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect, Param
 from bench.gap.fit import fit
-from bench.gap.problem import build
+from bench.gap.problem import Problem, build, with_rate
 from bench.trace import Trace
 from plant_rt.params import PlantParams, resolve
 
@@ -81,8 +91,16 @@ class PlantSet(Effect):
 
 def calibrate(trace: Trace, base: PlantParams | None = None,
               names: Sequence[str] = DEFAULT, model: str = "plant",
-              encoder: str = "absolute") -> dict[str, Any]:
-    """Fit `names` to the healthy `trace`; the calibration JSON (see module doc)."""
+              encoder: str = "absolute", controller: str = "bench-ecu",
+              cascade: Cascade | None = None) -> dict[str, Any]:
+    """Fit `names` to the healthy `trace`; the calibration JSON (see module doc).
+    `cascade`: with controller fitted-cascade, a known cascade (no controller fit)."""
+    if controller not in CONTROLLERS:
+        raise BenchError(f"controller must be one of {', '.join(CONTROLLERS)}, not "
+                         f"{controller!r}")
+    base = base or PlantParams()
+    if controller == "fitted-cascade" and cascade is None:
+        return calibrate_with_cascade(trace, base, names, encoder)
     if model != "plant":
         from bench.gap.models import check_model
         check_model(model)
@@ -90,9 +108,8 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
         if n not in UNCERTAIN:
             raise BenchError(f"cannot calibrate {n!r} (calibrated parameters: "
                              f"{', '.join(UNCERTAIN)})")
-    base = base or PlantParams()
     p = build(trace.measured(), base, holdout_frac=0.3, encoder=encoder,
-              purpose="calibration")
+              purpose="calibration", resim=RESIM[controller], cascade=cascade)
     eff = PlantSet(names)
     nom = eff.nominal(p.base)
     prior = {}
@@ -121,6 +138,8 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
     return {
         "model": model,
         "fidelity": "fast mode (averaged PWM, massless balls)",
+        "controller": {"method": controller, "doc": CONTROLLERS[controller],
+                       **({"cascade": cascade.describe()} if cascade else {})},
         "params": params,
         "ci95": ci,
         "nominal": {k: float(v) for k, v in nom.items()},
@@ -134,6 +153,31 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
     }
 
 
+CONTROLLERS = {
+    "bench-ecu": "the bench's ECU (its structure and gains) closes the loops in the "
+                 "re-simulation, as over the bus",
+    "fitted-cascade": "the controller's gains identified: a generic cascade (position P/PI "
+                      "on the LVDT or the encoder, speed PI, speed and current limits, "
+                      "sample time in whole SYNC periods) fitted in closed loop "
+                      "(bench.gap.cascade)",
+    "measured-current": "no controller identified: the logged current drives the plant "
+                        "(the drive tracks it), the mechanics re-started from the measured "
+                        f"encoder angle and speed every {R.RESTART_S:g} s; the current is "
+                        "an input, its residual only the drive's tracking",
+}
+"""What the calibration does about the controller (`calibrate(controller=...)`)."""
+RESIM = {"bench-ecu": "closed-loop", "fitted-cascade": "closed-loop",
+         "measured-current": "measured-current"}
+
+
+def resim_of(controller: dict[str, Any]) -> dict[str, Any]:
+    """`bench.gap.problem.build`'s keywords (resim, cascade) that re-simulate a log as a
+    calibration's `controller` entry says."""
+    c = controller.get("cascade")
+    return {"resim": RESIM[controller["method"]],
+            "cascade": None if c is None else Cascade.from_dict(c)}
+
+
 def _norm(en: dict[str, float]) -> dict[str, float]:
     out = {s: float(math.sqrt(max(v, 0.0))) for s, v in en.items()}
     out["total"] = float(np.sqrt(np.mean(list(en.values()))))
@@ -141,3 +185,158 @@ def _norm(en: dict[str, float]) -> dict[str, float]:
 
 
 __all__ = ["calibrate", "UNCERTAIN", "DEFAULT", "R"]
+
+
+# --- an unknown controller: a generic cascade fitted in closed loop ---------------------
+CASCADE_SOURCES = ("lvdt", "encoder")
+CASCADE_EVERY = (1, 2, 4)
+"""The cascade structures tried (position sensor x sample time in SYNC periods); the one
+whose fitted law leaves the smallest residual on the log's held-out part is kept."""
+CASCADE_NFEV = 40
+GRID = (0.1, 0.3, 1.0, 3.0, 10.0)
+GRID_STARTS = 3
+
+
+def initial_cascade(base: PlantParams, trace: Trace, source: str, every: int) -> Cascade:
+    """A start for the fit from the model and the log: 6 Hz position bandwidth with a
+    0.1 Hz integral zero, a 30 Hz speed crossover on the model's inertia at the motor
+    (2 pi 30 J / kt) with its zero at 1/8 of it, the logged peak speed + 5 % as speed
+    limit, the model's current limit."""
+    from plant_rt.model import equivalent_inertia
+    kpp = 2.0 * math.pi * 6.0 / R.angle_to_travel(base)
+    j_motor = equivalent_inertia(base) * base.reducer.ratio ** 2
+    kps = 2.0 * math.pi * 30.0 * j_motor / base.motor.kt_nm_per_a
+    wmax = 1.05 * float(np.nanmax(np.abs(np.asarray(trace["motor_speed_rad_s"], float))))
+    return Cascade(source, kpp, kpp * 2.0 * math.pi * 0.1, kps, kps * 2.0 * math.pi * 30 / 8,
+                   max(wmax, 1.0), base.motor.current_max_a, every)
+
+
+def _cascade_of(z: np.ndarray, c0: Cascade) -> Cascade:
+    """z = ln of (kp_pos, position zero Hz, kp_spd, speed zero Hz, speed limit)."""
+    kpp, fp, kps, fs, wl = np.exp(z)
+    return Cascade(c0.source, kpp, kpp * 2 * math.pi * fp, kps, kps * 2 * math.pi * fs, wl,
+                   c0.current_limit_a, c0.every_periods)
+
+
+def fit_cascade(p: Problem, c0: Cascade, max_nfev: int = CASCADE_NFEV
+                ) -> tuple[Cascade, float, float]:
+    """The gains and speed limit of `c0`'s structure fitted to the log of `p` (samples
+    [0, n_fit)) by closed-loop least squares on the normalised residuals; returns the
+    fitted cascade and its gap excess on the fit and the held-out part."""
+    from dataclasses import replace
+
+    from scipy.optimize import least_squares
+    drive0 = p.drive
+    z0 = np.log([c0.kp_pos, c0.ki_pos / c0.kp_pos / (2 * math.pi), c0.kp_spd,
+                 c0.ki_spd / c0.kp_spd / (2 * math.pi), c0.speed_limit_rad_s])
+    lo = z0 + np.log([0.05, 0.01, 0.05, 0.02, 0.5])
+    hi = z0 + np.log([20.0, 100.0, 20.0, 20.0, 3.0])
+
+    def sim(z: np.ndarray) -> dict[str, np.ndarray]:
+        p.drive = replace(drive0, cascade=_cascade_of(z, c0))
+        return p.simulate()
+
+    try:
+        sol = least_squares(lambda z: p.residual(sim(z), 0, p.n_fit), z0, bounds=(lo, hi),
+                            diff_step=1e-3, max_nfev=max_nfev, x_scale=1.0)
+        best = sim(sol.x)
+        out = _cascade_of(sol.x, c0)
+    finally:
+        p.drive = drive0
+    return out, p.excess(best, 0, p.n_fit), p.excess(best, p.n_fit, p.n)
+
+
+def fit_cascade_to_demand(trace: Trace, c0: Cascade, travel_per_rad: float,
+                          n_fit: int) -> tuple[Cascade, float, float]:
+    """The gains and speed limit of `c0`'s structure fitted so that the law, fed the
+    logged set-points and sensor samples (`bench.gap.cascade.replay`), gives the logged
+    current demand (samples [0, n_fit)); returns the cascade and the RMS demand error
+    (A) on the fit and the held-out part. The controller alone, no plant model."""
+    from scipy.optimize import least_squares
+
+    from bench.gap.cascade import logged_inputs, replay_one_step
+    cols = {c: np.asarray(trace[c], float) for c in trace.columns}
+    ref, meas = logged_inputs(cols)
+    dem = np.nan_to_num(cols["current_demand_a"])
+    dt = trace.dt
+    z0 = np.log([c0.kp_pos, c0.ki_pos / c0.kp_pos / (2 * math.pi), c0.kp_spd,
+                 c0.ki_spd / c0.kp_spd / (2 * math.pi), c0.speed_limit_rad_s])
+    lo = z0 + np.log([0.01, 0.01, 0.01, 0.01, 0.3])
+    hi = z0 + np.log([100.0, 200.0, 100.0, 100.0, 5.0])
+
+    def law(z: np.ndarray) -> np.ndarray:
+        return replay_one_step(_cascade_of(z, c0).vector(dt, travel_per_rad), ref, meas, dem)
+
+    def res(z: np.ndarray) -> np.ndarray:
+        return law(z)[:n_fit] - dem[:n_fit]
+
+    # an integrating law replayed open loop drifts far from wrong gains: start the local
+    # fit from the best points of a coarse grid (x 1/10..10 around the start)
+    grid = [z0 + np.log([a, b, c, d, 1.0]) for a in GRID for b in GRID for c in GRID
+            for d in GRID]
+    costs = [float(np.mean(res(np.clip(z, lo, hi)) ** 2)) for z in grid]
+    best = None
+    for i in np.argsort(costs)[:GRID_STARTS]:
+        sol = least_squares(res, np.clip(grid[i], lo, hi), bounds=(lo, hi), diff_step=1e-4,
+                            max_nfev=200)
+        if best is None or sol.cost < best.cost:
+            best = sol
+    assert best is not None
+    sol = best
+    r = law(sol.x) - dem
+    return (_cascade_of(sol.x, c0), float(np.sqrt(np.mean(r[:n_fit] ** 2))),
+            float(np.sqrt(np.mean(r[n_fit:] ** 2))))
+
+
+def identify_cascade(trace: Trace, base: PlantParams, encoder: str = "absolute"
+                     ) -> tuple[Cascade, list[dict[str, Any]], bool]:
+    """Every structure of CASCADE_SOURCES x CASCADE_EVERY fitted on the healthy `trace`
+    (samples [0, 70 %)) and the one with the smallest error on the rest kept; returns it,
+    the table of all and whether the fit was to the logged demand. With a logged current
+    demand the law alone is fitted to it (`fit_cascade_to_demand`: error in A), else in
+    closed loop with the model `base` (`fit_cascade`: the gap excess)."""
+    tried: list[dict[str, Any]] = []
+    has_demand = ("current_demand_a" in trace
+                  and float(np.isfinite(np.asarray(trace["current_demand_a"], float)).mean())
+                  > 0.9)
+    n_fit = int(round(0.7 * len(trace)))
+    for src in CASCADE_SOURCES:
+        for every in CASCADE_EVERY:
+            c0 = initial_cascade(with_rate(base, trace.dt), trace, src, every)
+            if has_demand:
+                c, e_fit, e_ho = fit_cascade_to_demand(trace, c0, R.angle_to_travel(base),
+                                                       n_fit)
+                what = "rms_demand_error_a"
+            else:
+                p = build(trace.measured(), base, holdout_frac=0.3, encoder=encoder,
+                          purpose="calibration", cascade=c0, bootstrap=2)
+                c, e_fit, e_ho = fit_cascade(p, c0)
+                what = "excess"
+            tried.append({"source": src, "every_periods": every, "fitted_to": what,
+                          "fit_part": e_fit, "heldout_part": e_ho, "cascade": c})
+    best = min(tried, key=lambda d: d["heldout_part"])
+    return (best["cascade"], [{k: v for k, v in d.items() if k != "cascade"} for d in tried],
+            has_demand)
+
+
+def calibrate_with_cascade(trace: Trace, base: PlantParams, names: Sequence[str],
+                           encoder: str) -> dict[str, Any]:
+    """controller fitted-cascade: the cascade identified (`identify_cascade`), then the
+    plant's parameters calibrated under it; a cascade fitted in closed loop with the
+    datasheet model is refitted with the calibrated plant and the plant calibrated once
+    more (module doc)."""
+    c, tried, to_demand = identify_cascade(trace, base, encoder)
+    cal = calibrate(trace, base, names, encoder=encoder, controller="fitted-cascade",
+                    cascade=c)
+    if not to_demand:
+        model = base.with_dict(cal["params"])
+        p = build(trace.measured(), model, holdout_frac=0.3, encoder=encoder,
+                  purpose="calibration", cascade=c, bootstrap=2)
+        c, _, _ = fit_cascade(p, c)
+        cal = calibrate(trace, base, names, encoder=encoder, controller="fitted-cascade",
+                        cascade=c)
+    cal["controller"]["fitted_to"] = ("the logged current demand (the law fed the logged "
+                                      "set-points and sensor samples)" if to_demand else
+                                      "the logged signals, in closed loop with the model")
+    cal["controller"]["structures_tried"] = tried
+    return cal

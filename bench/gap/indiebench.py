@@ -13,8 +13,9 @@ against the calibrated model.
 The controller: by default the cases run under the bench's ECU (its structure and gains,
 `indie_plant.controller.Cascade.like_bench_ecu`), as `bench run gap-excitation` against
 `python -m indie_plant` over the bus gives; `controller="own"` runs the actuator's own
-PI + PI cascade at 2 ms, which the bench's re-simulation cannot represent until the
-calibration identifies controllers (docs/gap.md says what that measured).
+PI + PI cascade at 2 ms, which the bench does not know: its calibration and goal 4 then
+identify it (`RESIM`: a fitted generic cascade, or the measured current driving the
+model), and the blind diagnoses re-simulate under what it identified.
 
 Cases: 30 % nominal (noise only), 70 % one effect of `POOL` at a random magnitude, the
 effect implemented in the independent physics (not by the library). "Above the noise
@@ -53,12 +54,13 @@ HELDOUT_SEED_OFFSET = 100_004         # healthy held-out log (goal 4): seed + th
 SNR_SIGNALS = ("current_a", "motor_speed_rad_s", "position_m", "motor_angle_rad")
 
 
-def datasheet_model() -> PlantParams:
+def datasheet_model(actuator: IndieParams = NOMINAL) -> PlantParams:
     """The bench's model of the independent actuator from its datasheet: ratio, lead,
-    motor constants, rotor and screw inertias, nut mass, preload, supply and limits. The
-    bench's friction laws and contact model stay its own (the thesis' tables): friction
-    and the rest are what calibration is for."""
-    n = NOMINAL
+    motor constants, rotor and screw inertias, nut mass, preload, supply and limits, and
+    how its drive computes the speed (the count difference over `speed_window` SYNC
+    periods). The bench's friction laws and contact model stay its own (the thesis'
+    tables): friction and the rest are what calibration is for."""
+    n = actuator
     return PlantParams().with_dict({
         "motor.kt_nm_per_a": n.kt_nm_per_a, "motor.ke_v_s_per_rad": n.ke_v_s_per_rad,
         "motor.resistance_ohm": n.resistance_ohm, "motor.inductance_h": n.inductance_h,
@@ -69,7 +71,9 @@ def datasheet_model() -> PlantParams:
         "screw.nut_mass_kg": n.nut_mass_kg, "effects.preload_n": n.preload_n,
         "drive.current_kp_v_per_a": 2 * math.pi * n.current_bw_hz * n.inductance_h,
         "drive.current_ki_v_per_as": 2 * math.pi * n.current_bw_hz * n.resistance_ohm,
-        "sensors.encoder_counts_per_rev": n.encoder_counts})
+        "sensors.encoder_counts_per_rev": n.encoder_counts,
+        # the drive's speed: the count difference over 4 SYNC periods (its datasheet)
+        "sensors.encoder_speed_window": int(n.speed_window)})
 
 
 def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:
@@ -165,12 +169,19 @@ def generate(case: Case, noise: bool = True, duration_s: float = LOG_S,
 
 def reference(duration_s: float, seed: int, controller: str,
               actuator: IndieParams = NOMINAL) -> dict[str, Any]:
-    """Noise-free nominal log and the generator's noise floor per signal."""
+    """Noise-free nominal log and the generator's noise floor per signal (at least the
+    encoder's resolution)."""
     clean = generate(Case(-1, "nominal", [], seed), False, duration_s, controller, actuator)
     a = generate(Case(-1, "nominal", [], seed + 1), True, duration_s, controller, actuator)
     b = generate(Case(-1, "nominal", [], seed + 2), True, duration_s, controller, actuator)
-    floor = {s: float(np.sqrt(np.mean((a[s] - b[s]) ** 2)) / math.sqrt(2.0))
-             for s in SNR_SIGNALS}
+    # at least the encoder's resolution (step / sqrt 12): under the actuator's own loop
+    # on the encoder no noise reaches the angle or the speed, whose RMS difference is 0
+    step = 2.0 * math.pi / actuator.encoder_counts
+    res = {"motor_angle_rad": step / math.sqrt(12.0),
+           "motor_speed_rad_s": step / (actuator.speed_window * actuator.sync_period_s)
+           / math.sqrt(12.0)}
+    floor = {s: max(float(np.sqrt(np.mean((a[s] - b[s]) ** 2)) / math.sqrt(2.0)),
+                    res.get(s, 0.0)) for s in SNR_SIGNALS}
     return {"clean": {s: clean[s] for s in SNR_SIGNALS}, "floor": floor}
 
 
@@ -181,28 +192,40 @@ def floor_snr(case: Case, duration_s: float, ref: dict[str, Any], controller: st
             for s in SNR_SIGNALS}
 
 
+RESIM = {"ecu": "bench-ecu", "own": "fitted-cascade"}
+"""What the calibration does about each controller (`bench.gap.calibrate.CONTROLLERS`):
+the bench's ECU closes the loops (the log was run under it), or, for the actuator's own
+controller, which the bench does not know, a generic cascade is identified
+(fitted-cascade; measured-current: the measured current drives the model instead)."""
+
+
 def calibrated_model(seed: int, duration_s: float = LOG_S, controller: str = "ecu",
-                     actuator: IndieParams = NOMINAL) -> tuple[PlantParams, dict[str, Any]]:
+                     actuator: IndieParams = NOMINAL, identify: str | None = None
+                     ) -> tuple[PlantParams, dict[str, Any]]:
     """The datasheet model calibrated (bench.gap.calibrate, its default parameters) on one
-    healthy log of the actuator with noise seed `seed + CALIBRATION_SEED_OFFSET`."""
+    healthy log of the actuator with noise seed `seed + CALIBRATION_SEED_OFFSET`,
+    the controller handled as `identify` says (default `RESIM[controller]`)."""
     log = generate(Case(-1, "nominal", [], seed + CALIBRATION_SEED_OFFSET), True,
                    duration_s, controller, actuator)
-    base = datasheet_model()
-    cal = calibrate(log, base)
+    base = datasheet_model(actuator)
+    cal = calibrate(log, base, controller=identify or RESIM[controller])
     return base.with_dict(cal["params"]), cal
 
 
 def heldout_residual(model: PlantParams, seed: int, duration_s: float = LOG_S,
-                     controller: str = "ecu", actuator: IndieParams = NOMINAL
-                     ) -> dict[str, Any]:
+                     controller: str = "ecu", actuator: IndieParams = NOMINAL,
+                     identified: dict[str, Any] | None = None) -> dict[str, Any]:
     """Goal 4: the model's closed-loop re-simulation of a held-out healthy log (noise seed
     `seed + HELDOUT_SEED_OFFSET`): RMS residual per signal, the noise floor per signal
     (the diagnosis' bootstrap of the noise estimated from that log, without the fast
-    model's own error) and their ratio."""
+    model's own error) and their ratio. `identified`: the calibration's `controller`
+    entry, how the model re-simulates (default: the bench's ECU)."""
+    from bench.gap.calibrate import resim_of
     from bench.gap.problem import build
     log = generate(Case(-1, "nominal", [], seed + HELDOUT_SEED_OFFSET), True, duration_s,
                    controller, actuator)
-    p = build(log.measured(), model, holdout_frac=0.5)
+    p = build(log.measured(), model, holdout_frac=0.5,
+              **resim_of(identified or {"method": "bench-ecu"}))
     nominal = p.info["nominal"]
     out: dict[str, Any] = {}
     for s, meas in p.meas.items():
@@ -227,6 +250,8 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
     """Generate, diagnose against the calibrated model (seeing only the log), score."""
     ref, model, act = _STATE["ref"], _STATE["model"], _STATE["actuator"]
     log = generate(case, True, duration_s, controller, act)
+    if _STATE.get("controller", {}).get("method", "bench-ecu") != "bench-ecu":
+        log.meta["controller"] = _STATE["controller"]   # re-simulated as calibrated
     t0 = time.perf_counter()
     res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects))
     elapsed = time.perf_counter() - t0
@@ -241,19 +266,24 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
 def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
         progress: bool = True, effects: list[str] | None = None, controller: str = "ecu",
         on_result: Callable[[dict[str, Any]], None] | None = None,
-        actuator: IndieParams = NOMINAL, scheduler: str | None = None) -> dict[str, Any]:
+        actuator: IndieParams = NOMINAL, scheduler: str | None = None,
+        identify: str | None = None) -> dict[str, Any]:
     """Calibrate on the healthy calibration log, then run `n` blind cases. `actuator`:
     the independent actuator as built (`--indie-set`: e.g. an ablation of one physical
-    feature)."""
+    feature). `identify`: what the calibration does about the controller (default
+    `RESIM[controller]`); the blind diagnoses re-simulate as the calibration says (the
+    log's ``meta["controller"]``, `bench.gap.problem.drive_of`)."""
     t0 = time.perf_counter()
-    model, cal = calibrated_model(seed, duration_s, controller, actuator)
+    identify = identify or RESIM[controller]
+    model, cal = calibrated_model(seed, duration_s, controller, actuator, identify)
     t_cal = time.perf_counter() - t0
-    held = heldout_residual(model, seed, duration_s, controller, actuator)
+    held = heldout_residual(model, seed, duration_s, controller, actuator, cal["controller"])
     ref = reference(duration_s, seed + 7919, controller, actuator)
     cases = make_cases(n, seed)
     job = partial(run_case, duration_s=duration_s, controller=controller, effects=effects)
     results = run_all(job, cases, workers, progress, desc="gap-bench (independent)",
-                      unit="case", initializer=_init, initargs=({"ref": ref, "model": model, "actuator": actuator},),
+                      unit="case", initializer=_init, initargs=({"ref": ref, "model": model, "actuator": actuator,
+                                          "controller": cal["controller"]},),
                       on_result=on_result, leave=True, scheduler=scheduler)
     changed = {k: v for k, v in dataclasses.asdict(actuator).items()
                if v != getattr(NOMINAL, k)}
@@ -263,6 +293,7 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
             "library": effects or "all", "wall_s": time.perf_counter() - t0,
             "workers": workers, "floor": ref["floor"],
             "calibration": {"seed": seed + CALIBRATION_SEED_OFFSET, "wall_s": t_cal,
+                            "controller": cal["controller"],
                             "params": cal["params"], "ci95": cal["ci95"],
                             "gap_after": cal["gap_after"], "notes": cal["notes"]},
             "heldout_healthy": {"seed": seed + HELDOUT_SEED_OFFSET, "signals": held},

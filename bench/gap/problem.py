@@ -25,6 +25,7 @@ from scipy.ndimage import uniform_filter1d
 from bench import BenchError
 from bench.gap import resim as R
 from bench.gap.autocorr import corr_length
+from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect
 from bench.trace import MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
@@ -231,7 +232,8 @@ def check_log(trace: Trace, purpose: str = "gap diagnosis") -> None:
 
 
 def drive_of(trace: Trace, encoder: str = "absolute",
-             params: PlantParams | None = None) -> R.Drive:
+             params: PlantParams | None = None, resim: str = "closed-loop",
+             cascade: Any = None) -> R.Drive:
     """The re-simulation drive of `trace`: set-points, mode, demand, initial position and,
     when the log has a load cell (`load_force_n`), the axial load replayed into the plant.
 
@@ -239,9 +241,22 @@ def drive_of(trace: Trace, encoder: str = "absolute",
     plant, multi-turn encoders, resolvers with a homed zero), so the initial nut position
     is angle x tau p / 2 pi and an LVDT offset is observable; "relative": the initial
     position is the median LVDT reading of the first 20 samples.
+    resim: `bench.gap.resim.RESIMS` (measured-current: the logged current and encoder
+    angle drive the re-simulation instead of the bench's ECU); cascade: an identified
+    controller (`bench.gap.cascade.Cascade`) in the ECU's place. Without either, a log
+    whose metadata names its controller (``meta["controller"]``: a calibration's
+    `controller` entry, `bench.gap.calibrate`) is re-simulated under that one.
     """
     if encoder not in ("absolute", "relative"):
         raise BenchError(f"encoder reference must be absolute or relative, not {encoder!r}")
+    if resim not in R.RESIMS:
+        raise BenchError(f"re-simulation must be one of {', '.join(R.RESIMS)}, not {resim!r}")
+    ctrl = trace.meta.get("controller")
+    if cascade is None and resim == "closed-loop" and isinstance(ctrl, dict):
+        if ctrl.get("cascade"):
+            cascade = Cascade.from_dict(ctrl["cascade"])
+        elif ctrl.get("method") == "measured-current":
+            resim = "measured-current"
     n = len(trace)
     col = trace.columns
 
@@ -258,10 +273,14 @@ def drive_of(trace: Trace, encoder: str = "absolute",
     load = col.get("load_force_n")
     if load is not None and not np.isfinite(load).any():
         load = None
+    by_current = resim == "measured-current"
     return R.Drive(trace.t - trace.t[0], get("setpoint_position_m"), get("setpoint_speed_rad_s"),
                    np.round(get("mode")), np.full(n, np.nan) if demand is None
                    else np.asarray(demand, float), x0, x0_true,
-                   None if load is None else get("load_force_n"))
+                   None if load is None else get("load_force_n"), resim=resim,
+                   current_meas=get("current_a") if by_current else None,
+                   angle_meas=get("motor_angle_rad") if by_current else None,
+                   cascade=cascade)
 
 
 def with_rate(base: PlantParams, dt: float) -> PlantParams:
@@ -296,7 +315,7 @@ def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
 def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
           encoder: str = "absolute", purpose: str = "gap diagnosis",
-          model: str = "plant") -> Problem:
+          model: str = "plant", resim: str = "closed-loop", cascade: Any = None) -> Problem:
     """A Problem for `trace` against the nominal `base` (made fast-mode here).
 
     Floors: sensor noise is estimated from the log (`estimate_noise`) and pushed through
@@ -308,7 +327,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     dt = trace.dt
     base = with_rate(base, dt)
     fast = base.with_dict({**R.FAST, "sensors.noise": False})
-    drive = drive_of(trace, encoder, fast)
+    drive = drive_of(trace, encoder, fast, resim, cascade)
     p = Problem(fast, drive, {}, {}, 0, dt, model=model)
     cols = {c: np.asarray(trace[c], float) for c in
             ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")}

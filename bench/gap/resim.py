@@ -6,9 +6,15 @@ Everything here is driven by logged signals only (never by simulation truth):
   `bench.loop.ecu_on_plant` that `bench.harness` runs), driven by the logged set-points
   and mode, and by the logged axial load when the log has a load cell. The ECU demand
   computed at SYNC k is applied by the drive during period k+1, exactly as over the bus.
+  With `Drive.cascade` set, an identified generic cascade (`bench.gap.cascade`) takes
+  the ECU's place.
 - `open_loop`: the logged ECU demand replayed into the plant with the same one-period
   hold (the same loop with the demand from a table; isolates current demand -> current:
   the drive path).
+- `current_driven` (`Drive.resim = "measured-current"`, which `closed_loop` then runs):
+  no controller; the logged (measured) current is the drive's demand and the mechanics
+  are re-started from the measured encoder angle and speed every `RESTART_S`: for logs run
+  under a controller the bench does not know (issue 11).
 - `mechanics_replay`: the logged demand replayed in short segments, the mechanical state
   re-synchronised at each segment start from the measured motor speed (isolates
   current -> motor speed: the mechanics path, without the drift of a long open-loop run).
@@ -30,6 +36,7 @@ import numpy as np
 
 from bench.control import NC as CTRL_NC
 from bench.control import ControllerParams
+from bench.gap.cascade import NGC, Cascade, cascade_on_plant
 from bench.loop import (
     NT,
     delay_periods,
@@ -69,6 +76,10 @@ class Drive:
     x0_m: float                 # LVDT reading at the start (m)
     x0_true_m: float | None = None   # nut position at the start from an absolute encoder
     load_n: np.ndarray | None = None  # load cell (N) at each SYNC, None: no load logged
+    resim: str = "closed-loop"  # or "measured-current" (RESIMS): what closes the loop
+    current_meas: np.ndarray | None = None   # logged current (A), measured-current only
+    angle_meas: np.ndarray | None = None     # logged encoder angle (rad), the same
+    cascade: Cascade | None = None   # an identified controller in the ECU's place
 
     def applied_load(self, n: int) -> np.ndarray:
         """External force (N) held over each of the first `n` periods: the load cell's
@@ -77,6 +88,23 @@ class Drive:
             return np.zeros(n)
         f = np.nan_to_num(np.asarray(self.load_n[:n], float))
         return np.append(f[1:], f[-1])
+
+
+RESIMS = ("closed-loop", "measured-current")
+"""How a log is re-simulated: the bench's ECU on the plant (closed-loop), or no
+controller, the measured current driving the plant (measured-current, `current_driven`)."""
+RESTART_S = 0.5
+"""measured-current: the mechanics re-start from the measured state this often (s), the
+generic rig model's segment (`bench.gap.rigmodel.current_driven`)."""
+CURRENT_PASSES = 3
+"""measured-current: the demand is corrected by the model current's error against the
+measured one and the run repeated (iterative learning), this many runs in all: a PI
+current loop lags a ramping back-EMF by ke (dw/dt) / ki (~1.5 A at full acceleration),
+which the measured current already holds."""
+RESTART_FIT_S = 0.002
+"""measured-current: the re-start angle and speed come from a straight line fitted to the
+measured encoder angle over +- this (s) (`bench.gap.rigmodel.restart_state`): a few
+periods, so a re-start at the onset of a step does not take the step's speed."""
 
 
 def angle_to_travel(params: PlantParams) -> float:
@@ -90,6 +118,7 @@ def initial_plant(params: PlantParams, x0_true_m: float) -> Plant:
     if x0_true_m:
         dth = x0_true_m * 2.0 * math.pi / params.screw.lead_m
         plant.x[K.TH] += dth
+        plant.x[K.TH_HIST:K.TH_HIST + K.NHIST] += dth   # at rest there for ever
         plant.x[K.X1] += x0_true_m
         plant.x[K.X2] += x0_true_m
         plant.x[K.ZB1] += x0_true_m * plant.param_vector[K.P_G]
@@ -148,11 +177,18 @@ def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
     `noise` (n, 3): optional white noise (A, m, rad/s) per SYNC, as the plant draws it.
     """
     n = len(drive.t) if n is None else min(n, len(drive.t))
+    if drive.resim == "measured-current":
+        return current_driven(params, drive, n, noise)
     cparams = cparams or ControllerParams(sample_period_s=params.sim.sync_period_s)
     nz = np.zeros((n, 3)) if noise is None else np.ascontiguousarray(noise[:n])
     nd = delay_periods(params)
-    meas, dem = _run(ecu_on_plant, params, drive, n, no_columns(n), nz,
-                     ecu_reference(drive.sp_pos[:n], drive.sp_spd[:n], drive.mode[:n]),
+    ref = ecu_reference(drive.sp_pos[:n], drive.sp_spd[:n], drive.mode[:n])
+    if drive.cascade is not None:
+        kv = drive.cascade.vector(params.sim.sync_period_s, angle_to_travel(params))
+        meas, dem = _run(cascade_on_plant, params, drive, n, no_columns(n), nz, ref, kv,
+                         np.zeros(NGC), nd)
+        return _columns(meas, dem, nd)
+    meas, dem = _run(ecu_on_plant, params, drive, n, no_columns(n), nz, ref,
                      cparams.vector(), np.zeros(CTRL_NC), nd)
     return _columns(meas, dem, nd)
 
@@ -193,6 +229,10 @@ def resync(x, p, aux, kk):  # pragma: no cover - compiled
             x[K.STN2] = 1.0
         x[K.EY] = x[K.OM] / tau
         x[K.EYD] = 0.0
+        # a count-difference speed estimator: the angles of a constant speed
+        t_sync = p[K.P_DT] * p[K.P_NSUB]
+        for j in range(K.NHIST):
+            x[K.TH_HIST + j] = x[K.TH] - (j + 1) * t_sync * x[K.OM]
 
 
 @njit(cache=True, error_model="numpy")
@@ -245,6 +285,102 @@ def mechanics_replay(params: PlantParams, drive: Drive, speed_meas: np.ndarray,
     return _replay(params, drive, n, aux)
 
 
+# --- the measured current drives the plant ------------------------------------------------
+# aux rows of the current-driven replay: re-start now (1/0), motor angle (rad) and speed
+# (rad/s) to re-start from
+C_SYNC, C_ANGLE, C_W = 0, 1, 2
+
+
+@njit(inline="always", error_model="numpy")
+def restart(x, p, aux, kk):  # pragma: no cover - compiled
+    """Where aux[kk, C_SYNC] says so, move the mechanics to the measured motor angle and
+    speed: the screw angle, the nut halves, balls and LVDT state by the same travel (their
+    deflections kept), the speeds of a rigid screw (eq. 5.8, 5.26), the encoder states and
+    the count history of that constant speed; moving (> 0.5 rad/s) frees the stiction
+    states, else the screw is held."""
+    if aux[kk, C_SYNC] > 0.0:
+        tau = p[K.P_TAU]
+        kin = p[K.P_LEAD] / (2.0 * math.pi)
+        th = aux[kk, C_ANGLE] * tau
+        dx = kin * (th - x[K.TH])
+        x[K.TH] = th
+        x[K.X1] += dx
+        x[K.X2] += dx
+        x[K.ZB1] += dx * p[K.P_G]
+        x[K.ZB2] += dx * p[K.P_G]
+        x[K.LY] += dx
+        moving = abs(aux[kk, C_W]) > 0.5
+        om = aux[kk, C_W] * tau if moving else 0.0
+        x[K.OM] = om
+        x[K.V1] = kin * om
+        x[K.V2] = kin * om
+        x[K.LYD] = kin * om
+        st = 0.0 if moving else 1.0
+        x[K.STS] = st
+        x[K.STN1] = st
+        x[K.STN2] = st
+        x[K.EY] = om / tau
+        x[K.EYD] = 0.0
+        t_sync = p[K.P_DT] * p[K.P_NSUB]
+        for j in range(K.NHIST):
+            x[K.TH_HIST + j] = th - (j + 1) * t_sync * om
+
+
+@njit(cache=True, error_model="numpy")
+def current_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
+                     diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
+    """A demand table (the measured current) on the full plant, re-started where aux
+    says so."""
+    return run_loop(restart, kernel_measure, kernel_truth, kernel_advance, table_control,
+                    x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
+                    diag_out, truth_out, applied, k0)
+
+
+def current_driven(params: PlantParams, drive: Drive, n: int | None = None,
+                   noise: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """The plant driven by the logged current instead of a controller (issue 11: a log
+    run under a controller the bench does not know).
+
+    The drive's demand over period k is the current measured at SYNC k + 1, corrected
+    by the model current's error of a previous run (`CURRENT_PASSES`), so the model's
+    current follows the measured one; the
+    mechanics re-start every `RESTART_S` from the measured encoder angle and its speed
+    (a straight line over +- `RESTART_FIT_S`, taken `sensor_delay` samples later: the
+    sample that describes the re-start instant). Between re-starts the model runs open
+    loop, so its residual is the mechanics' and sensors' gap over half a second. The
+    current is an input here: its residual only shows the drive's tracking.
+    Returns the columns of `closed_loop` (current_demand_a: the replayed demand)."""
+    from bench.gap.rigmodel import restart_state
+    n = len(drive.t) if n is None else min(n, len(drive.t))
+    if drive.current_meas is None or drive.angle_meas is None:
+        raise ValueError("a measured-current re-simulation needs the logged current_a and "
+                         "motor_angle_rad")
+    cur = np.nan_to_num(np.asarray(drive.current_meas[:n], float))
+    # the table's row k is applied over period k + 1 (bench.loop): the current at k + 2
+    table = np.append(cur[2:], np.full(min(2, n), cur[-1])).reshape(n, 1)
+    nd = delay_periods(params)
+    dt = params.sim.sync_period_s
+    seg = max(2, int(round(RESTART_S / dt)))
+    starts = np.arange(0, n, seg)
+    ang = np.asarray(drive.angle_meas[:n], float)
+    th, w = restart_state(np.arange(n) * dt, ang, max(1, int(round(RESTART_FIT_S / dt))),
+                          np.minimum(starts + nd, n - 1))
+    aux = np.zeros((n, 3))
+    aux[starts, C_SYNC] = 1.0
+    aux[starts, C_ANGLE] = th
+    aux[starts, C_W] = w
+    nz = np.zeros((n, 3)) if noise is None else np.ascontiguousarray(noise[:n])
+    for it in range(CURRENT_PASSES):
+        meas, _ = _run(current_on_plant, params, drive, n, aux, nz, table, np.zeros(0),
+                       np.zeros(0), 0)
+        if it + 1 < CURRENT_PASSES:     # the drive's tracking error, added to the demand
+            err = np.nan_to_num(cur - (meas[:, K.M_CUR] - nz[:, 0]))
+            table[:, 0] += np.append(err[2:], np.zeros(min(2, n)))
+    applied = np.zeros(n)
+    applied[1:] = table[:-1, 0]
+    return _columns(meas, applied, nd)
+
+
 # --- kinematic paths -----------------------------------------------------------------
 
 def second_order(y: np.ndarray, dt: float, natural_rad_s: float, damping: float) -> np.ndarray:
@@ -289,8 +425,14 @@ def screw_kinematics(angle_rad: np.ndarray, x0_m: float, params: PlantParams,
 def encoder_speed_from_angle(angle_rad: np.ndarray, params: PlantParams,
                              dt: float) -> np.ndarray:
     """The encoder speed (rad/s) the nominal sensor predicts from the measured angle:
-    the angle's derivative through the encoder dynamics (eq. 5.1)."""
+    the angle's derivative through the encoder dynamics (eq. 5.1), or the count difference
+    over `sensors.encoder_speed_window` periods when the drive computes it so."""
     se = params.sensors
+    win = se.encoder_speed_window
+    if win > 0:    # the count difference over `win` periods (the angle is the counts)
+        old = np.concatenate([np.full(min(win, len(angle_rad)), angle_rad[:1]),
+                              angle_rad[:-win]])[:len(angle_rad)] if len(angle_rad) else angle_rad
+        return (angle_rad - old) / (win * dt)
     w = np.gradient(angle_rad, dt) if len(angle_rad) > 1 else np.zeros_like(angle_rad)
     # the central difference is centred half a sample late relative to the filter input
     return second_order(w, dt, se.encoder_natural_rad_s, se.encoder_damping)
