@@ -17,16 +17,20 @@ deaths per task), and the nanny starts a new worker. Results come back complete 
 job order. The tasks are the same functions on the same inputs as in-process, so the
 results do not depend on the engine or on the number of workers.
 
-The progress bar is tqdm fed from `distributed.as_completed` (not Dask's own
-`progress()`): the loop that collects each result as it arrives (for `on_result`, and
-to name the job that failed) drives the bar, which looks the same in-process and on a
-cluster; Dask's live diagnostics are on its dashboard, whose link is printed once on
-stderr when a job with a progress bar starts a cluster.
+On a cluster the progress bar is drawn from Dask's own diagnostics: `_DaskBar` is a
+`distributed.diagnostics.progressbar.ProgressBar` (the scheduler's `Progress` plugin
+reports the tasks left every 0.1 s, as `distributed.progress` does) that draws a tqdm bar
+on stderr, in jobs (`chunk` per task), so it looks the same as the in-process bar, which
+counts the jobs as they finish. Results are collected apart from the bar, with
+`distributed.as_completed` (for `on_result`, and to name the job that failed). Dask's
+live diagnostics are also on its dashboard, whose link is printed once on stderr when a
+job with a progress bar starts a cluster.
 """
 
 from __future__ import annotations
 
 import re
+import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -100,14 +104,15 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
         results[k] = result
         if on_result is not None:
             on_result(result)
-        if bar is not None:
+        if bar is not None and n_local:
             bar.update(1)
 
     def new_bar() -> Any:
         return tqdm(total=len(jobs), desc=desc, unit=unit, leave=leave) if progress else None
 
+    n_local = n <= 1 or len(jobs) <= 1
     try:
-        if n <= 1 or len(jobs) <= 1:
+        if n_local:
             bar = new_bar()
             if initializer is not None:
                 initializer(*initargs)
@@ -122,7 +127,7 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
             _on_dask(client, fn, jobs, done, desc, retries,
                      None if initializer is None else (initializer, initargs),
                      own_cluster=engine.cluster is not None and shared is None,
-                     chunk=chunk)
+                     chunk=chunk, bar=bar)
         finally:
             if shared is None:
                 engine.close()
@@ -135,9 +140,9 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
 def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
              done: Callable[[int, Any], None], desc: str, retries: int,
              init: tuple[Callable[..., Any], tuple[Any, ...]] | None, own_cluster: bool,
-             chunk: int = 1) -> None:
+             chunk: int = 1, bar: Any = None) -> None:
     """The jobs as tasks of `client`'s cluster (`chunk` consecutive jobs per task);
-    `done(k, result)` as each one finishes."""
+    `done(k, result)` as each one finishes; `bar` (tqdm) drawn by `_DaskBar`."""
     from distributed import as_completed
     name = f"{_slug(desc)}-{uuid.uuid4().hex[:8]}"
     plugin = None
@@ -151,6 +156,7 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
                       [jobs[k:k + size] for k in starts],
                       key=[f"{name}-{k}" for k in starts], retries=max(0, int(retries)))
     index = {f.key: i for i, f in enumerate(futs)}
+    dbar = None if bar is None else _DaskBar(futs, client, bar, size, len(jobs))
     try:
         for f, result in as_completed(futs, loop=client.loop, with_results=True,
                                       raise_errors=False):
@@ -169,6 +175,8 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
             futs[i] = None                 # the cluster may forget it now
             for j, r in enumerate(result):
                 done(starts[i] + j, r)
+        if dbar is not None:
+            dbar.stopped.wait(5.0)         # its last report (all done) drawn
     finally:
         left = [f for f in futs if f is not None and not f.done()]
         if left:
@@ -178,6 +186,37 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
                 client.unregister_worker_plugin(plugin)
             except Exception:  # noqa: BLE001 - best effort
                 pass
+
+
+class _DaskBar:
+    """A tqdm bar drawn from the scheduler's progress reports: Dask's `ProgressBar` (the
+    diagnostics behind `distributed.progress`), listening on the client's event loop."""
+
+    def __init__(self, futs: list[Any], client: Any, bar: Any, size: int, total: int
+                 ) -> None:
+        from distributed.diagnostics.progressbar import ProgressBar
+        outer = self
+        self.stopped = threading.Event()
+
+        class _Bar(ProgressBar):  # type: ignore[misc]
+            def _draw_bar(self, remaining: int, all: int, **kw: Any) -> None:  # noqa: A002
+                done = total if remaining == 0 else min(total, (all - remaining) * size)
+                if done > bar.n:
+                    bar.update(done - bar.n)
+
+            def _draw_stop(self, **kw: Any) -> None:
+                outer.stopped.set()
+
+        self.bar = _Bar(futs, scheduler=client.scheduler.address, interval="100ms")
+        client.loop.add_callback(self._listen)
+
+    async def _listen(self) -> None:
+        try:
+            await self.bar.listen()
+        except Exception:  # noqa: BLE001 - a bar that cannot listen: results still come
+            pass
+        finally:
+            self.stopped.set()
 
 
 class _JobFailed(Exception):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
 import time
 from pathlib import Path
 
@@ -43,7 +44,24 @@ def test_chunk_size_keeps_tasks_short_and_workers_busy():
     assert chunk_size(3, 2) == 1
 
 
-def test_chunks_keep_order_report_each_job_and_survive_a_killed_worker(tmp_path):
+class _Bar:
+    """A tqdm stand-in recording what drew it."""
+    made: list[_Bar] = []
+
+    def __init__(self, total: int, **kw: object) -> None:
+        self.total, self.n, self.threads = total, 0, set()
+        _Bar.made.append(self)
+
+    def update(self, k: int) -> None:
+        self.n += k
+        self.threads.add(threading.current_thread().name)
+
+    def close(self) -> None:
+        pass
+
+
+def test_chunks_keep_order_report_each_job_and_survive_a_killed_worker(tmp_path,
+                                                                        monkeypatch):
     n, chunk = 40, 4
     with Engine(2) as engine:
         client = engine.client()
@@ -55,6 +73,16 @@ def test_chunks_keep_order_report_each_job_and_survive_a_killed_worker(tmp_path)
                       initargs=(str(tmp_path / "a"),), on_result=seen.append,
                       scheduler=addr, chunk=chunk)
         assert got == [x * x for x in range(n)] and sorted(seen) == got
+        # the bar is drawn from the scheduler's progress reports (Dask's ProgressBar on
+        # the client's event loop), not by the loop that collects the results
+        monkeypatch.setattr("bench.workers.tqdm", _Bar)
+        got = run_all(_square, range(10), progress=True, initializer=_set,
+                      initargs=(str(tmp_path / "a"),), scheduler=addr, chunk=3)
+        bar = _Bar.made[-1]
+        assert got == [x * x for x in range(10)]
+        assert bar.total == 10 and bar.n == 10
+        assert threading.current_thread().name not in bar.threads, bar.threads
+        monkeypatch.undo()
         with pytest.raises(BenchError, match="job 5 failed in a worker: ValueError: boom"):
             run_all(_fail_on_five, range(12), progress=False, retries=0, scheduler=addr,
                     chunk=4)
