@@ -7,8 +7,11 @@ shrinks (docs/gap.md).
 Steps:
 1. Floors and significance (`bench.gap.problem.build`): sensor noise estimated from the
    log, pushed through the nominal loop (bootstrap); the gap is significant when a
-   signal's smoothed residual energy exceeds SIGNIFICANT x its floor. If not: verdict
-   "none" (no significant gap) and no fitting.
+   signal's smoothed residual energy exceeds SIGNIFICANT x its floor. Against a
+   calibration that stored its held-out healthy level (`Options.reference`,
+   `bench calibrate --holdout`), only where it also exceeds that level x a margin
+   (HELDOUT_Z); the JSON and the verdict line say what was judged against. If not:
+   verdict "none" (no significant gap) and no fitting.
 2. Localisation (`bench.gap.localise`).
 3. Every candidate effect fitted alone on the fit part (`bench.gap.fit`), in parallel.
 4. Forward selection: the best single effect (lowest BIC) extended by each other
