@@ -35,7 +35,6 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_fleet.py::test_synth_ingest_status_report_export",
     "tests/integration/test_flight_bus.py",
     "tests/integration/test_gap_diagnose.py::test_each_effect_alone_is_found",
-    "tests/integration/test_gap_heldout_level.py",
     "tests/integration/test_gap_diagnose.py::test_effect_outside_the_library_is_unexplained",
     "tests/integration/test_hub_bad_client.py",
     "tests/integration/test_hums_figures.py",
