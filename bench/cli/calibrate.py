@@ -30,7 +30,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--actuator", metavar="DESC",
                    help="another actuator's description (.json/.toml, or: cranfield)")
     p.add_argument("--holdout", metavar="LOG", nargs="+", default=[],
-                   help="held-out healthy logs to score the calibrated model on (--actuator)")
+                   help="held-out healthy logs (never the fitted one): with --actuator, scored "
+                        "against their noise floor; on the thesis plant, the significance "
+                        "level the calibrated model leaves on them is stored "
+                        "(heldout_significance), and `bench gap --nominal` judges against it")
     p.add_argument("--controller", choices=METHODS, default="auto",
                    help="with --actuator and an unknown controller: fit-gains (a generic "
                         "cascade fitted in closed loop), measured-current (the logged current "
@@ -55,10 +58,10 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.output, "-o", (".json",), stdout_ok=True)   # before the fit
     if args.actuator:
         return _actuator(args)
-    if len(args.log) > 1 or args.holdout:
-        raise BenchError("several healthy logs and --holdout need --actuator DESC (the "
-                         "thesis actuator is calibrated from one log)")
-    from bench.gap.calibrate import calibrate
+    if len(args.log) > 1:
+        raise BenchError("several healthy logs need --actuator DESC (the thesis actuator "
+                         "is calibrated from one log; give others with --holdout)")
+    from bench.gap.calibrate import calibrate, heldout_significance
     from bench.gap.needs import NEEDS, SYNC_RATE, missing
     names = [n.strip() for n in args.params.split(",") if n.strip()]
     if not names:
@@ -70,8 +73,20 @@ def run(args: argparse.Namespace) -> int:
         raise BenchError(f"{args.log[0]}: the thesis plant's calibration not available: "
                          f"needs {', '.join(lack)}; for another actuator give --actuator "
                          "DESC (docs/real-data.md)")
-    cal = calibrate(log, load_nominal(args.nominal), names, args.model, args.encoder)
+    same = [h for h in args.holdout if Path(h).resolve() == Path(args.log[0]).resolve()]
+    if same:
+        raise BenchError(f"--holdout {same[0]} is the calibration log itself: a held-out "
+                         "log must be another healthy run")
+    held = [load_log(h) for h in args.holdout]
+    for h, tr in zip(args.holdout, held, strict=True):
+        if missing(tr, [n for n in NEEDS["calibrate: thesis plant"] if n != SYNC_RATE]):
+            raise BenchError(f"{h}: held-out log not usable: needs "
+                             f"{', '.join(missing(tr, NEEDS['calibrate: thesis plant']))}")
+    base = load_nominal(args.nominal)
+    cal = calibrate(log, base, names, args.model, args.encoder)
     cal["log"] = str(args.log[0])
+    cal["heldout_significance"] = heldout_significance(cal, base, held, list(args.holdout),
+                                                       args.encoder, args.model)
     if _write(args.output, cal):
         return 0
     g0, g1 = cal["gap_before"]["heldout_part"]["total"], cal["gap_after"]["heldout_part"]["total"]
@@ -80,6 +95,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"{k:28s} {v:.6g}  (95 % CI {lo:.6g} .. {hi:.6g}; nominal "
               f"{cal['nominal'][k]:.6g})")
     print(f"held-out gap (RMS, x noise floor): {g0:.3g} -> {g1:.3g}")
+    hs = cal["heldout_significance"]
+    if hs["known"]:
+        print("held-out healthy level (smoothed residual energy / floor; bench gap "
+              "--nominal judges against it x margin): " + ", ".join(
+                  f"{s} {v:.3g} (x{hs['margin'][s]:.3g})" for s, v in hs["level"].items()))
+    else:
+        print(f"held-out healthy level: unknown ({hs['note']})")
     for n in cal["notes"]:
         print(f"note: {n}")
     print(f"calibration: {args.output}", file=sys.stderr)

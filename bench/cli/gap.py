@@ -9,7 +9,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from bench.trace import Trace
@@ -116,7 +116,8 @@ def run(args: argparse.Namespace) -> int:
     res = diagnose(log, hold, nominal, Options(
         model=args.model, effects=names, holdout_frac=args.holdout_frac,
         workers=args.workers, scheduler=args.scheduler, encoder=args.encoder, fit_always=args.fit_always,
-        progress=not args.quiet and sys.stderr.isatty()), log=say)
+        progress=not args.quiet and sys.stderr.isatty(),
+        reference=_calibration_reference(args)), log=say)
     js = res.json()
     say(f"done in {time.perf_counter() - t0:.1f} s")
     if args.json == "-":
@@ -133,6 +134,19 @@ def run(args: argparse.Namespace) -> int:
         idx = write_report(res, js, Path(args.report))
         print(f"report: {idx}", file=sys.stderr if args.json == "-" else sys.stdout)
     return 0
+
+
+def _calibration_reference(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The thesis-model calibration given with --nominal (`bench calibrate` output, a
+    JSON with "params"): its name and held-out healthy level for the significance test
+    (`bench.gap.calibrate.reference_of`); None for thesis values or a parameter file."""
+    if not args.nominal:
+        return None
+    from bench.gap.calibrate import reference_of
+    data = json.loads(Path(args.nominal).read_text())
+    if not (isinstance(data, dict) and isinstance(data.get("params"), dict)):
+        return None
+    return reference_of(data, Path(args.nominal).name, args.model, args.encoder)
 
 
 def _is_rig(args: argparse.Namespace) -> bool:

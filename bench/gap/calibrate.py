@@ -184,7 +184,56 @@ def _norm(en: dict[str, float]) -> dict[str, float]:
     return out
 
 
-__all__ = ["calibrate", "UNCERTAIN", "DEFAULT", "R"]
+__all__ = ["calibrate", "UNCERTAIN", "DEFAULT", "R", "heldout_significance"]
+
+STATISTIC = ("smoothed residual energy / the log's noise floor of the calibrated model's "
+             "re-simulation (the significance statistic of `bench gap`), per signal")
+
+
+def heldout_significance(cal: dict[str, Any], base: PlantParams, holdouts: Sequence[Trace],
+                         names: Sequence[str], encoder: str = "absolute",
+                         model: str = "plant") -> dict[str, Any]:
+    """The calibration's `heldout_significance` entry: the significance statistic the
+    calibrated model (`base` with `cal`'s params, re-simulated as `cal["controller"]`
+    says) leaves on each held-out healthy log (`names`: where they came from; never a log
+    the calibration was fitted on), the largest per signal, and its margin
+    (`bench.gap.diagnose.heldout_level`). Without held-out logs: the level is unknown and
+    `bench gap --nominal` applies the default threshold."""
+    from bench.gap.diagnose import heldout_level
+    from bench.gap.problem import fill_gaps
+    if not holdouts:
+        return {"known": False, "logs": [], "level": None, "margin": None,
+                "statistic": STATISTIC,
+                "note": "no held-out healthy log (--holdout): level unknown, the default "
+                        "significance threshold applies"}
+    modelled = base.with_dict(cal["params"])
+    each = []
+    for tr in holdouts:
+        p = build(fill_gaps(tr.measured(), "held-out log"), modelled, 0.5, encoder=encoder,
+                  purpose="held-out log", model=model, **resim_of(cal["controller"]))
+        each.append(heldout_level(p))
+    level = {s: max(e["level"][s] for e in each) for s in R.SIGNALS}
+    margin = {s: max(e["margin"][s] for e in each) for s in R.SIGNALS}
+    return {"known": True, "logs": list(names), "level": level, "margin": margin,
+            "per_log": [e["level"] for e in each], "model": model, "encoder": encoder,
+            "statistic": STATISTIC,
+            "rule": "bench gap --nominal: significant only where the log exceeds the larger "
+                    "of the default threshold and level x margin"}
+
+
+def reference_of(cal: dict[str, Any], name: str, model: str | None = None,
+                 encoder: str | None = None) -> dict[str, Any]:
+    """What `bench.gap.diagnose.Options.reference` takes from a calibration JSON `cal`
+    (written by `calibrate` + `heldout_significance`; an older one has no level). A level
+    measured with another model or encoder reference than the diagnosis' does not apply
+    (unknown)."""
+    hs = cal.get("heldout_significance") or {}
+    known = bool(hs.get("known")) and all(
+        want is None or hs.get(key, want) == want
+        for key, want in (("model", model), ("encoder", encoder)))
+    return {"name": name, "level": hs.get("level") if known else None,
+            "margin": hs.get("margin"), "logs": hs.get("logs", [])}
+
 
 
 # --- an unknown controller: a generic cascade fitted in closed loop ---------------------

@@ -7,8 +7,11 @@ shrinks (docs/gap.md).
 Steps:
 1. Floors and significance (`bench.gap.problem.build`): sensor noise estimated from the
    log, pushed through the nominal loop (bootstrap); the gap is significant when a
-   signal's smoothed residual energy exceeds SIGNIFICANT x its floor. If not: verdict
-   "none" (no significant gap) and no fitting.
+   signal's smoothed residual energy exceeds SIGNIFICANT x its floor. Against a
+   calibration that stored its held-out healthy level (`Options.reference`,
+   `bench calibrate --holdout`), only where it also exceeds that level x a margin
+   (HELDOUT_Z); the JSON and the verdict line say what was judged against. If not:
+   verdict "none" (no significant gap) and no fitting.
 2. Localisation (`bench.gap.localise`).
 3. Every candidate effect fitted alone on the fit part (`bench.gap.fit`), in parallel.
 4. Forward selection: the best single effect (lowest BIC) extended by each other
@@ -47,6 +50,14 @@ SIGNIFICANT_Z = 8.0     # ... or 1 + Z sqrt(2 L / n) if larger (L: the smoothed 
 MIN_SHRINK_PCT = 50.0   # held-out shrink below which nothing explains the gap
 PAIR_BIC = 10.0         # BIC improvement a pair needs over the best single
 PAIR_GAIN = 0.5         # ... and the fraction of the single's held-out excess it removes
+HELDOUT_Z = SIGNIFICANT_Z
+"""Against a calibration that measured its held-out healthy level m_s (the statistic below
+on a healthy log the calibration did not fit): a gap is significant on signal s only where
+the log's smoothed energy exceeds max(default threshold, m_s x margin_s), margin_s =
+1 + HELDOUT_Z sqrt(2) sqrt(2 L_s / n): the statistic's relative spread sqrt(2 L / n) (n/L
+effective samples of a squared residual), sqrt(2) for two independent draws (the held-out
+log and the judged one), at the default test's own tail bound Z (set on nominal logs of
+the bench's generator, not on any benchmark), L and n from the held-out log."""
 TIE = 0.95              # candidates of the verdict's size explaining >= TIE of what it
                         # explains on held-out data (over the nominal for a single, over
                         # the best single for a pair) are reported as "also explains"
@@ -64,6 +75,8 @@ class Options:
     fit_always: bool = False                   # fit candidates even without a significant gap
     bootstrap: int = 6
     progress: bool = False
+    reference: dict[str, Any] | None = None    # the calibration judged against (name and its
+                                               # held-out healthy level, `heldout_level`)
 
 
 @dataclass
@@ -173,14 +186,63 @@ def thresholds(p: Problem, n: int | None = None) -> dict[str, float]:
             for s in R.SIGNALS}
 
 
-def significance(p: Problem) -> tuple[bool, dict[str, float], dict[str, float]]:
+def significance(p: Problem, reference: dict[str, Any] | None = None
+                 ) -> tuple[bool, dict[str, float], dict[str, float]]:
     """(significant, raw energies, smoothed energies) of the nominal residual: significant
-    when any signal's smoothed energy exceeds its threshold (`thresholds`)."""
+    when any signal's smoothed energy exceeds its threshold (`thresholds`, raised to the
+    calibration's held-out healthy level x margin when `reference` stores one)."""
     nominal = p.info["nominal"]
     raw = p.energies(nominal, 0, p.n)
     sm = p.energies_smooth(nominal, 0, p.n)
-    thr = thresholds(p)
+    thr = calibrated_thresholds(thresholds(p), reference)
     return any(sm[s] > thr[s] for s in R.SIGNALS), raw, sm
+
+
+def heldout_level(p: Problem) -> dict[str, Any]:
+    """Measured once at calibration time on a held-out healthy log (`p` built with the
+    calibrated model, as the diagnosis builds it): per signal the significance statistic
+    (smoothed residual energy / floor) the calibrated model leaves there, and its margin
+    (HELDOUT_Z)."""
+    _, _, sm = significance(p)
+    L = p.info.get("corr_smooth", {})
+    margin = {s: 1.0 + HELDOUT_Z * math.sqrt(2.0) * math.sqrt(2.0 * L.get(s, 1.0) / p.n)
+              for s in R.SIGNALS}
+    return {"level": {s: float(sm[s]) for s in R.SIGNALS}, "margin": margin,
+            "samples": p.n}
+
+
+def calibrated_thresholds(thr: dict[str, float], reference: dict[str, Any] | None
+                          ) -> dict[str, float]:
+    """The default thresholds `thr`, each raised to the reference's held-out healthy level
+    x its margin where the reference stores one (unchanged otherwise)."""
+    level = (reference or {}).get("level") or {}
+    margin = (reference or {}).get("margin") or {}
+    return {s: max(t, level[s] * margin.get(s, 1.0)) if level.get(s) is not None else t
+            for s, t in thr.items()}
+
+
+def basis(reference: dict[str, Any], sm: dict[str, float], default: dict[str, float]
+          ) -> dict[str, Any]:
+    """What the significance test was judged against (a calibration), with the one line
+    the verdict prints."""
+    name = reference.get("name", "?")
+    level = reference.get("level")
+    thr = calibrated_thresholds(default, reference)
+    out: dict[str, Any] = {"calibration": name, "heldout_logs": reference.get("logs"),
+                           "level": level, "margin": reference.get("margin"),
+                           "default_threshold": default, "threshold": thr}
+    if not level:
+        out["line"] = (f"judged against calibration {name}: its held-out healthy level is "
+                       "unknown (calibrated without --holdout), the default threshold "
+                       "applies")
+        return out
+    s = max(thr, key=lambda k: sm[k] / thr[k])
+    raised = [k for k in thr if thr[k] > default[k]]
+    out["line"] = (f"judged against calibration {name}: held-out healthy level "
+                   f"x{level[s]:.3g} on {s} (threshold {thr[s]:.3g}"
+                   + (f" = level x margin {reference['margin'][s]:.3g}" if s in raised
+                      else ", the default") + f"; log {sm[s]:.3g})")
+    return out
 
 
 def _load_note(p: Problem, model: str) -> str:
@@ -234,7 +296,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
         h = build(holdout.measured(), base, 0.0, bootstrap=o.bootstrap, encoder=o.encoder,
                   purpose="held-out log", model=o.model)
         h.n_fit = 0
-    sig, raw, sm = significance(p)
+    sig, raw, sm = significance(p, o.reference)
     # worker processes start in the background while the gap is localised (only when
     # there is something to fit: a log within the noise floor costs no process start)
     pool = None
@@ -242,6 +304,10 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
         pool = make_pool(o.workers, wait=False, scheduler=o.scheduler)
         pools.append(pool)
     loc, ho_en, ho_ex = _localisation(trace, holdout, p, h, frac, (sig, raw, sm), say)
+    if o.reference is not None:
+        b = basis(o.reference, sm, loc["significance"]["threshold"])
+        loc["significance"]["threshold"] = b["threshold"]
+        loc["significance"]["judged_against"] = b
     skipped = [] if o.model == "plant" else not_representable(p, names)
     names = [n for n in names if n not in skipped]
     loc["model"] = {"name": o.model, "fidelity": "fast: averaged PWM, massless balls "

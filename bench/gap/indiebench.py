@@ -36,7 +36,7 @@ import numpy as np
 
 from bench.control import ControllerParams
 from bench.gap.blind import Case, Truth, score, summarise
-from bench.gap.calibrate import calibrate
+from bench.gap.calibrate import calibrate, heldout_significance, reference_of
 from bench.gap.diagnose import Options, diagnose
 from bench.gap.maneuvers import LOAD_HZ, excitation
 from bench.trace import Trace
@@ -238,6 +238,19 @@ def heldout_residual(model: PlantParams, seed: int, duration_s: float = LOG_S,
     return out
 
 
+def heldout_level_of(cal: dict[str, Any], seed: int, duration_s: float = LOG_S,
+                     controller: str = "ecu", actuator: IndieParams = NOMINAL
+                     ) -> dict[str, Any]:
+    """The calibration's held-out healthy level (`bench.gap.calibrate.heldout_significance`)
+    on the held-out healthy log, noise seed `seed + HELDOUT_SEED_OFFSET` (never a judged
+    case: `make_cases` draws the cases' seeds from `seed`'s generator, 1 .. 2^31); every
+    judged case's significance test is raised to it x its margin."""
+    ho = seed + HELDOUT_SEED_OFFSET
+    log = generate(Case(-1, "nominal", [], ho), True, duration_s, controller, actuator)
+    return heldout_significance(cal, datasheet_model(actuator), [log],
+                                [f"independent actuator, healthy, noise seed {ho}"])
+
+
 _STATE: dict[str, Any] = {}
 
 
@@ -253,7 +266,8 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
     if _STATE.get("controller", {}).get("method", "bench-ecu") != "bench-ecu":
         log.meta["controller"] = _STATE["controller"]   # re-simulated as calibrated
     t0 = time.perf_counter()
-    res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects))
+    res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects,
+                                                        reference=_STATE.get("reference")))
     elapsed = time.perf_counter() - t0
     snr_each = {t.name: floor_snr(Case(case.index, case.kind, [t], case.noise_seed),
                                   duration_s, ref, controller, act) for t in case.truths}
@@ -278,12 +292,19 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
     model, cal = calibrated_model(seed, duration_s, controller, actuator, identify)
     t_cal = time.perf_counter() - t0
     held = heldout_residual(model, seed, duration_s, controller, actuator, cal["controller"])
+    sig_ref = heldout_level_of(cal, seed, duration_s, controller, actuator)
+    judged_against = reference_of(cal | {"heldout_significance": sig_ref},
+                             f"independent-calibration-seed-{seed + CALIBRATION_SEED_OFFSET}")
     ref = reference(duration_s, seed + 7919, controller, actuator)
     cases = make_cases(n, seed)
+    reserved = {seed + CALIBRATION_SEED_OFFSET, seed + HELDOUT_SEED_OFFSET}
+    if any(c.noise_seed in reserved for c in cases):     # the healthy logs are never judged
+        raise ValueError("a judged case drew the calibration's or the held-out log's seed")
     job = partial(run_case, duration_s=duration_s, controller=controller, effects=effects)
     results = run_all(job, cases, workers, progress, desc="gap-bench (independent)",
                       unit="case", initializer=_init, initargs=({"ref": ref, "model": model, "actuator": actuator,
-                                          "controller": cal["controller"]},),
+                                          "controller": cal["controller"],
+                                          "reference": judged_against},),
                       on_result=on_result, leave=True, scheduler=scheduler)
     changed = {k: v for k, v in dataclasses.asdict(actuator).items()
                if v != getattr(NOMINAL, k)}
@@ -296,6 +317,7 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
                             "controller": cal["controller"],
                             "params": cal["params"], "ci95": cal["ci95"],
                             "gap_after": cal["gap_after"], "notes": cal["notes"]},
-            "heldout_healthy": {"seed": seed + HELDOUT_SEED_OFFSET, "signals": held},
+            "heldout_healthy": {"seed": seed + HELDOUT_SEED_OFFSET, "signals": held,
+                                "significance": sig_ref},
             "summary": summarise(results), "results": results}
 

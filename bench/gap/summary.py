@@ -98,5 +98,8 @@ def text(js: dict[str, Any], top: int = 8) -> str:
     elif sel.get("indistinguishable_from_chosen"):
         line += (" (indistinguishable on this log: "
                  + ", ".join(sel["indistinguishable_from_chosen"]) + ")")
+    ja = sig.get("judged_against")
+    if ja and ja.get("line"):
+        out.append(ja["line"])
     out.append(line)
     return "\n".join(out)

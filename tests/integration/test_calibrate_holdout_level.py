@@ -1,0 +1,67 @@
+"""`bench calibrate LOG --holdout LOG` stores the calibrated model's held-out healthy
+level (heldout_significance) and `bench gap --nominal CAL.json` judges against it, saying
+so in one line; without --holdout the level is unknown and the default test applies."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from bench.cli import main
+from bench.gap.maneuvers import compact
+from bench.gap.resim import FAST
+from bench.harness import simulate
+from plant_rt.params import PlantParams
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("heldout")
+    base = PlantParams().with_dict({**FAST, "sensors.noise": True})
+    for name, seed in (("fit", 31), ("held", 32), ("judged", 33)):
+        simulate(compact(), base.with_dict({"sensors.noise_seed": seed})).measured().save(
+            d / f"{name}.npz")
+    return d
+
+
+def _calibrate(d, out, *extra):
+    return main(["calibrate", str(d / "fit.npz"), "--params", "effects.friction_scale",
+                 "-o", str(d / out), *extra])
+
+
+def test_holdout_level_is_stored_and_used(logs, capsys):
+    assert _calibrate(logs, "cal.json", "--holdout", str(logs / "held.npz")) == 0
+    out = capsys.readouterr().out
+    assert "held-out healthy level" in out
+    hs = json.loads((logs / "cal.json").read_text())["heldout_significance"]
+    assert hs["known"] and hs["logs"] == [str(logs / "held.npz")]
+    assert set(hs["level"]) == {"current_a", "motor_speed_rad_s", "position_m",
+                                "encoder_position_m"}
+    assert all(0.0 < v < 10.0 for v in hs["level"].values())
+    assert all(1.0 < m < 5.0 for m in hs["margin"].values())   # 4 s log: wide
+    assert main(["gap", str(logs / "judged.npz"), "--nominal", str(logs / "cal.json"),
+                 "--effects", "backlash", "--workers", "1", "-q",
+                 "--json", str(logs / "gap.json")]) == 0
+    out = capsys.readouterr().out
+    assert "judged against calibration cal.json: held-out healthy level x" in out
+    ja = json.loads((logs / "gap.json").read_text())["localisation"]["significance"][
+        "judged_against"]
+    for s, lv in hs["level"].items():
+        assert ja["threshold"][s] >= lv * hs["margin"][s] - 1e-12
+
+
+def test_without_holdout_the_level_is_unknown(logs, capsys):
+    assert _calibrate(logs, "cal0.json") == 0
+    hs = json.loads((logs / "cal0.json").read_text())["heldout_significance"]
+    assert hs["known"] is False and hs["level"] is None
+    assert main(["gap", str(logs / "judged.npz"), "--nominal", str(logs / "cal0.json"),
+                 "--effects", "backlash", "--workers", "1", "-q"]) == 0
+    assert ("judged against calibration cal0.json: its held-out healthy level is unknown"
+            in capsys.readouterr().out)
+
+
+def test_the_calibration_log_cannot_be_its_own_holdout(logs, capsys):
+    assert _calibrate(logs, "bad.json", "--holdout", str(logs / "fit.npz")) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --holdout")
