@@ -25,6 +25,7 @@ class BusEnv:
     cfg: dict
     state: Path
     children: list[Child] = field(default_factory=list)
+    prior_state_dir: str | None = None   # $BENCH_STATE_DIR before make_env, put back by stop
 
     @property
     def flags(self) -> list[str]:
@@ -39,17 +40,30 @@ class BusEnv:
         return open_bus(self.cfg, **kw)
 
     def stop(self) -> None:
+        """Stop the children (last started first) and put $BENCH_STATE_DIR back."""
         for c in reversed(self.children):
             c.stop()
+        if self.prior_state_dir is None:
+            os.environ.pop("BENCH_STATE_DIR", None)
+        else:
+            os.environ["BENCH_STATE_DIR"] = self.prior_state_dir
 
 
 def make_env(kind: str, state: Path, plant: bool = True, **plant_kw) -> BusEnv:
+    """A bus (loopback hub or vcan0) and, with `plant`, a lockstep plant on it, with
+    $BENCH_STATE_DIR set to `state` until the env's `stop`."""
+    prior = os.environ.get("BENCH_STATE_DIR")
     os.environ["BENCH_STATE_DIR"] = str(state)
     if kind == "loopback":
-        hub = start_hub(persistent=False)
-        env = BusEnv({"interface": "remote", "channel": hub.info["url"]}, state, [hub])
+        try:
+            hub = start_hub(persistent=False)
+        except Exception:
+            BusEnv({}, state, prior_state_dir=prior).stop()
+            raise
+        env = BusEnv({"interface": "remote", "channel": hub.info["url"]}, state, [hub], prior)
     else:
-        env = BusEnv({"interface": "socketcan", "channel": "vcan0"}, state)
+        env = BusEnv({"interface": "socketcan", "channel": "vcan0"}, state,
+                     prior_state_dir=prior)
     if plant:
         try:
             env.children.append(start_plant(env.cfg, pace="sync", **plant_kw))
@@ -62,14 +76,9 @@ def make_env(kind: str, state: Path, plant: bool = True, **plant_kw) -> BusEnv:
 def module_bus_env(request, tmp_path_factory):
     """Body of the module-scoped `bus_env` fixture of the bus test modules:
     ``yield from module_bus_env(request, tmp_path_factory)``."""
-    old = os.environ.get("BENCH_STATE_DIR")
     env = make_env(request.param, tmp_path_factory.mktemp("state"))
     yield env
     env.stop()
-    if old is None:
-        os.environ.pop("BENCH_STATE_DIR", None)
-    else:
-        os.environ["BENCH_STATE_DIR"] = old
 
 
 def bench(*args: str, env: dict | None = None, timeout: float = 120.0

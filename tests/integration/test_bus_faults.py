@@ -142,14 +142,9 @@ def test_ecu_killed_mid_run_realtime_plant_leaves_operational_with_one_emcy(bus_
 
 @pytest.fixture
 def own_env(tmp_path):
-    old = os.environ.get("BENCH_STATE_DIR")
     env = make_env("loopback", tmp_path / "state")
     yield env
     env.stop()
-    if old is None:
-        os.environ.pop("BENCH_STATE_DIR", None)
-    else:
-        os.environ["BENCH_STATE_DIR"] = old
 
 
 def test_plant_killed_mid_run_ecu_stops_with_a_clear_error_and_a_complete_log(own_env,

@@ -63,8 +63,7 @@ def misbehave(port: int, stop: threading.Event, seen: Counter, rounds: int = 100
         listener.close()
 
 
-def test_plant_and_ecu_run_on_unharmed_while_a_client_misbehaves(tmp_path, monkeypatch):
-    monkeypatch.setenv("BENCH_STATE_DIR", str(tmp_path / "state"))   # make_env sets it
+def test_plant_and_ecu_run_on_unharmed_while_a_client_misbehaves(tmp_path):
     env = make_env("loopback", tmp_path / "state")
     try:
         port = int(env.cfg["channel"].rsplit(":", 1)[1].strip("/"))

@@ -43,7 +43,6 @@ def start_indie(cfg: dict, state, *args: str) -> Child:
 
 @pytest.fixture(scope="module")
 def indie_env(tmp_path_factory):
-    old = os.environ.get("BENCH_STATE_DIR")
     state = tmp_path_factory.mktemp("state")
     env = make_env("loopback", state, plant=False)
     try:
@@ -51,10 +50,6 @@ def indie_env(tmp_path_factory):
         yield env
     finally:
         env.stop()
-        if old is None:
-            os.environ.pop("BENCH_STATE_DIR", None)
-        else:
-            os.environ["BENCH_STATE_DIR"] = old
 
 
 def test_lockstep_run_against_the_independent_node(indie_env, tmp_path):

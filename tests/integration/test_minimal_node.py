@@ -63,7 +63,6 @@ def start_minimal_node(cfg: dict, state: Path, *args: str) -> Child:
 @pytest.fixture(scope="module")
 def node_env(tmp_path_factory):
     """A loopback hub with the minimal node (id 0x10) and nothing else on it."""
-    old = os.environ.get("BENCH_STATE_DIR")
     state = tmp_path_factory.mktemp("state")
     env = make_env("loopback", state, plant=False)
     try:
@@ -71,10 +70,6 @@ def node_env(tmp_path_factory):
         yield env
     finally:
         env.stop()
-        if old is None:
-            os.environ.pop("BENCH_STATE_DIR", None)
-        else:
-            os.environ["BENCH_STATE_DIR"] = old
 
 
 def one_line_error(r: subprocess.CompletedProcess) -> str:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 
 import pytest
@@ -26,14 +25,9 @@ SERIAL = 305419896      # 0x12345678
 @pytest.fixture(scope="module")
 def serial_env(tmp_path_factory):
     """A loopback hub and a lockstep plant started with --serial."""
-    old = os.environ.get("BENCH_STATE_DIR")
     env = make_env("loopback", tmp_path_factory.mktemp("state"), serial=SERIAL)
     yield env
     env.stop()
-    if old is None:
-        os.environ.pop("BENCH_STATE_DIR", None)
-    else:
-        os.environ["BENCH_STATE_DIR"] = old
 
 
 def test_serial_in_the_log_and_live_usage_equals_the_log(serial_env, tmp_path, capsys):
@@ -101,7 +95,6 @@ def test_serial_in_the_log_and_live_usage_equals_the_log(serial_env, tmp_path, c
 @pytest.fixture(scope="module")
 def anonymous_env(tmp_path_factory):
     """A loopback hub with the minimal node (CiA 301 only) without 0x1018."""
-    old = os.environ.get("BENCH_STATE_DIR")
     state = tmp_path_factory.mktemp("state")
     env = make_env("loopback", state, plant=False)
     try:
@@ -109,10 +102,6 @@ def anonymous_env(tmp_path_factory):
         yield env
     finally:
         env.stop()
-        if old is None:
-            os.environ.pop("BENCH_STATE_DIR", None)
-        else:
-            os.environ["BENCH_STATE_DIR"] = old
 
 
 def test_a_node_without_identity_is_unknown(anonymous_env, tmp_path):

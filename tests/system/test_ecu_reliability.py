@@ -25,15 +25,9 @@ SYNC, NMT = 0x080, 0x000
 
 @pytest.fixture(scope="module")
 def env(tmp_path_factory):
-    import os
-    old = os.environ.get("BENCH_STATE_DIR")
     e = make_env("loopback", tmp_path_factory.mktemp("state"))
     yield e
     e.stop()
-    if old is None:
-        os.environ.pop("BENCH_STATE_DIR", None)
-    else:
-        os.environ["BENCH_STATE_DIR"] = old
 
 
 def nmt_state(env) -> int:
