@@ -8,7 +8,8 @@ are scored; so every calibration score is that of a cycle its baseline did not s
 feature is the upper (1 - alpha / n_features) prediction bound of one more healthy score
 (`bound`), alpha the false-alarm rate aimed at (0.05), shared by the features
 (Bonferroni): an F bound for the chi-square-like scores (periodic power; level and
-reversal squared), a Student-t bound of the log-scores for the localised scan. (The
+reversal squared), a Student-t bound of the log-scores for the maxima (the localised and
+dwell scans, the largest phase-index |z|). (The
 first version used the log-normal bound for every feature; it gave thresholds of 20-35
 for chi-square scores near 0, and was replaced after the first study: docs/real-data.md.) The
 thresholds come from healthy calibration runs only, never from a fault's cycles.
@@ -49,7 +50,7 @@ class Calibration:
                 "loro_scores": self.scores, "alpha": self.alpha,
                 "method": "leave-one-run-out over the calibration runs; upper prediction "
                           "bound per feature (F for chi-square-like scores, Student-t of "
-                          "the log for the localised scan), alpha shared by the "
+                          "the log for the scans and the index maximum), alpha shared by "
                           f"{len(self.thresholds)} features",
                 "nulls": {k: list(NULLS.get(k, ("log", 0))) for k in self.thresholds}}
 
@@ -60,7 +61,8 @@ class Calibration:
 # square a scaled chi-square with 1); "log" a log-normal (the localised scan, a maximum,
 # stays well away from 0)
 NULLS: dict[str, tuple[str, int]] = {"periodic": ("chi2", 4), "level": ("abs", 1),
-                                     "reversal": ("abs", 1), "localised": ("log", 0)}
+                                     "reversal": ("abs", 1), "localised": ("log", 0),
+                                     "dwell": ("log", 0), "index": ("log", 0)}
 
 
 def bound(values: list[float], alpha: float, null: tuple[str, int]) -> float:
@@ -153,8 +155,8 @@ def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[s
         where = location(f, effect)
         if where is not None:
             locs.append(where)
-            outs.append(f.out_mm if effect == "localised" else f.periodic_out_mm)
-            ins.append(f.in_mm if effect == "localised" else f.periodic_in_mm)
+            outs.append(f.out_mm)
+            ins.append(f.in_mm)
     out: dict[str, Any] = {"cycles": n, "flagged": flagged,
                            "rate": flagged / n if n else float("nan"), "effects": effects}
     out.update(_where(locs, "position"))
