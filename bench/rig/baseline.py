@@ -5,7 +5,8 @@ angle, the rig's own friction law), the bench compares a log with the rig's own 
 runs instead. The runs are aligned by set-point phase (`cycles.phases`: out-stroke,
 dwell at the top, in-stroke, dwell at the bottom; direction is part of the phase) and,
 for each load, the baseline keeps per phase and per aligned sample the mean and the
-spread of each signal (motor current, position error), and per phase the mean and spread
+spread of each signal (motor current, position error, and the current less the cycle's median
+dwell current: `standstill_current`), and per phase the mean and spread
 of each phase index (mean, RMS and peak current; mean and peak position error; the mean
 current of the acceleration, constant-speed and deceleration parts of a stroke).
 
@@ -33,14 +34,30 @@ import numpy as np
 from bench import BenchError
 from bench.rig.cycles import Cycle, phases, ramps
 
-SIGNALS = ("current_a", "position_error_mm")
+SIGNALS = ("current_a", "position_error_mm", "current_ref_a")
 POOL = 7                    # samples pooled into one sample's spread
 MIN_CYCLES = 3              # cycles per load a baseline needs
 FORMAT = "bench-rig-baseline/1"
 
 
 def signal(cycle: Cycle, name: str) -> np.ndarray:
-    return cycle.current_a if name == "current_a" else cycle.position_error_mm
+    """A cycle's signal: the logged current, the position error, or the current referenced
+    to the cycle's standstill (`current_ref_a`: less the median current of its dwells)."""
+    if name == "current_a":
+        return cycle.current_a
+    if name == "current_ref_a":
+        return cycle.current_a - standstill_current(cycle)
+    return cycle.position_error_mm
+
+
+def standstill_current(cycle: Cycle) -> float:
+    """The median current of the cycle's dwells (0 for a cycle without a dwell). The
+    drive's current steps by itself (healthy Cranfield run 1 at -40 kgf: about 0.1 A in
+    every phase, the dwell included, between two cycles, while a stroke less the dwell
+    stays within 0.01 A), so the stroke features read the current against it."""
+    dwell = [cycle.current_a[s.start:s.stop] for s in phases(cycle.setpoint_mm)
+             if s.direction == 0 and len(s)]
+    return float(np.median(np.concatenate(dwell))) if dwell else 0.0
 
 
 @dataclass

@@ -1,6 +1,10 @@
 """Fault signatures of one cycle against a healthy baseline (issue 11, "Signatures of real
 faults"), all on the standardised residual of `baseline.residuals`:
 
+The stroke features (localised, level, periodic) read the current less the cycle's median
+dwell current (`baseline.standstill_current`; variant B of 2026-11-24: the drive's
+current steps by itself); the dwell and index features read the logged current.
+
 - localised (position-locked): a spall on the screw gives a current transient at the
   same nut position on every pass. Each stroke's current residual, less its median (a
   level shift is not localised), is scanned with windows of `SCALES` samples (the
@@ -62,6 +66,7 @@ from bench.rig.cycles import Cycle
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
 REVERSAL_SAMPLES = 5            # samples after a reversal that show backlash
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
+STROKE_CURRENT = "current_ref_a"   # the stroke features' current (variant B, 2026-11-24)
 FEATURES = ("localised", "level", "reversal", "periodic", "dwell", "index")
 SPECIFIC = ("periodic", "localised")
 EFFECTS = {
@@ -175,7 +180,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
                    ) -> CycleFeatures:
     """The features of `cycle` against the baseline of its load (periodic only with the
     screw's lead)."""
-    res = residuals(lb, cycle, "current_a")
+    res = residuals(lb, cycle, stroke_signal(lb))
     out, inn = _strokes(res)
     notes: list[str] = []
     nan = float("nan")
@@ -215,6 +220,13 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
                          scores, loc[1], loc[2], loc[3],
                          side["out"], side["in"], levels["out"], levels["in"],
                          per[1], per[2], per[3], idx_at, notes)
+
+
+def stroke_signal(lb: LoadBaseline) -> str:
+    """The current the stroke features read: against the cycle's standstill
+    (`current_ref_a`) when the baseline keeps it (older baselines: the logged current)."""
+    ph = next(iter(lb.phases.values()), None)
+    return STROKE_CURRENT if ph is not None and STROKE_CURRENT in ph.mean else "current_a"
 
 
 def dwell_score(lb: LoadBaseline, cycle: Cycle) -> float:
