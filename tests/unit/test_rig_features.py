@@ -88,3 +88,38 @@ def test_a_damaged_or_foreign_baseline_is_a_clear_error(tmp_path):
     p.write_text('{"hello": 1}')
     with pytest.raises(BenchError, match="not a baseline"):
         B.Baseline.load(p)
+
+
+def test_a_drive_offset_in_every_phase_is_not_friction(base):
+    """The stroke features read the current against the cycle's dwell: an offset of the
+    whole cycle's current (the drive's) leaves the level alone, a stroke-only rise not."""
+    from bench.rig.features import stroke_signal
+    assert stroke_signal(base.for_load(20)) == "current_ref_a"
+    c = trapezoid(np.random.default_rng(14))
+    c.current_a = c.current_a + 0.1
+    assert B.standstill_current(c) == pytest.approx(0.9, abs=0.02)
+    f = cycle_features(base.for_load(20), c)
+    assert f.scores["level"] < 0.5
+    assert f.scores["index"] > 5.0 and f.index_at      # the phase indexes did move
+
+
+def test_dwell_transient_and_phase_index(base):
+    rng = np.random.default_rng(15)
+    healthy = cycle_features(base.for_load(20), trapezoid(rng))
+    c = trapezoid(rng)
+    d = next(s for s in phases(c.setpoint_mm) if s.name == "dwell_top")
+    c.current_a[d.start + 10: d.start + 14] -= 0.3
+    f = cycle_features(base.for_load(20), c)
+    assert f.scores["dwell"] > 2 * healthy.scores["dwell"] and f.scores["dwell"] > 8.0
+    hit, effect, _ = judge(f, {"localised": 8.0, "level": 1.5, "dwell": 7.0})
+    assert hit and effect == "dwell"
+
+
+def test_a_periodic_effect_is_placed_by_the_localised_scan(base):
+    from bench.rig.features import location, verdict
+    f = cycle_features(base.for_load(20), trapezoid(np.random.default_rng(16), bump_mm=60.0),
+                       lead_mm=5.0)
+    assert location(f, "periodic") == f.location_mm and abs(f.location_mm - 60.0) < 4.0
+    assert location(f, "level") is None
+    v = verdict(base, f, {"periodic": 1e-3})
+    assert v["effect"] == "periodic" and f"{f.location_mm:.1f} mm" in v["verdict"]
