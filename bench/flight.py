@@ -33,7 +33,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal
 
 from bench import BenchError
 from bench.setpoints import Profile
@@ -59,6 +58,8 @@ def _turbulence(n: int, std_m: float, rng: np.random.Generator) -> np.ndarray:
     """`n` samples (1 kHz) of coloured noise with standard deviation `std_m`."""
     if n == 0 or std_m == 0.0:
         return np.zeros(n)
+    from scipy import signal  # here, not at the top: scipy.signal costs every `bench run` ~0.5 s
+
     b, a = signal.butter(2, TURBULENCE_CUTOFF_HZ, fs=1.0 / GRID_S)
     settle = int(2.0 / GRID_S)                       # drop the filter's start-up
     y = signal.lfilter(b, a, rng.standard_normal(n + settle))[settle:]
