@@ -1,5 +1,12 @@
 """`python -m plant_rt`: the plant as a CANopen node (see `plant_rt.cli`)."""
 
-from plant_rt.cli import main
+import sys
+
+# python-can imports asammdf (its MF4 log format) with `import can`, ~0.7 s of every node's
+# start-up; the node reads and writes no log file, so that import is refused here (the
+# documented `sys.modules[name] = None`), in this process only.
+sys.modules.setdefault("asammdf", None)
+
+from plant_rt.cli import main  # noqa: E402
 
 raise SystemExit(main())
