@@ -106,9 +106,10 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap.inputs import load_log, load_nominal
     from bench.gap.summary import text
     names = E.parse_list(args.effects)
-    nominal = load_nominal(args.nominal)
+    nominal = _nominal(args, load_nominal(args.nominal))
     log = _thesis_log(args)
     hold = load_log(args.holdout) if args.holdout else None
+    ctrl_line = _attach_controller(args, log, hold)
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
     say = (lambda s: None) if args.quiet else (lambda s: print(f"gap: {s}", file=sys.stderr))
@@ -119,12 +120,17 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet and sys.stderr.isatty(),
         reference=_calibration_reference(args)), log=say)
     js = res.json()
+    if ctrl_line:
+        js["controller"] = {"line": ctrl_line, **{
+            k: v for k, v in log.meta["controller"].items() if k != "structures_tried"}}
     say(f"done in {time.perf_counter() - t0:.1f} s")
     if args.json == "-":
         json.dump(js, sys.stdout, indent=1)
         print()
     else:
         print(f"log: {args.log} ({len(log)} samples, {len(log) * log.dt:.3g} s)")
+        if ctrl_line:
+            print(ctrl_line)
         print(text(js))
         if args.json:
             Path(args.json).write_text(json.dumps(js, indent=1))
@@ -147,6 +153,52 @@ def _calibration_reference(args: argparse.Namespace) -> dict[str, Any] | None:
     if not (isinstance(data, dict) and isinstance(data.get("params"), dict)):
         return None
     return reference_of(data, Path(args.nominal).name, args.model, args.encoder)
+
+
+def _nominal(args: argparse.Namespace, params: Any) -> Any:
+    """The model a thesis-plant calibration describes: its start model (`base_params`, the
+    values of `bench calibrate --nominal` that differ from the thesis') with the
+    calibrated params on top; `params` (load_nominal's) otherwise."""
+    if not args.nominal:
+        return params
+    data = json.loads(Path(args.nominal).read_text())
+    if not (isinstance(data, dict) and isinstance(data.get("base_params"), dict)
+            and isinstance(data.get("params"), dict)):
+        return params
+    from bench import BenchError
+    from plant_rt.params import ParameterError, PlantParams
+    try:
+        return PlantParams().with_dict({**data["base_params"], **data["params"]})
+    except ParameterError as exc:
+        raise BenchError(f"{args.nominal}: {exc}") from None
+
+
+def _attach_controller(args: argparse.Namespace, log: Trace, hold: Trace | None
+                       ) -> str | None:
+    """When the calibration given with --nominal identified the controller (`bench
+    calibrate --controller fitted-cascade|measured-current`) and the log's metadata names
+    none, attach the calibration's to the log (and the --holdout log), so the diagnosis
+    re-simulates under it (`bench.gap.problem.drive_of`); the line saying so, None when
+    the bench's ECU closes the loops."""
+    if not args.nominal:
+        return None
+    data = json.loads(Path(args.nominal).read_text())
+    ctrl = data.get("controller") if isinstance(data, dict) else None
+    mine = ctrl.get("method", "bench-ecu") if isinstance(ctrl, dict) else "bench-ecu"
+    own = log.meta.get("controller")
+    if isinstance(own, dict):
+        theirs = own.get("method", "bench-ecu")
+        return None if theirs == mine == "bench-ecu" else (
+            f"re-simulated under the controller its metadata names ({theirs}), not the "
+            f"calibration's ({mine})")
+    if not isinstance(ctrl, dict) or mine == "bench-ecu":
+        return None
+    from bench.cli.calibrate import controller_text
+    for tr in (log, hold):
+        if tr is not None and "controller" not in tr.meta:
+            tr.meta["controller"] = ctrl
+    return (f"re-simulated under the controller of calibration {Path(args.nominal).name}: "
+            f"{controller_text(ctrl)}")
 
 
 def _is_rig(args: argparse.Namespace) -> bool:
