@@ -272,7 +272,7 @@ def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
         raise BenchError(f"{args.log}: the gap against the healthy baseline not available: "
                          f"{exc}") from None
     res["log"] = str(args.log)
-    res["reference"] = ref.line(res["load"])
+    res["reference"] = ref.line(FB.loads_judged(res))
     res["seconds"] = round(time.perf_counter() - t0, 3)
     return _rig_out(args, res, res["reference"] + "\n" + FB.text(res))
 

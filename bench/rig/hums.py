@@ -182,15 +182,16 @@ def _baseline(a: RigAnalysis, ref: FB.Reference) -> None:
         a.sections[BASELINE] = f"not available: {exc}"
         return
     a.base_obj = ref.baseline
-    a.reference = ref.line(a.baseline["load"])
+    a.reference = ref.line(FB.loads_judged(a.baseline))
 
 
 def _verdict(a: RigAnalysis, ref: FB.Reference) -> tuple[str, list[str]]:
     b = a.baseline
     if b is not None and b["judged"]:
-        reasons = [f"{b['flagged']} of {b['cycles']} cycle(s) outside the healthy "
+        reasons = [f"{b['flagged']} of {b['judged_cycles']} cycle(s) outside the healthy "
                    f"baseline's thresholds"]
-        reasons += [f"{v['cycle']}: {v['verdict']}" for v in b["verdicts"] if v["flagged"]]
+        reasons += [f"{v['cycle']}: {v['verdict']}" for v in b["verdicts"]
+                    if v["flagged"] or not v["judged"]]
         return ("DEGRADED" if b["flagged"] else "HEALTHY"), reasons
     pre = []
     if ref.kind == "baseline":
@@ -226,8 +227,10 @@ def summary_text(a: RigAnalysis) -> str:
             f"{k} {v:.{6 if k == 'cp' else 4}g}" for k, v in a.model["indexes"].items()))
     if a.baseline is not None:
         eff = ", ".join(f"{k} {n}" for k, n in a.baseline["effects"].items()) or "none"
+        rest = a.baseline["cycles"] - a.baseline["judged_cycles"]
         lines.append(f"  against the baseline: {a.baseline['flagged']} / "
-                     f"{a.baseline['cycles']} cycle(s) flagged; effects: {eff}")
+                     f"{a.baseline['judged_cycles']} cycle(s) flagged; effects: {eff}"
+                     + (f"; {rest} cycle(s) not judged" if rest else ""))
     for k, v in a.sections.items():
         if v:
             lines.append(f"  {k}: {v}")

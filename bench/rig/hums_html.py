@@ -83,19 +83,35 @@ def signals_figure(a: H.RigAnalysis) -> str:
     return _png(fig)
 
 
+def worst_text(b: dict[str, Any]) -> str:
+    """Which cycle the baseline figure shows, and why (`fallback.worst_cycle`)."""
+    v = b["verdicts"][b["worst"]]
+    judged = [x for x in b["verdicts"] if x["judged"]]
+    if len(judged) == 1:
+        return f"{v['cycle']} (the only cycle judged)"
+    if not v["flagged"]:
+        return (f"{v['cycle']}: no cycle flagged; the one closest to a threshold (largest "
+                f"score / threshold {v['largest_ratio']:.2f})")
+    return (f"{v['cycle']}: the most flagged of {len(judged)} cycles judged "
+            f"({v['features_above']} feature(s) above threshold, largest score / threshold "
+            f"{v['largest_ratio']:.2f})")
+
+
 def baseline_figure(a: H.RigAnalysis) -> str | None:
-    """The log's first cycle against the baseline: current with the baseline's mean and
-    +-2 spread per aligned sample, and the standardised residual against the measured
-    position in each stroke with the located effect marked."""
+    """The log's most flagged cycle (`fallback.worst_cycle`) against the baseline: current
+    with the baseline's mean and +-2 spread per aligned sample, and the standardised
+    residual against the measured position in each stroke with the located effect
+    marked."""
     from matplotlib.figure import Figure
 
     from bench.rig.fallback import log_cycles
     b, base = a.baseline, a.base_obj
-    if b is None or base is None:
+    if b is None or base is None or b.get("worst") is None:
         return None
-    cyc = log_cycles(a.trace, a.name)[0]
-    cyc.load = b["load"]
-    lb = base.for_load(b["load"])
+    v = b["verdicts"][b["worst"]]
+    cyc = log_cycles(a.trace, a.name)[b["worst"]]
+    cyc.load = v["baseline_load"]
+    lb = base.for_load(cyc.load)
     fig = Figure(figsize=(11, 6.2))
     ax = fig.subplots(2, 1)
     ax[0].plot(cyc.t_s, cyc.current_a, "k", lw=1.2, label="log")
@@ -119,8 +135,7 @@ def baseline_figure(a: H.RigAnalysis) -> str | None:
         if stroke in res:
             z, pos = res[stroke]
             ax[1].plot(pos, z, color, lw=1, label=f"{stroke}-stroke")
-    v = b["verdicts"][0] if b["verdicts"] else None
-    if v is not None and v.get("location_mm") is not None:
+    if v.get("location_mm") is not None:
         ax[1].axvline(v["location_mm"], color="C1", ls="--", lw=1.2,
                       label=f"located effect {v['location_mm']:.1f} mm")
     ax[1].axhline(0, color="k", lw=0.5)
@@ -178,13 +193,15 @@ def _baseline(a: H.RigAnalysis, e: Any) -> list[str]:
         return []
     parts = [f"<h3>Against the healthy baseline</h3><p>{e(b['baseline'])}</p>"]
     if b["verdicts"]:
-        parts.append("<table><tr><th>cycle</th><th>flagged</th><th>effect</th>"
-                     "<th>features against their thresholds</th></tr>")
+        parts.append("<table><tr><th>cycle</th><th>baseline load</th><th>flagged</th>"
+                     "<th>effect</th><th>features against their thresholds</th></tr>")
         for v in b["verdicts"]:
-            parts.append(f"<tr><td class='l'>{e(v['cycle'])}</td><td>"
-                         f"{'yes' if v['flagged'] else 'no'}</td><td class='l'>"
-                         f"{e(v['verdict'])}</td><td class='l'>{e('; '.join(v['reasons']))}"
-                         "</td></tr>")
+            at = (e(a.base_obj.load_text(v["baseline_load"])) if v["judged"] and a.base_obj
+                  else "-")
+            flag = ("yes" if v["flagged"] else "no") if v["judged"] else "not judged"
+            parts.append(f"<tr><td class='l'>{e(v['cycle'])}</td><td>{at}</td><td>{flag}"
+                         f"</td><td class='l'>{e(v['verdict'])}</td><td class='l'>"
+                         f"{e('; '.join(v['reasons']))}</td></tr>")
         parts.append("</table>")
     for n in b["notes"]:
         parts.append(f"<p class='na'>{e(n)}</p>")
@@ -192,12 +209,13 @@ def _baseline(a: H.RigAnalysis, e: Any) -> list[str]:
     if rows:
         parts.append("<p>Phase indexes (mean over the log's cycles) against the baseline's "
                      "mean and spread (information; the verdict rests on the features "
-                     "above):</p><table><tr><th>phase</th><th>index</th><th>log</th>"
-                     "<th>baseline mean</th><th>baseline sd</th><th>z</th></tr>")
+                     "above):</p><table><tr><th>load</th><th>phase</th><th>index</th>"
+                     "<th>log</th><th>baseline mean</th><th>baseline sd</th><th>z</th></tr>")
         for r in rows:
             z = r["z"]
             style = " style='background:#fdd'" if z is not None and abs(z) > 3 else ""
-            parts.append(f"<tr><td class='l'>{e(r['phase'])}</td><td class='l'>"
+            parts.append(f"<tr><td>{r['load']:g}</td><td class='l'>{e(r['phase'])}</td>"
+                         "<td class='l'>"
                          f"{e(r['index'])}</td><td>{_fmt(r['value'])}</td>"
                          f"<td>{_fmt(r['baseline_mean'])}</td><td>{_fmt(r['baseline_sd'], 3)}"
                          f"</td><td{style}>{_fmt(z, 3)}</td></tr>")
@@ -218,7 +236,9 @@ def _log(a: H.RigAnalysis, e: Any) -> list[str]:
                  + f"</h3><img alt='signals' src='data:image/png;base64,{signals_figure(a)}'>")
     png = baseline_figure(a)
     if png:
-        parts.append("<h3>First cycle against the healthy baseline</h3>"
+        assert a.baseline is not None
+        parts.append("<h3>The most flagged cycle against the healthy baseline</h3>"
+                     f"<p>{e(worst_text(a.baseline))}</p>"
                      f"<img alt='baseline' src='data:image/png;base64,{png}'>")
     return parts
 
