@@ -53,7 +53,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    help="command fundamental for the frequency split (default: from the "
                         "log's metadata, else the strongest line of the set-point velocity)")
     p.add_argument("--json", metavar="PATH", help="write the diagnosis JSON here ('-': stdout)")
-    p.add_argument("--report", metavar="DIR", help="write figures (PNG) and index.html here")
+    p.add_argument("--report", metavar="DIR",
+                   help="write figures (PNG) and index.html here; against a calibration of "
+                        "another actuator or a baseline: the page of bench hums report with the "
+                        "gap's diagnosis (index.html, indexes.json, summary.txt)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     from bench.cluster import SCHEDULER_HELP
     p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
@@ -254,10 +257,12 @@ def _rig(args: argparse.Namespace) -> int:
         if bad:
             raise BenchError(f"unknown effect(s) {', '.join(bad)} for a generic calibration "
                              f"(effects: {', '.join(CANDIDATES)})")
-    js = diagnose_rig(load_log(args.log), cal, act, names)
+    log = load_log(args.log)
+    js = diagnose_rig(log, cal, act, names)
     js["log"] = str(args.log)
     js["reference"] = ref.line()
-    return _rig_out(args, js, ref.line() + "\n" + text(js))
+    return _rig_out(args, js, ref.line() + "\n" + text(js),
+                    lambda: _rig_report(args, log, ref, gap=js))
 
 
 def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
@@ -266,28 +271,41 @@ def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
     from bench.rig import fallback as FB
     assert isinstance(ref, FB.Reference) and ref.baseline is not None
     t0 = time.perf_counter()
+    log = FB.read_log(args.log)
     try:
-        res = FB.assess(ref.baseline, FB.read_log(args.log), Path(args.log).name)
+        res = FB.assess(ref.baseline, log, Path(args.log).name)
     except BenchError as exc:
         raise BenchError(f"{args.log}: the gap against the healthy baseline not available: "
                          f"{exc}") from None
     res["log"] = str(args.log)
     res["reference"] = ref.line(FB.loads_judged(res))
     res["seconds"] = round(time.perf_counter() - t0, 3)
-    return _rig_out(args, res, res["reference"] + "\n" + FB.text(res))
+    return _rig_out(args, res, res["reference"] + "\n" + FB.text(res),
+                    lambda: _rig_report(args, log, ref, assessed=res))
 
 
-def _rig_out(args: argparse.Namespace, js: dict, text: str) -> int:
+def _rig_report(args: argparse.Namespace, log: Trace, ref: Any,
+                gap: dict[str, Any] | None = None, assessed: dict[str, Any] | None = None
+                ) -> Path:
+    """--report DIR on the rig path: the page of `bench hums report` with the gap's
+    diagnosis (bench.rig.hums_html.write_gap_report)."""
+    from bench.rig.hums_html import write_gap_report
+    return write_gap_report(log, Path(args.log).name, ref, args.report, gap, assessed)
+
+
+def _rig_out(args: argparse.Namespace, js: dict, text: str, report: Any) -> int:
+    page = report() if args.report else None
     if args.json == "-":
         json.dump(js, sys.stdout, indent=1, default=str)
         print()
+        if page is not None:
+            print(f"report: {page}", file=sys.stderr)
         return 0
     print(f"log: {args.log}")
     print(text)
     if args.json:
         Path(args.json).write_text(json.dumps(js, indent=1, default=str))
         print(f"json: {args.json}")
-    if args.report:
-        print("report: not available for a generic calibration or a baseline (text and "
-              "--json only; bench hums report LOG --nominal CAL.json writes an HTML report)")
+    if page is not None:
+        print(f"report: {page}")
     return 0

@@ -72,13 +72,15 @@ class RigAnalysis:
     baseline: dict[str, Any] | None = None
     sim: dict[str, np.ndarray] = field(default_factory=dict)
     base_obj: Any = None
+    gap: dict[str, Any] | None = None          # `bench gap`'s diagnosis (riggap), if any
 
     def to_json(self) -> dict[str, Any]:
         return {"log": self.name, "verdict": self.verdict, "reasons": self.reasons,
                 "judged_against": self.reference,
                 "sections": {k: (v or "available") for k, v in self.sections.items()},
                 "model_free": self.model_free, "model": self.model,
-                "baseline": self.baseline}
+                "baseline": self.baseline,
+                **({"gap": self.gap} if self.gap is not None else {})}
 
 
 def is_rig_log(trace: Trace) -> bool:
@@ -141,8 +143,10 @@ def _sections(trace: Trace, ref: FB.Reference, rig: bool) -> dict[str, str | Non
     return out
 
 
-def analyse_rig(trace: Trace, name: str, ref: FB.Reference) -> RigAnalysis:
-    """The report of one log against `ref` (module doc)."""
+def analyse_rig(trace: Trace, name: str, ref: FB.Reference,
+                assessed: dict[str, Any] | None = None) -> RigAnalysis:
+    """The report of one log against `ref` (module doc); `assessed`: the log's
+    `fallback.assess` result against `ref.baseline` when the caller already has it."""
     rig = is_rig_log(trace)
     sections = _sections(trace, ref, rig)
     if sections[MODEL_FREE] and sections[MODEL_FREE_I]:
@@ -152,7 +156,7 @@ def analyse_rig(trace: Trace, name: str, ref: FB.Reference) -> RigAnalysis:
     if ref.calibration is not None and sections[MODEL_CP] is None:
         _model(a, ref)
     if ref.kind == "baseline" and ref.baseline is not None and sections[BASELINE] is None:
-        _baseline(a, ref)
+        _baseline(a, ref, assessed)
     a.verdict, a.reasons = _verdict(a, ref)
     return a
 
@@ -174,10 +178,10 @@ def _model(a: RigAnalysis, ref: FB.Reference) -> None:
                "healthy_ratio": FB.model_ratio(cal)}
 
 
-def _baseline(a: RigAnalysis, ref: FB.Reference) -> None:
+def _baseline(a: RigAnalysis, ref: FB.Reference, assessed: dict[str, Any] | None) -> None:
     assert ref.baseline is not None
     try:
-        a.baseline = FB.assess(ref.baseline, a.trace, a.name)
+        a.baseline = assessed or FB.assess(ref.baseline, a.trace, a.name)
     except BenchError as exc:
         a.sections[BASELINE] = f"not available: {exc}"
         return

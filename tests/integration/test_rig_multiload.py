@@ -86,3 +86,36 @@ def test_the_report_figure_shows_the_most_flagged_cycle(data, tmp_path):
     assert "The most flagged cycle against the healthy baseline" in page
     assert "cycle 2: the most flagged of 2 cycles judged" in page
     assert "not judged: no baseline at load 294 N" in page
+
+
+def test_gap_report_against_the_baseline(data, tmp_path, capsys):
+    out = tmp_path / "rep"
+    assert main(["gap", str(data / "mixed.npz"), "--baseline", str(data / "base.json"),
+                 "--report", str(out)]) == 0
+    assert f"report: {out / 'index.html'}" in capsys.readouterr().out
+    page = (out / "index.html").read_text()
+    assert "<h1>Sim-to-real gap: mixed.npz</h1>" in page
+    assert "DEGRADED" in page and "given with --baseline" in page
+    assert "cycle 2: the most flagged of 2 cycles judged" in page
+    assert page.count("data:image/png;base64,") == 2          # signals, baseline figure
+    js = json.loads((out / "indexes.json").read_text())[0]
+    assert js["baseline"]["flagged"] == 1 and js["verdict"] == "DEGRADED"
+
+
+def test_gap_report_against_the_calibrated_model(data, tmp_path, capsys):
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", *[str(data / "n" / f) for f in FIT[:3]], "--actuator",
+                 "cranfield", "-o", str(cal)]) == 0
+    out = tmp_path / "rep"
+    assert main(["gap", str(data / "s" / "load=40_run=1_group=51.parquet"), "--nominal",
+                 str(cal), "--against", "model", "--report", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert f"report: {out / 'index.html'}" in text
+    page = (out / "index.html").read_text()
+    verdict = text.split("verdict: ")[-1].split(" (baseline")[0]
+    assert f"Gap against the calibrated model: {verdict}" in page
+    for effect in ("friction", "force_gain", "localised_resistance"):
+        assert f"<td class='l'>{effect}: " in page            # the ranking
+    assert page.count("data:image/png;base64,") == 2          # signals, gap by position
+    js = json.loads((out / "indexes.json").read_text())[0]
+    assert js["gap"]["verdict"] == verdict and js["model"] is not None
