@@ -242,22 +242,24 @@ def in_unit(load: float, unit: str, target: str) -> float:
 
 
 def match_load(base: B.Baseline, load: float) -> tuple[float | None, str]:
-    """The baseline load a log's load is judged at (exact, else the nearest within
-    `LOAD_TOLERANCE`, else the only one when the log's load is unknown), and a note."""
+    """The baseline load a cycle's load (in the baseline's unit) is judged at (exact, else
+    the nearest within `LOAD_TOLERANCE`, else the only one when the load is unknown), and
+    a note."""
     loads = sorted(base.loads)
+    has = ", ".join(base.load_text(k) for k in loads)
     if math.isfinite(load):
         for k in loads:
             if math.isclose(k, load, abs_tol=1e-6):
                 return k, ""
         near = min(loads, key=lambda k: abs(k - load))
         if abs(near - load) <= LOAD_TOLERANCE * max(abs(load), 1e-9):
-            return near, f"the log's load {load:g} judged at the baseline's {near:g}"
-        return None, (f"the log's load {load:g} is not in the baseline (it has "
-                      f"{', '.join(f'{k:g}' for k in loads)})")
+            return near, (f"the cycle's load {base.load_text(float(f'{load:.4g}'))} judged at "
+                          f"the baseline's {base.load_text(near)}")
+        return None, f"load {base.load_text(load)} is not in the baseline (it has {has})"
     if len(loads) == 1:
-        return loads[0], f"the log's load is unknown: judged at the baseline's only load {loads[0]:g}"
-    return None, ("the log's load is unknown and the baseline has several "
-                  f"({', '.join(f'{k:g}' for k in loads)})")
+        return loads[0], ("the cycle's load is unknown: judged at the baseline's only load "
+                          f"{base.load_text(loads[0])}")
+    return None, f"the cycle's load is unknown and the baseline has several ({has})"
 
 
 def phase_index_table(lb: B.LoadBaseline, cycles: Sequence[Cycle]
@@ -296,6 +298,18 @@ def cycle_loads(trace: Any, cycles: Sequence[Cycle]) -> list[float]:
     return out
 
 
+def _no_baseline(base: B.Baseline, load: float, unit: str) -> str:
+    """'no baseline at load X (= Y in the baseline's unit); it has ...' ('' for an
+    unknown load)."""
+    if not math.isfinite(load):
+        return ""
+    conv = in_unit(load, unit, base.load_unit)
+    also = (f" (= {base.load_text(float(f'{conv:.4g}'))})"
+            if unit != base.load_unit and conv != load else "")
+    return (f"no baseline at load {f'{load:g} {unit}'.strip()}{also}; the baseline has "
+            + ", ".join(base.load_text(k) for k in sorted(base.loads)))
+
+
 def _unjudged(c: Cycle, load: float, why: str) -> dict[str, Any]:
     return {"cycle": c.label, "flagged": False, "judged": False, "effect": None,
             "verdict": f"not judged: {why}", "reasons": [], "baseline": None,
@@ -319,9 +333,8 @@ def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
         load, note = match_load(base, in_unit(own, unit, base.load_unit))
         if note and note not in notes:
             notes.append(note)
-        own_text = f"{own:g} {unit}".strip()
         if load is None:
-            verdicts.append(_unjudged(c, own, f"no baseline at load {own_text} ({note})"))
+            verdicts.append(_unjudged(c, own, _no_baseline(base, own, unit) or note))
             continue
         c.load = load                 # judged at the baseline's load (the note says so)
         at.setdefault(load, []).append(c)
@@ -367,7 +380,8 @@ def _result(base: B.Baseline, at: dict[float, list[Cycle]], cycles: Sequence[Cyc
     one = next(iter(at)) if len(at) == 1 else None
     return {"against": "baseline",
             "baseline": base.describe(one) if one is not None
-            else "; ".join(base.describe(k) for k in sorted(at)),
+            else f"baseline {base.path} from {', '.join(base.sources)}; "
+                 + "; ".join(base.short(k) for k in sorted(at)),
             "load": one, "loads": {f"{k:g}": len(v) for k, v in sorted(at.items())},
             "thresholds": thr[f"{one:g}"] if one is not None else None,
             "thresholds_by_load": thr, "cycles": len(cycles), "judged_cycles": len(judged),
