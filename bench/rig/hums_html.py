@@ -79,9 +79,10 @@ def signals_figure(a: H.RigAnalysis) -> str:
         axis.set_ylabel(unit)
         axis.grid(alpha=0.3)
         if axis.lines:
-            axis.legend(fontsize=8, loc="best")
+            axis.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax[2].set_xlabel("t (s)")
-    return _png(fig)
+    fig.subplots_adjust(left=0.07, right=0.84, bottom=0.08, top=0.95, hspace=0.35)
+    return _png(fig, tight=False)
 
 
 def worst_text(b: dict[str, Any]) -> str:
