@@ -255,7 +255,8 @@ def match_load(base: B.Baseline, load: float) -> tuple[float | None, str]:
         if abs(near - load) <= LOAD_TOLERANCE * max(abs(load), 1e-9):
             return near, (f"the cycle's load {base.load_text(float(f'{load:.4g}'))} judged at "
                           f"the baseline's {base.load_text(near)}")
-        return None, f"load {base.load_text(load)} is not in the baseline (it has {has})"
+        return None, (f"load {base.load_text(float(f'{load:.4g}'))} is not in the baseline "
+                      f"(it has {has})")
     if len(loads) == 1:
         return loads[0], ("the cycle's load is unknown: judged at the baseline's only load "
                           f"{base.load_text(loads[0])}")
@@ -299,15 +300,13 @@ def cycle_loads(trace: Any, cycles: Sequence[Cycle]) -> list[float]:
 
 
 def _no_baseline(base: B.Baseline, load: float, unit: str) -> str:
-    """'no baseline at load X (= Y in the baseline's unit); it has ...' ('' for an
-    unknown load)."""
+    """'no baseline at load X (= Y in the baseline's unit)' ('' for an unknown load)."""
     if not math.isfinite(load):
         return ""
     conv = in_unit(load, unit, base.load_unit)
     also = (f" (= {base.load_text(float(f'{conv:.4g}'))})"
             if unit != base.load_unit and conv != load else "")
-    return (f"no baseline at load {f'{load:g} {unit}'.strip()}{also}; the baseline has "
-            + ", ".join(base.load_text(k) for k in sorted(base.loads)))
+    return f"no baseline at load {f'{load:g} {unit}'.strip()}{also}"
 
 
 def _unjudged(c: Cycle, load: float, why: str) -> dict[str, Any]:
@@ -329,13 +328,16 @@ def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
     verdicts: list[dict[str, Any]] = []
     feats = []
     at: dict[float, list[Cycle]] = {}
+    missed: list[str] = []
     for c, own in zip(cycles, cycle_loads(trace, cycles), strict=True):
         load, note = match_load(base, in_unit(own, unit, base.load_unit))
+        if load is None:
+            c.load = own              # the cycle's label names its own load
+            verdicts.append(_unjudged(c, own, _no_baseline(base, own, unit) or note))
+            missed += [note] if note not in missed else []
+            continue
         if note and note not in notes:
             notes.append(note)
-        if load is None:
-            verdicts.append(_unjudged(c, own, _no_baseline(base, own, unit) or note))
-            continue
         c.load = load                 # judged at the baseline's load (the note says so)
         at.setdefault(load, []).append(c)
         f = cycle_features(base.for_load(load), c, base.lead_mm)
@@ -353,7 +355,7 @@ def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
                          "features_above": sum(r > 1.0 for r in ratios),
                          "largest_ratio": max(ratios, default=0.0)})
     if not at:
-        raise BenchError("; ".join(notes))
+        raise BenchError("; ".join(missed))
     have = {s.name for s in phases(cycles[0].setpoint_mm)}
     if not {"out", "in"} <= have:
         notes.append(f"the log's cycles have phases {', '.join(sorted(have))}: the features "
@@ -370,12 +372,15 @@ def _result(base: B.Baseline, at: dict[float, list[Cycle]], cycles: Sequence[Cyc
     for v in flagged:
         effects[v["effect"]] = effects.get(v["effect"], 0) + 1
     skipped = [v for v in verdicts if not v["judged"]]
+    why = list(dict.fromkeys(v["verdict"][len("not judged: "):] for v in skipped))
+    if any(w.startswith("no baseline at load") for w in why):
+        why.append("the baseline has " + ", ".join(base.load_text(k)
+                                                   for k in sorted(base.loads)))
     if skipped and judged:
         notes.append(f"{len(skipped)} of {len(verdicts)} cycle(s) not judged: "
-                     + "; ".join(dict.fromkeys(v["verdict"][len("not judged: "):]
-                                               for v in skipped)))
+                     + "; ".join(why))
     elif skipped:
-        notes.append(skipped[-1]["verdict"][len("not judged: "):])
+        notes.append("; ".join(why))
     thr = {f"{k:g}": (base.thresholds.get(f"{k:g}") or {}).get("thresholds") for k in at}
     one = next(iter(at)) if len(at) == 1 else None
     return {"against": "baseline",

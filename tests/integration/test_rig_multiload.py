@@ -71,7 +71,8 @@ def test_each_cycle_at_its_own_load(data, capsys):
     assert [x["baseline_load"] for x in v[:2]] == [20.0, 40.0]
     assert not v[0]["flagged"] and v[1]["flagged"] and v[1]["effect"] == "periodic"
     assert "load 20 kgf" in v[0]["baseline"] and "load 40 kgf" in v[1]["baseline"]
-    assert v[2]["verdict"].startswith("not judged: no baseline at load 294 N")
+    assert v[2]["verdict"] == "not judged: no baseline at load 294 N (= 29.98 kgf)"
+    assert "load 294 run 0 cycle 3" in v[2]["cycle"]
     assert res["cycles"] == 3 and res["judged_cycles"] == 2 and res["flagged"] == 1
     assert res["loads"] == {"20": 1, "40": 1} and res["worst"] == 1
     assert "[baseline load 20]" in out and "[baseline load 40]" in out
