@@ -22,7 +22,7 @@ from bench.rig import hums as H
 from bench.rig.baseline import residuals
 from bench.rig.cycles import phases
 
-STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
          "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;"
          "padding:3px 8px;text-align:right}th{background:#eee;text-align:center}"
          "td.l{text-align:left}code{white-space:nowrap}"
