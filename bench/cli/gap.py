@@ -200,8 +200,10 @@ def _attach_controller(args: argparse.Namespace, log: Trace, hold: Trace | None
     for tr in (log, hold):
         if tr is not None and "controller" not in tr.meta:
             tr.meta["controller"] = ctrl
-    return (f"re-simulated under the controller of calibration {Path(args.nominal).name}: "
-            f"{controller_text(ctrl)}")
+    name = Path(args.nominal).name
+    how = (f"under the controller identified by calibration {name}" if ctrl.get("cascade")
+           else f"as calibration {name} handles the controller")
+    return f"re-simulated {how}: {controller_text(ctrl)}"
 
 
 def _is_rig(args: argparse.Namespace) -> bool:

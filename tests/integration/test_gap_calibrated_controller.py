@@ -50,7 +50,8 @@ def test_gap_resimulates_under_the_calibrations_identified_controller(indie, cap
 
     out, own = _gap(indie, "own.json", capsys)
     lines = [ln for ln in out.splitlines() if ln.startswith("re-simulated under")]
-    assert len(lines) == 1 and "calibration own.json: fitted-cascade" in lines[0]
+    assert len(lines) == 1 and lines[0].startswith(
+        "re-simulated under the controller identified by calibration own.json: fitted-cascade")
     assert own["controller"]["cascade"] == cal["controller"]["cascade"]
     out, ecu = _gap(indie, "ecu.json", capsys)
     assert "re-simulated under" not in out and "controller" not in ecu
