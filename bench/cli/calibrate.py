@@ -50,7 +50,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--params", metavar="A,B,...", default=",".join(DEFAULT),
                    help=f"parameters to calibrate (default: {','.join(DEFAULT)})")
     p.add_argument("--nominal", metavar="JSON",
-                   help="start from these parameters (default: thesis values)")
+                   help="start from these parameters (default: thesis values); the "
+                        "calibration stores the values that differ from the thesis' "
+                        "(base_params), and bench gap --nominal starts from them")
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference (see bench gap --help)")
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", default="calibration.json",

@@ -38,7 +38,11 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    help="candidate effects to try (default: the whole library; see "
                         "--list-effects)")
     p.add_argument("--nominal", metavar="CALIBRATION.json",
-                   help="nominal parameters from `bench calibrate` (default: thesis values)")
+                   help="nominal parameters from `bench calibrate` (default: thesis values): "
+                        "its start model with the calibrated values on top, re-simulated "
+                        "under the controller it identified (unless the log's metadata names "
+                        "one); a calibration of another actuator (--actuator) takes the "
+                        "generic model's path")
     p.add_argument("--baseline", metavar="BASE.json",
                    help="judge the log against this healthy baseline (bench rig baseline, or "
                         "the one `bench calibrate --actuator` wrote beside its calibration)")
