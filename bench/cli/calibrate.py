@@ -14,7 +14,7 @@ from typing import Any
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     from bench.gap.calibrate import DEFAULT
-    from bench.gap.rigcal import METHODS
+    thesis, rig = controller_choices()
     p = subparsers.add_parser(
         "calibrate", help="fit the nominal model to a healthy log",
         description="Fit the nominal model's uncertain parameters (inertia, friction level, "
@@ -34,16 +34,25 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "against their noise floor; on the thesis plant, the significance "
                         "level the calibrated model leaves on them is stored "
                         "(heldout_significance), and `bench gap --nominal` judges against it")
-    p.add_argument("--controller", choices=METHODS, default="auto",
-                   help="with --actuator and an unknown controller: fit-gains (a generic "
-                        "cascade fitted in closed loop), measured-current (the logged current "
-                        "drives the mechanics), auto (fit-gains when a set-point is logged)")
+    p.add_argument("--controller", choices=tuple(dict.fromkeys(thesis + rig)), metavar="HOW",
+                   help="what the calibration does about the controller. The thesis plant: "
+                        "bench-ecu (default: the bench's ECU closes the loops), "
+                        "fitted-cascade (a generic position/speed cascade identified, to the "
+                        "logged current demand when there is one, else in closed loop), "
+                        "measured-current (the logged current drives the plant, no "
+                        "controller). With --actuator and an unknown controller: auto "
+                        "(default: fit-gains when a set-point is logged), fit-gains (a "
+                        "generic cascade fitted in closed loop), measured-current (the "
+                        "logged current drives the mechanics). The calibration stores the "
+                        "controller; bench gap --nominal re-simulates under it")
     p.add_argument("--model", default="plant", metavar="NAME",
                    help="nominal model to calibrate (plant)")
     p.add_argument("--params", metavar="A,B,...", default=",".join(DEFAULT),
                    help=f"parameters to calibrate (default: {','.join(DEFAULT)})")
     p.add_argument("--nominal", metavar="JSON",
-                   help="start from these parameters (default: thesis values)")
+                   help="start from these parameters (default: thesis values); the "
+                        "calibration stores the values that differ from the thesis' "
+                        "(base_params), and bench gap --nominal starts from them")
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference (see bench gap --help)")
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", default="calibration.json",
@@ -51,21 +60,89 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def controller_choices() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """--controller's values on the thesis plant's path (`bench.gap.calibrate.CONTROLLERS`,
+    the first the default) and on the --actuator path (`bench.gap.rigcal.METHODS`)."""
+    from bench.gap.calibrate import CONTROLLERS
+    from bench.gap.rigcal import METHODS
+    return tuple(CONTROLLERS), tuple(METHODS)
+
+
+def controller_of(args: argparse.Namespace) -> str:
+    """The --controller value for the path taken (its default when not given); a value
+    the other path takes but this one does not is a one-line error."""
+    from bench import BenchError
+    thesis, rig = controller_choices()
+    path, takes = ((rig, "with --actuator (the generic model)") if args.actuator
+                   else (thesis, "for the thesis plant (without --actuator)"))
+    if args.controller is None:
+        return path[0]
+    if args.controller not in path:
+        raise BenchError(f"--controller {args.controller} is not available {takes}: "
+                         f"choose {', '.join(path)}")
+    return str(args.controller)
+
+
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     from bench.cli.outputs import check_output_file
-    from bench.gap.inputs import load_log, load_nominal
+    from bench.gap.inputs import load_nominal
     check_output_file(args.output, "-o", (".json",), stdout_ok=True)   # before the fit
+    args.controller = controller_of(args)
     if args.actuator:
         return _actuator(args)
     if len(args.log) > 1:
         raise BenchError("several healthy logs need --actuator DESC (the thesis actuator "
                          "is calibrated from one log; give others with --holdout)")
     from bench.gap.calibrate import calibrate, heldout_significance
-    from bench.gap.needs import NEEDS, SYNC_RATE, missing
     names = [n.strip() for n in args.params.split(",") if n.strip()]
     if not names:
         raise BenchError("--params lists no parameter")
+    log, held = _thesis_logs(args)
+    base = load_nominal(args.nominal)
+    cal = calibrate(log, base, names, args.model, args.encoder, controller=args.controller)
+    cal["log"] = str(args.log[0])
+    if args.nominal:        # the model the calibration started from, for bench gap --nominal
+        cal["base_params"] = base_params(base)
+    cal["heldout_significance"] = heldout_significance(cal, base, held, list(args.holdout),
+                                                       args.encoder, args.model)
+    if _write(args.output, cal):
+        return 0
+    g0, g1 = cal["gap_before"]["heldout_part"]["total"], cal["gap_after"]["heldout_part"]["total"]
+    for k, v in cal["params"].items():
+        lo, hi = cal["ci95"][k]
+        print(f"{k:28s} {v:.6g}  (95 % CI {lo:.6g} .. {hi:.6g}; nominal "
+              f"{cal['nominal'][k]:.6g})")
+    print(f"held-out gap (RMS, x noise floor): {g0:.3g} -> {g1:.3g}")
+    print(f"controller: {controller_text(cal['controller'])}")
+    hs = cal["heldout_significance"]
+    if hs["known"]:
+        print("held-out healthy level (smoothed residual energy / floor; bench gap "
+              "--nominal judges against it x margin): " + ", ".join(
+                  f"{s} {v:.3g} (x{hs['margin'][s]:.3g})" for s, v in hs["level"].items()))
+    else:
+        print(f"held-out healthy level: unknown ({hs['note']})")
+    for n in cal["notes"]:
+        print(f"note: {n}")
+    print(f"calibration: {args.output}", file=sys.stderr)
+    return 0
+
+
+def base_params(base: Any) -> dict[str, Any]:
+    """The values of the start model (--nominal) that differ from the thesis', flat; `bench
+    gap --nominal CAL.json` puts the calibrated params on top of them."""
+    from plant_rt.params import PlantParams
+    thesis = PlantParams().flat()
+    return {k: v for k, v in base.flat().items()
+            if not (v == thesis[k] or (v != v and thesis[k] != thesis[k]))}
+
+
+def _thesis_logs(args: argparse.Namespace) -> tuple[Any, list[Any]]:
+    """The calibration log and the held-out ones for the thesis plant; one it cannot take
+    is refused with what it needs."""
+    from bench import BenchError
+    from bench.gap.inputs import load_log
+    from bench.gap.needs import NEEDS, SYNC_RATE, missing
     log = load_log(args.log[0])
     lack = missing(log, NEEDS["calibrate: thesis plant"])
     # a log of the bench's own at another SYNC period is the thesis plant's to take
@@ -82,30 +159,21 @@ def run(args: argparse.Namespace) -> int:
         if missing(tr, [n for n in NEEDS["calibrate: thesis plant"] if n != SYNC_RATE]):
             raise BenchError(f"{h}: held-out log not usable: needs "
                              f"{', '.join(missing(tr, NEEDS['calibrate: thesis plant']))}")
-    base = load_nominal(args.nominal)
-    cal = calibrate(log, base, names, args.model, args.encoder)
-    cal["log"] = str(args.log[0])
-    cal["heldout_significance"] = heldout_significance(cal, base, held, list(args.holdout),
-                                                       args.encoder, args.model)
-    if _write(args.output, cal):
-        return 0
-    g0, g1 = cal["gap_before"]["heldout_part"]["total"], cal["gap_after"]["heldout_part"]["total"]
-    for k, v in cal["params"].items():
-        lo, hi = cal["ci95"][k]
-        print(f"{k:28s} {v:.6g}  (95 % CI {lo:.6g} .. {hi:.6g}; nominal "
-              f"{cal['nominal'][k]:.6g})")
-    print(f"held-out gap (RMS, x noise floor): {g0:.3g} -> {g1:.3g}")
-    hs = cal["heldout_significance"]
-    if hs["known"]:
-        print("held-out healthy level (smoothed residual energy / floor; bench gap "
-              "--nominal judges against it x margin): " + ", ".join(
-                  f"{s} {v:.3g} (x{hs['margin'][s]:.3g})" for s, v in hs["level"].items()))
-    else:
-        print(f"held-out healthy level: unknown ({hs['note']})")
-    for n in cal["notes"]:
-        print(f"note: {n}")
-    print(f"calibration: {args.output}", file=sys.stderr)
-    return 0
+    return log, held
+
+
+def controller_text(ctrl: dict[str, Any]) -> str:
+    """One line: what a thesis-plant calibration's `controller` entry says."""
+    c = ctrl.get("cascade")
+    if not c:
+        return f"{ctrl['method']} ({ctrl.get('doc', '')})"
+    pos = "PI" if c["ki_pos"] else "P"
+    return (f"{ctrl['method']}: position {pos} on the {c['source']} (kp {c['kp_pos']:.4g} "
+            f"(rad/s)/m, integral zero {c['position_integral_zero_hz']:.3g} Hz), speed PI "
+            f"(kp {c['kp_spd']:.4g} A s/rad, zero {c['speed_integral_zero_hz']:.3g} Hz), "
+            f"limits {c['speed_limit_rad_s']:.4g} rad/s and {c['current_limit_a']:.4g} A, "
+            f"every {c['every_periods']} SYNC period(s)"
+            + (f"; fitted to {ctrl['fitted_to']}" if ctrl.get("fitted_to") else ""))
 
 
 def _write(output: str, cal: dict[str, Any]) -> bool:

@@ -38,7 +38,11 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    help="candidate effects to try (default: the whole library; see "
                         "--list-effects)")
     p.add_argument("--nominal", metavar="CALIBRATION.json",
-                   help="nominal parameters from `bench calibrate` (default: thesis values)")
+                   help="nominal parameters from `bench calibrate` (default: thesis values): "
+                        "its start model with the calibrated values on top, re-simulated "
+                        "under the controller it identified (unless the log's metadata names "
+                        "one); a calibration of another actuator (--actuator) takes the "
+                        "generic model's path")
     p.add_argument("--baseline", metavar="BASE.json",
                    help="judge the log against this healthy baseline (bench rig baseline, or "
                         "the one `bench calibrate --actuator` wrote beside its calibration)")
@@ -53,7 +57,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    help="command fundamental for the frequency split (default: from the "
                         "log's metadata, else the strongest line of the set-point velocity)")
     p.add_argument("--json", metavar="PATH", help="write the diagnosis JSON here ('-': stdout)")
-    p.add_argument("--report", metavar="DIR", help="write figures (PNG) and index.html here")
+    p.add_argument("--report", metavar="DIR",
+                   help="write figures (PNG) and index.html here; against a calibration of "
+                        "another actuator or a baseline: the page of bench hums report with the "
+                        "gap's diagnosis (index.html, indexes.json, summary.txt)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     from bench.cluster import SCHEDULER_HELP
     p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
@@ -106,9 +113,10 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap.inputs import load_log, load_nominal
     from bench.gap.summary import text
     names = E.parse_list(args.effects)
-    nominal = load_nominal(args.nominal)
+    nominal = _nominal(args, load_nominal(args.nominal))
     log = _thesis_log(args)
     hold = load_log(args.holdout) if args.holdout else None
+    ctrl_line = _attach_controller(args, log, hold)
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
     say = (lambda s: None) if args.quiet else (lambda s: print(f"gap: {s}", file=sys.stderr))
@@ -119,12 +127,17 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet and sys.stderr.isatty(),
         reference=_calibration_reference(args)), log=say)
     js = res.json()
+    if ctrl_line:
+        js["controller"] = {"line": ctrl_line, **{
+            k: v for k, v in log.meta["controller"].items() if k != "structures_tried"}}
     say(f"done in {time.perf_counter() - t0:.1f} s")
     if args.json == "-":
         json.dump(js, sys.stdout, indent=1)
         print()
     else:
         print(f"log: {args.log} ({len(log)} samples, {len(log) * log.dt:.3g} s)")
+        if ctrl_line:
+            print(ctrl_line)
         print(text(js))
         if args.json:
             Path(args.json).write_text(json.dumps(js, indent=1))
@@ -147,6 +160,54 @@ def _calibration_reference(args: argparse.Namespace) -> dict[str, Any] | None:
     if not (isinstance(data, dict) and isinstance(data.get("params"), dict)):
         return None
     return reference_of(data, Path(args.nominal).name, args.model, args.encoder)
+
+
+def _nominal(args: argparse.Namespace, params: Any) -> Any:
+    """The model a thesis-plant calibration describes: its start model (`base_params`, the
+    values of `bench calibrate --nominal` that differ from the thesis') with the
+    calibrated params on top; `params` (load_nominal's) otherwise."""
+    if not args.nominal:
+        return params
+    data = json.loads(Path(args.nominal).read_text())
+    if not (isinstance(data, dict) and isinstance(data.get("base_params"), dict)
+            and isinstance(data.get("params"), dict)):
+        return params
+    from bench import BenchError
+    from plant_rt.params import ParameterError, PlantParams
+    try:
+        return PlantParams().with_dict({**data["base_params"], **data["params"]})
+    except ParameterError as exc:
+        raise BenchError(f"{args.nominal}: {exc}") from None
+
+
+def _attach_controller(args: argparse.Namespace, log: Trace, hold: Trace | None
+                       ) -> str | None:
+    """When the calibration given with --nominal identified the controller (`bench
+    calibrate --controller fitted-cascade|measured-current`) and the log's metadata names
+    none, attach the calibration's to the log (and the --holdout log), so the diagnosis
+    re-simulates under it (`bench.gap.problem.drive_of`); the line saying so, None when
+    the bench's ECU closes the loops."""
+    if not args.nominal:
+        return None
+    data = json.loads(Path(args.nominal).read_text())
+    ctrl = data.get("controller") if isinstance(data, dict) else None
+    mine = ctrl.get("method", "bench-ecu") if isinstance(ctrl, dict) else "bench-ecu"
+    own = log.meta.get("controller")
+    if isinstance(own, dict):
+        theirs = own.get("method", "bench-ecu")
+        return None if theirs == mine == "bench-ecu" else (
+            f"re-simulated under the controller its metadata names ({theirs}), not the "
+            f"calibration's ({mine})")
+    if not isinstance(ctrl, dict) or mine == "bench-ecu":
+        return None
+    from bench.cli.calibrate import controller_text
+    for tr in (log, hold):
+        if tr is not None and "controller" not in tr.meta:
+            tr.meta["controller"] = ctrl
+    name = Path(args.nominal).name
+    how = (f"under the controller identified by calibration {name}" if ctrl.get("cascade")
+           else f"as calibration {name} handles the controller")
+    return f"re-simulated {how}: {controller_text(ctrl)}"
 
 
 def _is_rig(args: argparse.Namespace) -> bool:
@@ -202,10 +263,12 @@ def _rig(args: argparse.Namespace) -> int:
         if bad:
             raise BenchError(f"unknown effect(s) {', '.join(bad)} for a generic calibration "
                              f"(effects: {', '.join(CANDIDATES)})")
-    js = diagnose_rig(load_log(args.log), cal, act, names)
+    log = load_log(args.log)
+    js = diagnose_rig(log, cal, act, names)
     js["log"] = str(args.log)
     js["reference"] = ref.line()
-    return _rig_out(args, js, ref.line() + "\n" + text(js))
+    return _rig_out(args, js, ref.line() + "\n" + text(js),
+                    lambda: _rig_report(args, log, ref, gap=js))
 
 
 def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
@@ -214,28 +277,41 @@ def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
     from bench.rig import fallback as FB
     assert isinstance(ref, FB.Reference) and ref.baseline is not None
     t0 = time.perf_counter()
+    log = FB.read_log(args.log)
     try:
-        res = FB.assess(ref.baseline, FB.read_log(args.log), Path(args.log).name)
+        res = FB.assess(ref.baseline, log, Path(args.log).name)
     except BenchError as exc:
         raise BenchError(f"{args.log}: the gap against the healthy baseline not available: "
                          f"{exc}") from None
     res["log"] = str(args.log)
-    res["reference"] = ref.line(res["load"])
+    res["reference"] = ref.line(FB.loads_judged(res))
     res["seconds"] = round(time.perf_counter() - t0, 3)
-    return _rig_out(args, res, res["reference"] + "\n" + FB.text(res))
+    return _rig_out(args, res, res["reference"] + "\n" + FB.text(res),
+                    lambda: _rig_report(args, log, ref, assessed=res))
 
 
-def _rig_out(args: argparse.Namespace, js: dict, text: str) -> int:
+def _rig_report(args: argparse.Namespace, log: Trace, ref: Any,
+                gap: dict[str, Any] | None = None, assessed: dict[str, Any] | None = None
+                ) -> Path:
+    """--report DIR on the rig path: the page of `bench hums report` with the gap's
+    diagnosis (bench.rig.hums_html.write_gap_report)."""
+    from bench.rig.hums_html import write_gap_report
+    return write_gap_report(log, Path(args.log).name, ref, args.report, gap, assessed)
+
+
+def _rig_out(args: argparse.Namespace, js: dict, text: str, report: Any) -> int:
+    page = report() if args.report else None
     if args.json == "-":
         json.dump(js, sys.stdout, indent=1, default=str)
         print()
+        if page is not None:
+            print(f"report: {page}", file=sys.stderr)
         return 0
     print(f"log: {args.log}")
     print(text)
     if args.json:
         Path(args.json).write_text(json.dumps(js, indent=1, default=str))
         print(f"json: {args.json}")
-    if args.report:
-        print("report: not available for a generic calibration or a baseline (text and "
-              "--json only; bench hums report LOG --nominal CAL.json writes an HTML report)")
+    if page is not None:
+        print(f"report: {page}")
     return 0

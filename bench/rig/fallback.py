@@ -154,12 +154,14 @@ class Reference:
     cal_path: str = ""
     notes: list[str] = field(default_factory=list)
 
-    def line(self, load: float | None = None) -> str:
-        """One line: what the verdict is judged against (and why)."""
+    def line(self, load: float | Sequence[float] | None = None) -> str:
+        """One line: what the verdict is judged against (and why); `load`: the baseline
+        load(s) a log's cycles were judged at (default: every load of the baseline)."""
         if self.kind == "baseline" and self.baseline is not None:
             base = self.baseline
-            what = (base.short(load) if load is not None and _has_load(base, load)
-                    else "; ".join(base.short(k) for k in sorted(base.loads)))
+            want = [load] if isinstance(load, (int, float)) else list(load or [])
+            want = [k for k in want if _has_load(base, k)] or sorted(base.loads)
+            what = "; ".join(base.short(k) for k in want)
             return f"{self.why}: judged against the healthy baseline {base.path} ({what})"
         if self.kind == "model":
             return f"{self.why}: judged against the calibrated model {self.cal_path}"
@@ -240,22 +242,25 @@ def in_unit(load: float, unit: str, target: str) -> float:
 
 
 def match_load(base: B.Baseline, load: float) -> tuple[float | None, str]:
-    """The baseline load a log's load is judged at (exact, else the nearest within
-    `LOAD_TOLERANCE`, else the only one when the log's load is unknown), and a note."""
+    """The baseline load a cycle's load (in the baseline's unit) is judged at (exact, else
+    the nearest within `LOAD_TOLERANCE`, else the only one when the load is unknown), and
+    a note."""
     loads = sorted(base.loads)
+    has = ", ".join(base.load_text(k) for k in loads)
     if math.isfinite(load):
         for k in loads:
             if math.isclose(k, load, abs_tol=1e-6):
                 return k, ""
         near = min(loads, key=lambda k: abs(k - load))
         if abs(near - load) <= LOAD_TOLERANCE * max(abs(load), 1e-9):
-            return near, f"the log's load {load:g} judged at the baseline's {near:g}"
-        return None, (f"the log's load {load:g} is not in the baseline (it has "
-                      f"{', '.join(f'{k:g}' for k in loads)})")
+            return near, (f"the cycle's load {base.load_text(float(f'{load:.4g}'))} judged at "
+                          f"the baseline's {base.load_text(near)}")
+        return None, (f"load {base.load_text(float(f'{load:.4g}'))} is not in the baseline "
+                      f"(it has {has})")
     if len(loads) == 1:
-        return loads[0], f"the log's load is unknown: judged at the baseline's only load {loads[0]:g}"
-    return None, ("the log's load is unknown and the baseline has several "
-                  f"({', '.join(f'{k:g}' for k in loads)})")
+        return loads[0], ("the cycle's load is unknown: judged at the baseline's only load "
+                          f"{base.load_text(loads[0])}")
+    return None, f"the cycle's load is unknown and the baseline has several ({has})"
 
 
 def phase_index_table(lb: B.LoadBaseline, cycles: Sequence[Cycle]
@@ -276,52 +281,158 @@ def phase_index_table(lb: B.LoadBaseline, cycles: Sequence[Cycle]
     return rows
 
 
-def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
-    """A log's cycles against the baseline: per cycle the features and verdict, the phase
-    indexes against the baseline's, and the log's result (flagged cycles, effects). Raises
-    BenchError with the reason when the log cannot be judged against it."""
-    cycles = log_cycles(trace, name)
-    load, note = match_load(base, in_unit(cycles[0].load, load_unit(trace.meta),
-                                          base.load_unit))
-    if load is None:
-        raise BenchError(note)
+def cycle_loads(trace: Any, cycles: Sequence[Cycle]) -> list[float]:
+    """Each cycle's load in the log's unit (`cycles.load_unit`): the split key (or the
+    metadata's `load`) when the log has one, else that cycle's median logged load (N, 3
+    significant digits, as `cycles_from_trace` gives the whole log's)."""
+    keys = trace.meta.get("split") or {}
+    if "load" in keys or "load" in trace.meta or "load_force_n" not in trace:
+        return [c.load for c in cycles]
+    from bench.rig.cycles import _cycles_from_setpoint  # the cycles' own split
+    f = np.asarray(trace["load_force_n"], float)
+    group = (np.full(len(f), float(keys["group"])) if "group" in keys
+             else _cycles_from_setpoint(np.asarray(trace["setpoint_position_m"], float)))
+    out = []
     for c in cycles:
-        c.load = load                 # judged at the baseline's load (note says so)
-    lb = base.for_load(load)
-    thr = (base.thresholds.get(f"{load:g}") or {}).get("thresholds")
-    notes = [note] if note else []
+        v = f[(group == c.group) & np.isfinite(f)]
+        out.append(float(f"{float(np.median(v)):.3g}") if len(v) else c.load)
+    return out
+
+
+def _no_baseline(base: B.Baseline, load: float, unit: str) -> str:
+    """'no baseline at load X (= Y in the baseline's unit)' ('' for an unknown load)."""
+    if not math.isfinite(load):
+        return ""
+    conv = in_unit(load, unit, base.load_unit)
+    also = (f" (= {base.load_text(float(f'{conv:.4g}'))})"
+            if unit != base.load_unit and conv != load else "")
+    return f"no baseline at load {f'{load:g} {unit}'.strip()}{also}"
+
+
+def _unjudged(c: Cycle, load: float, why: str) -> dict[str, Any]:
+    return {"cycle": c.label, "flagged": False, "judged": False, "effect": None,
+            "verdict": f"not judged: {why}", "reasons": [], "baseline": None,
+            "location_mm": None, "load": load, "baseline_load": None}
+
+
+def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
+    """A log's cycles against the baseline, each at its own load (`cycle_loads`, matched
+    with `match_load`): per cycle the features and verdict and which load of the baseline
+    judged it ("not judged: no baseline at load X" where the baseline lacks the cycle's
+    load, the other cycles run), the phase indexes against the baseline's per load, and
+    the log's result (flagged cycles, effects). Raises BenchError with the reason when no
+    cycle can be judged against it."""
+    cycles = log_cycles(trace, name)
+    unit = load_unit(trace.meta)
+    notes: list[str] = []
+    verdicts: list[dict[str, Any]] = []
+    feats = []
+    at: dict[float, list[Cycle]] = {}
+    missed: list[str] = []
+    for c, own in zip(cycles, cycle_loads(trace, cycles), strict=True):
+        load, note = match_load(base, in_unit(own, unit, base.load_unit))
+        if load is None:
+            c.load = own              # the cycle's label names its own load
+            verdicts.append(_unjudged(c, own, _no_baseline(base, own, unit) or note))
+            missed += [note] if note not in missed else []
+            continue
+        if note and note not in notes:
+            notes.append(note)
+        c.load = load                 # judged at the baseline's load (the note says so)
+        at.setdefault(load, []).append(c)
+        f = cycle_features(base.for_load(load), c, base.lead_mm)
+        feats.append(f)
+        thr = (base.thresholds.get(f"{load:g}") or {}).get("thresholds")
+        if not thr:
+            verdicts.append(_unjudged(c, own, f"no thresholds for load "
+                                      f"{base.load_text(load)} in {base.path} (they need two "
+                                      "or more healthy runs): features without a verdict"))
+            continue
+        ratios = [f.scores[k] / t for k, t in thr.items()
+                  if t > 0 and math.isfinite(f.scores.get(k, math.nan))]
+        verdicts.append({**verdict(base, f, thr), "judged": True, "load": own,
+                         "baseline_load": load,
+                         "features_above": sum(r > 1.0 for r in ratios),
+                         "largest_ratio": max(ratios, default=0.0)})
+    if not at:
+        raise BenchError("; ".join(missed))
     have = {s.name for s in phases(cycles[0].setpoint_mm)}
     if not {"out", "in"} <= have:
         notes.append(f"the log's cycles have phases {', '.join(sorted(have))}: the features "
                      "need an out- and an in-stroke")
-    feats = [cycle_features(lb, c, base.lead_mm) for c in cycles]
-    verdicts = [verdict(base, f, thr) for f in feats] if thr else []
-    if not thr:
-        notes.append(f"no thresholds for load {base.load_text(load)} in {base.path} (they "
-                     "need two or more healthy runs): features without a verdict")
-    flagged = [v for v in verdicts if v["flagged"]]
+    return _result(base, at, cycles, verdicts, feats, notes)
+
+
+def _result(base: B.Baseline, at: dict[float, list[Cycle]], cycles: Sequence[Cycle],
+            verdicts: list[dict[str, Any]], feats: list[Any], notes: list[str]
+            ) -> dict[str, Any]:
+    judged = [v for v in verdicts if v["judged"]]
+    flagged = [v for v in judged if v["flagged"]]
     effects: dict[str, int] = {}
     for v in flagged:
         effects[v["effect"]] = effects.get(v["effect"], 0) + 1
-    return {"against": "baseline", "baseline": base.describe(load), "load": load,
-            "thresholds": thr, "cycles": len(cycles), "flagged": len(flagged),
-            "effects": effects, "verdicts": verdicts,
+    skipped = [v for v in verdicts if not v["judged"]]
+    why = list(dict.fromkeys(v["verdict"][len("not judged: "):] for v in skipped))
+    if any(w.startswith("no baseline at load") for w in why):
+        why.append("the baseline has " + ", ".join(base.load_text(k)
+                                                   for k in sorted(base.loads)))
+    if skipped and judged:
+        notes.append(f"{len(skipped)} of {len(verdicts)} cycle(s) not judged: "
+                     + "; ".join(why))
+    elif skipped:
+        notes.append("; ".join(why))
+    thr = {f"{k:g}": (base.thresholds.get(f"{k:g}") or {}).get("thresholds") for k in at}
+    one = next(iter(at)) if len(at) == 1 else None
+    return {"against": "baseline",
+            "baseline": base.describe(one) if one is not None
+            else f"baseline {base.path} from {', '.join(base.sources)}; "
+                 + "; ".join(base.short(k) for k in sorted(at)),
+            "load": one, "loads": {f"{k:g}": len(v) for k, v in sorted(at.items())},
+            "thresholds": thr[f"{one:g}"] if one is not None else None,
+            "thresholds_by_load": thr, "cycles": len(cycles), "judged_cycles": len(judged),
+            "flagged": len(flagged), "effects": effects, "verdicts": verdicts,
+            "worst": worst_cycle(verdicts),
             "features": [f.to_json() for f in feats],
-            "phase_indexes": phase_index_table(lb, cycles), "notes": notes,
-            "judged": bool(thr)}
+            "phase_indexes": [{"load": k, **r} for k, cs in sorted(at.items())
+                              for r in phase_index_table(base.for_load(k), cs)],
+            "notes": notes, "judged": bool(judged)}
+
+
+def worst_cycle(verdicts: Sequence[dict[str, Any]]) -> int | None:
+    """The index (in `verdicts`) of the cycle the report's figure shows: the most flagged
+    judged one (the most features above their thresholds, then the largest score over
+    its threshold), else the first judged one; None when no cycle was judged."""
+    judged = [i for i, v in enumerate(verdicts) if v["judged"]]
+    if not judged:
+        return None
+    return max(judged, key=lambda i: (verdicts[i]["features_above"],
+                                      verdicts[i]["largest_ratio"], -i))
+
+
+def loads_judged(res: dict[str, Any]) -> list[float]:
+    """The baseline loads an `assess` result's cycles were judged at."""
+    return [float(k) for k in res["loads"]]
 
 
 def text(res: dict[str, Any]) -> str:
-    """The baseline diagnosis of a log in a few lines."""
+    """The baseline diagnosis of a log in a few lines: per cycle its verdict and the load
+    of the baseline that judged it."""
     lines = []
     for v in res["verdicts"]:
-        lines.append(f"  {v['cycle']}: {'FLAGGED' if v['flagged'] else 'ok'}: {v['verdict']}")
+        if not v["judged"]:
+            lines.append(f"  {v['cycle']}: {v['verdict']}")
+            continue
+        lines.append(f"  {v['cycle']}: {'FLAGGED' if v['flagged'] else 'ok'}: {v['verdict']}"
+                     f" [baseline load {v['baseline_load']:g}]")
         lines.append("    " + "; ".join(v["reasons"]))
     lines += [f"  note: {n}" for n in res["notes"]]
     if res["judged"]:
         eff = ", ".join(f"{k} {n}" for k, n in res["effects"].items())
-        lines.append(f"verdict: {res['flagged']} / {res['cycles']} cycle(s) flagged"
-                     + (f" ({eff})" if eff else "") + f" (against the {res['baseline']})")
+        rest = res["cycles"] - res["judged_cycles"]
+        lines.append(f"verdict: {res['flagged']} / {res['judged_cycles']} cycle(s) flagged"
+                     + (f" ({eff})" if eff else "")
+                     + (f", {rest} not judged" if rest else "")
+                     + f" (against the {res['baseline']})")
     else:
         lines.append(f"verdict: not available ({res['notes'][-1]})")
     return "\n".join(lines)

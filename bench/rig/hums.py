@@ -72,13 +72,15 @@ class RigAnalysis:
     baseline: dict[str, Any] | None = None
     sim: dict[str, np.ndarray] = field(default_factory=dict)
     base_obj: Any = None
+    gap: dict[str, Any] | None = None          # `bench gap`'s diagnosis (riggap), if any
 
     def to_json(self) -> dict[str, Any]:
         return {"log": self.name, "verdict": self.verdict, "reasons": self.reasons,
                 "judged_against": self.reference,
                 "sections": {k: (v or "available") for k, v in self.sections.items()},
                 "model_free": self.model_free, "model": self.model,
-                "baseline": self.baseline}
+                "baseline": self.baseline,
+                **({"gap": self.gap} if self.gap is not None else {})}
 
 
 def is_rig_log(trace: Trace) -> bool:
@@ -141,8 +143,10 @@ def _sections(trace: Trace, ref: FB.Reference, rig: bool) -> dict[str, str | Non
     return out
 
 
-def analyse_rig(trace: Trace, name: str, ref: FB.Reference) -> RigAnalysis:
-    """The report of one log against `ref` (module doc)."""
+def analyse_rig(trace: Trace, name: str, ref: FB.Reference,
+                assessed: dict[str, Any] | None = None) -> RigAnalysis:
+    """The report of one log against `ref` (module doc); `assessed`: the log's
+    `fallback.assess` result against `ref.baseline` when the caller already has it."""
     rig = is_rig_log(trace)
     sections = _sections(trace, ref, rig)
     if sections[MODEL_FREE] and sections[MODEL_FREE_I]:
@@ -152,7 +156,7 @@ def analyse_rig(trace: Trace, name: str, ref: FB.Reference) -> RigAnalysis:
     if ref.calibration is not None and sections[MODEL_CP] is None:
         _model(a, ref)
     if ref.kind == "baseline" and ref.baseline is not None and sections[BASELINE] is None:
-        _baseline(a, ref)
+        _baseline(a, ref, assessed)
     a.verdict, a.reasons = _verdict(a, ref)
     return a
 
@@ -174,23 +178,24 @@ def _model(a: RigAnalysis, ref: FB.Reference) -> None:
                "healthy_ratio": FB.model_ratio(cal)}
 
 
-def _baseline(a: RigAnalysis, ref: FB.Reference) -> None:
+def _baseline(a: RigAnalysis, ref: FB.Reference, assessed: dict[str, Any] | None) -> None:
     assert ref.baseline is not None
     try:
-        a.baseline = FB.assess(ref.baseline, a.trace, a.name)
+        a.baseline = assessed or FB.assess(ref.baseline, a.trace, a.name)
     except BenchError as exc:
         a.sections[BASELINE] = f"not available: {exc}"
         return
     a.base_obj = ref.baseline
-    a.reference = ref.line(a.baseline["load"])
+    a.reference = ref.line(FB.loads_judged(a.baseline))
 
 
 def _verdict(a: RigAnalysis, ref: FB.Reference) -> tuple[str, list[str]]:
     b = a.baseline
     if b is not None and b["judged"]:
-        reasons = [f"{b['flagged']} of {b['cycles']} cycle(s) outside the healthy "
+        reasons = [f"{b['flagged']} of {b['judged_cycles']} cycle(s) outside the healthy "
                    f"baseline's thresholds"]
-        reasons += [f"{v['cycle']}: {v['verdict']}" for v in b["verdicts"] if v["flagged"]]
+        reasons += [f"{v['cycle']}: {v['verdict']}" for v in b["verdicts"]
+                    if v["flagged"] or not v["judged"]]
         return ("DEGRADED" if b["flagged"] else "HEALTHY"), reasons
     pre = []
     if ref.kind == "baseline":
@@ -226,8 +231,10 @@ def summary_text(a: RigAnalysis) -> str:
             f"{k} {v:.{6 if k == 'cp' else 4}g}" for k, v in a.model["indexes"].items()))
     if a.baseline is not None:
         eff = ", ".join(f"{k} {n}" for k, n in a.baseline["effects"].items()) or "none"
+        rest = a.baseline["cycles"] - a.baseline["judged_cycles"]
         lines.append(f"  against the baseline: {a.baseline['flagged']} / "
-                     f"{a.baseline['cycles']} cycle(s) flagged; effects: {eff}")
+                     f"{a.baseline['judged_cycles']} cycle(s) flagged; effects: {eff}"
+                     + (f"; {rest} cycle(s) not judged" if rest else ""))
     for k, v in a.sections.items():
         if v:
             lines.append(f"  {k}: {v}")

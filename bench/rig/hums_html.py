@@ -22,7 +22,7 @@ from bench.rig import hums as H
 from bench.rig.baseline import residuals
 from bench.rig.cycles import phases
 
-STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
          "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;"
          "padding:3px 8px;text-align:right}th{background:#eee;text-align:center}"
          "td.l{text-align:left}code{white-space:nowrap}"
@@ -38,9 +38,10 @@ MODEL_LABELS = {"cp": "Cp (eq. 6.5)", "mean_error_m": "|e|, mean position error 
                 "ci": "Ci (eq. 6.6)", "peak_ratio": "peak-current ratio (eq. 6.7)"}
 
 
-def _png(fig: Any) -> str:
+def _png(fig: Any, tight: bool = True) -> str:
     buf = io.BytesIO()
-    fig.tight_layout()
+    if tight:
+        fig.tight_layout()
     fig.savefig(buf, format="png", dpi=80)
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
@@ -78,24 +79,41 @@ def signals_figure(a: H.RigAnalysis) -> str:
         axis.set_ylabel(unit)
         axis.grid(alpha=0.3)
         if axis.lines:
-            axis.legend(fontsize=8, loc="best")
+            axis.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax[2].set_xlabel("t (s)")
-    return _png(fig)
+    fig.subplots_adjust(left=0.07, right=0.84, bottom=0.08, top=0.95, hspace=0.35)
+    return _png(fig, tight=False)
+
+
+def worst_text(b: dict[str, Any]) -> str:
+    """Which cycle the baseline figure shows, and why (`fallback.worst_cycle`)."""
+    v = b["verdicts"][b["worst"]]
+    judged = [x for x in b["verdicts"] if x["judged"]]
+    if len(judged) == 1:
+        return f"{v['cycle']} (the only cycle judged)"
+    if not v["flagged"]:
+        return (f"{v['cycle']}: no cycle flagged; the one closest to a threshold (largest "
+                f"score / threshold {v['largest_ratio']:.2f})")
+    return (f"{v['cycle']}: the most flagged of {len(judged)} cycles judged "
+            f"({v['features_above']} feature(s) above threshold, largest score / threshold "
+            f"{v['largest_ratio']:.2f})")
 
 
 def baseline_figure(a: H.RigAnalysis) -> str | None:
-    """The log's first cycle against the baseline: current with the baseline's mean and
-    +-2 spread per aligned sample, and the standardised residual against the measured
-    position in each stroke with the located effect marked."""
+    """The log's most flagged cycle (`fallback.worst_cycle`) against the baseline: current
+    with the baseline's mean and +-2 spread per aligned sample, and the standardised
+    residual against the measured position in each stroke with the located effect
+    marked."""
     from matplotlib.figure import Figure
 
     from bench.rig.fallback import log_cycles
     b, base = a.baseline, a.base_obj
-    if b is None or base is None:
+    if b is None or base is None or b.get("worst") is None:
         return None
-    cyc = log_cycles(a.trace, a.name)[0]
-    cyc.load = b["load"]
-    lb = base.for_load(b["load"])
+    v = b["verdicts"][b["worst"]]
+    cyc = log_cycles(a.trace, a.name)[b["worst"]]
+    cyc.load = v["baseline_load"]
+    lb = base.for_load(cyc.load)
     fig = Figure(figsize=(11, 6.2))
     ax = fig.subplots(2, 1)
     ax[0].plot(cyc.t_s, cyc.current_a, "k", lw=1.2, label="log")
@@ -113,22 +131,23 @@ def baseline_figure(a: H.RigAnalysis) -> str | None:
         first = False
     ax[0].set(title=f"motor current against the healthy baseline ({cyc.label})",
               xlabel="t in the cycle (s)", ylabel="A")
-    ax[0].legend(fontsize=8, loc="upper right")
+    ax[0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     res = residuals(lb, cyc, "current_a")
     for stroke, color in (("out", "C0"), ("in", "C3")):
         if stroke in res:
             z, pos = res[stroke]
             ax[1].plot(pos, z, color, lw=1, label=f"{stroke}-stroke")
-    v = b["verdicts"][0] if b["verdicts"] else None
-    if v is not None and v.get("location_mm") is not None:
+    if v.get("location_mm") is not None:
         ax[1].axvline(v["location_mm"], color="C1", ls="--", lw=1.2,
                       label=f"located effect {v['location_mm']:.1f} mm")
     ax[1].axhline(0, color="k", lw=0.5)
     ax[1].set(title="current residual against the baseline, standardised by its spread",
               xlabel="measured position (mm)", ylabel="residual (baseline sd)")
     ax[1].grid(alpha=0.3)
-    ax[1].legend(fontsize=8, loc="upper right")
-    return _png(fig)
+    ax[1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    # both panels the same width, their legends to the right of the data
+    fig.subplots_adjust(left=0.07, right=0.82, bottom=0.09, top=0.94, hspace=0.45)
+    return _png(fig, tight=False)
 
 
 def _model_free(a: H.RigAnalysis, e: Any) -> list[str]:
@@ -153,16 +172,21 @@ def _model(a: H.RigAnalysis, e: Any) -> list[str]:
         return []
     parts = [f"<h3>Against the calibrated model ({e(m['calibration'])})</h3>"]
     if not m["reaches_noise_floor"]:
+        how = ("its indexes are shown for information; the verdict comes from the healthy "
+               "baseline" if a.baseline is not None and a.baseline["judged"] else
+               "the verdict is judged against it nonetheless (asked for, or no healthy "
+               "baseline to judge against)")
         parts.append(f"<p>This model does not reach the noise floor on the calibration's "
-                     f"healthy logs (worst x{m['healthy_ratio']:.3g}): its indexes are shown "
-                     "for information; the verdict comes from the healthy baseline where "
-                     "there is one.</p>")
+                     f"healthy logs (worst x{m['healthy_ratio']:.3g}): {how}.</p>")
     parts.append("<table><tr><th>index</th><th>value</th></tr>")
     for k, v in m["indexes"].items():
         scale = 1e3 if k == "mean_error_m" else 1.0
         parts.append(f"<tr><td class='l'>{e(MODEL_LABELS.get(k, k))}</td>"
                      f"<td>{_fmt(v * scale, 6 if k == 'cp' else 4)}</td></tr>")
-    parts.append("</table><table><tr><th>signal</th><th>RMS / noise floor</th>"
+    parts.append("</table>")
+    if a.gap is not None:                   # the gap's table above has the RMS ratios
+        return parts
+    parts.append("<table><tr><th>signal</th><th>RMS / noise floor</th>"
                  "<th>threshold</th><th>noise floor</th></tr>")
     for s, r in m["rms_ratio"].items():
         parts.append(f"<tr><td class='l'>{e(s)}</td><td>{_fmt(r, 3)}</td>"
@@ -178,13 +202,15 @@ def _baseline(a: H.RigAnalysis, e: Any) -> list[str]:
         return []
     parts = [f"<h3>Against the healthy baseline</h3><p>{e(b['baseline'])}</p>"]
     if b["verdicts"]:
-        parts.append("<table><tr><th>cycle</th><th>flagged</th><th>effect</th>"
-                     "<th>features against their thresholds</th></tr>")
+        parts.append("<table><tr><th>cycle</th><th>baseline load</th><th>flagged</th>"
+                     "<th>effect</th><th>features against their thresholds</th></tr>")
         for v in b["verdicts"]:
-            parts.append(f"<tr><td class='l'>{e(v['cycle'])}</td><td>"
-                         f"{'yes' if v['flagged'] else 'no'}</td><td class='l'>"
-                         f"{e(v['verdict'])}</td><td class='l'>{e('; '.join(v['reasons']))}"
-                         "</td></tr>")
+            at = (e(a.base_obj.load_text(v["baseline_load"])) if v["judged"] and a.base_obj
+                  else "-")
+            flag = ("yes" if v["flagged"] else "no") if v["judged"] else "not judged"
+            parts.append(f"<tr><td class='l'>{e(v['cycle'])}</td><td>{at}</td><td>{flag}"
+                         f"</td><td class='l'>{e(v['verdict'])}</td><td class='l'>"
+                         f"{e('; '.join(v['reasons']))}</td></tr>")
         parts.append("</table>")
     for n in b["notes"]:
         parts.append(f"<p class='na'>{e(n)}</p>")
@@ -192,12 +218,13 @@ def _baseline(a: H.RigAnalysis, e: Any) -> list[str]:
     if rows:
         parts.append("<p>Phase indexes (mean over the log's cycles) against the baseline's "
                      "mean and spread (information; the verdict rests on the features "
-                     "above):</p><table><tr><th>phase</th><th>index</th><th>log</th>"
-                     "<th>baseline mean</th><th>baseline sd</th><th>z</th></tr>")
+                     "above):</p><table><tr><th>load</th><th>phase</th><th>index</th>"
+                     "<th>log</th><th>baseline mean</th><th>baseline sd</th><th>z</th></tr>")
         for r in rows:
             z = r["z"]
             style = " style='background:#fdd'" if z is not None and abs(z) > 3 else ""
-            parts.append(f"<tr><td class='l'>{e(r['phase'])}</td><td class='l'>"
+            parts.append(f"<tr><td>{r['load']:g}</td><td class='l'>{e(r['phase'])}</td>"
+                         "<td class='l'>"
                          f"{e(r['index'])}</td><td>{_fmt(r['value'])}</td>"
                          f"<td>{_fmt(r['baseline_mean'])}</td><td>{_fmt(r['baseline_sd'], 3)}"
                          f"</td><td{style}>{_fmt(z, 3)}</td></tr>")
@@ -205,11 +232,69 @@ def _baseline(a: H.RigAnalysis, e: Any) -> list[str]:
     return parts
 
 
+def _gap(a: H.RigAnalysis, e: Any) -> list[str]:
+    """`bench gap`'s diagnosis against the calibrated model (`bench.gap.riggap`): per
+    signal the RMS against its threshold and where its excess lies, the candidates
+    ranked, the verdict."""
+    g = a.gap
+    if g is None:
+        return []
+    loc = g["localisation"]
+    parts = [f"<h3>Gap against the calibrated model: {e(g['verdict'])}</h3>"
+             f"<p>{e(g['baseline'])}; significant when a signal's RMS exceeds its "
+             "threshold (the larger of 2 and the worst ratio the calibration's held-out "
+             "healthy logs left).</p><table><tr><th>signal</th><th>noise floor</th>"
+             "<th>RMS / noise floor</th><th>threshold</th><th>start/stop</th><th>cruise</th>"
+             "<th>dwell</th><th>extend</th><th>retract</th></tr>"]
+    floor = (a.model or {}).get("noise_floor") or {}
+    for s, r in g["rms_ratio"].items():
+        shares = {**loc["regimes"][s], **loc["direction"][s]}
+        parts.append(f"<tr><td class='l'>{e(s)}</td><td>{_fmt(floor.get(s, math.nan), 3)}"
+                     f"</td><td>{_fmt(r, 3)}</td>"
+                     f"<td>{_fmt(g['threshold'][s], 3)}</td>" + "".join(
+                         f"<td>{100 * shares[k]:.0f} %</td>" for k in
+                         ("start_stop", "cruise", "dwell", "extend", "retract")) + "</tr>")
+    parts.append("</table><p>Shares of each signal's excess residual energy (above its "
+                 "floor) by regime and by direction.</p>")
+    if g["ranking"]:
+        parts.append("<table><tr><th>rank</th><th>candidate effect</th><th>dBIC</th>"
+                     "<th>RMS / floor after</th><th>fitted values</th></tr>")
+        for i, r in enumerate(g["ranking"], start=1):
+            vals = "; ".join(f"{k} = {v:.4g}" for k, v in r["values"].items())
+            parts.append(f"<tr><td>{i}</td><td class='l'>{e(r['effect'])}: {e(r['doc'])}"
+                         f"</td><td>{r['delta_bic']:.1f}</td>"
+                         f"<td>{_fmt(r['rms_ratio_after'], 3)}</td><td class='l'>{e(vals)}"
+                         "</td></tr>")
+        parts.append("</table><p>A candidate is named when it lowers the BIC by more than "
+                     "10 and the gap is significant.</p>")
+    png = gap_figure(g)
+    parts.append(f"<img alt='gap by nut position' src='data:image/png;base64,{png}'>")
+    return parts
+
+
+def gap_figure(g: dict[str, Any]) -> str:
+    """Each signal's share of its excess residual energy per nut-position bin."""
+    from matplotlib.figure import Figure
+    pos = g["localisation"]["position_mm"]
+    fig = Figure(figsize=(11, 2.8))
+    ax = fig.subplots()
+    width = 0.8 / max(len(pos), 1)
+    for k, (s, shares) in enumerate(pos.items()):
+        x = np.arange(len(shares)) + (k - (len(pos) - 1) / 2) * width
+        ax.bar(x, [100 * v for v in shares.values()], width, label=s)
+        ax.set_xticks(np.arange(len(shares)), list(shares), fontsize=8)
+    ax.set(title="where along the stroke the excess residual lies",
+           xlabel="nut position (mm)", ylabel="share of the excess (%)")
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8)
+    return _png(fig)
+
+
 def _log(a: H.RigAnalysis, e: Any) -> list[str]:
     parts = [f"<h2>{e(a.name)}</h2><p><span class='v {a.verdict}'>{a.verdict}</span></p>",
              f"<p class='ref'><b>Judged against:</b> {e(a.reference)}</p>",
              "<ul>" + "".join(f"<li>{e(r)}</li>" for r in a.reasons) + "</ul>"]
-    parts += _model_free(a, e) + _model(a, e) + _baseline(a, e)
+    parts += _gap(a, e) + _model_free(a, e) + _model(a, e) + _baseline(a, e)
     na = {k: v for k, v in a.sections.items() if v}
     if na:
         parts.append("<h3>Not available on this log</h3><ul>" + "".join(
@@ -218,22 +303,33 @@ def _log(a: H.RigAnalysis, e: Any) -> list[str]:
                  + f"</h3><img alt='signals' src='data:image/png;base64,{signals_figure(a)}'>")
     png = baseline_figure(a)
     if png:
-        parts.append("<h3>First cycle against the healthy baseline</h3>"
+        assert a.baseline is not None
+        parts.append("<h3>The most flagged cycle against the healthy baseline</h3>"
+                     f"<p>{e(worst_text(a.baseline))}</p>"
                      f"<img alt='baseline' src='data:image/png;base64,{png}'>")
     return parts
 
 
-def render(analyses: list[H.RigAnalysis]) -> str:
-    """The HTML text of the report."""
+INTRO = ("These logs come from an actuator the bench did not simulate. Each is compared "
+         "with what was given: a calibration of its generic model (<code>bench calibrate "
+         "--actuator</code>), a healthy baseline built from its own healthy runs, or neither "
+         "(then only indexes that need no model). What a log cannot support is listed as not "
+         "available, with the reason.")
+GAP_INTRO = ("<code>bench gap</code> on a log of an actuator the bench did not simulate: the "
+             "log against the calibrated generic model (<code>bench calibrate --actuator"
+             "</code>), the residual localised and the candidate effects ranked, or, when "
+             "that model does not reach the noise floor on healthy logs, against the healthy "
+             "baseline built from the actuator's own healthy runs. The same page as "
+             "<code>bench hums report</code>, with the gap's diagnosis added.")
+
+
+def render(analyses: list[H.RigAnalysis], title: str = "Actuator health report",
+           intro: str = INTRO) -> str:
+    """The HTML text of the report (`intro`: HTML)."""
     e = html.escape
     parts = ["<!doctype html><html><head><meta charset='utf-8'>",
-             f"<title>Actuator HUMS report</title><style>{STYLE}</style></head><body>",
-             "<h1>Actuator health report</h1>",
-             "<p>These logs come from an actuator the bench did not simulate. Each is "
-             "compared with what was given: a calibration of its generic model "
-             "(<code>bench calibrate --actuator</code>), a healthy baseline built from its "
-             "own healthy runs, or neither (then only indexes that need no model). What a "
-             "log cannot support is listed as not available, with the reason.</p>",
+             f"<title>{e(title)}</title><style>{STYLE}</style></head><body>",
+             f"<h1>{e(title)}</h1>", f"<p>{intro}</p>",
              "<h2>Summary</h2><table><tr><th>log</th><th>samples</th><th>duration (s)</th>"
              "<th>verdict</th><th>judged against</th></tr>"]
     for a in analyses:
@@ -262,11 +358,31 @@ def write_rig_report(paths: list[str], out_dir: str | Path, nominal: str | None 
     cal = H.calibration_file(nominal) if nominal is not None else None
     ref = FB.choose(cal, nominal, baseline, against)
     analyses = [H.analyse_rig(FB.read_log(p), Path(p).name, ref) for p in paths]
+    return write_files(analyses, out_dir), analyses
+
+
+def write_files(analyses: list[H.RigAnalysis], out_dir: str | Path,
+                page_name: str = "report.html", title: str = "Actuator health report",
+                intro: str = INTRO) -> Path:
+    """Write the page (`page_name`), ``indexes.json`` and ``summary.txt`` of `analyses`
+    into out_dir; the page's path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    page = out / "report.html"
-    page.write_text(render(analyses))
+    page = out / page_name
+    page.write_text(render(analyses, title, intro))
     (out / "indexes.json").write_text(json.dumps(
         [json_safe(a.to_json()) for a in analyses], indent=1, default=str))
     (out / "summary.txt").write_text("\n\n".join(H.summary_text(a) for a in analyses) + "\n")
-    return page, analyses
+    return page
+
+
+def write_gap_report(trace: Any, name: str, ref: FB.Reference, out_dir: str | Path,
+                     gap: dict[str, Any] | None = None,
+                     assessed: dict[str, Any] | None = None) -> Path:
+    """`bench gap --report DIR` on a rig's log: the report page of `bench hums report`
+    (`analyse_rig` against the same reference) with the gap's diagnosis against the
+    calibrated model (`gap`, `bench.gap.riggap.diagnose_rig`) or the baseline's
+    (`assessed`, `fallback.assess`) it already made, as ``index.html``."""
+    a = H.analyse_rig(trace, name, ref, assessed)
+    a.gap = gap
+    return write_files([a], out_dir, "index.html", "Sim-to-real gap: " + name, GAP_INTRO)
