@@ -28,6 +28,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     b.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")
     b.add_argument("--runs", metavar="LIST", help="runs to use (e.g. 1,2; default: all)")
     b.add_argument("-o", "--out", required=True, metavar="BASE.json", help="baseline file")
+    b.add_argument("--load-unit", choices=("N", "kN", "kgf", "lbf"), metavar="UNIT",
+                   help="unit of a rig table's load column (N, kN, kgf, lbf), so that a log "
+                        "whose load is logged in N is matched to it; `bench import` traces "
+                        "carry theirs")
     _common(b)
     a = sub.add_parser("assess", help="diagnose cycles against a baseline")
     a.add_argument("tables", nargs="+", metavar="LOG", help="tables or traces to assess")
@@ -131,6 +135,7 @@ def _baseline(args: argparse.Namespace) -> int:
     cycles = _read(args.tables, runs_list(args.runs, "--runs"))
     base = B.build(cycles, [Path(t).name for t in args.tables])
     base.lead_mm = args.lead_mm
+    base.load_unit = _load_unit(args.tables, args.load_unit)
     for load in sorted(base.loads):
         mine = [c for c in cycles if c.load == load]
         if len({c.run for c in mine}) < 2:
@@ -144,6 +149,21 @@ def _baseline(args: argparse.Namespace) -> int:
         print(f"load {key}: thresholds (leave-one-run-out over runs "
               f"{','.join(map(str, cal['runs']))}, alpha {cal['alpha']:g}): {thr}")
     return 0
+
+
+def _load_unit(tables: list[str], given: str | None) -> str:
+    """The baseline's load unit: the traces' (their import map's), else `--load-unit`;
+    one line when they disagree."""
+    from bench import BenchError
+    from bench.rig.cycles import table_load_unit
+    found = {u for u in (table_load_unit(t) for t in tables) if u}
+    if given and found - {given}:
+        raise BenchError(f"--load-unit {given}, but the traces' loads are in "
+                         f"{', '.join(sorted(found))}")
+    if len(found) > 1:
+        raise BenchError(f"the traces' loads come in several units ({', '.join(sorted(found))}): "
+                         "build one baseline per unit")
+    return given or (found.pop() if found else "")
 
 
 def _assess(args: argparse.Namespace) -> int:

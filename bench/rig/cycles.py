@@ -140,7 +140,7 @@ def read_cycles(path: str | Path, columns: dict[str, str] | None = None) -> list
         return _trace_cycles(path)
     cols = dict(DEFAULT_COLUMNS, **(columns or {}))
     raw = read_columns(path)
-    if "setpoint_position_m" in raw and path.name.lower().endswith(".parquet"):
+    if is_trace(path, raw):
         return _trace_cycles(path)                   # a bench trace, not a rig table
     source = condition_name(path)
     need = ["setpoint", "current"]
@@ -154,7 +154,7 @@ def read_cycles(path: str | Path, columns: dict[str, str] | None = None) -> list
     pos = (sp - raw[cols["position_error"]] if cols["position_error"] in raw
            else raw[cols.get("position", "position")])
     n = len(sp)
-    group = raw.get(cols["group"], _cycles_from_setpoint(sp))
+    group = raw.get(cols["group"], cycle_numbers(sp))
     load = raw.get(cols["load"], np.full(n, np.nan))
     run = raw.get(cols["run"], np.zeros(n))
     time = raw.get(cols["time"])
@@ -175,6 +175,26 @@ def read_cycles(path: str | Path, columns: dict[str, str] | None = None) -> list
     return out
 
 
+def is_trace(path: str | Path, raw: dict[str, Any] | None = None) -> bool:
+    """True for a `bench import` trace (.npz, or Parquet with the bench's signal names),
+    False for a rig's own table."""
+    name = Path(path).name.lower()
+    if name.endswith(".npz"):
+        return True
+    if not name.endswith(".parquet"):
+        return False
+    return "setpoint_position_m" in (raw if raw is not None else read_columns(Path(path)))
+
+
+def table_load_unit(path: str | Path) -> str:
+    """The unit of the loads `read_cycles(path)` gives: a trace's (`load_unit` of its
+    metadata), "" for a rig's own table (its load column has no unit)."""
+    if not is_trace(path):
+        return ""
+    from bench.trace import Trace
+    return load_unit(Trace.load(Path(path)).meta)
+
+
 def _trace_cycles(path: Path) -> list[Cycle]:
     """Cycles of a `bench import` trace file (metres -> mm), split by set-point."""
     from bench.trace import Trace
@@ -191,7 +211,7 @@ def cycles_from_trace(tr: Any, name: str, run: int | None = None) -> list[Cycle]
     pos = tr["position_m"] * 1e3
     keys = tr.meta.get("split") or {}            # `bench import --split-by` keys
     group = (np.full(len(sp), float(keys["group"])) if "group" in keys
-             else _cycles_from_setpoint(sp))
+             else cycle_numbers(sp))
     load = float(keys.get("load", tr.meta.get("load", _logged_load(tr))))
     run_no = int(keys.get("run", tr.meta.get("run", 0 if run is None else run)))
     out = []
@@ -228,7 +248,7 @@ def load_unit(meta: dict[str, Any]) -> str:
     return ""
 
 
-def _cycles_from_setpoint(sp: np.ndarray) -> np.ndarray:
+def cycle_numbers(sp: np.ndarray) -> np.ndarray:
     """A cycle number per sample when the table has none: a cycle starts where an
     out-stroke starts (after a dwell or an in-stroke)."""
     lab = direction_labels(sp)

@@ -29,7 +29,7 @@ import numpy as np
 from bench import BenchError
 from bench.rig import baseline as B
 from bench.rig import population as P
-from bench.rig.cycles import Cycle, cycles_from_trace, load_unit, phases
+from bench.rig.cycles import Cycle, cycle_numbers, cycles_from_trace, load_unit, phases
 from bench.rig.features import cycle_features, verdict
 
 FLOOR_FACTOR = 2.0       # as bench.gap.rigcal.FLOOR_FACTOR (the calibration carries its own)
@@ -288,10 +288,9 @@ def cycle_loads(trace: Any, cycles: Sequence[Cycle]) -> list[float]:
     keys = trace.meta.get("split") or {}
     if "load" in keys or "load" in trace.meta or "load_force_n" not in trace:
         return [c.load for c in cycles]
-    from bench.rig.cycles import _cycles_from_setpoint  # the cycles' own split
     f = np.asarray(trace["load_force_n"], float)
     group = (np.full(len(f), float(keys["group"])) if "group" in keys
-             else _cycles_from_setpoint(np.asarray(trace["setpoint_position_m"], float)))
+             else cycle_numbers(np.asarray(trace["setpoint_position_m"], float)))
     out = []
     for c in cycles:
         v = f[(group == c.group) & np.isfinite(f)]

@@ -129,3 +129,38 @@ def test_imported_traces_give_the_same_baseline(tmp_path, sample):
     thr = P.calibrate(cal, lead_mm=LEAD_MM).thresholds
     for k, v in sample[1].items():
         assert thr[k] == pytest.approx(v, rel=1e-6), k
+
+
+def test_rig_baseline_knows_its_load_unit(tmp_path, capsys):
+    """`bench rig baseline` recorded no load unit (even from `bench import` traces), so a
+    log whose load is logged in N (no split key) was never matched to it. Now the traces'
+    unit is recorded, a rig table's comes from --load-unit, and they must agree."""
+    from bench.cli import main
+    from bench.trace import Trace
+    table = SAMPLE / "normal_load40_runs1-4.csv.xz"
+    cmap = Path(__file__).resolve().parents[2] / "bench" / "actuators" / "cranfield_map.json"
+    assert main(["import", str(table), "--map", str(cmap), "--split-by", "load,run,group",
+                 "-o", str(tmp_path / "tr")]) == 0
+    traces = sorted((tmp_path / "tr").glob("load=40_run=[12]_*.parquet"))
+    base = tmp_path / "base.json"
+    assert main(["rig", "baseline", *map(str, traces), "--lead-mm", "5", "--out", str(base)]) == 0
+    assert json.loads(base.read_text())["load_unit"] == "kgf"
+    raw = tmp_path / "raw.json"
+    assert main(["rig", "baseline", str(table), "--runs", "1,2", "--out", str(raw)]) == 0
+    assert json.loads(raw.read_text())["load_unit"] == ""
+    assert main(["rig", "baseline", str(table), "--runs", "1,2", "--load-unit", "kgf",
+                 "--out", str(raw)]) == 0
+    assert json.loads(raw.read_text())["load_unit"] == "kgf"
+    capsys.readouterr()
+    assert main(["rig", "baseline", *map(str, traces), "--load-unit", "N",
+                 "--out", str(tmp_path / "x.json")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: --load-unit N, but the traces' loads are in kgf")
+    # a held-out cycle whose load is logged in N only (no split key): matched at 40 kgf
+    tr = Trace.load(sorted((tmp_path / "tr").glob("load=40_run=3_*.parquet"))[0])
+    cols = dict(tr.columns, load_force_n=np.full(len(tr), 40 * 9.80665))
+    meta = {k: v for k, v in tr.meta.items() if k not in ("split", "load", "map")}
+    log = Trace(cols, meta).save(tmp_path / "held_out_in_newtons.npz")
+    assert main(["gap", str(log), "--baseline", str(base)]) == 0
+    out = capsys.readouterr().out
+    assert "[baseline load 40]" in out and "not judged" not in out, out
