@@ -1,5 +1,6 @@
-"""The LVDT conditioning as a declared sensor property (`sensors.lvdt_time_constant_s`)
-and the calibration's profiled parameters (`bench.gap.calibrate.PROFILED`, issue 11)."""
+"""Issue 11 goal 4: the LVDT conditioning as a declared sensor property
+(`sensors.lvdt_time_constant_s`), the calibration's profiled parameters
+(`bench.gap.calibrate.PROFILED`) and the pair rule judged against a calibration."""
 
 import math
 
@@ -95,3 +96,23 @@ def test_profile_finds_the_minimum_between_grid_points():
     v = C.profile(p, visc, {})
     assert v["value"] == pytest.approx(3e-4, rel=0.01)
     assert len(v["grid"]) == len(C.PROFILED[visc]) + 1
+
+
+def test_pair_rule_is_judged_against_the_calibration():
+    """A best single whose held-out residual is below the calibration's held-out level x
+    margin leaves no significant gap, so no pair replaces it (with the default threshold
+    alone the pair would)."""
+    from types import SimpleNamespace as NS
+
+    from bench.gap import diagnose as D
+
+    sig = dict.fromkeys(R.SIGNALS, 1.0)
+    single = NS(fit=NS(name="lvdt_offset", effects=("lvdt_offset",)), bic=0.0,
+                heldout_excess=1.0, heldout_smooth={**sig, "position_m": 3.0})
+    pair = NS(fit=NS(name="lvdt_offset+preload", effects=("lvdt_offset", "preload")),
+              bic=-50.0, heldout_excess=0.2, heldout_smooth=sig)
+    p = NS(n=10000, n_fit=5000, info={})
+    ref = {"level": dict.fromkeys(R.SIGNALS, 2.5), "margin": dict.fromkeys(R.SIGNALS, 1.5)}
+    args = ([single], [pair], single, p, None, 100.0, True, {})
+    assert D._choose(*args)[0] is pair
+    assert D._choose(*args, ref)[0] is single
