@@ -58,8 +58,9 @@ STATE_NAMES = (
  P_LEVER_R, P_FV, P_FS, P_CN, P_MN, P_MB, P_KSTAR, P_MSLOPE, P_CDAMP,
  P_LZETA, P_LSIG, P_EZETA, P_ESIG, P_TAUC, P_KPI, P_KII, P_FPWM, P_PWM_SW, P_BALL_DYN,
  P_DT, P_NBALL, P_NSUB, P_LOAD_KIND, P_LOAD_AMP, P_LOAD_T0, P_LOAD_RATE, P_LOAD_FREQ,
- P_TRAVEL, P_AERO_GAIN, P_WEAR_ON, P_WEAR_GAIN, P_WEAR_AREA, P_WEAR_FRIC) = range(55)
-NP = 55
+ P_TRAVEL, P_AERO_GAIN, P_WEAR_ON, P_WEAR_GAIN, P_WEAR_AREA, P_WEAR_FRIC, P_LTAU) = range(56)
+NP = 56
+# P_LTAU: the LVDT's first-order time constant (s); 0: the second-order filter of eq. 5.1
 # load kinds (P_LOAD_KIND): the order of `LoadParams.kind`'s choices
 LOAD_KINDS = ("none", "step", "ramp", "sine", "aero")
 
@@ -210,6 +211,8 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     dtb = dt / nball
     dtb_mb = dtb / mb            # no division in the ball micro-step loop
     lz, ls = p[P_LZETA], p[P_LSIG]
+    lvdt_first = p[P_LTAU] > 0.0
+    a_l = 1.0 - math.exp(-dt / p[P_LTAU]) if lvdt_first else 0.0
     ez, es = p[P_EZETA], p[P_ESIG]
     idem = u[U_IDEM]
     igain, ioff, inoise = u[U_IGAIN], u[U_IOFF], u[U_INOISE]
@@ -404,8 +407,11 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         x[X2] += dt * x[V2]
         # ---- sensors (eq. 5.1): LVDT on nut position, encoder on motor speed ------------
         xn = 0.5 * (x[X1] + x[X2])
-        x[LYD] += dt * (ls * ls * (xn - x[LY]) - 2.0 * lz * ls * x[LYD])
-        x[LY] += dt * x[LYD]
+        if lvdt_first:     # a first-order demodulator, exact over the sub-step
+            x[LY] += (xn - x[LY]) * a_l
+        else:
+            x[LYD] += dt * (ls * ls * (xn - x[LY]) - 2.0 * lz * ls * x[LYD])
+            x[LY] += dt * x[LYD]
         x[EYD] += dt * (es * es * (om_new / tau - x[EY]) - 2.0 * ez * es * x[EYD])
         x[EY] += dt * x[EYD]
         x[T] = t + dt

@@ -68,6 +68,7 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_KSTAR], p[K.P_MSLOPE] = contact_geometry(params)[:2]                        # eq. 5.21
     p[K.P_CDAMP] = s.contact_damping_n_s_per_m
     p[K.P_LZETA], p[K.P_LSIG] = se.lvdt_damping, se.lvdt_natural_rad_s
+    p[K.P_LTAU] = se.lvdt_time_constant_s
     p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
     p[K.P_TAUC] = se.current_time_constant_s
     p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, d.current_ki_v_per_as

@@ -193,6 +193,12 @@ class SensorParams(_Validated):
         "eq. 5.1 on the shaft speed; N >= 1 = the quantised count difference over the "
         "last N SYNC periods / (N T) (a drive's datasheet fact, e.g. 'speed from the "
         "counts over 4 SYNC periods')", "table 5.1 (0); a drive's datasheet (N >= 1)")
+    lvdt_time_constant_s: float = P(
+        0.0, "s", 0.0, 0.1,
+        "LVDT signal conditioning: 0 = the second-order sensor filter of eq. 5.1 "
+        "(lvdt_natural_rad_s, lvdt_damping); > 0 = a first-order demodulator lag of this "
+        "time constant instead (a conditioner's datasheet fact, e.g. 'first-order 1 ms')",
+        "table 5.1 (0); a conditioner's datasheet (> 0)")
 
 
 @dataclass(frozen=True)

@@ -330,7 +330,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if bar is not None:
         bar.close()
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
-                                                               ho_ex, sig, L)
+                                                               ho_ex, sig, L, o.reference)
     return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties)
 
 
@@ -366,13 +366,16 @@ def _localisation(trace: Trace, holdout: Trace | None, p: Any, h: Any, frac: flo
 
 
 def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_ex: Any,
-            sig: bool, L: Any) -> tuple[Any, str, list[Any], list[str], dict[str, Any]]:
+            sig: bool, L: Any, reference: dict[str, Any] | None = None
+            ) -> tuple[Any, str, list[Any], list[str], dict[str, Any]]:
     """The chosen candidate (the best single, or a pair by the rule in the selection
     record), the verdict, the ranking, the candidates tied with the chosen one and the
-    selection record."""
+    selection record. A held-out gap the best single leaves is significant by the same
+    rule as the log's (raised to a calibration's held-out healthy level x margin,
+    `reference`)."""
     chosen = best
     n_ho = h.n if h is not None else p.n - p.n_fit
-    thr_ho = thresholds(h if h is not None else p, n_ho)
+    thr_ho = calibrated_thresholds(thresholds(h if h is not None else p, n_ho), reference)
     remaining = any(best.heldout_smooth.get(s, 0.0) > thr_ho[s] for s in R.SIGNALS)
     better = [c for c in pairs
               if c.heldout_excess < (1.0 - PAIR_GAIN) * best.heldout_excess]

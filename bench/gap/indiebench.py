@@ -36,7 +36,7 @@ import numpy as np
 
 from bench.control import ControllerParams
 from bench.gap.blind import Case, Truth, score, summarise
-from bench.gap.calibrate import calibrate, heldout_significance, reference_of
+from bench.gap.calibrate import calibrate, default_names, heldout_significance, reference_of
 from bench.gap.diagnose import Options, diagnose
 from bench.gap.maneuvers import LOAD_HZ, excitation
 from bench.trace import Trace
@@ -58,8 +58,9 @@ def datasheet_model(actuator: IndieParams = NOMINAL) -> PlantParams:
     """The bench's model of the independent actuator from its datasheet: ratio, lead,
     motor constants, rotor and screw inertias, nut mass, preload, supply and limits, and
     how its drive computes the speed (the count difference over `speed_window` SYNC
-    periods). The bench's friction laws and contact model stay its own (the thesis'
-    tables): friction and the rest are what calibration is for."""
+    periods) and the LVDT conditioner's lag (first order, `lvdt_tau_s`). The bench's
+    friction laws and contact model stay its own (the thesis' tables): friction, the
+    contact stiffness (under the logged load) and the rest are what calibration is for."""
     n = actuator
     return PlantParams().with_dict({
         "motor.kt_nm_per_a": n.kt_nm_per_a, "motor.ke_v_s_per_rad": n.ke_v_s_per_rad,
@@ -73,7 +74,9 @@ def datasheet_model(actuator: IndieParams = NOMINAL) -> PlantParams:
         "drive.current_ki_v_per_as": 2 * math.pi * n.current_bw_hz * n.resistance_ohm,
         "sensors.encoder_counts_per_rev": n.encoder_counts,
         # the drive's speed: the count difference over 4 SYNC periods (its datasheet)
-        "sensors.encoder_speed_window": int(n.speed_window)})
+        "sensors.encoder_speed_window": int(n.speed_window),
+        # the LVDT conditioner: a first-order 1 ms demodulator (its datasheet)
+        "sensors.lvdt_time_constant_s": n.lvdt_tau_s})
 
 
 def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:
@@ -208,7 +211,7 @@ def calibrated_model(seed: int, duration_s: float = LOG_S, controller: str = "ec
     log = generate(Case(-1, "nominal", [], seed + CALIBRATION_SEED_OFFSET), True,
                    duration_s, controller, actuator)
     base = datasheet_model(actuator)
-    cal = calibrate(log, base, controller=identify or RESIM[controller])
+    cal = calibrate(log, base, default_names(log), controller=identify or RESIM[controller])
     return base.with_dict(cal["params"]), cal
 
 

@@ -193,8 +193,7 @@ def path_residuals(p: Problem, cols: dict[str, np.ndarray]) -> dict[str, np.ndar
         out["mechanics"] = spd - mech["motor_speed_rad_s"]
     x0 = p.drive.x0_true_m if p.drive.x0_true_m is not None else p.drive.x0_m
     if p.drive.x0_true_m is not None:
-        kin = R.second_order(ang * p.travel, dt, base.sensors.lvdt_natural_rad_s,
-                             base.sensors.lvdt_damping)
+        kin = R.lvdt_dynamics(ang * p.travel, dt, base)
     else:
         kin = R.screw_kinematics(ang, x0, base, dt)
     out["screw"] = pos - kin

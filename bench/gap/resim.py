@@ -417,8 +417,16 @@ def screw_kinematics(angle_rad: np.ndarray, x0_m: float, params: PlantParams,
                      dt: float) -> np.ndarray:
     """The LVDT reading the nominal screw predicts from the measured motor angle: rigid,
     backlash-free kinematics (lead, ratio) through the nominal LVDT dynamics (eq. 5.1)."""
-    se = params.sensors
     x = encoder_travel(angle_rad, x0_m, params)
+    return lvdt_dynamics(x, dt, params)
+
+
+def lvdt_dynamics(x: np.ndarray, dt: float, params: PlantParams) -> np.ndarray:
+    """The nut travel `x` through the model's LVDT conditioning: the second-order filter
+    of eq. 5.1, or a first-order lag when `sensors.lvdt_time_constant_s` > 0."""
+    se = params.sensors
+    if se.lvdt_time_constant_s > 0.0:
+        return first_order(x, dt, se.lvdt_time_constant_s)
     return second_order(x, dt, se.lvdt_natural_rad_s, se.lvdt_damping)
 
 
