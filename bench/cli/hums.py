@@ -18,7 +18,7 @@ import math
 import time
 from pathlib import Path
 
-from bench import BenchError
+from bench import BenchError, interrupts
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -485,6 +485,8 @@ def run_watch(args: argparse.Namespace) -> int:
     old = {s_: signal.signal(s_, on_signal) for s_ in (signal.SIGINT, signal.SIGTERM)}
     n = 0
     try:
+        if interrupts.pending():        # a Ctrl-C lost in an import: stop before listening
+            raise KeyboardInterrupt
         n = watch(bus, hums, on_result, args.duration, args.idle,
                   ready=lambda: print(f"listening on {cfg.get('interface')}:"
                                       f"{cfg.get('channel')} ({source}), command period "

@@ -53,6 +53,7 @@ def check_arguments(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bench import interrupts
     from bench.bus import bus_settings, close_bus, connect, find_bus
     from bench.bus.logwrite import flush, open_writer
 
@@ -77,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
         stop["flag"] = True
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    stop["flag"] = interrupts.pending()     # a Ctrl-C lost in an import stops it now
     n = 0
     end = None if args.duration is None else time.monotonic() + args.duration
     print(f"recording {cfg.get('interface')}:{cfg.get('channel')} ({source}) to {args.file}",

@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
+from bench import interrupts
 from bench.ecu.errors import Interrupted
 
 
@@ -31,6 +32,8 @@ class StopSignal:
         """Handle SIGINT and SIGTERM here for the duration of the block."""
         old = {s: signal.signal(s, self._handler) for s in self.SIGNALS}
         try:
+            if interrupts.pending():    # a Ctrl-C lost in an import: stop before the run
+                self._handler(signal.SIGINT, None)
             yield self
         finally:
             for s, h in old.items():

@@ -5,13 +5,14 @@ RemoteNode) work against the bench."""
 from __future__ import annotations
 
 import signal
+import subprocess
 import sys
 import time
 
 import canopen
 import numpy as np
 import pytest
-from bus_helpers import BUS_KINDS, ROOT, bench, module_bus_env, spawn
+from bus_helpers import BUS_KINDS, ROOT, bench, module_bus_env, spawn, wait_until
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.bus.logs import trace_from_log
@@ -89,13 +90,22 @@ def test_python_can_logger_captures_and_cantools_decodes(bus_env, tmp_path):
     logger = spawn(sys.executable, "-m", "can.logger", *bus_env.flags, "-f", str(log),
                    env=bus_env.env)
     try:
-        time.sleep(1.5)          # python-can logger start-up
+        # python-can's logger opens its file after connecting, right before it receives:
+        # wait for that, not a fixed time (on a loaded machine its imports took longer than
+        # 1.5 s, and a SIGINT that lands inside an import can be swallowed there)
+        wait_until(log.exists, 60, "python-can's logger to start")
+        time.sleep(0.2)
         run_over_bus(make_profile("step", duration_s=0.05), pace="sync",
                      settings=bus_env.cfg)
         time.sleep(0.3)
     finally:
         logger.send_signal(signal.SIGINT)
-        logger.communicate(timeout=10)
+        try:
+            logger.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            logger.kill()
+            logger.communicate()
+            raise
     text = log.read_text()
     assert text.count(" 190#") == 50 and text.count(" 080#") == 50
     with log.open() as fh:
