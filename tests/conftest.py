@@ -8,6 +8,8 @@ helpers (`log_frames`, `bus_helpers`, the minimal node) serve every folder."""
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
 from pathlib import Path
 
@@ -78,6 +80,14 @@ SLOW: tuple[str, ...] = (
     "tests/system/test_updown_state.py::test_up_ignores_a_stale_plant_record_of_a_reused_pid",
     "tests/system/test_wheel.py",
 )
+
+
+def pytest_configure(config: pytest.Config) -> None:  # noqa: ARG001
+    """pytest-xdist's workers ignore SIGINT, and a child process inherits an ignored
+    signal: python-can's logger and `bench log` started by a test would not stop on the
+    SIGINT the test sends them (they hung). Each worker gets Python's handler back."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def _is_slow(nodeid: str) -> bool:
