@@ -83,10 +83,13 @@ SLOW: tuple[str, ...] = (
 
 
 def pytest_configure(config: pytest.Config) -> None:  # noqa: ARG001
-    """pytest-xdist's workers ignore SIGINT, and a child process inherits an ignored
-    signal: python-can's logger and `bench log` started by a test would not stop on the
-    SIGINT the test sends them (they hung). Each worker gets Python's handler back."""
-    if os.environ.get("PYTEST_XDIST_WORKER"):
+    """A child process inherits an ignored SIGINT, and then python-can's logger and
+    `bench log` started by a test never stop on the SIGINT the test sends them (they hung).
+    pytest-xdist's workers ignore SIGINT, and so does a suite started in the background
+    of a non-interactive shell: the suite's process gets Python's handler back (its
+    children then start with the default)."""
+    if (os.environ.get("PYTEST_XDIST_WORKER")
+            or signal.getsignal(signal.SIGINT) is signal.SIG_IGN):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
