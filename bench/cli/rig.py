@@ -135,7 +135,7 @@ def _baseline(args: argparse.Namespace) -> int:
     cycles = _read(args.tables, runs_list(args.runs, "--runs"))
     base = B.build(cycles, [Path(t).name for t in args.tables])
     base.lead_mm = args.lead_mm
-    base.load_unit = _load_unit(args.tables, args.load_unit)
+    base.load_unit = _load_unit(cycles, args.load_unit)
     for load in sorted(base.loads):
         mine = [c for c in cycles if c.load == load]
         if len({c.run for c in mine}) < 2:
@@ -151,12 +151,11 @@ def _baseline(args: argparse.Namespace) -> int:
     return 0
 
 
-def _load_unit(tables: list[str], given: str | None) -> str:
+def _load_unit(cycles: list[Any], given: str | None) -> str:
     """The baseline's load unit: the traces' (their import map's), else `--load-unit`;
     one line when they disagree."""
     from bench import BenchError
-    from bench.rig.cycles import table_load_unit
-    found = {u for u in (table_load_unit(t) for t in tables) if u}
+    found = {c.load_unit for c in cycles if c.load_unit}
     if given and found - {given}:
         raise BenchError(f"--load-unit {given}, but the traces' loads are in "
                          f"{', '.join(sorted(found))}")

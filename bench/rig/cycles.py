@@ -48,6 +48,7 @@ class Cycle:
     group: int
     source: str                 # the file's condition name (e.g. spalling8)
     meta: dict[str, Any] = field(default_factory=dict)
+    load_unit: str = ""         # the unit of `load` ("" unknown: a rig's own table)
 
     @property
     def position_error_mm(self) -> np.ndarray:
@@ -186,15 +187,6 @@ def is_trace(path: str | Path, raw: dict[str, Any] | None = None) -> bool:
     return "setpoint_position_m" in (raw if raw is not None else read_columns(Path(path)))
 
 
-def table_load_unit(path: str | Path) -> str:
-    """The unit of the loads `read_cycles(path)` gives: a trace's (`load_unit` of its
-    metadata), "" for a rig's own table (its load column has no unit)."""
-    if not is_trace(path):
-        return ""
-    from bench.trace import Trace
-    return load_unit(Trace.load(Path(path)).meta)
-
-
 def _trace_cycles(path: Path) -> list[Cycle]:
     """Cycles of a `bench import` trace file (metres -> mm), split by set-point."""
     from bench.trace import Trace
@@ -214,13 +206,14 @@ def cycles_from_trace(tr: Any, name: str, run: int | None = None) -> list[Cycle]
              else cycle_numbers(sp))
     load = float(keys.get("load", tr.meta.get("load", _logged_load(tr))))
     run_no = int(keys.get("run", tr.meta.get("run", 0 if run is None else run)))
+    unit = load_unit(tr.meta)
     out = []
     for g in np.unique(group):
         m = group == g
         if m.sum() >= 8:
             out.append(Cycle(tr.t[m] - tr.t[m][0], sp[m], pos[m], tr["current_a"][m], load,
                              run_no, int(g), str(tr.meta.get("source_name", name)),
-                             dict(tr.meta)))
+                             dict(tr.meta), unit))
     return out
 
 
