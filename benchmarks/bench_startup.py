@@ -11,6 +11,9 @@ interleaved (A, B, A, B, ...) so both see the same load, a fresh interpreter eac
   against the same imports with asammdf loaded (before 2026-11-24);
 - the ECU's imports (`bench.ecu.master` with `bench.flight`) without scipy.signal (now:
   imported where a turbulence is drawn) against the same plus `scipy.signal` (before);
+- the loopback hub's process as `bench up` starts it (`python -m bench.bus.hub`, asammdf
+  refused since 2026-11-24, session 7: the hub writes no log) against the same module run
+  under another command line (runpy), which keeps python-can's MF4 import (before);
 - for scale, `import can` alone with and without asammdf.
 
 Wall time of `python -c "..."` per variant, the median of `--repeats`, and the ratio.
@@ -41,13 +44,19 @@ PAIRS = (
     ("ECU imports (`bench.ecu.master`, `bench.flight`)",
      "import bench.ecu.master, bench.flight",
      "import bench.ecu.master, bench.flight, scipy.signal"),
+    ("loopback hub process (`python -m bench.bus.hub --help`)",
+     ["-m", "bench.bus.hub", "--help"],
+     "import runpy, sys; sys.argv = ['hub', '--help']; "
+     "runpy.run_module('bench.bus.hub', run_name='__main__')"),
     ("`import can`", REFUSE + "import can", "import can"),
 )
 
 
-def once(code: str) -> float:
+def once(code: str | list[str]) -> float:
+    """Wall time of a fresh interpreter running `code` (-c) or the argument list."""
+    args = code if isinstance(code, list) else ["-c", code]
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+    subprocess.run([sys.executable, *args], check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
     return time.perf_counter() - t0
 
 
@@ -74,9 +83,11 @@ def report(rows: list[tuple[str, float, float]], repeats: int, load: float) -> s
         lines.append(f"| {name} | {now:.2f} s | {before:.2f} s | {before / now:.2f} |")
     lines += ["", "\"Now\" for the plant is what `python -m plant_rt` imports (asammdf "
               "refused), for the ECU what `bench run` imports (scipy.signal deferred to "
-              "the flight profile's turbulence); \"before\" is the same with those "
-              "imports, as it was. The hub and the `bench` command itself still load "
-              "asammdf through python-can (`import can`, last row).", ""]
+              "the flight profile's turbulence), for the hub what `python -m bench.bus.hub` "
+              "imports (asammdf refused, its `--help`: imports and argument parsing); "
+              "\"before\" is the same with those imports, as it was. The `bench` command "
+              "itself still loads asammdf through python-can (`import can`, last row): "
+              "`bench log` writes MF4.", ""]
     return "\n".join(lines)
 
 
