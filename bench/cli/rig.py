@@ -46,7 +46,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     s.add_argument("--holdout-runs", required=True, metavar="LIST",
                    help="healthy runs kept out of every threshold (e.g. 3,4)")
     s.add_argument("--healthy", default="normal", metavar="PREFIX",
-                   help="name prefix of the healthy table (default: normal)")
+                   help="name prefix of the healthy table(s); several tables (e.g. runs "
+                        "1-4 and 5-10) are one healthy condition (default: normal)")
     s.add_argument("--only", metavar="A,B", help="fault tables to score (default: all)")
     s.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
     s.add_argument("--workers", type=int, default=None, help="worker processes (default 2)")

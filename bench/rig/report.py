@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from bench.rig.cycles import stage_number
 from bench.rig.study import Study, mean_profile
 
 
@@ -70,7 +69,8 @@ def detection_figure(study: Study, path: Path) -> Path:
         ax.plot(x + (i - (len(study.loads) - 1) / 2) * width, zs, "_", ms=14, mew=2,
                 color=bars.patches[0].get_facecolor(), markeredgecolor="k")
     ax.axhline(0.9, color="r", ls="--", lw=0.8, label="goal 90 % (stages 6-8)")
-    ax.set_xticks(x, [str(stage_number(c) or c) for c in conds])
+    ax.set_xticks(x, [study.condition_label(c) for c in conds], rotation=0 if all(
+        study.condition_label(c).isdigit() for c in conds) else 30, fontsize=8)
     ax.set_xlabel("stage (black ticks: plain z-score at the same false-alarm rate)")
     ax.set_ylabel("cycles flagged")
     ax.set_ylim(0, 1.05)
@@ -89,6 +89,32 @@ def _mm(x: float) -> str:
     return "-" if not math.isfinite(x) else f"{x:.1f}"
 
 
+def _interval(iv: list[float] | None) -> str:
+    if not iv or not all(math.isfinite(x) for x in iv):
+        return "-"
+    return f"{100 * iv[0]:.1f}-{100 * iv[1]:.1f} %"
+
+
+def _cv_lines(sm: dict[str, Any]) -> list[str]:
+    """The healthy cross-validation's table (`population.cross_validate`)."""
+    rows = [(load, row["cross_validation"]) for load, row in sm["loads"].items()
+            if row.get("cross_validation")]
+    if not rows:
+        return []
+    k = rows[0][1]["k"]
+    out = ["", f"Healthy false alarms, cross-validated: every choice of {k} of the healthy "
+           "runs calibrates (as above), the cycles of the other healthy runs are judged; a "
+           "measurement only, no threshold comes from it:", "",
+           "| load | healthy runs | splits | cycles flagged / judged | rate (95 % interval) "
+           "| effects named |", "|---|---|---|---|---|---|"]
+    for load, cv in rows:
+        eff = ", ".join(f"{e} {n}" for e, n in sorted(cv["effects"].items())) or "none"
+        out.append(f"| {load} | {','.join(map(str, cv['runs']))} | {cv['splits']} | "
+                   f"{cv['flagged']} / {cv['judged']} | {_pct(cv['rate'])} "
+                   f"({_interval(cv['rate_95'])}) | {eff} |")
+    return out + [""]
+
+
 def markdown(study: Study, command: str) -> str:
     """The report: thresholds, false alarms, detection per stage, location, cost."""
     sm = study.summary
@@ -96,13 +122,15 @@ def markdown(study: Study, command: str) -> str:
              f"Baseline: {sm['baseline']}. Thresholds from the calibration runs "
              f"{sm['calibrate_runs']} only (leave-one-run-out); held-out healthy runs "
              f"{sm['holdout_runs']}.", "",
-             "| load | held-out healthy cycles flagged | z-score threshold (matched) | "
-             "thresholds |", "|---|---|---|---|"]
+             "| load | held-out healthy cycles flagged (95 % interval) | z-score threshold "
+             "(matched) | thresholds |", "|---|---|---|---|"]
     for load, row in sm["loads"].items():
         h = row["holdout"]
         thr = ", ".join(f"{k} {v:.3g}" for k, v in row["thresholds"].items())
-        lines.append(f"| {load} | {h['flagged']} / {h['cycles']} ({_pct(h['rate'])}) | "
-                     f"{row['zscore_threshold']:.3g} | {thr} |")
+        lines.append(f"| {load} | {h['flagged']} / {h['cycles']} ({_pct(h['rate'])}; "
+                     f"{_interval(h.get('rate_95'))}) | {row['zscore_threshold']:.3g} | {thr} |")
+    lines += _cv_lines(sm)
+    lines += [f"Not scored: {u}." for u in sm.get("unscored", [])]
     lines += ["", "Detection rate per stage (cycles flagged; in brackets the plain z-score "
               "at the same false-alarm rate) and the effect named:", "",
               "| stage | " + " | ".join(f"load {k}" for k in sm["loads"]) + " |",
@@ -117,7 +145,7 @@ def markdown(study: Study, command: str) -> str:
             eff = ", ".join(f"{k} {v}" for k, v in sorted(d["effects"].items(),
                                                           key=lambda kv: -kv[1]))
             cells.append(f"{_pct(d['rate'])} ({_pct(d['zscore_rate'])}); {eff or 'none'}")
-        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+        lines.append(f"| {study.condition_label(cond)} | " + " | ".join(cells) + " |")
     lines += ["", "Where the named effect lies (flagged cycles with a located effect: "
               "median position and interquartile range, mm of measured travel; out- and "
               "in-stroke alone):", "",
@@ -129,7 +157,7 @@ def markdown(study: Study, command: str) -> str:
             if d is None:
                 continue
             n = sum(v for k, v in d["effects"].items() if k in ("localised", "periodic"))
-            lines.append(f"| {stage_number(cond) or cond} | {load} | {n} | "
+            lines.append(f"| {study.condition_label(cond)} | {load} | {n} | "
                          f"{_mm(d['position_mm'])} | {_mm(d['position_iqr_mm'])} | "
                          f"{_mm(d['out_mm'])} | {_mm(d['in_mm'])} |")
     c = sm["cost"]
@@ -140,6 +168,9 @@ def markdown(study: Study, command: str) -> str:
               "| condition | cycles | wall s |", "|---|---|---|"]
     for k, v in c["wall_s"].items():
         lines.append(f"| {k} | {c['cycles_per_condition'][k]} | {v:.2f} |")
+    if c.get("cross_validation_s"):
+        lines.append(f"| healthy cross-validation (in this process) | - | "
+                     f"{c['cross_validation_s']:.2f} |")
     return "\n".join(lines) + "\n"
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import fnmatch
 import math
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +45,9 @@ class Study:
     healthy_condition: str
     wall_s: dict[str, float] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
+    unscored: list[str] = field(default_factory=list)     # cycles no threshold could judge
+    cross_validation: dict[float, dict[str, Any]] = field(default_factory=dict)
+    cross_validation_s: float = 0.0
 
     @property
     def loads(self) -> list[float]:
@@ -52,7 +56,19 @@ class Study:
     @property
     def fault_conditions(self) -> list[str]:
         names = [c for c in self.results if c != self.healthy_condition]
-        return sorted(names, key=lambda c: (stage_number(c) or 0, c))
+        return sorted(names, key=condition_key)
+
+    def condition_label(self, cond: str) -> str:
+        """A stage's number where every fault table is one family's stage (spalling1 ...
+        spalling8), else the table's name (backlash1 beside spalling1)."""
+        one_family = len({condition_key(c)[0] for c in self.fault_conditions}) == 1
+        n = stage_number(cond)
+        return str(n) if one_family and n is not None else cond
+
+
+def condition_key(cond: str) -> tuple[str, int, str]:
+    """Fault tables in order: by family (the name less its stage number), then stage."""
+    return (re.sub(r"\d+$", "", cond), stage_number(cond) or 0, cond)
 
 
 def score_cycle(job: tuple[B.LoadBaseline, Cycle, float | None]) -> CycleResult:
@@ -80,43 +96,89 @@ def table_files(directory: str | Path) -> list[Path]:
     return files
 
 
+def healthy_cycles(paths: list[Path]) -> tuple[str, list[Cycle]]:
+    """The cycles of one or more healthy tables (e.g. runs 1-4 in one file, runs 5-10 in
+    another), as one condition; a run of a load found in two tables is refused."""
+    seen: dict[tuple[float, int], str] = {}
+    cycles: list[Cycle] = []
+    for p in paths:
+        mine = read_cycles(p)
+        for key in sorted({(c.load, c.run) for c in mine}):
+            if key in seen:
+                raise BenchError(f"run {key[1]} of load {key[0]:g} is in both {seen[key]} "
+                                 f"and {p.name}: one healthy run per table")
+            seen[key] = p.name
+        cycles += mine
+    if len(paths) == 1:
+        return condition_name(paths[0]), cycles
+    name = "+".join(condition_name(p) for p in paths)
+    return name, cycles
+
+
 def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: list[int],
               healthy: str = "normal*", workers: int | None = None, alpha: float = P.ALPHA,
               progress: bool = True, conditions: list[str] | None = None,
               lead_mm: float | None = None, scheduler: str | None = None) -> Study:
     """Baseline and thresholds from the healthy table's `calibrate_runs`, then the
     held-out healthy runs and every fault table scored (per condition a `run_all`)."""
-    from bench.workers import run_all
     if set(calibrate_runs) & set(holdout_runs):
         raise BenchError("the calibration and held-out runs overlap: "
                          f"{sorted(set(calibrate_runs) & set(holdout_runs))}")
     files = table_files(directory)
     healthy_files = [p for p in files if fnmatch.fnmatch(p.name, healthy + "*")]
-    if len(healthy_files) != 1:
-        raise BenchError(f"{directory}: expected one healthy table matching {healthy!r}, "
-                         f"found {len(healthy_files)}")
-    hname = condition_name(healthy_files[0])
-    hcycles = read_cycles(healthy_files[0])
+    if not healthy_files:
+        raise BenchError(f"{directory}: no healthy table matching {healthy + '*'!r}")
+    hname, hcycles = healthy_cycles(healthy_files)
     cal = [c for c in hcycles if c.run in calibrate_runs]
     hold = [c for c in hcycles if c.run in holdout_runs]
     if not cal or not hold:
-        raise BenchError(f"{healthy_files[0]}: no cycle of the calibration runs "
-                         f"{calibrate_runs} or of the held-out runs {holdout_runs}")
-    base = B.build(cal, [healthy_files[0].name])
+        raise BenchError(f"{', '.join(p.name for p in healthy_files)}: no cycle of the "
+                         f"calibration runs {calibrate_runs} or of the held-out runs "
+                         f"{holdout_runs}")
+    base = B.build(cal, [p.name for p in healthy_files])
     base.lead_mm = lead_mm
     cals = {}
     for load in sorted({c.load for c in cal}):
         cals[load] = P.calibrate([c for c in cal if c.load == load], alpha, lead_mm)
     base.thresholds = {f"{k:g}": v.to_json() for k, v in cals.items()}
     study = Study(base, cals, sorted(holdout_runs), {}, hname)
+    idle = sorted({c.run for c in hcycles} - set(calibrate_runs) - set(holdout_runs))
+    if idle:
+        study.unscored.append(f"{hname}: healthy run(s) {','.join(map(str, idle))} neither "
+                              "calibrate nor are held out (--holdout-runs)")
     todo: list[tuple[str, list[Cycle]]] = [(hname, hold)]
     for p in files:
         name = condition_name(p)
         if p in healthy_files or (conditions and name not in conditions):
             continue
         todo.append((name, read_cycles(p)))
+    _score(study, todo, base, cals, lead_mm, workers, progress, scheduler)
+    t0 = time.perf_counter()
+    healthy_runs = sorted(set(calibrate_runs) | set(holdout_runs))
+    for load in cals:
+        mine = [c for c in hcycles if c.load == load and c.run in healthy_runs]
+        study.cross_validation[load] = P.cross_validate(mine, len(calibrate_runs), alpha,
+                                                        lead_mm)
+    study.cross_validation_s = time.perf_counter() - t0
+    study.summary = summarise(study)
+    return study
+
+
+def _score(study: Study, todo: list[tuple[str, list[Cycle]]], base: B.Baseline,
+           cals: dict[float, P.Calibration], lead_mm: float | None, workers: int | None,
+           progress: bool, scheduler: str | None) -> None:
+    """Every condition's cycles scored over `run_all`, per load; cycles at a load without
+    thresholds listed in `study.unscored`."""
+    from bench.workers import run_all
     for name, cycles in todo:
         jobs = [(base.for_load(c.load), c, lead_mm) for c in cycles if c.load in cals]
+        skipped = sorted({c.load for c in cycles if c.load not in cals})
+        for load in skipped:
+            n = sum(c.load == load for c in cycles)
+            study.unscored.append(f"{name}: {n} cycle(s) at load {load:g} not scored "
+                                  "(no healthy calibration run at that load)")
+        if not jobs:
+            continue
         t0 = time.perf_counter()
         res = run_all(score_cycle, jobs, workers=workers, progress=progress, desc=name,
                       unit="cycle", scheduler=scheduler)
@@ -125,8 +187,6 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
         for (lb, _, _), r in zip(jobs, res, strict=True):
             per.setdefault(lb.load, []).append(r)
         study.results[name] = per
-    study.summary = summarise(study)
-    return study
 
 
 def summarise(study: Study) -> dict[str, Any]:
@@ -141,8 +201,10 @@ def summarise(study: Study) -> dict[str, Any]:
         fa = P.rates([r.features for r in hold], thr)
         zthr = P.matched_threshold([r.zscore for r in hold], fa["flagged"])
         fa["zscore_rate"] = _zrate(hold, zthr)
+        fa["rate_95"] = P.clopper_pearson(fa["flagged"], fa["cycles"])
         row: dict[str, Any] = {"thresholds": thr, "zscore_threshold": zthr,
-                               "holdout": fa, "stages": {}}
+                               "holdout": fa, "stages": {},
+                               "cross_validation": study.cross_validation.get(load, {})}
         for cond in study.fault_conditions:
             rs = study.results[cond].get(load, [])
             if not rs:
@@ -151,9 +213,11 @@ def summarise(study: Study) -> dict[str, Any]:
             d["zscore_rate"] = _zrate(rs, zthr)
             row["stages"][cond] = d
         out["loads"][f"{load:g}"] = row
+    out["unscored"] = list(study.unscored)
     secs = [r.seconds for c in study.results.values() for v in c.values() for r in v]
     out["cost"] = {"cycle_s_median": float(np.median(secs)), "cycle_s_max": float(max(secs)),
                    "cycles": len(secs), "wall_s": study.wall_s,
+                   "cross_validation_s": study.cross_validation_s,
                    "cycles_per_condition": {k: sum(len(v) for v in c.values())
                                             for k, c in study.results.items()}}
     return out

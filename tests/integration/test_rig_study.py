@@ -1,0 +1,105 @@
+"""`bench rig study` beyond one healthy table (issue 11: the rig's other healthy runs may
+come in another file): several healthy tables as one condition, the healthy false-alarm
+rate cross-validated over every split of the healthy runs, cycles of a load without a
+threshold reported instead of dropped, and fault tables of two families kept apart."""
+
+from __future__ import annotations
+
+import io
+import json
+import lzma
+import shutil
+from pathlib import Path
+
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
+import pytest
+
+from bench.rig import population as P
+from bench.rig.cycles import read_cycles
+
+SAMPLE = Path(__file__).resolve().parents[1] / "data" / "cranfield_sample"
+HEALTHY = "normal_load40_runs1-4.csv.xz"
+SPALL = "spalling5_load40_runs1-2.csv.xz"
+
+
+def _table():
+    return pacsv.read_csv(io.BytesIO(lzma.decompress((SAMPLE / HEALTHY).read_bytes())))
+
+
+def _write(table, path: Path) -> Path:
+    pacsv.write_csv(table, path)
+    return path
+
+
+def _runs(table, runs: tuple[int, ...]):
+    return table.filter(pc.is_in(table["run"], value_set=__import__("pyarrow").array(runs)))
+
+
+def test_clopper_pearson_matches_the_exact_interval():
+    # the exact (Clopper-Pearson) 95 % interval of 1 in 10 and of 0 in 10
+    lo, hi = P.clopper_pearson(1, 10)
+    assert lo == pytest.approx(0.0025286, rel=1e-4) and hi == pytest.approx(0.4450161, rel=1e-6)
+    assert P.clopper_pearson(0, 10) == [0.0, pytest.approx(0.3084971, rel=1e-6)]
+
+
+def test_cross_validation_judges_every_held_out_cycle_of_every_split():
+    cyc = read_cycles(SAMPLE / HEALTHY)
+    cv = P.cross_validate(cyc, 2, lead_mm=5.0)
+    assert cv["splits"] == 6 and cv["runs"] == [1, 2, 3, 4]
+    assert cv["judged"] == 6 * 10                      # 2 held-out runs x 5 cycles each
+    assert sum(s["flagged"] for s in cv["per_split"]) == cv["flagged"]
+    assert cv["rate_95"][0] <= cv["rate"] <= cv["rate_95"][1]
+    # one split by hand: thresholds of runs 1,2 judge runs 3,4 as the study does
+    from bench.rig.baseline import build_load
+    from bench.rig.features import cycle_features, judge
+    cal = [c for c in cyc if c.run in (1, 2)]
+    thr = P.calibrate(cal, lead_mm=5.0).thresholds
+    lb = build_load(cal)
+    hand = sum(judge(cycle_features(lb, c, 5.0), thr)[0] for c in cyc if c.run in (3, 4))
+    first = next(s for s in cv["per_split"] if s["calibrate_runs"] == [1, 2])
+    assert first["flagged"] == hand
+    assert P.cross_validate(cyc, 4) == {}              # no run left to hold out
+
+
+def test_study_takes_two_healthy_tables_and_reports_what_it_cannot_score(tmp_path, capsys):
+    from bench.cli import main
+    t = _table()
+    d = tmp_path / "rig"
+    d.mkdir()
+    _write(_runs(t, (1, 2)), d / "normal_runs1-2.csv")
+    _write(_runs(t, (3, 4)), d / "normal_runs3-4.csv")
+    shutil.copy(SAMPLE / SPALL, d / SPALL)
+    # a fault table of another family, one of its cycles at a load no healthy run has
+    other = _runs(t, (3,))
+    load = pc.if_else(pc.equal(other["group"], other["group"][0]), 20, other["load"])
+    other = other.set_column(other.schema.get_field_index("load"), "load", load)
+    _write(other, d / "backlash1.csv")
+    out = tmp_path / "out"
+    assert main(["rig", "study", str(d), "--calibrate-runs", "1", "--holdout-runs", "3",
+                 "--lead-mm", "5", "--workers", "1", "--out", str(out)]) == 2
+    assert "at least two healthy" in capsys.readouterr().err
+    assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3",
+                 "--lead-mm", "5", "--workers", "1", "--only", "backlash1",
+                 "--out", str(out)]) == 0
+    sm = json.loads((out / "study.json").read_text())
+    assert "normal_runs1-2+normal_runs3-4: healthy run(s) 4 neither calibrate nor are held " \
+           "out (--holdout-runs)" in sm["unscored"]
+    assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
+                 "--lead-mm", "5", "--workers", "1", "--out", str(out)]) == 0
+    sm = json.loads((out / "study.json").read_text())
+    row = sm["loads"]["40"]
+    assert row["holdout"]["cycles"] == 10                 # runs 3,4 from the second table
+    assert row["cross_validation"]["judged"] == 60
+    assert sm["unscored"] == ["backlash1: 1 cycle(s) at load 20 not scored (no healthy "
+                              "calibration run at that load)"]
+    assert set(row["stages"]) == {"backlash1", SPALL.removesuffix(".csv.xz")}
+    assert row["stages"]["backlash1"]["cycles"] == 4
+    md = (out / "report.md").read_text()
+    assert "| backlash1 |" in md and "Not scored: backlash1" in md
+    assert "Healthy false alarms, cross-validated" in md
+    # the same run in two healthy tables: refused in one line
+    _write(_runs(t, (2, 3)), d / "normal_runs2-3.csv")
+    assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
+                 "--lead-mm", "5", "--workers", "1", "--out", str(out)]) == 2
+    assert "is in both" in capsys.readouterr().err
