@@ -14,6 +14,9 @@ interleaved (A, B, A, B, ...) so both see the same load, a fresh interpreter eac
 - the loopback hub's process as `bench up` starts it (`python -m bench.bus.hub`, asammdf
   refused since 2026-11-24, session 7: the hub writes no log) against the same module run
   under another command line (runpy), which keeps python-can's MF4 import (before);
+- `bench down` as the command runs (up, status, down and plant refuse the MF4 import
+  since 2026-11-24, session 7: they read and write no log) against the same command called
+  in-process (`main(['down'])`, which keeps it: before);
 - for scale, `import can` alone with and without asammdf.
 
 Wall time of `python -c "..."` per variant, the median of `--repeats`, and the ratio.
@@ -38,6 +41,9 @@ from perfdoc import write_section  # noqa: E402
 from bench import machine_description  # noqa: E402
 
 REFUSE = "import sys; sys.modules['asammdf'] = None; "
+# `bench down` against a state folder of its own, empty (never the user's running bench)
+EMPTY_STATE = ("import os, sys, tempfile; _d = tempfile.TemporaryDirectory(); "
+               "os.environ['BENCH_STATE_DIR'] = _d.name; ")
 PAIRS = (
     ("plant node imports (`plant_rt.node`)",
      REFUSE + "import plant_rt.node", "import plant_rt.node"),
@@ -48,6 +54,9 @@ PAIRS = (
      ["-m", "bench.bus.hub", "--help"],
      "import runpy, sys; sys.argv = ['hub', '--help']; "
      "runpy.run_module('bench.bus.hub', run_name='__main__')"),
+    ("`bench down` with nothing to stop",
+     EMPTY_STATE + "sys.argv = ['bench', 'down']; from bench.cli import main; main()",
+     EMPTY_STATE + "from bench.cli import main; main(['down'])"),
     ("`import can`", REFUSE + "import can", "import can"),
 )
 
@@ -56,7 +65,8 @@ def once(code: str | list[str]) -> float:
     """Wall time of a fresh interpreter running `code` (-c) or the argument list."""
     args = code if isinstance(code, list) else ["-c", code]
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, *args], check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+    subprocess.run([sys.executable, *args], check=True, cwd=ROOT, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
     return time.perf_counter() - t0
 
 
@@ -85,9 +95,10 @@ def report(rows: list[tuple[str, float, float]], repeats: int, load: float) -> s
               "refused), for the ECU what `bench run` imports (scipy.signal deferred to "
               "the flight profile's turbulence), for the hub what `python -m bench.bus.hub` "
               "imports (asammdf refused, its `--help`: imports and argument parsing); "
-              "\"before\" is the same with those imports, as it was. The `bench` command "
-              "itself still loads asammdf through python-can (`import can`, last row): "
-              "`bench log` writes MF4.", ""]
+              "\"before\" is the same with those imports, as it was. `bench up`, `status`, "
+              "`down` and `plant` refuse it too (they read and write no log); the other "
+              "`bench` commands still load asammdf through python-can (`import can`, last "
+              "row): they read or write MF4 logs.", ""]
     return "\n".join(lines)
 
 

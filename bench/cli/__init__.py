@@ -42,6 +42,12 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+# commands that read and write no log file: their process refuses python-can's MF4 import
+# (asammdf and pandas, ~0.6-0.9 s of every `bench down`), as `python -m plant_rt` and the
+# hub do; only when `bench` runs as its own process (never for `main(argv)` in-process)
+NO_LOG_FILES = frozenset({"up", "status", "down", "plant"})
+
+
 def selected_command(argv: list[str]) -> str | None:
     """The subcommand `argv` runs: its first word that is not an option (the top-level
     options take no value), None if there is none."""
@@ -79,10 +85,18 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     from bench import interrupts
     with interrupts.counting():     # a Ctrl-C that an import swallows is still seen
-        return _main(argv)
+        rc = _main(argv)
+    try:
+        sys.stdout.flush()          # what is still buffered, while a closed pipe is caught
+    except BrokenPipeError:
+        return _reader_gone()
+    return rc
 
 
 def _main(argv: list[str] | None) -> int:
+    if argv is None and selected_command(sys.argv[1:]) in NO_LOG_FILES \
+            and "asammdf" not in sys.modules:
+        sys.modules["asammdf"] = None  # type: ignore[assignment]
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
     args = parser.parse_args(argv)
@@ -99,6 +113,8 @@ def _main(argv: list[str] | None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        return _reader_gone()
     except Exception as exc:  # noqa: BLE001 - the CLI never shows a bare traceback
         if args.debug:
             traceback.print_exc()
@@ -106,6 +122,19 @@ def _main(argv: list[str] | None) -> int:
               file=sys.stderr)
         return 1
     return int(rc or 0)
+
+
+def _reader_gone() -> int:
+    """The reader of stdout went away (`bench status | head -3`): end quietly, as a Unix
+    tool killed by SIGPIPE would (exit 141), and point stdout at /dev/null so that the
+    interpreter's final flush does not raise again (Python's documented recipe)."""
+    import os
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return 141
 
 
 if __name__ == "__main__":
