@@ -120,8 +120,11 @@ def _read(tables: list[str], runs: list[int] | None) -> list[Any]:
     from bench import BenchError
     from bench.rig.cycles import read_cycles
     cycles = []
+    lost: list[str] = []
     for t in tables:
-        cycles += [c for c in read_cycles(t) if runs is None or c.run in runs]
+        cycles += [c for c in read_cycles(t, skipped=lost) if runs is None or c.run in runs]
+    for line in lost:                 # reported, never dropped silently
+        print(line, file=sys.stderr)
     if not cycles:
         raise BenchError(f"no cycle of run(s) {runs} in {', '.join(tables)}")
     return cycles
@@ -173,7 +176,7 @@ def _assess(args: argparse.Namespace) -> int:
     base = Baseline.load(args.baseline)
     cycles = _read(args.tables, runs_list(args.runs, "--runs"))
     verdicts: list[dict[str, Any]] = []
-    counts: dict[tuple[str, float], tuple[int, int]] = {}
+    counts: dict[tuple[str, float], tuple[int, int, int]] = {}
     for c in cycles:
         cal = base.thresholds.get(f"{c.load:g}")
         if cal is None:
@@ -183,14 +186,17 @@ def _assess(args: argparse.Namespace) -> int:
         v = verdict(base, f, cal["thresholds"])
         verdicts.append(v)
         key = (c.source, c.load)
-        n, k = counts.get(key, (0, 0))
-        counts[key] = (n + 1, k + int(v["flagged"]))
+        n, k, u = counts.get(key, (0, 0, 0))
+        counts[key] = (n + int(v["judged"]), k + int(v["flagged"]), u + int(not v["judged"]))
         if not args.quiet:
-            print(f"{c.label}: {'FLAGGED' if v['flagged'] else 'ok'}: {v['verdict']}")
+            state = "FLAGGED" if v["flagged"] else ("ok" if v["judged"] else "NOT JUDGED")
+            print(f"{c.label}: {state}: {v['verdict']}")
     if not args.quiet and verdicts:
         print(f"against {verdicts[0]['baseline']}")
-    for (src, load), (n, k) in sorted(counts.items()):
-        print(f"{src} load {load:g}: {k} / {n} cycles flagged ({100 * k / n:.0f} %)")
+    for (src, load), (n, k, u) in sorted(counts.items()):
+        rate = f"{100 * k / n:.0f} %" if n else "-"
+        print(f"{src} load {load:g}: {k} / {n} cycles flagged ({rate})"
+              + (f"; {u} incomplete cycle(s) not judged" if u else ""))
     if args.json:
         text = json.dumps(verdicts, indent=1, default=str)
         if args.json == "-":

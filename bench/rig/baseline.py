@@ -306,6 +306,29 @@ def build(cycles: list[Cycle], sources: list[str] | None = None) -> Baseline:
     return Baseline({k: build_load(v) for k, v in sorted(loads.items())}, srcs)
 
 
+SHORT_SAMPLES = 2
+"""A cycle's phase may be this many samples shorter than the baseline's (a sampling
+instant's jitter) and still be judged; shorter, or missing, and the cycle is incomplete."""
+
+
+def incomplete(lb: LoadBaseline, cycle: Cycle) -> str:
+    """Why `cycle` cannot be judged against the baseline ("" when it can): a phase the
+    baseline has is missing or cut short (a log that starts or stops inside a cycle). A
+    partial cycle judged as a whole would read its missing part as a fault. (On the
+    Cranfield development set every one of its 1260 cycles has the baseline's phase
+    lengths exactly.)"""
+    have = {s.name: len(s) for s in phases(cycle.setpoint_mm)}
+    missing = [name for name in lb.phases if name not in have]
+    if missing:
+        return (f"incomplete cycle: no {', '.join(missing)} phase ({len(cycle)} samples; "
+                f"the baseline's cycle has {', '.join(lb.phases)})")
+    short = [f"{name} {have[name]} of {len(ps)} samples" for name, ps in lb.phases.items()
+             if have[name] < len(ps) - SHORT_SAMPLES]
+    if short:
+        return f"incomplete cycle: {', '.join(short)}"
+    return ""
+
+
 def residuals(lb: LoadBaseline, cycle: Cycle, sig: str = "current_a"
               ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per phase of `cycle` that the baseline has: (standardised residual of `sig` per

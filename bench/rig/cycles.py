@@ -134,15 +134,22 @@ def _decompressed(path: Path) -> bytes:
     return path.read_bytes()
 
 
-def read_cycles(path: str | Path, columns: dict[str, str] | None = None) -> list[Cycle]:
-    """The motion cycles of a rig's table or of a `bench import` trace, in file order."""
+MIN_SAMPLES = 8          # a cycle shorter than this is not read
+
+
+def read_cycles(path: str | Path, columns: dict[str, str] | None = None,
+                skipped: list[str] | None = None) -> list[Cycle]:
+    """The motion cycles of a rig's table or of a `bench import` trace, in file order. A
+    cycle of fewer than `MIN_SAMPLES` samples, or with a sample without set-point,
+    position or current, is not read; `skipped` (when given) gets one line per such
+    cycle saying why, so that a caller reports it instead of losing it silently."""
     path = Path(path)
     if path.name.lower().endswith(".npz"):
-        return _trace_cycles(path)
+        return _trace_cycles(path, skipped)
     cols = dict(DEFAULT_COLUMNS, **(columns or {}))
     raw = read_columns(path)
     if is_trace(path, raw):
-        return _trace_cycles(path)                   # a bench trace, not a rig table
+        return _trace_cycles(path, skipped)          # a bench trace, not a rig table
     source = condition_name(path)
     need = ["setpoint", "current"]
     missing = [cols[k] for k in need if cols[k] not in raw]
@@ -159,18 +166,15 @@ def read_cycles(path: str | Path, columns: dict[str, str] | None = None) -> list
     load = raw.get(cols["load"], np.full(n, np.nan))
     run = raw.get(cols["run"], np.zeros(n))
     time = raw.get(cols["time"])
-    out = []
+    out: list[Cycle] = []
     # rows of one cycle are contiguous in the table; keep the table's order
     starts = np.flatnonzero(np.r_[True, np.diff(group) != 0,])
     bounds = list(starts) + [n]
     for a, b in zip(bounds[:-1], bounds[1:], strict=False):
-        if b - a < 8:
-            continue
         t = time[a:b] - time[a] if time is not None else np.arange(b - a, dtype=float)
         cyc = Cycle(t, sp[a:b], pos[a:b], raw[cols["current"]][a:b], float(load[a]),
                     int(run[a]), int(group[a]), source)
-        if np.isfinite(cyc.setpoint_mm).all() and np.isfinite(cyc.current_a).all():
-            out.append(cyc)
+        _keep(cyc, out, skipped)
     if not out:
         raise BenchError(f"{path}: no complete motion cycle in the table")
     return out
@@ -187,13 +191,34 @@ def is_trace(path: str | Path, raw: dict[str, Any] | None = None) -> bool:
     return "setpoint_position_m" in (raw if raw is not None else read_columns(Path(path)))
 
 
-def _trace_cycles(path: Path) -> list[Cycle]:
+def _keep(cyc: Cycle, out: list[Cycle], skipped: list[str] | None) -> None:
+    """`cyc` appended to `out`, or the reason it is not read appended to `skipped`."""
+    why = unreadable(cyc)
+    if not why:
+        out.append(cyc)
+    elif skipped is not None:
+        skipped.append(f"{cyc.label}: {why}: not read")
+
+
+def unreadable(cyc: Cycle) -> str:
+    """Why a cycle cannot be used at all ("" it can): too short, or samples without a
+    value (a gap in the log; nothing is interpolated)."""
+    if len(cyc) < MIN_SAMPLES:
+        return f"{len(cyc)} sample(s), fewer than {MIN_SAMPLES}"
+    bad = [f"{int(np.count_nonzero(~np.isfinite(x)))} without {name}"
+           for name, x in (("set-point", cyc.setpoint_mm), ("position", cyc.position_mm),
+                           ("current", cyc.current_a)) if not np.isfinite(x).all()]
+    return f"samples {', '.join(bad)}" if bad else ""
+
+
+def _trace_cycles(path: Path, skipped: list[str] | None = None) -> list[Cycle]:
     """Cycles of a `bench import` trace file (metres -> mm), split by set-point."""
     from bench.trace import Trace
-    return cycles_from_trace(Trace.load(path), condition_name(path))
+    return cycles_from_trace(Trace.load(path), condition_name(path), skipped=skipped)
 
 
-def cycles_from_trace(tr: Any, name: str, run: int | None = None) -> list[Cycle]:
+def cycles_from_trace(tr: Any, name: str, run: int | None = None,
+                      skipped: list[str] | None = None) -> list[Cycle]:
     """Cycles of a trace (`bench.trace.Trace`, metres -> mm): one per `group` key of a
     `bench import --split-by` trace, else split where an out-stroke starts. The load and
     the run come from the split keys (the table's own units), else the metadata, else
@@ -207,13 +232,12 @@ def cycles_from_trace(tr: Any, name: str, run: int | None = None) -> list[Cycle]
     load = float(keys.get("load", tr.meta.get("load", _logged_load(tr))))
     run_no = int(keys.get("run", tr.meta.get("run", 0 if run is None else run)))
     unit = load_unit(tr.meta)
-    out = []
+    out: list[Cycle] = []
     for g in np.unique(group):
         m = group == g
-        if m.sum() >= 8:
-            out.append(Cycle(tr.t[m] - tr.t[m][0], sp[m], pos[m], tr["current_a"][m], load,
-                             run_no, int(g), str(tr.meta.get("source_name", name)),
-                             dict(tr.meta), unit))
+        _keep(Cycle(tr.t[m] - tr.t[m][0], sp[m], pos[m], tr["current_a"][m], load,
+                    run_no, int(g), str(tr.meta.get("source_name", name)),
+                    dict(tr.meta), unit), out, skipped)
     return out
 
 

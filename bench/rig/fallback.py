@@ -48,11 +48,18 @@ def read_log(path: str | Path) -> Any:
     return load_trace(path)
 
 
-def log_cycles(trace: Any, name: str, run: int | None = None) -> list[Cycle]:
-    """The motion cycles of one log (`cycles.cycles_from_trace`), BenchError when none."""
-    cycles = cycles_from_trace(trace, name, run)
+def log_cycles(trace: Any, name: str, run: int | None = None,
+               skipped: list[str] | None = None) -> list[Cycle]:
+    """The motion cycles of one log (`cycles.cycles_from_trace`; those it cannot read
+    are listed in `skipped`), BenchError when none."""
+    lost: list[str] = []
+    cycles = cycles_from_trace(trace, name, run, skipped=lost)
+    if skipped is not None:
+        skipped += lost
     if not cycles:
-        raise BenchError(f"{name}: no motion cycle of 8 samples or more in the log")
+        why = f" ({'; '.join(lost[:3])})" if lost else ""
+        raise BenchError(f"{name}: no complete motion cycle of 8 samples or more in the "
+                         f"log{why}")
     return cycles
 
 
@@ -63,10 +70,11 @@ def build_from_logs(paths: Sequence[str | Path], lead_mm: float | None,
     in `paths`, from 1)."""
     cycles: list[Cycle] = []
     sources: list[str] = []
+    lost: list[str] = []
     unit = ""
     for k, p in enumerate(paths, start=1):
         tr = read_log(p)
-        cycles += log_cycles(tr, Path(p).name, run=k)
+        cycles += log_cycles(tr, Path(p).name, run=k, skipped=lost)
         src = Path(str(tr.meta.get("source", p))).name
         if src not in sources:
             sources.append(src)
@@ -74,7 +82,7 @@ def build_from_logs(paths: Sequence[str | Path], lead_mm: float | None,
     base = B.build(cycles, sources)
     base.lead_mm = lead_mm
     base.load_unit = unit
-    notes = []
+    notes = [f"not in the baseline: {x}" for x in lost]
     for load in sorted(base.loads):
         mine = [c for c in cycles if c.load == load]
         runs = sorted({c.run for c in mine})
@@ -321,9 +329,9 @@ def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
     load, the other cycles run), the phase indexes against the baseline's per load, and
     the log's result (flagged cycles, effects). Raises BenchError with the reason when no
     cycle can be judged against it."""
-    cycles = log_cycles(trace, name)
-    unit = load_unit(trace.meta)
     notes: list[str] = []
+    cycles = log_cycles(trace, name, skipped=notes)
+    unit = load_unit(trace.meta)
     verdicts: list[dict[str, Any]] = []
     feats = []
     at: dict[float, list[Cycle]] = {}
@@ -346,6 +354,9 @@ def assess(base: B.Baseline, trace: Any, name: str) -> dict[str, Any]:
             verdicts.append(_unjudged(c, own, f"no thresholds for load "
                                       f"{base.load_text(load)} in {base.path} (they need two "
                                       "or more healthy runs): features without a verdict"))
+            continue
+        if f.incomplete:
+            verdicts.append(_unjudged(c, own, f.incomplete))
             continue
         ratios = [f.scores[k] / t for k, t in thr.items()
                   if t > 0 and math.isfinite(f.scores.get(k, math.nan))]

@@ -60,7 +60,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.rig.baseline import Baseline, LoadBaseline, residuals
+from bench.rig.baseline import Baseline, LoadBaseline, incomplete, residuals
 from bench.rig.cycles import Cycle
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
@@ -100,6 +100,7 @@ class CycleFeatures:
     periodic_in_mm: float = float("nan")
     index_at: str = ""                    # the phase and index of the largest index |z|
     notes: list[str] = field(default_factory=list)
+    incomplete: str = ""                  # why the cycle cannot be judged ("" it can)
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
@@ -219,7 +220,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
     return CycleFeatures(cycle.label, cycle.source, cycle.load, cycle.run, cycle.group,
                          scores, loc[1], loc[2], loc[3],
                          side["out"], side["in"], levels["out"], levels["in"],
-                         per[1], per[2], per[3], idx_at, notes)
+                         per[1], per[2], per[3], idx_at, notes, incomplete(lb, cycle))
 
 
 def stroke_signal(lb: LoadBaseline) -> str:
@@ -287,7 +288,12 @@ nan_ = float("nan")
 
 def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> dict[str, Any]:
     """The verdict of one cycle: flagged or not, the effect, where (for a localised one),
-    the scores against their thresholds, and the baseline used."""
+    the scores against their thresholds, and the baseline used. An incomplete cycle is
+    not judged (`judged` false) and says why."""
+    if f.incomplete:
+        return {"cycle": f.label, "flagged": False, "judged": False, "effect": "not judged",
+                "verdict": f"not judged: {f.incomplete}", "reasons": [],
+                "baseline": base.describe(f.load), "location_mm": None}
     flagged, effect, reasons = judge(f, thresholds)
     if not flagged:
         text = "no significant deviation from the healthy baseline"
@@ -310,7 +316,8 @@ def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> d
               and f.scores.get(k, 0.0) > thresholds[k]]
     if flagged and others:
         text += "; also above threshold: " + ", ".join(others)
-    return {"cycle": f.label, "flagged": flagged, "effect": effect, "verdict": text,
+    return {"cycle": f.label, "flagged": flagged, "judged": True, "effect": effect,
+            "verdict": text,
             "reasons": reasons, "baseline": base.describe(f.load),
             "location_mm": location(f, effect)}
 

@@ -110,6 +110,8 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None =
         for c in cycles:
             if c.run == r:
                 f = cycle_features(lb, c, lead_mm)
+                if f.incomplete:          # a partial cycle gives no healthy score
+                    continue
                 for k in FEATURES:
                     scores[k].append(f.scores[k])
     usable = {k: v for k, v in scores.items() if np.isfinite(v).all()}
@@ -147,7 +149,10 @@ def cross_validate(cycles: list[Cycle], k: int, alpha: float = ALPHA,
         for c in cycles:
             if c.run in cal_runs:
                 continue
-            hit, effect, _ = judge(cycle_features(lb, c, lead_mm), thr)
+            feat = cycle_features(lb, c, lead_mm)
+            if feat.incomplete:
+                continue
+            hit, effect, _ = judge(feat, thr)
             n += 1
             f += int(hit)
             if hit:
@@ -193,7 +198,10 @@ def matched_threshold(healthy_scores: list[float], n_flagged: int) -> float:
 
 def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[str, Any]:
     """Detection (or false-alarm) rate of a condition, the effects named and where the
-    localised ones are (median and interquartile range of the position in mm)."""
+    localised ones are (median and interquartile range of the position in mm); incomplete
+    cycles are not judged (`not_judged`, outside the rate)."""
+    skipped = [f for f in features if f.incomplete]
+    features = [f for f in features if not f.incomplete]
     n = len(features)
     flagged = 0
     effects: dict[str, int] = {}
@@ -212,7 +220,8 @@ def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[s
             outs.append(f.out_mm)
             ins.append(f.in_mm)
     out: dict[str, Any] = {"cycles": n, "flagged": flagged,
-                           "rate": flagged / n if n else float("nan"), "effects": effects}
+                           "rate": flagged / n if n else float("nan"), "effects": effects,
+                           "not_judged": len(skipped)}
     out.update(_where(locs, "position"))
     out.update(_where(outs, "out"))
     out.update(_where(ins, "in"))

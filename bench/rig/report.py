@@ -127,8 +127,10 @@ def markdown(study: Study, command: str) -> str:
     for load, row in sm["loads"].items():
         h = row["holdout"]
         thr = ", ".join(f"{k} {v:.3g}" for k, v in row["thresholds"].items())
+        skip = f"; {h['not_judged']} incomplete not judged" if h.get("not_judged") else ""
         lines.append(f"| {load} | {h['flagged']} / {h['cycles']} ({_pct(h['rate'])}; "
-                     f"{_interval(h.get('rate_95'))}) | {row['zscore_threshold']:.3g} | {thr} |")
+                     f"{_interval(h.get('rate_95'))}){skip} | {row['zscore_threshold']:.3g} "
+                     f"| {thr} |")
     lines += _cv_lines(sm)
     lines += [f"Not scored: {u}." for u in sm.get("unscored", [])]
     lines += ["", "Detection rate per stage (cycles flagged; in brackets the plain z-score "
@@ -144,7 +146,8 @@ def markdown(study: Study, command: str) -> str:
                 continue
             eff = ", ".join(f"{k} {v}" for k, v in sorted(d["effects"].items(),
                                                           key=lambda kv: -kv[1]))
-            cells.append(f"{_pct(d['rate'])} ({_pct(d['zscore_rate'])}); {eff or 'none'}")
+            skip = f"; {d['not_judged']} incomplete not judged" if d.get("not_judged") else ""
+            cells.append(f"{_pct(d['rate'])} ({_pct(d['zscore_rate'])}); {eff or 'none'}{skip}")
         lines.append(f"| {study.condition_label(cond)} | " + " | ".join(cells) + " |")
     lines += ["", "Where the named effect lies (flagged cycles with a located effect: "
               "median position and interquartile range, mm of measured travel; out- and "

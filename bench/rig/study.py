@@ -96,13 +96,15 @@ def table_files(directory: str | Path) -> list[Path]:
     return files
 
 
-def healthy_cycles(paths: list[Path]) -> tuple[str, list[Cycle]]:
+def healthy_cycles(paths: list[Path], lost: list[str] | None = None
+                   ) -> tuple[str, list[Cycle]]:
     """The cycles of one or more healthy tables (e.g. runs 1-4 in one file, runs 5-10 in
-    another), as one condition; a run of a load found in two tables is refused."""
+    another), as one condition; a run of a load found in two tables is refused. Cycles
+    that cannot be read are listed in `lost`."""
     seen: dict[tuple[float, int], str] = {}
     cycles: list[Cycle] = []
     for p in paths:
-        mine = read_cycles(p)
+        mine = read_cycles(p, skipped=lost)
         for key in sorted({(c.load, c.run) for c in mine}):
             if key in seen:
                 raise BenchError(f"run {key[1]} of load {key[0]:g} is in both {seen[key]} "
@@ -128,7 +130,8 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
     healthy_files = [p for p in files if fnmatch.fnmatch(p.name, healthy + "*")]
     if not healthy_files:
         raise BenchError(f"{directory}: no healthy table matching {healthy + '*'!r}")
-    hname, hcycles = healthy_cycles(healthy_files)
+    lost: list[str] = []
+    hname, hcycles = healthy_cycles(healthy_files, lost)
     cal = [c for c in hcycles if c.run in calibrate_runs]
     hold = [c for c in hcycles if c.run in holdout_runs]
     if not cal or not hold:
@@ -151,7 +154,8 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
         name = condition_name(p)
         if p in healthy_files or (conditions and name not in conditions):
             continue
-        todo.append((name, read_cycles(p)))
+        todo.append((name, read_cycles(p, skipped=lost)))
+    study.unscored[:0] = lost               # cycles not read, before what was not scored
     _score(study, todo, base, cals, lead_mm, workers, progress, scheduler)
     t0 = time.perf_counter()
     healthy_runs = sorted(set(calibrate_runs) | set(holdout_runs))

@@ -103,3 +103,73 @@ def test_study_takes_two_healthy_tables_and_reports_what_it_cannot_score(tmp_pat
     assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
                  "--lead-mm", "5", "--workers", "1", "--out", str(out)]) == 2
     assert "is in both" in capsys.readouterr().err
+
+
+def _damaged(tmp_path: Path) -> Path:
+    """The sample's spall table with its first cycle cut after 100 samples, 10 samples of
+    the second without current and the third cut to 5 samples."""
+    import numpy as np
+    import pyarrow as pa
+    t = pacsv.read_csv(io.BytesIO(lzma.decompress((SAMPLE / SPALL).read_bytes())))
+    g = t["group"].to_numpy()
+    groups = np.unique(g)
+    keep = np.ones(len(g), bool)
+    keep[np.flatnonzero(g == groups[0])[100:]] = False
+    keep[np.flatnonzero(g == groups[2])[5:]] = False
+    cur = t["current"].to_numpy().astype(float)
+    cur[np.flatnonzero(g == groups[1])[50:60]] = np.nan
+    t = t.set_column(t.column_names.index("current"), "current", pa.array(cur))
+    return _write(t.filter(pa.array(keep)), tmp_path / "damaged.csv")
+
+
+def test_partial_and_gappy_cycles_are_reported_never_judged(tmp_path, capsys):
+    """A cycle cut short was judged as a whole and flagged (its missing in-stroke read as a
+    localised effect); cycles with gaps or a few samples were dropped without a word."""
+    from bench.cli import main
+    base = tmp_path / "base.json"
+    assert main(["rig", "baseline", str(SAMPLE / HEALTHY), "--runs", "1,2", "--lead-mm", "5",
+                 "--out", str(base)]) == 0
+    capsys.readouterr()
+    bad = _damaged(tmp_path)
+    assert main(["rig", "assess", str(bad), "--baseline", str(base)]) == 0
+    cap = capsys.readouterr()
+    assert "cycle 51: NOT JUDGED: not judged: incomplete cycle: no dwell_top, in phase" \
+        in cap.out
+    assert "damaged load 40: 7 / 7 cycles flagged (100 %); 1 incomplete cycle(s) not judged" \
+        in cap.out
+    assert "cycle 52: samples 10 without current: not read" in cap.err
+    assert "cycle 53: 5 sample(s), fewer than 8: not read" in cap.err
+    # the study: the same cycles counted apart, outside the detection rate
+    d = tmp_path / "rig"
+    d.mkdir()
+    shutil.copy(SAMPLE / HEALTHY, d / HEALTHY)
+    shutil.copy(bad, d / "damaged.csv")
+    out = tmp_path / "out"
+    assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
+                 "--lead-mm", "5", "--workers", "1", "--out", str(out)]) == 0
+    sm = json.loads((out / "study.json").read_text())
+    st = sm["loads"]["40"]["stages"]["damaged"]
+    assert (st["cycles"], st["not_judged"]) == (7, 1)
+    assert sum("not read" in u for u in sm["unscored"]) == 2
+
+
+def test_imported_partial_and_gappy_cycles_in_the_gap_against_a_baseline(tmp_path, capsys):
+    """The same damage through `bench import` traces and `bench gap --baseline`: the cut
+    cycle is "not judged" with its reason, the gappy one is refused in one line."""
+    from bench.cli import main
+    base = tmp_path / "base.json"
+    assert main(["rig", "baseline", str(SAMPLE / HEALTHY), "--runs", "1,2", "--lead-mm", "5",
+                 "--out", str(base)]) == 0
+    tr = tmp_path / "tr"
+    assert main(["import", str(_damaged(tmp_path)), "--map",
+                 str(Path(__file__).resolve().parents[2] / "bench" / "actuators"
+                     / "cranfield_map.json"), "--split-by", "load,run,group",
+                 "-o", str(tr)]) == 0
+    capsys.readouterr()
+    js = tmp_path / "v.json"
+    assert main(["gap", str(tr / "load=40_run=1_group=51.parquet"), "--baseline", str(base),
+                 "--json", str(js)]) == 0
+    assert "not judged: incomplete cycle: no dwell_top, in phase" in capsys.readouterr().out
+    assert main(["gap", str(tr / "load=40_run=1_group=52.parquet"), "--baseline",
+                 str(base)]) == 2
+    assert "samples 10 without current: not read" in capsys.readouterr().err
