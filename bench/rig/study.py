@@ -130,6 +130,11 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
     healthy_files = [p for p in files if fnmatch.fnmatch(p.name, healthy + "*")]
     if not healthy_files:
         raise BenchError(f"{directory}: no healthy table matching {healthy + '*'!r}")
+    names = [condition_name(p) for p in files if p not in healthy_files]
+    unknown = sorted(set(conditions or []) - set(names))
+    if unknown:
+        raise BenchError(f"--only {','.join(unknown)}: no such fault table in {directory} "
+                         f"(it has: {', '.join(names) or 'none'})")
     lost: list[str] = []
     hname, hcycles = healthy_cycles(healthy_files, lost)
     cal = [c for c in hcycles if c.run in calibrate_runs]

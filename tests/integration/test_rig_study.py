@@ -98,6 +98,9 @@ def test_study_takes_two_healthy_tables_and_reports_what_it_cannot_score(tmp_pat
     md = (out / "report.md").read_text()
     assert "| backlash1 |" in md and "Not scored: backlash1" in md
     assert "Healthy false alarms, cross-validated" in md
+    assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
+                 "--only", "spalling9", "--out", str(out)]) == 2
+    assert "--only spalling9: no such fault table" in capsys.readouterr().err
     # the same run in two healthy tables: refused in one line
     _write(_runs(t, (2, 3)), d / "normal_runs2-3.csv")
     assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
