@@ -291,7 +291,12 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
     reasons = [f"{k} {f.scores[k]:.2f} vs threshold {thresholds[k]:.2f}" for k in ratios]
     if not above:
         return False, "none", reasons
-    return True, max(above, key=lambda k: above[k]), reasons    # variant 2
+    best = {tier: max((k for k in above if k in keys), key=lambda k: above[k], default="")
+            for tier, keys in NAMING.items()}
+    spec, split = best["position-locked"], best["direction-split"]
+    if spec and (not split or above[spec] >= above[split]):
+        return True, spec, reasons
+    return True, split or best["catch-all"], reasons
 
 
 NAMING = {"position-locked": SPECIFIC, "direction-split": ("level", "reversal"),
