@@ -412,10 +412,11 @@ def figure(res: dict[str, Any], path: Path) -> Path:
             ax.plot(sizes, [c["rate"] for c in cells], "o-", color=color,
                     label=f"load {key}: flagged")
             ax.plot(sizes, [c["right_rate"] for c in cells], "s--", color=color, mfc="none",
-                    label=f"load {key}: named {res['expected'][kind]}")
+                    label=f"load {key}: named right")
             ax.axhline(row["holdout"]["rate"], color=color, ls=":", lw=0.8)
         ax.axhline(RATE_GOAL, color="r", lw=0.6)
         ax.set_xscale("log", base=2)
+        ax.set_xticks(sizes, [f"{s:g}" for s in sizes])
         ax.set_xlabel("size (healthy sigma)")
         ax.set_title(f"{kind} -> {res['expected'][kind]}")
         ax.set_ylim(-0.03, 1.03)
