@@ -237,7 +237,9 @@ def _study(args: argparse.Namespace) -> int:
 
 
 def _inject(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
     from bench.rig.inject import run_cli
+    check_output_dir(args.out, "--out")
     cal = runs_list(args.calibrate_runs, "--calibrate-runs") or []
     hold = runs_list(args.holdout_runs, "--holdout-runs") or []
     command = "bench rig " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["rig"] \

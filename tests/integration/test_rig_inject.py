@@ -79,6 +79,13 @@ def test_bad_input_is_one_line(tmp_path, capsys, flag, value, message):
     assert len(err.splitlines()) == 1
 
 
+def test_out_must_be_a_directory(tmp_path, capsys):
+    (tmp_path / "f").write_text("")
+    rc = main(["rig", "inject", str(HEALTHY), "--calibrate-runs", "1,2", "--holdout-runs",
+               "3,4", "--lead-mm", "5", "--out", str(tmp_path / "f")])
+    assert rc == 2 and "it is not a directory" in capsys.readouterr().err
+
+
 def test_the_lead_is_required(tmp_path, capsys):
     rc = main(["rig", "inject", str(HEALTHY), "--calibrate-runs", "1,2", "--holdout-runs",
                "3,4", "--out", str(tmp_path / "o")])
