@@ -361,8 +361,10 @@ def markdown(res: dict[str, Any], command: str) -> str:
     keys = list(res["loads"])
     for kind in res["kinds"]:
         unit = UNITS[kind]
+        extra = (" (in brackets: of the stroke current above the standstill)"
+                 if kind == "friction" else "")
         lines += [f"**{kind}** (named right: {res['expected'][kind]}). Flagged / named "
-                  "right, and the effects named:", "",
+                  f"right, and the effects named{extra}:", "",
                   "| size (sigma) | " + " | ".join(f"load {k}" for k in keys) + " | all |",
                   "|---|" + "---|" * (len(keys) + 1)]
         for s in res["sizes"]:
@@ -371,7 +373,10 @@ def markdown(res: dict[str, Any], command: str) -> str:
                 c = res["loads"][k]["kinds"][kind][f"{s:g}"]
                 phys = s * res["loads"][k]["scales"]["sigma_e_mm" if unit == "mm"
                                                      else "sigma_i_a"]
-                cells.append(f"{phys:.3g} {unit}: {_pct(c['rate'])} / "
+                share = res["loads"][k]["scales"]["stroke_current_a"]
+                frac = (f" ({100 * phys / share:.0f} %)" if kind == "friction" and share > 0
+                        else "")
+                cells.append(f"{phys:.3g} {unit}{frac}: {_pct(c['rate'])} / "
                              f"{_pct(c['right_rate'])}; {_effects(c['effects'])}")
             p = res["pooled"][kind][f"{s:g}"]
             loc = (f"; located at {p['location_mm']:.1f} mm (median)"
