@@ -1,6 +1,7 @@
 """`bench rig`: real rigs that no physics model fits (issue 11). `baseline` builds the
 healthy baseline (and its thresholds from held-out healthy runs), `assess` diagnoses
-cycles against it, `study` runs a rig's development set end to end. See
+cycles against it, `study` runs a rig's development set end to end, `inject` injects
+known faults into held-out healthy cycles (sensitivity per fault kind and size). See
 docs/real-data.md."""
 
 from __future__ import annotations
@@ -54,7 +55,22 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     from bench.cluster import SCHEDULER_HELP
     s.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     _common(s)
-    for q in (b, a, s):
+    i = sub.add_parser("inject", help="sensitivity: known faults injected into held-out "
+                                      "healthy cycles, detection and naming per size")
+    i.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")
+    i.add_argument("--calibrate-runs", required=True, metavar="LIST",
+                   help="healthy runs the baseline and thresholds use (e.g. 1,2)")
+    i.add_argument("--holdout-runs", required=True, metavar="LIST",
+                   help="healthy runs the faults are injected into (e.g. 3,4)")
+    i.add_argument("--sizes", metavar="LIST", help="fault sizes in units of the healthy "
+                   "spread (default 0.25,0.5,1,2,4,8)")
+    i.add_argument("--kinds", metavar="LIST", help="fault kinds (default: friction,"
+                   "backlash,localised,periodic)")
+    i.add_argument("--at-mm", type=float, metavar="MM", help="centre of the localised "
+                   "bump, measured position (default: the middle of the out-stroke)")
+    i.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
+    _common(i)
+    for q in (b, a, s, i):
         q.set_defaults(func=run)
     p.set_defaults(func=run, rig_parser=p)
 
@@ -113,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
         args.rig_parser.print_help()
         return 2
     _check(args)
-    return {"baseline": _baseline, "assess": _assess, "study": _study}[cmd](args)
+    return {"baseline": _baseline, "assess": _assess, "study": _study,
+            "inject": _inject}[cmd](args)
 
 
 def _read(tables: list[str], runs: list[int] | None) -> list[Any]:
@@ -224,3 +241,15 @@ def _study(args: argparse.Namespace) -> int:
     print(paths["md"].read_text().split("![residual]")[0])
     print("written: " + ", ".join(str(p) for p in paths.values()))
     return 0
+
+
+def _inject(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
+    from bench.rig.inject import run_cli
+    check_output_dir(args.out, "--out")
+    cal = runs_list(args.calibrate_runs, "--calibrate-runs") or []
+    hold = runs_list(args.holdout_runs, "--holdout-runs") or []
+    command = "bench rig " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["rig"] \
+        else f"bench rig inject {' '.join(args.tables)} --calibrate-runs " \
+             f"{args.calibrate_runs} --holdout-runs {args.holdout_runs} --out {args.out}"
+    return run_cli(args, cal, hold, command)

@@ -44,12 +44,14 @@ The dwell, index and the location changes were made on 2026-11-24 (docs/real-dat
 "Changes after the goals were missed"), motivated by the issue's text, before their
 effect on the spall stages was measured.
 
-`judge` names one effect: a specific signature above its threshold (periodic, then
-localised) before an unspecific one (level, reversal), because a level change comes
-with any mechanical change while friction and backlash give no position-locked
-signature; among the unspecific ones the one furthest above its threshold. This order
-was also set after the first study. The verdict lists every feature against its
-threshold and names the baseline used.
+`judge` names one effect: the position-locked signature (periodic or localised) above
+its threshold unless a direction-split one (level, reversal) is further above its own,
+then the direction-split one, and the catch-alls (dwell, index) only when nothing else
+is above. (The first order, periodic then localised before everything else, was set
+after the first study; it named injected friction localised or index, and was changed
+on 2026-11-24 from injected faults only: docs/real-data.md "What else the bench sees:
+injected faults".) The verdict lists every feature against its threshold and names the
+baseline used.
 """
 
 from __future__ import annotations
@@ -268,8 +270,21 @@ def _reversal(lb: LoadBaseline, cycle: Cycle) -> float:
 
 
 def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, list[str]]:
-    """(flagged, the effect named, reasons): the effect is the feature furthest above its
-    threshold (by ratio); no effect when none is above."""
+    """(flagged, the effect named, reasons); no effect when no feature is above its
+    threshold. Among the features above (by ratio to the threshold, `NAMING`):
+
+    1. the position-locked signature (periodic or localised, the larger ratio), unless a
+       direction-split one (level or reversal) is further above its threshold: a
+       position-locked defect moves the level by a small fraction of its own excess (a
+       nut length of a 120 mm stroke), while a level shift leaks into the localised scan
+       through the per-sample spread (a constant in A is not a constant in z);
+    2. else the direction-split one with the larger ratio;
+    3. else the catch-alls (dwell, index), the larger ratio: a phase index outside its
+       spread has no physical reading of its own, so it is named only when no signature
+       with one is above its threshold.
+
+    (Variant 1 of 2026-11-24, designed from injected faults: docs/real-data.md "What else
+    the bench sees: injected faults".)"""
     ratios = {k: f.scores[k] / thresholds[k] for k in FEATURES
               if k in thresholds and math.isfinite(f.scores.get(k, nan_))
               and thresholds[k] > 0}
@@ -277,12 +292,16 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
     reasons = [f"{k} {f.scores[k]:.2f} vs threshold {thresholds[k]:.2f}" for k in ratios]
     if not above:
         return False, "none", reasons
-    for k in SPECIFIC:
-        if k in above:
-            return True, k, reasons
-    return True, max(above, key=lambda k: above[k]), reasons
+    best = {tier: max((k for k in above if k in keys), key=lambda k: above[k], default="")
+            for tier, keys in NAMING.items()}
+    spec, split = best["position-locked"], best["direction-split"]
+    if spec and (not split or above[spec] >= above[split]):
+        return True, spec, reasons
+    return True, split or best["catch-all"], reasons
 
 
+NAMING = {"position-locked": SPECIFIC, "direction-split": ("level", "reversal"),
+          "catch-all": ("dwell", "index")}
 nan_ = float("nan")
 
 

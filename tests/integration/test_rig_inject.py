@@ -1,0 +1,92 @@
+"""`bench rig inject` on the shipped Cranfield sample (tests/data/cranfield_sample, load
+40 kgf): baseline and thresholds from healthy runs 1-2, faults injected into held-out
+runs 3-4. A large fault of each kind (8 sigma of the healthy spread) is flagged in every
+cycle and named as its kind; the unmodified held-out cycles are not flagged."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+
+SAMPLE = Path(__file__).resolve().parents[1] / "data" / "cranfield_sample"
+HEALTHY = SAMPLE / "normal_load40_runs1-4.csv.xz"
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("inject")
+    rc = main(["rig", "inject", str(HEALTHY), "--calibrate-runs", "1,2", "--holdout-runs",
+               "3,4", "--lead-mm", "5", "--sizes", "8", "--out", str(out)])
+    assert rc == 0
+    return out, json.loads((out / "inject.json").read_text())
+
+
+def _cell(res, kind):
+    return res["loads"]["40"]["kinds"][kind]["8"]
+
+
+def test_writes_the_report_and_the_figure(report):
+    out, res = report
+    assert (out / "inject.png").stat().st_size > 10_000
+    md = (out / "inject.md").read_text()
+    assert "friction" in md and "backlash" in md and "bench rig inject" in md
+    assert res["calibrate_runs"] == [1, 2] and res["holdout_runs"] == [3, 4]
+    assert res["loads"]["40"]["holdout"] == {**res["loads"]["40"]["holdout"],
+                                            "cycles": 10, "flagged": 0}
+
+
+@pytest.mark.parametrize("kind", ["friction", "localised", "periodic"])
+def test_a_large_fault_is_flagged_and_named_right(report, kind):
+    _, res = report
+    c = _cell(res, kind)
+    assert c["cycles"] == 10 and c["flagged"] == 10
+    assert c["named_right"] == 10, c["effects"]
+
+
+def test_the_localised_fault_is_placed_where_it_was_put(report):
+    _, res = report
+    at = res["loads"]["40"]["scales"]["at_mm"]
+    assert abs(_cell(res, "localised")["location_mm"] - at) < 5.0
+
+
+def test_a_large_backlash_is_flagged(report):
+    _, res = report
+    assert _cell(res, "backlash")["flagged"] == 10
+
+
+@pytest.mark.xfail(strict=True, reason="the reversal feature (the mean position-error "
+                   "residual of a stroke's first 5 samples) averages across the take-up "
+                   "of the play; the phase index of the stroke's mean position error "
+                   "flags the backlash instead (docs/real-data.md, injected faults)")
+def test_a_large_backlash_is_named_backlash_like(report):
+    _, res = report
+    assert _cell(res, "backlash")["named_right"] >= 9
+
+
+@pytest.mark.parametrize("flag,value,message", [
+    ("--sizes", "0,1", "--sizes: every size must be a finite number > 0"),
+    ("--kinds", "friction,wear", "--kinds: unknown wear"),
+])
+def test_bad_input_is_one_line(tmp_path, capsys, flag, value, message):
+    rc = main(["rig", "inject", str(HEALTHY), "--calibrate-runs", "1,2", "--holdout-runs",
+               "3,4", "--lead-mm", "5", flag, value, "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.startswith("error: ") and message in err
+    assert len(err.splitlines()) == 1
+
+
+def test_out_must_be_a_directory(tmp_path, capsys):
+    (tmp_path / "f").write_text("")
+    rc = main(["rig", "inject", str(HEALTHY), "--calibrate-runs", "1,2", "--holdout-runs",
+               "3,4", "--lead-mm", "5", "--out", str(tmp_path / "f")])
+    assert rc == 2 and "it is not a directory" in capsys.readouterr().err
+
+
+def test_the_lead_is_required(tmp_path, capsys):
+    rc = main(["rig", "inject", str(HEALTHY), "--calibrate-runs", "1,2", "--holdout-runs",
+               "3,4", "--out", str(tmp_path / "o")])
+    assert rc == 2 and "needs the screw's lead" in capsys.readouterr().err
