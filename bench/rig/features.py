@@ -14,8 +14,13 @@ current steps by itself); the dwell and index features read the logged current.
   the position in mm of travel (measured position, not set-point) and the width.
 - level (direction-split): friction raises the current in both directions: the mean of
   the out- and in-stroke current residuals.
-- reversal: backlash shows where the motion reverses: the mean position-error residual
-  over the first `REVERSAL_SAMPLES` samples of each stroke, the larger of the two.
+- reversal (backlash as a hysteresis; variant 3 of 2026-11-24): a play of width b makes
+  the nut trail the motor by b/2 against the motion, so the position error shifts by
+  +b/2 on the out-stroke and -b/2 on the in-stroke, the current unchanged. Each stroke's
+  position-error residual after its acceleration ramp gives its weighted least-squares
+  constant (`constant`); the score is |d_out - d_in| over its standard error. (It was
+  the mean over the first 5 samples after each reversal, which straddles the take-up of
+  the play: docs/real-data.md, injected faults.)
 - periodic (position-periodic, at the screw's lead): a defect on the screw's raceway
   passes under the nut's balls once per screw revolution, i.e. once per lead of travel.
   The current residual of each stroke (less its mean) is projected on cos/sin of
@@ -63,10 +68,9 @@ from typing import Any
 import numpy as np
 
 from bench.rig.baseline import Baseline, LoadBaseline, incomplete, residuals
-from bench.rig.cycles import Cycle
+from bench.rig.cycles import Cycle, phases, ramps
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
-REVERSAL_SAMPLES = 5            # samples after a reversal that show backlash
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
 STROKE_CURRENT = "current_ref_a"   # the stroke features' current (variant B, 2026-11-24)
 FEATURES = ("localised", "level", "reversal", "periodic", "dwell", "index")
@@ -197,7 +201,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
             continue
         z, pos = r
         levels[name] = float(np.mean(z))
-        profiles[name] = (z - np.median(z), pos)
+        profiles[name] = (offset_free(lb, name, z, stroke_signal(lb)), pos)
     if out is not None and inn is not None:
         z_in = profiles["in"][0]
         both = (profiles["out"][0][:len(lb.phases["out"])] + _matched(lb, z_in)
@@ -212,7 +216,8 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
             loc = (s, float(pos[min(k, len(pos) - 1)]), w * step, name)
     level = (float(np.nanmean([levels["out"], levels["in"]]))
              if np.isfinite([levels["out"], levels["in"]]).any() else nan)
-    per = _periodic(res, lead_mm)
+    per = _periodic({k: (profiles[k][0], res[k][1]) for k in ("out", "in") if k in profiles},
+                    lead_mm)
     idx, idx_at = index_score(lb, cycle)
     scores = {"localised": loc[0], "level": abs(level),
               "reversal": _reversal(lb, cycle), "periodic": per[0],
@@ -261,12 +266,43 @@ def index_score(lb: LoadBaseline, cycle: Cycle) -> tuple[float, str]:
     return best, at
 
 
+def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, float]:
+    """A phase residual's weighted least-squares constant in the signal's own unit (over
+    the baseline's inflated spread), from aligned sample `start` on: (constant, its
+    standard error under the baseline's noise). z_k = c u_k + noise, u_k = 1 / spread_k."""
+    u = 1.0 / std[:len(z)]
+    zz, uu = z[start:], u[start:]
+    if not len(zz):
+        zz, uu = z, u
+    den = float(np.sum(uu * uu))
+    return float(np.sum(zz * uu) / den), 1.0 / math.sqrt(den)
+
+
+def offset_free(lb: LoadBaseline, phase: str, z: np.ndarray, sig: str) -> np.ndarray:
+    """The residual less its constant in amperes (variant 3 of 2026-11-24): a friction
+    torque is a constant current on a stroke, which divided by the per-sample spread is
+    not a constant in z and would leak into the localised scan and the periodic
+    projection (docs/real-data.md, injected faults)."""
+    if not len(z):
+        return z
+    std = lb.phases[phase].std[sig]
+    c, _ = constant(std, z)
+    return z - c / std[:len(z)]
+
+
 def _reversal(lb: LoadBaseline, cycle: Cycle) -> float:
-    """The larger |mean position-error residual| over the first samples of a stroke."""
-    res = residuals(lb, cycle, "position_error_mm")
-    vals = [abs(float(np.mean(res[n][0][:REVERSAL_SAMPLES]))) for n in ("out", "in")
-            if n in res and len(res[n][0])]
-    return max(vals) if vals else float("nan")
+    """Backlash as a hysteresis: |d_out - d_in| / its standard error, d a stroke's
+    position-error constant after its acceleration ramp (module doc)."""
+    sig = "position_error_mm"
+    res = residuals(lb, cycle, sig)
+    segs = {g.name: g for g in phases(cycle.setpoint_mm)}
+    d: dict[str, tuple[float, float]] = {}
+    for n in ("out", "in"):
+        if n not in res or n not in segs or not len(res[n][0]):
+            return float("nan")
+        start = ramps(cycle.setpoint_mm, segs[n])["accel"].stop - segs[n].start
+        d[n] = constant(lb.phases[n].std[sig], res[n][0], start)
+    return abs(d["out"][0] - d["in"][0]) / math.hypot(d["out"][1], d["in"][1])
 
 
 def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, list[str]]:
