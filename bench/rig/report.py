@@ -56,7 +56,7 @@ def detection_figure(study: Study, path: Path) -> Path:
     """Detection rate per stage and load, the bench's detector beside the z-score."""
     from matplotlib.figure import Figure
     conds = study.fault_conditions
-    fig = Figure(figsize=(10, 3.6))
+    fig = Figure(figsize=(10, 4.0))
     ax = fig.subplots()
     x = np.arange(len(conds))
     width = 0.8 / max(1, len(study.loads))
@@ -74,7 +74,7 @@ def detection_figure(study: Study, path: Path) -> Path:
     ax.set_xlabel("stage (black ticks: plain z-score at the same false-alarm rate)")
     ax.set_ylabel("cycles flagged")
     ax.set_ylim(0, 1.05)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=4)
     ax.grid(alpha=0.3, axis="y")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
