@@ -118,6 +118,18 @@ class ScrewParams(_Validated):
     stiffness_preload_slope_per_m: float = P(820.5, "1/m", 0.0, 1e7,
                                              "stiffness-preload slope m (eq. 5.21)",
                                              "section 5.6.2")
+    hertz_reference_preload_n: float = P(
+        0.0, "N", 0.0, 50000.0,
+        "Hertzian preloaded double nut: 0 = eq. 5.21's linear law k* + m F_pr (the "
+        "default); > 0 = the balls are Hertzian contacts (F ~ delta^1.5) and k* + m F_ref "
+        "is the contact stiffness at this preload F_ref (the nut as built, where k* is "
+        "measured or calibrated); at preload F_pr and axial load F the contacts' stiffness "
+        "is scaled by the double nut's secant stiffness at (F, F_pr) over that at (F, F_ref): "
+        "(F_pr / F_ref)^(1/3) at small loads, the unloaded half's lift-off beyond "
+        "2^1.5 F_pr (plant_rt.contacts.hertz_stiffness_ratio; docs/model.md)",
+        "Hertz contact (thesis section 2: the loaded nut's elliptical contacts 'according "
+        "to Hertz contacts theory'; K. L. Johnson, Contact Mechanics, 1985, ch. 4); "
+        "a preloaded double nut's catalogue (e.g. THK: axial stiffness ~ F_a0^(1/3))")
     contact_damping_n_s_per_m: float = P(150.0, "N s/m", 5.0, 1e5,
                                          "contact damping c per contact (eq. 5.17-5.18): "
                                          "damping ratio 0.65 for one ball on its two contacts",
