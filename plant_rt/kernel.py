@@ -73,10 +73,12 @@ STATE_NAMES = (
  P_LZETA, P_LSIG, P_EZETA, P_ESIG, P_TAUC, P_KPI, P_KII, P_FPWM, P_PWM_SW, P_BALL_DYN,
  P_DT, P_NBALL, P_NSUB, P_LOAD_KIND, P_LOAD_AMP, P_LOAD_T0, P_LOAD_RATE, P_LOAD_FREQ,
  P_TRAVEL, P_AERO_GAIN, P_WEAR_ON, P_WEAR_GAIN, P_WEAR_AREA, P_WEAR_FRIC, P_LTAU,
- P_HREF) = range(57)
-NP = 57
+ P_HREF, P_PDRAG) = range(58)
+NP = 58
 # P_LTAU: the LVDT's first-order time constant (s); 0: the second-order filter of eq. 5.1
 # P_HREF: the Hertzian preload law's reference preload F_ref (N); 0: eq. 5.21's linear law
+# P_PDRAG: the preloaded nut's drag torque at the screw per N of preload (N m/N), added to
+# C_s of eq. 5.14; 0: none beyond the rolling terms of eq. 5.13 and 5.31
 # load kinds (P_LOAD_KIND): the order of `LoadParams.kind`'s choices
 LOAD_KINDS = ("none", "step", "ramp", "sine", "aero")
 
@@ -202,7 +204,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     wgain = p[P_WEAR_GAIN]
     wearing = wgain != 0.0
     gust = u[U_GUST]
-    CS = p[P_CS] * fscale
+    CS = (p[P_CS] + p[P_PDRAG] * fpr) * fscale     # eq. 5.14 (+ the preload's drag)
     STRA, STRV = p[P_STRA], p[P_STRV]
     CVISC = p[P_CVISC] * vscale
     Z, lead, g = p[P_Z], p[P_LEAD], p[P_G]

@@ -70,6 +70,7 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_LZETA], p[K.P_LSIG] = se.lvdt_damping, se.lvdt_natural_rad_s
     p[K.P_LTAU] = se.lvdt_time_constant_s
     p[K.P_HREF] = s.hertz_reference_preload_n                  # 0: eq. 5.21's linear law
+    p[K.P_PDRAG] = s.preload_drag_nm_per_n                     # 0: eq. 5.13's terms only
     p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
     p[K.P_TAUC] = se.current_time_constant_s
     p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, d.current_ki_v_per_as

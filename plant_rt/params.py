@@ -130,6 +130,14 @@ class ScrewParams(_Validated):
         "Hertz contact (thesis section 2: the loaded nut's elliptical contacts 'according "
         "to Hertz contacts theory'; K. L. Johnson, Contact Mechanics, 1985, ch. 4); "
         "a preloaded double nut's catalogue (e.g. THK: axial stiffness ~ F_a0^(1/3))")
+    preload_drag_nm_per_n: float = P(
+        0.0, "N m/N", 0.0, 1e-2,
+        "a preloaded nut's no-load drag torque at the screw per N of preload, T_p = this x "
+        "F_pr, added to the screw's Coulomb level C_s (eq. 5.14) and scaled with it by the "
+        "friction scale; 0 (default) = none beyond the rolling terms of eq. 5.13 and 5.31 "
+        "(f_v on the contact forces, which carry the preload)",
+        "0: thesis; > 0: a catalogue's preload drag torque (e.g. THK's 'preload dynamic "
+        "torque' T_p = 0.05 (tan lambda)^-0.5 F_pr p / 2 pi)")
     contact_damping_n_s_per_m: float = P(150.0, "N s/m", 5.0, 1e5,
                                          "contact damping c per contact (eq. 5.17-5.18): "
                                          "damping ratio 0.65 for one ball on its two contacts",

@@ -83,7 +83,15 @@ def rolling_friction_for_drag(params: PlantParams, drag_nm: float) -> float:
     return drag_nm * g / (2.0 * params.effects.preload_n * lever)
 
 
-def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: bool = True
+PRELOAD_LAWS = ("none", "hertz", "hertz-fv", "hertz-drag")
+"""How the datasheet model declares its preloaded double nut (docs/gap.md, "Preload and
+the in-loop LVDT lag"): none (before indie6); hertz (the default): the Hertzian preload
+law at the datasheet preload, the drag left to the thesis' rolling terms; hertz-fv and
+hertz-drag add the catalogue's preload drag through the rolling friction f_v or as a
+screw torque per N of preload (both rejected on the healthy logs under the bench's ECU)."""
+
+
+def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
                     ) -> PlantParams:
     """The bench's model of the independent actuator from its datasheet: ratio, lead,
     motor constants, rotor and screw inertias, nut mass, preload, supply and limits, and
@@ -92,11 +100,13 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: bool = True
     friction laws and contact model stay its own (the thesis' tables): friction, the
     contact stiffness (under the logged load) and the rest are what calibration is for.
 
-    `preload_law` (2026-11-24, indie6): the nut is a preloaded double nut with Hertzian
-    contacts (its datasheet), so the model declares the Hertzian preload law at the
-    datasheet preload (`screw.hertz_reference_preload_n`) and the preload's drag by the
-    catalogue formula (`catalogue_preload_drag_nm`, through the rolling friction f_v of
-    eq. 5.13 and 5.31); False gives the model before that."""
+    `preload_law` (2026-11-24, indie6; `PRELOAD_LAWS`): the nut is a preloaded double nut
+    with Hertzian contacts (its datasheet), so the model declares the Hertzian preload
+    law at the datasheet preload (`screw.hertz_reference_preload_n`; "hertz", the
+    default) and, optionally, the preload's drag by the catalogue formula
+    (`catalogue_preload_drag_nm`): as a screw torque per N of preload
+    (`screw.preload_drag_nm_per_n`, "hertz-drag") or through the rolling friction f_v of
+    eq. 5.13 and 5.31 ("hertz-fv"); "none" gives the model before indie6."""
     n = actuator
     model = PlantParams().with_dict({
         "motor.kt_nm_per_a": n.kt_nm_per_a, "motor.ke_v_s_per_rad": n.ke_v_s_per_rad,
@@ -113,12 +123,18 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: bool = True
         "sensors.encoder_speed_window": int(n.speed_window),
         # the LVDT conditioner: a first-order 1 ms demodulator (its datasheet)
         "sensors.lvdt_time_constant_s": n.lvdt_tau_s})
-    if not preload_law or n.preload_n <= 0.0:
+    if preload_law not in PRELOAD_LAWS:
+        raise ValueError(f"preload_law {preload_law!r} not one of {PRELOAD_LAWS}")
+    if preload_law == "none" or n.preload_n <= 0.0:
         return model
-    return model.with_dict({
-        "screw.hertz_reference_preload_n": n.preload_n,
-        "screw.rolling_friction": rolling_friction_for_drag(
-            model, catalogue_preload_drag_nm(n))})
+    if preload_law == "hertz":
+        return model.with_dict({"screw.hertz_reference_preload_n": n.preload_n})
+    drag = catalogue_preload_drag_nm(n)
+    if preload_law == "hertz-fv":
+        return model.with_dict({"screw.hertz_reference_preload_n": n.preload_n,
+                                "screw.rolling_friction": rolling_friction_for_drag(model, drag)})
+    return model.with_dict({"screw.hertz_reference_preload_n": n.preload_n,
+                            "screw.preload_drag_nm_per_n": drag / n.preload_n})
 
 
 def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:

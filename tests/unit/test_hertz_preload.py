@@ -70,11 +70,20 @@ def test_law_off_by_default_and_identical_at_the_reference_preload():
 
 
 def test_datasheet_model_declares_the_preload_law_and_the_catalogue_drag():
-    m = datasheet_model()
+    m = datasheet_model(preload_law="hertz-fv")
     assert m.screw.hertz_reference_preload_n == NOMINAL.preload_n
-    assert datasheet_model(preload_law=False).screw.hertz_reference_preload_n == 0.0
+    assert datasheet_model(preload_law="none").screw.hertz_reference_preload_n == 0.0
     drag = catalogue_preload_drag_nm()
     assert 0.1 < drag < 0.3          # N m at the screw, 1.5 kN on a 16 x 4 mm nut
+    d = datasheet_model(preload_law="hertz-drag")    # the drag as a screw torque per N
+    assert d.screw.preload_drag_nm_per_n * NOMINAL.preload_n == pytest.approx(drag)
+    assert d.screw.rolling_friction == PlantParams().screw.rolling_friction
+    h = datasheet_model()            # the default: the Hertzian law, the thesis' drag
+    assert h.screw.hertz_reference_preload_n == NOMINAL.preload_n
+    assert h.screw.preload_drag_nm_per_n == 0.0
+    assert h.screw.rolling_friction == PlantParams().screw.rolling_friction
+    with pytest.raises(ValueError):
+        datasheet_model(preload_law="linear")
     s = m.screw
     lever = math.cos(math.radians(s.helix_angle_deg)) * s.lever_m + s.lead_m / (2 * math.pi)
     model_drag = s.rolling_friction * 2 * m.effects.preload_n / normal_to_axis(m) * lever
@@ -95,3 +104,16 @@ def test_lvdt_lag_in_the_loop_when_the_conditioner_is_first_order():
     for name in E.names():       # every other effect keeps its declared place
         if name != "lvdt_lag":
             assert E.get(name).in_log(first) == (E.get(name).where == "log")
+
+
+def test_preload_drag_off_by_default_and_a_torque_per_newton_of_preload():
+    assert PlantParams().screw.preload_drag_nm_per_n == 0.0
+    assert param_vector(PlantParams())[K.P_PDRAG] == 0.0
+    base = _travel(FAST)
+    drag = _travel(FAST.with_dict({"screw.preload_drag_nm_per_n": 1e-4}))
+    lost = _travel(FAST.with_dict({"screw.preload_drag_nm_per_n": 1e-4,
+                                   "effects.preload_n": 0.0}))
+    no_preload = _travel(FAST.with_dict({"effects.preload_n": 0.0}))
+    speed = [float(np.sum(np.abs(r[:, 1]))) for r in (base, drag)]
+    assert speed[1] < speed[0]           # 0.15 N m more friction at the screw
+    np.testing.assert_array_equal(lost, no_preload)     # no preload, no drag
