@@ -217,6 +217,8 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     href = p[P_HREF]
     hertz = href > 0.0      # Hertzian nut: k of eq. 5.21 at F_ref, scaled per sub-step
     k_ref = p[P_KSTAR] + p[P_MSLOPE] * href
+    f_k = 0.0               # the load the Hertzian k was last computed at (held over a
+    have_k = False          # period when the load is the replayed U_FEXT alone)
     c = p[P_CDAMP]
     hb = 0.25 * backlash                         # b_max/4 per contact (eq. 5.19-5.20)
     kin = lead / TWO_PI * g                      # dz_s/dOmega (eq. 5.26)
@@ -296,8 +298,10 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         x[TQ] += (KT * i_new - x[TQ]) * a_h                              # eq. 5.4 + demod
         x[TEMP] += (tamb + rt * i_new * i_new * rth - x[TEMP]) * a_w  # eq. 5.5
         fext = _ext_force(p, t, 0.5 * (x[X1] + x[X2]), gust) + u[U_FEXT]  # F_ext, eq. 5.29
-        if hertz:       # the double nut's secant stiffness at this load and preload
-            k = k_ref * _hertz_ratio(fext, fpr, href)
+        if hertz and not (have_k and fext == f_k):   # the double nut's secant stiffness
+            k = k_ref * _hertz_ratio(fext, fpr, href)   # at this load and preload
+            f_k = fext
+            have_k = True
         # ---- ball contacts (eq. 5.16-5.24) ---------------------------------------------
         zs = kin * x[TH]
         vzs = kin * om
