@@ -61,3 +61,47 @@ def axial_stiffness(params: PlantParams, preload_n: float = 0.0) -> float:
     (the plant's linear, two-sided contacts): Z (k* + m F_pr) g^2."""
     kstar, m, z, g = contact_geometry(params)
     return z * (kstar + m * preload_n) * g * g
+
+
+# --- a Hertzian preloaded double nut (off unless screw.hertz_reference_preload_n > 0) ----
+# Plain math only: `plant_rt.kernel` compiles `hertz_share` with njit for its sub-step
+# (the word keeps this file in `plant_rt.jit`'s cache key) and mirrors the ratio.
+HERTZ_NEWTON_STEPS = 8
+HERTZ_MIN_PRELOAD_FRAC = 1e-3
+"""The preload the law uses is at least this fraction of the reference (at zero preload
+and zero load a Hertzian contact has no stiffness; the floor keeps 10 % of it)."""
+
+
+def hertz_share(q: float) -> float:
+    """s = delta / d0 of a Hertzian double nut (each half F = k_H d^1.5, both preloaded
+    to d0 = (F_pr / k_H)^(2/3)) under the axial load q = |F| / F_pr: while both halves
+    carry, (1 + s)^1.5 - (1 - s)^1.5 = q (Newton from s = q / 3, below the root of this
+    concave function, so it converges monotonically); beyond lift-off (q >= 2^1.5) the
+    unloaded half carries nothing and (1 + s)^1.5 = q."""
+    if q >= 2.0 * math.sqrt(2.0):
+        return q ** (2.0 / 3.0) - 1.0
+    s = q / 3.0
+    for _ in range(HERTZ_NEWTON_STEPS):
+        a = math.sqrt(1.0 + s)
+        b = math.sqrt(max(1.0 - s, 0.0))
+        s += (q - (1.0 + s) * a + (1.0 - s) * b) / (1.5 * (a + b))
+        if s > 1.0:
+            s = 1.0
+    return s
+
+
+def hertz_stiffness_ratio(f_axial: float, preload_n: float, ref_n: float) -> float:
+    """The double nut's secant axial stiffness |F| / delta at load F and preload F_pr over
+    the same at the reference preload F_ref (Hertz: delta = d0 s(|F| / F_pr), d0 ~
+    F_pr^(2/3)): (F_ref / F_pr)^(2/3) s(|F| / F_ref) / s(|F| / F_pr); at small loads
+    the tangent ratio (F_pr / F_ref)^(1/3). Exactly 1 at F_pr = F_ref for every load."""
+    fpr = max(preload_n, HERTZ_MIN_PRELOAD_FRAC * ref_n)
+    f = abs(f_axial)
+    if f < 1e-6 * ref_n:
+        return (fpr / ref_n) ** (1.0 / 3.0)
+    return (ref_n / fpr) ** (2.0 / 3.0) * hertz_share(f / ref_n) / hertz_share(f / fpr)
+
+
+def hertz_reference(params: PlantParams) -> float:
+    """F_ref (N) of the Hertzian preload law, 0 when off (eq. 5.21's linear law)."""
+    return params.screw.hertz_reference_preload_n

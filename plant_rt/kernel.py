@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from plant_rt.contacts import HERTZ_MIN_PRELOAD_FRAC, hertz_share
 from plant_rt.jit import njit
 from plant_rt.pi import clamped_pi
 from plant_rt.wear import effects_from_depth
@@ -27,6 +28,19 @@ from plant_rt.wear import effects_from_depth
 # the wear mapping of `plant_rt.wear`, compiled here (plant_rt.wear itself stays numba-free)
 _effects_from_depth = njit(cache=True, inline="always", error_model="numpy",
                            fastmath={"nnan", "ninf", "nsz"})(effects_from_depth)
+# the Hertzian preload law of `plant_rt.contacts`, compiled here (contacts stays numba-free)
+_hertz_share = njit(cache=True, inline="always", error_model="numpy",
+                    fastmath={"nnan", "ninf", "nsz"})(hertz_share)
+
+
+@njit(cache=True, error_model="numpy", fastmath={"nnan", "ninf", "nsz"})
+def _hertz_ratio(f_axial: float, preload_n: float, ref_n: float) -> float:
+    """`plant_rt.contacts.hertz_stiffness_ratio`, compiled (same arithmetic; tested equal)."""
+    fpr = max(preload_n, HERTZ_MIN_PRELOAD_FRAC * ref_n)
+    f = abs(f_axial)
+    if f < 1e-6 * ref_n:
+        return (fpr / ref_n) ** (1.0 / 3.0)
+    return (ref_n / fpr) ** (2.0 / 3.0) * _hertz_share(f / ref_n) / _hertz_share(f / fpr)
 
 # --- state vector x -------------------------------------------------------------------
 (I, CI, IM, TQ, TEMP, TH, OM, X1, V1, X2, V2, ZB1, VB1, ZB2, VB2,
@@ -58,9 +72,13 @@ STATE_NAMES = (
  P_LEVER_R, P_FV, P_FS, P_CN, P_MN, P_MB, P_KSTAR, P_MSLOPE, P_CDAMP,
  P_LZETA, P_LSIG, P_EZETA, P_ESIG, P_TAUC, P_KPI, P_KII, P_FPWM, P_PWM_SW, P_BALL_DYN,
  P_DT, P_NBALL, P_NSUB, P_LOAD_KIND, P_LOAD_AMP, P_LOAD_T0, P_LOAD_RATE, P_LOAD_FREQ,
- P_TRAVEL, P_AERO_GAIN, P_WEAR_ON, P_WEAR_GAIN, P_WEAR_AREA, P_WEAR_FRIC, P_LTAU) = range(56)
-NP = 56
+ P_TRAVEL, P_AERO_GAIN, P_WEAR_ON, P_WEAR_GAIN, P_WEAR_AREA, P_WEAR_FRIC, P_LTAU,
+ P_HREF, P_PDRAG) = range(58)
+NP = 58
 # P_LTAU: the LVDT's first-order time constant (s); 0: the second-order filter of eq. 5.1
+# P_HREF: the Hertzian preload law's reference preload F_ref (N); 0: eq. 5.21's linear law
+# P_PDRAG: the preloaded nut's drag torque at the screw per N of preload (N m/N), added to
+# C_s of eq. 5.14; 0: none beyond the rolling terms of eq. 5.13 and 5.31
 # load kinds (P_LOAD_KIND): the order of `LoadParams.kind`'s choices
 LOAD_KINDS = ("none", "step", "ramp", "sine", "aero")
 
@@ -186,7 +204,7 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     wgain = p[P_WEAR_GAIN]
     wearing = wgain != 0.0
     gust = u[U_GUST]
-    CS = p[P_CS] * fscale
+    CS = (p[P_CS] + p[P_PDRAG] * fpr) * fscale     # eq. 5.14 (+ the preload's drag)
     STRA, STRV = p[P_STRA], p[P_STRV]
     CVISC = p[P_CVISC] * vscale
     Z, lead, g = p[P_Z], p[P_LEAD], p[P_G]
@@ -196,6 +214,11 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     mhalf = 0.5 * p[P_MN]
     mb = p[P_MB]
     k = p[P_KSTAR] + p[P_MSLOPE] * fpr          # eq. 5.21
+    href = p[P_HREF]
+    hertz = href > 0.0      # Hertzian nut: k of eq. 5.21 at F_ref, scaled per sub-step
+    k_ref = p[P_KSTAR] + p[P_MSLOPE] * href
+    f_k = 0.0               # the load the Hertzian k was last computed at (held over a
+    have_k = False          # period when the load is the replayed U_FEXT alone)
     c = p[P_CDAMP]
     hb = 0.25 * backlash                         # b_max/4 per contact (eq. 5.19-5.20)
     kin = lead / TWO_PI * g                      # dz_s/dOmega (eq. 5.26)
@@ -274,6 +297,11 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
         x[IM] += (i_new - x[IM]) * a_c                                   # eq. 5.2
         x[TQ] += (KT * i_new - x[TQ]) * a_h                              # eq. 5.4 + demod
         x[TEMP] += (tamb + rt * i_new * i_new * rth - x[TEMP]) * a_w  # eq. 5.5
+        fext = _ext_force(p, t, 0.5 * (x[X1] + x[X2]), gust) + u[U_FEXT]  # F_ext, eq. 5.29
+        if hertz and not (have_k and fext == f_k):   # the double nut's secant stiffness
+            k = k_ref * _hertz_ratio(fext, fpr, href)   # at this load and preload
+            f_k = fext
+            have_k = True
         # ---- ball contacts (eq. 5.16-5.24) ---------------------------------------------
         zs = kin * x[TH]
         vzs = kin * om
@@ -352,7 +380,6 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
                 om_new = 0.0
                 x[STS] = 1.0 if abs(tt) <= c_stat else 0.0
         # ---- double nut (eq. 5.27-5.32) -----------------------------------------------
-        fext = _ext_force(p, t, 0.5 * (x[X1] + x[X2]), gust) + u[U_FEXT]  # F_ext, eq. 5.29
         fz1 = -pn1 * g                                                 # eq. 5.28
         fz2 = -pn2 * g
         ffr_tot = 0.0

@@ -22,7 +22,7 @@ from ema_contract.states import Status
 from plant_rt import kernel as K
 from plant_rt import wear
 from plant_rt.aero import GustGenerator
-from plant_rt.contacts import contact_geometry
+from plant_rt.contacts import contact_geometry, hertz_stiffness_ratio
 from plant_rt.params import PlantParams
 
 OVERTEMPERATURE_K = 428.0  # class H insulation, 155 degC
@@ -69,6 +69,8 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_CDAMP] = s.contact_damping_n_s_per_m
     p[K.P_LZETA], p[K.P_LSIG] = se.lvdt_damping, se.lvdt_natural_rad_s
     p[K.P_LTAU] = se.lvdt_time_constant_s
+    p[K.P_HREF] = s.hertz_reference_preload_n                  # 0: eq. 5.21's linear law
+    p[K.P_PDRAG] = s.preload_drag_nm_per_n                     # 0: eq. 5.13's terms only
     p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
     p[K.P_TAUC] = se.current_time_constant_s
     p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, d.current_ki_v_per_as
@@ -119,8 +121,12 @@ def ball_substeps(params: PlantParams, dt: float) -> int:
     the micro-step is held at 0.6 of that (a 1.67x margin) and at most 1 us."""
     s = params.screw
     kstar, mslope = contact_geometry(params)[:2]
-    k = kstar + mslope * max(params.effects.preload_n, params.schedule.preload_start_n
-                             if params.schedule.kind != "none" else 0.0)
+    fpr = max(params.effects.preload_n, params.schedule.preload_start_n
+              if params.schedule.kind != "none" else 0.0)
+    k = kstar + mslope * fpr
+    href = params.screw.hertz_reference_preload_n
+    if href > 0.0:      # the Hertzian law's largest ratio: the tangent one at no load
+        k = (kstar + mslope * href) * max(1.0, hertz_stiffness_ratio(0.0, fpr, href))
     w = math.sqrt(2 * k / s.ball_mass_kg)
     z = s.contact_damping_n_s_per_m / math.sqrt(2 * k * s.ball_mass_kg)
     h = min(1e-6, 0.6 * (2 / w) * (math.sqrt(1 + z * z) - z))
@@ -217,6 +223,9 @@ class Plant:
             return
         kstar, mslope, z, g = contact_geometry(self.params)
         k = kstar + mslope * preload
+        href = self.params.screw.hertz_reference_preload_n
+        if href > 0.0:      # the Hertzian law at no load (the kernel's first sub-step)
+            k = (kstar + mslope * href) * hertz_stiffness_ratio(0.0, preload, href)
         g = self._p[K.P_G]
         # each nut: Z * (k/2) * g * dz = F_pr along x, dz = g dx  (series contacts)
         dz = preload / (z * 0.5 * k * g)             # compression along z

@@ -147,6 +147,26 @@ class ScrewParams(_Validated):
         "3.5 mm balls, 4 loaded turns): Bosch Rexroth precision ball screw assemblies "
         "R310EN 3301, FEM-E-S / FDM-E-S 32x5R-3.5-4, about 22 kN; the catalogue page was not "
         "at hand to check here (docs/usage.md)")
+    hertz_reference_preload_n: float = P(
+        0.0, "N", 0.0, 50000.0,
+        "Hertzian preloaded double nut: 0 = eq. 5.21's linear law k* + m F_pr (the "
+        "default); > 0 = the balls are Hertzian contacts (F ~ delta^1.5) and k* + m F_ref "
+        "is the contact stiffness at this preload F_ref (the nut as built, where k* is "
+        "measured or calibrated); at preload F_pr and axial load F the contacts' stiffness "
+        "is scaled by the double nut's secant stiffness at (F, F_pr) over that at (F, F_ref): "
+        "(F_pr / F_ref)^(1/3) at small loads, the unloaded half's lift-off beyond "
+        "2^1.5 F_pr (plant_rt.contacts.hertz_stiffness_ratio; docs/model.md)",
+        "Hertz contact (thesis section 2: the loaded nut's elliptical contacts 'according "
+        "to Hertz contacts theory'; K. L. Johnson, Contact Mechanics, 1985, ch. 4); "
+        "a preloaded double nut's catalogue (e.g. THK: axial stiffness ~ F_a0^(1/3))")
+    preload_drag_nm_per_n: float = P(
+        0.0, "N m/N", 0.0, 1e-2,
+        "a preloaded nut's no-load drag torque at the screw per N of preload, T_p = this x "
+        "F_pr, added to the screw's Coulomb level C_s (eq. 5.14) and scaled with it by the "
+        "friction scale; 0 (default) = none beyond the rolling terms of eq. 5.13 and 5.31 "
+        "(f_v on the contact forces, which carry the preload)",
+        "0: thesis; > 0: a catalogue's preload drag torque (e.g. THK's 'preload dynamic "
+        "torque' T_p = 0.05 (tan lambda)^-0.5 F_pr p / 2 pi)")
 
     @property
     def lever_m(self) -> float:

@@ -86,6 +86,12 @@ class Effect:
         """Logged measured columns after the effect (default: unchanged)."""
         return cols
 
+    def in_log(self, base: PlantParams) -> bool:
+        """Whether `post` applies for the nominal model `base` (default: ``where``). An
+        effect whose place depends on the model (an LVDT lag in or after the loop) says
+        so here."""
+        return self.where == "log"
+
     @property
     def discrete(self) -> bool:
         return all(p.integer_step > 0 for p in self.params)

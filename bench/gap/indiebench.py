@@ -44,6 +44,7 @@ from bench.workers import run_all
 from indie_plant.controller import Cascade
 from indie_plant.generate import simulate as indie_simulate
 from indie_plant.params import IndieParams
+from plant_rt.contacts import normal_to_axis
 from plant_rt.params import PlantParams
 
 LOG_S = 10.0
@@ -54,15 +55,60 @@ HELDOUT_SEED_OFFSET = 100_004         # healthy held-out log (goal 4): seed + th
 SNR_SIGNALS = ("current_a", "motor_speed_rad_s", "position_m", "motor_angle_rad")
 
 
-def datasheet_model(actuator: IndieParams = NOMINAL) -> PlantParams:
+SCREW_DIAMETER_M = 0.016
+"""The independent actuator's screw diameter (its datasheet: a 16 mm screw, 4 mm lead)."""
+PRELOAD_DRAG_K = 0.05
+"""The catalogue's preload drag torque of a preloaded nut, T_p = K (tan lambda)^-0.5
+F_pr p / 2 pi with the lead angle tan lambda = p / (pi d) (THK's ball screw catalogue,
+'preload dynamic torque', K = 0.05; a formula from memory, the page was not at hand)."""
+
+
+def catalogue_preload_drag_nm(actuator: IndieParams = NOMINAL) -> float:
+    """The preloaded nut's no-load drag torque at the screw (N m) by the catalogue
+    formula (`PRELOAD_DRAG_K`) from the datasheet's preload, lead and screw diameter."""
+    tan_lead = actuator.lead_m / (math.pi * SCREW_DIAMETER_M)
+    return PRELOAD_DRAG_K / math.sqrt(tan_lead) * actuator.preload_n * actuator.lead_m \
+        / (2.0 * math.pi)
+
+
+def rolling_friction_for_drag(params: PlantParams, drag_nm: float) -> float:
+    """The rolling friction coefficient f_v that gives `params`' model the no-load drag
+    `drag_nm` (N m, at the screw) at its preload F_pr: each nut carries F_pr, Z balls
+    at F_pr / (Z g) along the normal, so the screw's rolling term (eq. 5.13, third term:
+    Z f_v sum|P| cos(alpha) r) and the nuts' (eq. 5.31: f_v Z |P| each, at p / 2 pi per
+    screw radian) give f_v (2 F_pr / g) (cos(alpha) r + p / 2 pi)."""
+    s = params.screw
+    g = normal_to_axis(params)
+    lever = math.cos(math.radians(s.helix_angle_deg)) * s.lever_m + s.lead_m / (2 * math.pi)
+    return drag_nm * g / (2.0 * params.effects.preload_n * lever)
+
+
+PRELOAD_LAWS = ("none", "hertz", "hertz-fv", "hertz-drag")
+"""How the datasheet model declares its preloaded double nut (docs/gap.md, "Preload and
+the in-loop LVDT lag"): none (before indie6); hertz (the default): the Hertzian preload
+law at the datasheet preload, the drag left to the thesis' rolling terms; hertz-fv and
+hertz-drag add the catalogue's preload drag through the rolling friction f_v or as a
+screw torque per N of preload (both rejected on the healthy logs under the bench's ECU)."""
+
+
+def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
+                    ) -> PlantParams:
     """The bench's model of the independent actuator from its datasheet: ratio, lead,
     motor constants, rotor and screw inertias, nut mass, preload, supply and limits, and
     how its drive computes the speed (the count difference over `speed_window` SYNC
     periods) and the LVDT conditioner's lag (first order, `lvdt_tau_s`). The bench's
     friction laws and contact model stay its own (the thesis' tables): friction, the
-    contact stiffness (under the logged load) and the rest are what calibration is for."""
+    contact stiffness (under the logged load) and the rest are what calibration is for.
+
+    `preload_law` (2026-11-24, indie6; `PRELOAD_LAWS`): the nut is a preloaded double nut
+    with Hertzian contacts (its datasheet), so the model declares the Hertzian preload
+    law at the datasheet preload (`screw.hertz_reference_preload_n`; "hertz", the
+    default) and, optionally, the preload's drag by the catalogue formula
+    (`catalogue_preload_drag_nm`): as a screw torque per N of preload
+    (`screw.preload_drag_nm_per_n`, "hertz-drag") or through the rolling friction f_v of
+    eq. 5.13 and 5.31 ("hertz-fv"); "none" gives the model before indie6."""
     n = actuator
-    return PlantParams().with_dict({
+    model = PlantParams().with_dict({
         "motor.kt_nm_per_a": n.kt_nm_per_a, "motor.ke_v_s_per_rad": n.ke_v_s_per_rad,
         "motor.resistance_ohm": n.resistance_ohm, "motor.inductance_h": n.inductance_h,
         "motor.inertia_kg_m2": 2.4e-3,            # rotor alone on the datasheet
@@ -77,6 +123,18 @@ def datasheet_model(actuator: IndieParams = NOMINAL) -> PlantParams:
         "sensors.encoder_speed_window": int(n.speed_window),
         # the LVDT conditioner: a first-order 1 ms demodulator (its datasheet)
         "sensors.lvdt_time_constant_s": n.lvdt_tau_s})
+    if preload_law not in PRELOAD_LAWS:
+        raise ValueError(f"preload_law {preload_law!r} not one of {PRELOAD_LAWS}")
+    if preload_law == "none" or n.preload_n <= 0.0:
+        return model
+    if preload_law == "hertz":
+        return model.with_dict({"screw.hertz_reference_preload_n": n.preload_n})
+    drag = catalogue_preload_drag_nm(n)
+    if preload_law == "hertz-fv":
+        return model.with_dict({"screw.hertz_reference_preload_n": n.preload_n,
+                                "screw.rolling_friction": rolling_friction_for_drag(model, drag)})
+    return model.with_dict({"screw.hertz_reference_preload_n": n.preload_n,
+                            "screw.preload_drag_nm_per_n": drag / n.preload_n})
 
 
 def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:

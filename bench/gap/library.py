@@ -104,7 +104,9 @@ class Stiffness(_Single):
 
 class Preload(_Single):
     name = "preload"
-    doc = "double-nut preload F_pr: stiffer contacts, more rolling friction (eq. 5.21, 5.29)"
+    doc = ("double-nut preload F_pr: stiffer contacts (eq. 5.21, or the Hertzian law when the "
+           "model declares screw.hertz_reference_preload_n), more rolling friction, the "
+           "preload's drag (eq. 5.13, 5.31: f_v on the contact forces) (eq. 5.29)")
     params = (Param("preload_n", "N", 0.0, 8000.0, "preload force"),)
     target = "effects.preload_n"
 
@@ -118,12 +120,32 @@ class SensorDelay(_Single):
 
 class LvdtLag(Effect):
     name = "lvdt_lag"
-    doc = "first-order lag of the logged LVDT signal (acquisition filter; not in the loop)"
+    doc = ("first-order lag added to the LVDT: in the loop when the model's LVDT "
+           "conditioner is first order (sensors.lvdt_time_constant_s > 0: its time "
+           "constant grows by the lag, as the ECU sees it), else of the logged signal "
+           "(an acquisition filter; not in the loop)")
     where = "log"
     params = (Param("lvdt_lag_s", "s", 0.0, 0.05, "time constant"),)
 
+    @staticmethod
+    def in_loop(base: PlantParams) -> bool:
+        """The model's LVDT conditioner is a first-order lag the controller reads
+        through (`sensors.lvdt_time_constant_s` > 0)."""
+        return base.sensors.lvdt_time_constant_s > 0.0
+
+    def in_log(self, base: PlantParams) -> bool:
+        return not self.in_loop(base)
+
     def nominal(self, base: PlantParams) -> dict[str, float]:
         return {"lvdt_lag_s": 0.0}
+
+    def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
+        if not self.in_loop(base):
+            return {}
+        # a slower conditioner in series with the model's: the time constants add (the
+        # same low-frequency phase lag, sum tau w, as the two first-order poles)
+        tau = base.sensors.lvdt_time_constant_s + theta["lvdt_lag_s"]
+        return {"sensors.lvdt_time_constant_s": float(min(tau, 0.1))}
 
     def post(self, cols: dict[str, np.ndarray], theta: Mapping[str, float],
              dt: float) -> dict[str, np.ndarray]:

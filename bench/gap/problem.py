@@ -79,7 +79,7 @@ class Problem:
         params = self.params_for(effects, thetas)
         cols = self.closed_loop(params, n)
         for eff, th in zip(effects, thetas, strict=True):
-            if eff.where == "log":
+            if eff.in_log(self.base):
                 cols = eff.post(cols, th, self.dt)
         return self.signals(cols)
 
