@@ -6,9 +6,10 @@ dwell current (`baseline.standstill_current`; variant B of 2026-11-24: the drive
 current steps by itself); the dwell and index features read the logged current.
 
 - localised (position-locked): a spall on the screw gives a current transient at the
-  same nut position on every pass. Each stroke's current residual, less its median (a
-  level shift is not localised), is scanned with windows of `SCALES` samples (the
-  window's sum over sqrt(width): unit variance under the baseline's noise); so is the
+  same nut position on every pass. Each stroke's current residual, less its constant in
+  amperes (`offset_free`, variant 3: a level shift is not localised), is scanned with
+  windows of `SCALES` samples (the window's sum over sqrt(width): unit variance under
+  the baseline's noise); so is the
   sum of the out- and in-stroke residuals at the same set-point position (the nut passes
   the same place in both directions). The score is the largest |scan|; its window gives
   the position in mm of travel (measured position, not set-point) and the width.
@@ -23,7 +24,8 @@ current steps by itself); the dwell and index features read the logged current.
   the play: docs/real-data.md, injected faults.)
 - periodic (position-periodic, at the screw's lead): a defect on the screw's raceway
   passes under the nut's balls once per screw revolution, i.e. once per lead of travel.
-  The current residual of each stroke (less its mean) is projected on cos/sin of
+  The current residual of each stroke (`offset_free`, then less its mean) is projected
+  on cos/sin of
   2 pi x / lead at the measured positions x (a least-squares line at the logged samples,
   no resampling); 2 |sum z e^(-i theta)|^2 / N is chi-square with 2 degrees of freedom
   under the baseline's noise, and the score is the sum over both strokes. Where: the same
