@@ -28,3 +28,13 @@ def machine_description() -> str:
         pass
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
+
+def refuse_mf4_import() -> None:
+    """python-can imports asammdf (its MF4 log format) with `import can`, ~0.6 s of a
+    process's start-up; a process that reads and writes no log file refuses that import
+    (the documented `sys.modules[name] = None`), in this process only: the loopback hub
+    (`bench.bus`) and `bench up/status/down/plant` (`bench.cli`). `python -m plant_rt`
+    does the same for itself (plant_rt does not import bench)."""
+    import sys
+    if "asammdf" not in sys.modules:
+        sys.modules["asammdf"] = None  # type: ignore[assignment]

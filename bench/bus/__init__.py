@@ -18,6 +18,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+from bench import BenchError, refuse_mf4_import
+
 HUB_MODULE = "bench.bus.hub"
 
 
@@ -28,18 +30,14 @@ def started_as(module: str, argv: list[str] | None = None) -> bool:
         f"-m{module}" in argv
 
 
-# python-can imports asammdf (its MF4 log format) with `import can`, ~0.6 s of the loopback
-# hub's start-up; the hub process (`python -m bench.bus.hub`, started by `bench up` and by
-# every command that runs on a private bus) reads and writes no log file, so that import is
-# refused there (the documented `sys.modules[name] = None`), in that process only, as
-# `python -m plant_rt` does. Every other process keeps MF4 logs.
-if started_as(HUB_MODULE) and "asammdf" not in sys.modules:
-    sys.modules["asammdf"] = None  # type: ignore[assignment]
+# the hub process (`python -m bench.bus.hub`, started by `bench up` and by every command
+# that runs on a private bus) writes no log file: no MF4 support to import there
+if started_as(HUB_MODULE):
+    refuse_mf4_import()
 
 import can  # noqa: E402
 import can.cli  # noqa: E402
 
-from bench import BenchError  # noqa: E402
 from ema_contract.transport import (  # noqa: E402
     BusUnavailable,
     close_bus,

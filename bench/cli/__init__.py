@@ -16,7 +16,7 @@ import importlib
 import sys
 import traceback
 
-from bench import BenchError, __version__
+from bench import BenchError, __version__, refuse_mf4_import
 
 # subcommand name -> (module under bench.cli, the help line its parser registers)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -43,8 +43,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 
 
 # commands that read and write no log file: their process refuses python-can's MF4 import
-# (asammdf and pandas, ~0.6-0.9 s of every `bench down`), as `python -m plant_rt` and the
-# hub do; only when `bench` runs as its own process (never for `main(argv)` in-process)
+# (`bench.refuse_mf4_import`; ~0.6-0.9 s of every `bench down`); only when `bench` runs
+# as its own process (never for `main(argv)` in-process)
 NO_LOG_FILES = frozenset({"up", "status", "down", "plant"})
 
 
@@ -94,9 +94,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    if argv is None and selected_command(sys.argv[1:]) in NO_LOG_FILES \
-            and "asammdf" not in sys.modules:
-        sys.modules["asammdf"] = None  # type: ignore[assignment]
+    if argv is None and selected_command(sys.argv[1:]) in NO_LOG_FILES:
+        refuse_mf4_import()
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
     args = parser.parse_args(argv)

@@ -204,11 +204,18 @@ def _judged(lb: B.LoadBaseline, c: Cycle, thr: dict[str, float], lead: float
     return hit, effect, (location(f, effect) if hit else None)
 
 
-def _tables(tables: list[str | Path], runs: list[int]) -> tuple[list[Cycle], list[str]]:
-    cycles: list[Cycle] = []
+def _tables(tables: list[str | Path], calibrate_runs: list[int], holdout_runs: list[int]
+            ) -> tuple[list[Cycle], list[Cycle], list[str]]:
+    """The calibration and the held-out cycles of the tables (each table read once)."""
+    cal: list[Cycle] = []
+    hold: list[Cycle] = []
     for t in tables:
-        cycles += [c for c in read_cycles(t) if c.run in runs]
-    return cycles, [Path(t).name for t in tables]
+        for c in read_cycles(t):
+            if c.run in calibrate_runs:
+                cal.append(c)
+            elif c.run in holdout_runs:
+                hold.append(c)
+    return cal, hold, [Path(t).name for t in tables]
 
 
 def run_inject(tables: list[str | Path], calibrate_runs: list[int],
@@ -220,15 +227,13 @@ def run_inject(tables: list[str | Path], calibrate_runs: list[int],
     if set(calibrate_runs) & set(holdout_runs):
         raise BenchError("a run cannot be both a calibration and a held-out run")
     t0 = time.perf_counter()
-    cal, names = _tables(tables, calibrate_runs)
-    hold, _ = _tables(tables, holdout_runs)
+    cal, hold, names = _tables(tables, calibrate_runs, holdout_runs)
     if not cal or not hold:
         raise BenchError(f"{', '.join(map(str, tables))}: no cycle of the calibration runs "
                          f"{calibrate_runs} or of the held-out runs {holdout_runs}")
     base = B.build(cal, names)
     base.lead_mm = lead_mm
-    cals = {load: P.calibrate([c for c in cal if c.load == load], alpha, lead_mm)
-            for load in sorted({c.load for c in cal})}
+    cals = P.calibrate_loads(cal, alpha, lead_mm)
     hold = [c for c in hold if c.load in cals]
     if not hold:
         raise BenchError("no held-out cycle at a load the calibration runs have")

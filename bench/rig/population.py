@@ -120,6 +120,13 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None =
     return Calibration(cycles[0].load, runs, thr, scores, alpha)
 
 
+def calibrate_loads(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None = None
+                    ) -> dict[float, Calibration]:
+    """`calibrate` for each load of the healthy calibration cycles, in load order."""
+    return {load: calibrate([c for c in cycles if c.load == load], alpha, lead_mm)
+            for load in sorted({c.load for c in cycles})}
+
+
 def cross_validate(cycles: list[Cycle], k: int, alpha: float = ALPHA,
                    lead_mm: float | None = None, max_splits: int = 20) -> dict[str, Any]:
     """The healthy false-alarm rate, cross-validated: every choice of `k` of the healthy

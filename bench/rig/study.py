@@ -145,9 +145,7 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
                          f"{holdout_runs}")
     base = B.build(cal, [p.name for p in healthy_files])
     base.lead_mm = lead_mm
-    cals = {}
-    for load in sorted({c.load for c in cal}):
-        cals[load] = P.calibrate([c for c in cal if c.load == load], alpha, lead_mm)
+    cals = P.calibrate_loads(cal, alpha, lead_mm)
     base.thresholds = {f"{k:g}": v.to_json() for k, v in cals.items()}
     study = Study(base, cals, sorted(holdout_runs), {}, hname)
     idle = sorted({c.run for c in hcycles} - set(calibrate_runs) - set(holdout_runs))
