@@ -204,13 +204,14 @@ def _judged(lb: B.LoadBaseline, c: Cycle, thr: dict[str, float], lead: float
     return hit, effect, (location(f, effect) if hit else None)
 
 
-def _tables(tables: list[str | Path], calibrate_runs: list[int], holdout_runs: list[int]
-            ) -> tuple[list[Cycle], list[Cycle], list[str]]:
-    """The calibration and the held-out cycles of the tables (each table read once)."""
+def _tables(tables: list[str | Path], calibrate_runs: list[int], holdout_runs: list[int],
+            lost: list[str]) -> tuple[list[Cycle], list[Cycle], list[str]]:
+    """The calibration and the held-out cycles of the tables (each table read once; the
+    cycles that cannot be read are listed in `lost`)."""
     cal: list[Cycle] = []
     hold: list[Cycle] = []
     for t in tables:
-        for c in read_cycles(t):
+        for c in read_cycles(t, skipped=lost):
             if c.run in calibrate_runs:
                 cal.append(c)
             elif c.run in holdout_runs:
@@ -227,14 +228,20 @@ def run_inject(tables: list[str | Path], calibrate_runs: list[int],
     if set(calibrate_runs) & set(holdout_runs):
         raise BenchError("a run cannot be both a calibration and a held-out run")
     t0 = time.perf_counter()
-    cal, hold, names = _tables(tables, calibrate_runs, holdout_runs)
+    left_out: list[str] = []          # reported, never dropped silently
+    cal, hold, names = _tables(tables, calibrate_runs, holdout_runs, left_out)
     if not cal or not hold:
         raise BenchError(f"{', '.join(map(str, tables))}: no cycle of the calibration runs "
                          f"{calibrate_runs} or of the held-out runs {holdout_runs}")
     base = B.build(cal, names)
     base.lead_mm = lead_mm
     cals = P.calibrate_loads(cal, alpha, lead_mm)
+    left_out += [f"{c.label}: no healthy calibration run at load {c.load:g}: not scored"
+                 for c in hold if c.load not in cals]
     hold = [c for c in hold if c.load in cals]
+    why = {id(c): B.incomplete(base.for_load(c.load), c) for c in hold}
+    left_out += [f"{c.label}: not judged: {why[id(c)]}" for c in hold if why[id(c)]]
+    hold = [c for c in hold if not why[id(c)]]
     if not hold:
         raise BenchError("no held-out cycle at a load the calibration runs have")
     loads = sorted({c.load for c in hold})
@@ -258,10 +265,12 @@ def run_inject(tables: list[str | Path], calibrate_runs: list[int],
     if bar is not None:
         bar.close()
     t2 = time.perf_counter()
-    return _result(base, cals, sc, healthy, cells, kinds, sizes, loads, calibrate_runs,
-                   holdout_runs, lead_mm, {"total_s": t2 - t0, "scoring_s": t2 - t1,
-                                           "cycles_scored": len(hold) * (1 + len(jobs))},
-                   condition_name(tables[0]))
+    res = _result(base, cals, sc, healthy, cells, kinds, sizes, loads, calibrate_runs,
+                  holdout_runs, lead_mm, {"total_s": t2 - t0, "scoring_s": t2 - t1,
+                                          "cycles_scored": len(hold) * (1 + len(jobs))},
+                  condition_name(tables[0]))
+    res["left_out"] = left_out
+    return res
 
 
 def _bar(total: int, progress: bool) -> Any:
@@ -363,6 +372,7 @@ def markdown(res: dict[str, Any], command: str) -> str:
     ph = res["pooled"]["holdout"]
     lines += ["", f"All loads: {ph['flagged']} / {ph['cycles']} unmodified held-out cycles "
               f"flagged ({_pct(ph['rate'])}).", ""]
+    lines += [f"Left out: {x}." for x in res.get("left_out", [])]
     keys = list(res["loads"])
     for kind in res["kinds"]:
         unit = UNITS[kind]

@@ -176,3 +176,31 @@ def test_imported_partial_and_gappy_cycles_in_the_gap_against_a_baseline(tmp_pat
     assert main(["gap", str(tr / "load=40_run=1_group=52.parquet"), "--baseline",
                  str(base)]) == 2
     assert "samples 10 without current: not read" in capsys.readouterr().err
+
+
+def test_inject_lists_the_cycles_it_leaves_out(tmp_path, capsys):
+    """`bench rig inject` on a table with a cut cycle and a gappy one in its held-out runs:
+    both are listed (before, the cut one was injected and judged as a whole, the gappy
+    one dropped without a word); the rest is scored as before."""
+    import numpy as np
+    import pyarrow as pa
+
+    from bench.cli import main
+    t = _table()
+    g = t["group"].to_numpy()
+    run3 = np.unique(g[t["run"].to_numpy() == 3])
+    keep = np.ones(len(g), bool)
+    keep[np.flatnonzero(g == run3[0])[100:]] = False
+    cur = t["current"].to_numpy().astype(float)
+    cur[np.flatnonzero(g == run3[1])[50:60]] = np.nan
+    t = t.set_column(t.column_names.index("current"), "current", pa.array(cur))
+    bad = _write(t.filter(pa.array(keep)), tmp_path / "normal.csv")
+    out = tmp_path / "inj"
+    assert main(["rig", "inject", str(bad), "--calibrate-runs", "1,2", "--holdout-runs",
+                 "3,4", "--lead-mm", "5", "--sizes", "8", "--out", str(out)]) == 0
+    res = json.loads((out / "inject.json").read_text())
+    assert res["loads"]["40"]["holdout"]["cycles"] == 8
+    left = res["left_out"]
+    assert any("cycle" in x and "samples 10 without current: not read" in x for x in left)
+    assert any("not judged: incomplete cycle" in x for x in left)
+    assert "Left out: " in (out / "inject.md").read_text()
