@@ -83,6 +83,7 @@ EFFECTS = {
     "periodic": "position-periodic effect at the screw's lead (once per revolution)",
     "localised": "localised (position-locked) effect",
     "level": "friction-like effect (current raised in both directions)",
+    "drag": "drag lowered in both directions (less friction, or the preload's drag lost)",
     "reversal": "backlash-like effect (position error at the reversals)",
 }
 
@@ -322,7 +323,8 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
        with one is above its threshold.
 
     (Variant 1 of 2026-11-24, designed from injected faults: docs/real-data.md "What else
-    the bench sees: injected faults".)"""
+    the bench sees: injected faults".) A level below the healthy one is named `drag`, not
+    friction (variant 4: a friction growth raises the current)."""
     ratios = {k: f.scores[k] / thresholds[k] for k in FEATURES
               if k in thresholds and math.isfinite(f.scores.get(k, nan_))
               and thresholds[k] > 0}
@@ -335,7 +337,17 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
     spec, split = best["position-locked"], best["direction-split"]
     if spec and (not split or above[spec] >= above[split]):
         return True, spec, reasons
+    if split == "level" and signed_level(f) < 0:
+        return True, "drag", reasons
     return True, split or best["catch-all"], reasons
+
+
+def signed_level(f: CycleFeatures) -> float:
+    """The level's sign-keeping value: the mean of the out- and in-stroke residual means
+    (the score is its magnitude). Below zero the current is lowered in both directions:
+    less drag, not friction (variant 4 of 2026-11-24)."""
+    v = [x for x in (f.level_out, f.level_in) if math.isfinite(x)]
+    return float(np.mean(v)) if v else nan_
 
 
 NAMING = {"position-locked": SPECIFIC, "direction-split": ("level", "reversal"),
@@ -352,8 +364,14 @@ def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> d
                 "verdict": f"not judged: {f.incomplete}", "reasons": [],
                 "baseline": base.describe(f.load), "location_mm": None}
     flagged, effect, reasons = judge(f, thresholds)
+    where = location(f, effect, thresholds) if flagged else None
     if not flagged:
         text = "no significant deviation from the healthy baseline"
+    elif effect == "periodic" and where is None:
+        text = (f"{EFFECTS[effect]}; spread along the stroke, not located (the localised "
+                f"scan {f.scores['localised']:.2f} is below its threshold "
+                f"{thresholds.get('localised', nan_):.2f}; the lead-periodic projection is "
+                f"largest at {f.periodic_mm:.1f} mm)")
     elif effect == "localised":
         agree = (abs(f.out_mm - f.in_mm) if math.isfinite(f.out_mm + f.in_mm) else nan_)
         text = (f"{EFFECTS[effect]} at {f.location_mm:.1f} mm of travel "
@@ -376,12 +394,17 @@ def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> d
     return {"cycle": f.label, "flagged": flagged, "judged": True, "effect": effect,
             "verdict": text,
             "reasons": reasons, "baseline": base.describe(f.load),
-            "location_mm": location(f, effect)}
+            "location_mm": where}
 
 
-def location(f: CycleFeatures, effect: str) -> float | None:
+def location(f: CycleFeatures, effect: str, thresholds: dict[str, float]) -> float | None:
     """Where the named effect is along the stroke (mm), None for an unlocated one: for a
     periodic or localised effect the strongest window of the localised scan (a spot of
-    the raceway acts over about a nut length; a periodic line along the whole stroke has
-    no place of its own)."""
-    return f.location_mm if effect in SPECIFIC else None
+    the raceway acts over about a nut length), but only when that scan stands out, i.e.
+    is above its threshold: a periodic line spread along the whole stroke has no place of
+    its own, and the strongest window of a scan within its healthy range wanders
+    (variant 4 of 2026-11-24)."""
+    if effect not in SPECIFIC:
+        return None
+    thr = thresholds.get("localised", nan_)
+    return f.location_mm if f.scores.get("localised", 0.0) > thr else None

@@ -201,7 +201,7 @@ def _judged(lb: B.LoadBaseline, c: Cycle, thr: dict[str, float], lead: float
             ) -> tuple[bool, str, float | None]:
     f = cycle_features(lb, c, lead)
     hit, effect, _ = judge(f, thr)
-    return hit, effect, (location(f, effect) if hit else None)
+    return hit, effect, (location(f, effect, thr) if hit else None)
 
 
 def _tables(tables: list[str | Path], calibrate_runs: list[int], holdout_runs: list[int],

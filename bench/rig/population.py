@@ -205,8 +205,9 @@ def matched_threshold(healthy_scores: list[float], n_flagged: int) -> float:
 
 def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[str, Any]:
     """Detection (or false-alarm) rate of a condition, the effects named and where the
-    localised ones are (median and interquartile range of the position in mm); incomplete
-    cycles are not judged (`not_judged`, outside the rate)."""
+    located ones are (`located` cycles; median and interquartile range of the position in
+    mm; `features.location`); incomplete cycles are not judged (`not_judged`, outside the
+    rate)."""
     skipped = [f for f in features if f.incomplete]
     features = [f for f in features if not f.incomplete]
     n = len(features)
@@ -221,14 +222,14 @@ def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[s
             continue
         flagged += 1
         effects[effect] = effects.get(effect, 0) + 1
-        where = location(f, effect)
+        where = location(f, effect, thresholds)
         if where is not None:
             locs.append(where)
             outs.append(f.out_mm)
             ins.append(f.in_mm)
     out: dict[str, Any] = {"cycles": n, "flagged": flagged,
                            "rate": flagged / n if n else float("nan"), "effects": effects,
-                           "not_judged": len(skipped)}
+                           "located": len(locs), "not_judged": len(skipped)}
     out.update(_where(locs, "position"))
     out.update(_where(outs, "out"))
     out.update(_where(ins, "in"))

@@ -149,18 +149,19 @@ def markdown(study: Study, command: str) -> str:
             skip = f"; {d['not_judged']} incomplete not judged" if d.get("not_judged") else ""
             cells.append(f"{_pct(d['rate'])} ({_pct(d['zscore_rate'])}); {eff or 'none'}{skip}")
         lines.append(f"| {study.condition_label(cond)} | " + " | ".join(cells) + " |")
-    lines += ["", "Where the named effect lies (flagged cycles with a located effect: "
-              "median position and interquartile range, mm of measured travel; out- and "
-              "in-stroke alone):", "",
-              "| stage | load | located cycles | position mm | IQR mm | out-stroke mm | "
-              "in-stroke mm |", "|---|---|---|---|---|---|---|"]
+    lines += ["", "Where the named effect lies (flagged cycles named periodic or localised, "
+              "and those of them located: the localised scan above its threshold; median "
+              "position and interquartile range of the located ones, mm of measured travel; "
+              "out- and in-stroke alone):", "",
+              "| stage | load | located / periodic or localised | position mm | IQR mm | "
+              "out-stroke mm | in-stroke mm |", "|---|---|---|---|---|---|---|"]
     for cond in study.fault_conditions:
         for load, row in sm["loads"].items():
             d = row["stages"].get(cond)
             if d is None:
                 continue
             n = sum(v for k, v in d["effects"].items() if k in ("localised", "periodic"))
-            lines.append(f"| {study.condition_label(cond)} | {load} | {n} | "
+            lines.append(f"| {study.condition_label(cond)} | {load} | {d['located']} / {n} | "
                          f"{_mm(d['position_mm'])} | {_mm(d['position_iqr_mm'])} | "
                          f"{_mm(d['out_mm'])} | {_mm(d['in_mm'])} |")
     c = sm["cost"]

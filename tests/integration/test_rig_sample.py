@@ -1,6 +1,7 @@
 """bench.rig on the shipped Cranfield sample (tests/data/cranfield_sample, PROVENANCE.md):
 baseline build, thresholds from healthy runs 1-2 only, no false alarm on held-out healthy
-runs 3-4, the spall found, located and named as a position-locked/periodic effect."""
+runs 3-4, the spall found and named as a position-periodic effect, and not given a
+place it does not show (variant 4)."""
 
 from __future__ import annotations
 
@@ -18,8 +19,6 @@ from bench.rig.features import cycle_features, verdict
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "cranfield_sample"
 LEAD_MM = 5.0               # RM1605: 5 mm lead (the rig's description)
-# the whole development set, load 40, stage 5: median 120.7 mm, IQR 4.8 mm
-SPALL_MM, TOL_MM = 120.7, 10.0
 
 
 @pytest.fixture(scope="module")
@@ -66,18 +65,24 @@ def test_held_out_healthy_cycles_are_not_flagged(sample):
     assert r["flagged"] <= 1                         # at most 10 %, measured 0
 
 
-def test_spall_is_detected_located_and_named_localised(sample):
+def test_spall_is_detected_named_periodic_and_not_given_a_made_up_place(sample):
+    """Stage 5 at 40 kgf: found and named position-periodic. Its localised scan stays
+    within the healthy range, so no position is claimed (variant 4; the whole
+    development set at this load and stage: 0 of 50 located, docs/real-data.md). Before,
+    the strongest window of that scan was reported as the spall's place."""
     base, thr, _, spall = sample
-    out = [verdict(base, cycle_features(base.for_load(40), c, LEAD_MM), thr) for c in spall]
+    feats = [cycle_features(base.for_load(40), c, LEAD_MM) for c in spall]
+    out = [verdict(base, f, thr) for f in feats]
     assert sum(v["flagged"] for v in out) >= 9
-    for v in out:
+    for f, v in zip(feats, out, strict=True):
         if v["flagged"]:
             assert v["effect"] in ("periodic", "localised"), v
             assert "backlash" not in v["verdict"].split(";")[0]
             assert "friction" not in v["verdict"].split(";")[0]
             assert "runs 1,2" in v["baseline"] and "normal_load40" in v["baseline"]
-    where = np.median([v["location_mm"] for v in out if v["flagged"]])
-    assert abs(where - SPALL_MM) < TOL_MM, where
+            assert (v["location_mm"] is None) == (f.scores["localised"] <= thr["localised"])
+    assert all(v["location_mm"] is None and "not located" in v["verdict"]
+               for v in out if v["flagged"])
 
 
 def test_cli_baseline_and_assess(tmp_path, capsys):

@@ -119,7 +119,39 @@ def test_a_periodic_effect_is_placed_by_the_localised_scan(base):
     from bench.rig.features import location, verdict
     f = cycle_features(base.for_load(20), trapezoid(np.random.default_rng(16), bump_mm=60.0),
                        lead_mm=5.0)
-    assert location(f, "periodic") == f.location_mm and abs(f.location_mm - 60.0) < 4.0
-    assert location(f, "level") is None
-    v = verdict(base, f, {"periodic": 1e-3})
+    thr = {"periodic": 1e-3, "localised": 6.0}
+    assert f.scores["localised"] > thr["localised"]
+    assert location(f, "periodic", thr) == f.location_mm and abs(f.location_mm - 60.0) < 4.0
+    assert location(f, "level", thr) is None
+    v = verdict(base, f, thr)
     assert v["effect"] == "periodic" and f"{f.location_mm:.1f} mm" in v["verdict"]
+    assert v["location_mm"] == f.location_mm
+
+
+def test_a_periodic_effect_with_nothing_standing_out_is_not_located(base):
+    """Variant 4: the strongest window of a localised scan within its healthy range is
+    not a place; a periodic line spread along the stroke is reported as not located."""
+    from bench.rig.features import location, verdict
+    rng = np.random.default_rng(17)
+    c = trapezoid(rng)
+    moving = np.sign(np.r_[np.diff(c.setpoint_mm), 0.0]) != 0
+    c.current_a = c.current_a + 0.03 * np.sin(2 * np.pi * c.position_mm / 5.0) * moving
+    f = cycle_features(base.for_load(20), c, lead_mm=5.0)
+    thr = {"periodic": 10.0, "localised": 6.0}
+    assert f.scores["periodic"] > thr["periodic"] and f.scores["localised"] < thr["localised"]
+    assert location(f, "periodic", thr) is None
+    v = verdict(base, f, thr)
+    assert v["effect"] == "periodic" and v["location_mm"] is None
+    assert "not located" in v["verdict"]
+
+
+def test_a_lowered_level_is_drag_not_friction(base):
+    """Variant 4: friction raises the current in both directions; a current lowered in
+    both directions is named drag lowered."""
+    rng = np.random.default_rng(18)
+    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
+    low = cycle_features(base.for_load(20), trapezoid(rng, level=-0.2))
+    hit, effect, _ = judge(low, thr)
+    assert hit and effect == "drag"
+    high = cycle_features(base.for_load(20), trapezoid(rng, level=0.2))
+    assert judge(high, thr)[1] == "level"
