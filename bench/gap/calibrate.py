@@ -32,6 +32,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap import resim as R
+from bench.gap.candidate import bound_scale
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect, Param
 from bench.gap.fit import fit
@@ -50,13 +51,17 @@ class Uncertain:
     log: bool
     tol: float
     relative: bool = True
+    follows_model: bool = False
+    """lo and hi are a range around the thesis' actuator's value, scaled to the start
+    model's (`bench.gap.candidate.bound_scale`): another actuator's lead or rotor is not
+    clipped into the thesis' range."""
 
 
 UNCERTAIN: dict[str, Uncertain] = {
-    "motor.inertia_kg_m2": Uncertain("motor.inertia_kg_m2", 1e-3, 2e-2, True, 0.2),
+    "motor.inertia_kg_m2": Uncertain("motor.inertia_kg_m2", 1e-3, 2e-2, True, 0.2, follows_model=True),
     "effects.friction_scale": Uncertain("effects.friction_scale", 0.2, 8.0, True, 0.5),
-    "motor.kt_nm_per_a": Uncertain("motor.kt_nm_per_a", 0.6, 3.0, True, 0.1),
-    "screw.lead_m": Uncertain("screw.lead_m", 4e-3, 6e-3, False, 0.01),
+    "motor.kt_nm_per_a": Uncertain("motor.kt_nm_per_a", 0.6, 3.0, True, 0.1, follows_model=True),
+    "screw.lead_m": Uncertain("screw.lead_m", 4e-3, 6e-3, False, 0.01, follows_model=True),
     "sensors.lvdt_gain": Uncertain("sensors.lvdt_gain", 0.8, 1.25, False, 0.02),
     "sensors.encoder_gain": Uncertain("sensors.encoder_gain", 0.8, 1.25, False, 0.02),
     "sensors.current_offset_a": Uncertain("sensors.current_offset_a", -2.0, 2.0, False, 0.2,
@@ -110,11 +115,13 @@ class PlantSet(Effect):
     name = "calibration"
     doc = "nominal model's uncertain parameters"
 
-    def __init__(self, names: Sequence[str]) -> None:
+    def __init__(self, names: Sequence[str], base: PlantParams | None = None) -> None:
         ps = []
         for n in names:
             u = UNCERTAIN[n]
-            ps.append(Param(n, resolve(n).unit, u.lo, u.hi, resolve(n).doc, log=u.log))
+            prm = Param(n, resolve(n).unit, u.lo, u.hi, resolve(n).doc, log=u.log)
+            k = bound_scale(base, n) if (u.follows_model and base is not None) else 1.0
+            ps.append(prm if k == 1.0 else prm.scaled(k))
         self.params = tuple(ps)   # type: ignore[misc]
 
     def nominal(self, base: PlantParams) -> dict[str, float]:
@@ -148,7 +155,7 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
                              f"{', '.join(UNCERTAIN)})")
     p = build(trace.measured(), base, holdout_frac=0.3, encoder=encoder,
               purpose="calibration", resim=RESIM[controller], cascade=cascade)
-    eff = PlantSet([n for n in names if n not in PROFILED])
+    eff = PlantSet([n for n in names if n not in PROFILED], p.base)
     nom = eff.nominal(p.base)
     nominal_sim = p.info["nominal"]
     f, profiles = _fit(p, eff, nom, [n for n in names if n in PROFILED])
@@ -222,7 +229,7 @@ def profile(p: Problem, name: str, theta: Mapping[str, float]) -> dict[str, Any]
     lowest point evaluated is kept."""
     u = UNCERTAIN[name]
     v0 = float(p.base.get(name))
-    eff = PlantSet([*theta, name])
+    eff = PlantSet([*theta, name], p.base)
 
     def x_of(v: float) -> float:
         return math.log(v) if u.relative else v

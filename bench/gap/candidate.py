@@ -14,6 +14,8 @@ or both of two places:
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -52,6 +54,10 @@ class Param:
             return math.exp(math.log(self.lo) + u * (math.log(self.hi) - math.log(self.lo)))
         return self.lo + u * (self.hi - self.lo)
 
+    def scaled(self, k: float) -> Param:
+        """The same parameter with both bounds times `k` (> 0; `bound_scale`)."""
+        return dataclasses.replace(self, lo=self.lo * k, hi=self.hi * k)
+
     def dvalue_du(self, u: float) -> float:
         """d value / d unit coordinate (to carry confidence intervals to units)."""
         if self.log:
@@ -62,6 +68,24 @@ class Param:
         """The values a discrete parameter takes."""
         n = int(round((self.hi - self.lo) / self.integer_step))
         return [self.lo + i * self.integer_step for i in range(n + 1)]
+
+
+@functools.cache
+def _thesis_value(name: str) -> float:
+    return float(PlantParams().get(name))
+
+
+def bound_scale(base: PlantParams, name: str) -> float:
+    """Factor from the thesis' actuator to the model `base` for the plant parameter
+    `name`: base's value / the thesis' value (exactly 1 at the thesis' value; 1 when
+    either is not a positive number). Bounds written as a range around the thesis'
+    actuator (a 5 mm lead, a 4e-3 kg m^2 rotor) are scaled by it, so another actuator's
+    nominal lies where the thesis' lies in them (docs/gap.md, "Bounds that follow the
+    actuator's own nominal")."""
+    v, ref = float(base.get(name)), _thesis_value(name)
+    if not (math.isfinite(v) and math.isfinite(ref) and v > 0 and ref > 0):
+        return 1.0
+    return v / ref
 
 
 class Effect:
@@ -85,6 +109,12 @@ class Effect:
              dt: float) -> dict[str, np.ndarray]:
         """Logged measured columns after the effect (default: unchanged)."""
         return cols
+
+    def for_model(self, base: PlantParams) -> Effect:
+        """The effect as fitted on the start model `base`: itself by default; an effect
+        whose bounds are a range around the thesis' actuator returns a copy with bounds
+        scaled to `base` (`bound_scale`). The fit calls it."""
+        return self
 
     def in_log(self, base: PlantParams) -> bool:
         """Whether `post` applies for the nominal model `base` (default: ``where``). An

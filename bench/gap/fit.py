@@ -161,7 +161,7 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
     to a pair); otherwise each effect's own start points are tried. `prior`: see
     `Objective`.
     """
-    effs = resolve(names)
+    effs = [e.for_model(problem.base) for e in resolve(names)]
     effect_names = tuple(e.name for e in effs)
     k = sum(len(e.params) for e in effs)
     nom = [e.nominal(problem.base) for e in effs]

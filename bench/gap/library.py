@@ -13,12 +13,13 @@ Known near-equivalences on a bus log (no voltage, no force sensor logged):
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from bench.gap.candidate import Effect, Param
+from bench.gap.candidate import Effect, Param, bound_scale
 from bench.gap.resim import first_order
 from plant_rt import kernel as K
 from plant_rt.model import param_vector
@@ -36,6 +37,18 @@ class _Single(Effect):
 
     def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
         return {self.target: theta[self.params[0].name]}
+
+    scales_with_model: ClassVar[bool] = False
+    """Bounds written around the thesis' actuator's value, scaled to the start model's
+    (`bound_scale`)."""
+
+    def for_model(self, base: PlantParams) -> Effect:
+        k = bound_scale(base, self.target) if self.scales_with_model else 1.0
+        if k == 1.0:
+            return self
+        eff = copy.copy(self)
+        eff.params = tuple(p.scaled(k) for p in self.params)   # type: ignore[misc]
+        return eff
 
 
 class Backlash(_Single):
@@ -210,6 +223,7 @@ class Resistance(_Single):
     doc = "winding resistance at the reference temperature"
     params = (Param("resistance_ohm", "ohm", 0.05, 4.0, "R (0.4 nominal)", log=True),)
     target = "motor.resistance_ohm"
+    scales_with_model = True
 
 
 class ThermalDrift(_Single):
@@ -227,6 +241,7 @@ class TorqueConstant(_Single):
     params = (Param("kt_nm_per_a", "N m/A", 0.6, 3.0, "torque constant (1.5 nominal)",
                     log=True),)
     target = "motor.kt_nm_per_a"
+    scales_with_model = True
 
 
 class Inertia(_Single):
@@ -235,6 +250,7 @@ class Inertia(_Single):
     params = (Param("inertia_kg_m2", "kg m^2", 1e-3, 2e-2, "rotor inertia (4e-3 nominal)",
                     log=True),)
     target = "motor.inertia_kg_m2"
+    scales_with_model = True
 
 
 class Lead(_Single):
@@ -242,6 +258,7 @@ class Lead(_Single):
     doc = "screw lead (pitch) error"
     params = (Param("lead_m", "m", 4.0e-3, 6.0e-3, "lead (5e-3 nominal)"),)
     target = "screw.lead_m"
+    scales_with_model = True
 
 
 # The built-in candidates in the diagnosis' order (`bench.gap.effects.EFFECTS` is built

@@ -87,3 +87,40 @@ def test_log_side_effects_act_on_logged_columns_only():
     sk = E.get("log_skew").post(cols, {"log_skew_s": 0.002}, 1e-3)
     np.testing.assert_array_equal(sk["current_a"][2:], cols["current_a"][:-2])
     np.testing.assert_array_equal(sk["current_demand_a"], cols["current_demand_a"])
+
+
+def test_bounds_follow_the_actuators_own_nominal():
+    """The library's lead, inertia, kt and resistance bounds were a range around the
+    thesis' actuator: a 4 mm lead sat on the lower bound (a shorter lead could not be
+    fitted) and a 10 mm lead was outside. They now scale with the start model's value,
+    and are exactly the same for the thesis' model."""
+    from bench.gap.candidate import bound_scale
+    from plant_rt.params import PlantParams
+    thesis = PlantParams()
+    for name in ("lead", "inertia", "kt", "resistance"):
+        assert E.get(name).for_model(thesis) is E.get(name)
+    assert bound_scale(thesis, "screw.lead_m") == 1.0
+    other = thesis.with_dict({"screw.lead_m": 4e-3, "motor.inertia_kg_m2": 1e-5})
+    lead = E.get("lead").for_model(other).params[0]
+    assert lead.lo < 4e-3 * 0.99 and lead.hi > 4e-3 * 1.01
+    assert lead.to_unit(4e-3) == pytest.approx(E.get("lead").params[0].to_unit(5e-3))
+    inertia = E.get("inertia").for_model(other).params[0]
+    assert inertia.lo < 1e-5 < inertia.hi
+    assert E.get("friction").for_model(other) is E.get("friction")    # a scale already
+    assert E.get("lead").params[0].lo == 4e-3                         # the class untouched
+
+
+def test_calibration_bounds_contain_another_actuators_nominal():
+    """`bench calibrate` clipped a 10 mm lead into 4-6 mm (start and prior)."""
+    from bench.gap.calibrate import PlantSet, _prior
+    from plant_rt.params import PlantParams
+    base = PlantParams().with_dict({"screw.lead_m": 10e-3, "motor.kt_nm_per_a": 0.1})
+    eff = PlantSet(["screw.lead_m", "motor.kt_nm_per_a", "sensors.lvdt_gain"], base)
+    b = {p.name: (p.lo, p.hi) for p in eff.params}
+    assert b["screw.lead_m"][0] < 10e-3 < b["screw.lead_m"][1]
+    assert b["motor.kt_nm_per_a"][0] < 0.1 < b["motor.kt_nm_per_a"][1]
+    assert b["sensors.lvdt_gain"] == (0.8, 1.25)                      # a ratio: unchanged
+    prior = _prior(eff, eff.nominal(base))
+    assert prior["screw.lead_m"][0] == 10e-3 and prior["motor.kt_nm_per_a"][0] == 0.1
+    same = PlantSet(["screw.lead_m"], PlantParams()).params[0]
+    assert (same.lo, same.hi) == (4e-3, 6e-3)
