@@ -52,9 +52,10 @@ class Uncertain:
     tol: float
     relative: bool = True
     follows_model: bool = False
-    """lo and hi are a range around the thesis' actuator's value, scaled to the start
-    model's (`bench.gap.candidate.bound_scale`): another actuator's lead or rotor is not
-    clipped into the thesis' range."""
+    """lo and hi are a range around the thesis' actuator's value: when the start model's
+    value lies outside it, the range is moved to that value (scaled by
+    `bench.gap.candidate.bound_scale`), so another actuator's lead or rotor is not
+    clipped into the thesis' range; a value inside it keeps it."""
 
 
 UNCERTAIN: dict[str, Uncertain] = {
@@ -120,8 +121,10 @@ class PlantSet(Effect):
         for n in names:
             u = UNCERTAIN[n]
             prm = Param(n, resolve(n).unit, u.lo, u.hi, resolve(n).doc, log=u.log)
-            k = bound_scale(base, n) if (u.follows_model and base is not None) else 1.0
-            ps.append(prm if k == 1.0 else prm.scaled(k))
+            outside = (base is not None and u.follows_model
+                       and not u.lo <= float(base.get(n)) <= u.hi)
+            ps.append(prm.scaled(bound_scale(base, n)) if outside and base is not None
+                      else prm)
         self.params = tuple(ps)   # type: ignore[misc]
 
     def nominal(self, base: PlantParams) -> dict[str, float]:

@@ -124,3 +124,5 @@ def test_calibration_bounds_contain_another_actuators_nominal():
     assert prior["screw.lead_m"][0] == 10e-3 and prior["motor.kt_nm_per_a"][0] == 0.1
     same = PlantSet(["screw.lead_m"], PlantParams()).params[0]
     assert (same.lo, same.hi) == (4e-3, 6e-3)
+    inside = PlantSet(["screw.lead_m"], PlantParams().with_dict({"screw.lead_m": 4e-3}))
+    assert (inside.params[0].lo, inside.params[0].hi) == (4e-3, 6e-3)   # a value inside
