@@ -79,9 +79,9 @@ def bound_scale(base: PlantParams, name: str) -> float:
     """Factor from the thesis' actuator to the model `base` for the plant parameter
     `name`: base's value / the thesis' value (exactly 1 at the thesis' value; 1 when
     either is not a positive number). Bounds written as a range around the thesis'
-    actuator (a 5 mm lead, a 4e-3 kg m^2 rotor) are scaled by it, so another actuator's
-    nominal lies where the thesis' lies in them (docs/gap.md, "Bounds that follow the
-    actuator's own nominal")."""
+    actuator (a 5 mm lead, a 4e-3 kg m^2 rotor) are scaled by it when another actuator's
+    value lies outside them, so that value lies where the thesis' lies in them
+    (docs/gap.md, "Bounds that follow the actuator's own nominal")."""
     v, ref = float(base.get(name)), _thesis_value(name)
     if not (math.isfinite(v) and math.isfinite(ref) and v > 0 and ref > 0):
         return 1.0
@@ -112,8 +112,9 @@ class Effect:
 
     def for_model(self, base: PlantParams) -> Effect:
         """The effect as fitted on the start model `base`: itself by default; an effect
-        whose bounds are a range around the thesis' actuator returns a copy with bounds
-        scaled to `base` (`bound_scale`). The fit calls it."""
+        whose bounds are a range around the thesis' actuator returns a copy with the range
+        moved to `base`'s value (`bound_scale`) when that value lies outside it. The fit
+        calls it."""
         return self
 
     def in_log(self, base: PlantParams) -> bool:

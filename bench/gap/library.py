@@ -39,14 +39,15 @@ class _Single(Effect):
         return {self.target: theta[self.params[0].name]}
 
     scales_with_model: ClassVar[bool] = False
-    """Bounds written around the thesis' actuator's value, scaled to the start model's
-    (`bound_scale`)."""
+    """Bounds written around the thesis' actuator's value: moved to the start model's
+    value (scaled by `bound_scale`) when that value lies outside them."""
 
     def for_model(self, base: PlantParams) -> Effect:
-        k = bound_scale(base, self.target) if self.scales_with_model else 1.0
-        if k == 1.0:
+        prm = self.params[0]
+        if not self.scales_with_model or prm.lo <= float(base.get(self.target)) <= prm.hi:
             return self
         eff = copy.copy(self)
+        k = bound_scale(base, self.target)
         eff.params = tuple(p.scaled(k) for p in self.params)   # type: ignore[misc]
         return eff
 
