@@ -27,6 +27,7 @@ for _helpers in ("unit", "integration"):        # helper modules shared across t
 # of issue 10, load 7-12): the tests over ~30 s there were added. A file marks all its tests, "file::test" one test and all its parameter
 # sets.
 SLOW: tuple[str, ...] = (
+    "tests/integration/test_calibrate_other_lead.py",
     "tests/integration/test_bus_faults.py::test_ecu_killed_mid_run_lockstep_plant_holds_still",
     "tests/integration/test_bus_faults.py::test_plant_killed_mid_run_ecu_stops_with_a_clear_error_and_a_complete_log",
     "tests/integration/test_bus_run.py::test_bench_decode_writes_csv_and_parquet",
