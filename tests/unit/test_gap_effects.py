@@ -87,3 +87,21 @@ def test_log_side_effects_act_on_logged_columns_only():
     sk = E.get("log_skew").post(cols, {"log_skew_s": 0.002}, 1e-3)
     np.testing.assert_array_equal(sk["current_a"][2:], cols["current_a"][:-2])
     np.testing.assert_array_equal(sk["current_demand_a"], cols["current_demand_a"])
+
+
+def test_preload_loss_gets_start_points_below_the_nominal():
+    """A preload is lost with wear: its fit also starts at 0.5 and 0.1 x the nominal
+    (docs/gap.md, "Preload loss start points"), the generic start points kept in order."""
+    eff = E.get("preload")
+    assert eff.wear_direction == "down"
+    base = PlantParams().with_dict({"effects.preload_n": 1500.0})
+    pts = [sp["preload_n"] for sp in eff.start_points(base)]
+    # what any effect gets: the nominal + 0.05 of the range, then 0.15, 0.5, 0.85 of it
+    assert pts[:4] == pytest.approx([1900.0, 1200.0, 4000.0, 6800.0])
+    assert pts[4:] == pytest.approx([750.0, 150.0])
+    assert min(pts) < 0.5 * 1500.0
+    # a nominal of 0 (the bench's own plant) has no loss to start from: nothing added
+    assert [sp["preload_n"] for sp in eff.start_points(PlantParams())] == \
+        pytest.approx([400.0, 1200.0, 4000.0, 6800.0])
+    # no other effect declares a wear direction (this task adds it to preload only)
+    assert [n for n in E.names() if E.get(n).wear_direction is not None] == ["preload"]
