@@ -25,6 +25,10 @@ import numpy as np
 
 from plant_rt.params import PlantParams
 
+WEAR_FRACTIONS = (0.5, 0.1)
+"""Start points of an effect whose parameters fall with wear (``wear_direction = "down"``),
+as fractions of the nominal (docs/gap.md, "Preload loss start points")."""
+
 
 @dataclass(frozen=True)
 class Param:
@@ -95,6 +99,10 @@ class Effect:
     doc: ClassVar[str] = ""
     params: ClassVar[tuple[Param, ...]] = ()
     where: ClassVar[str] = "plant"        # "plant" (in the loop) or "log" (after the run)
+    # the direction the parameters move with wear: "down" (below the nominal, e.g. a
+    # preload lost as the raceways wear) adds start points at `WEAR_FRACTIONS` of the
+    # nominal; None (default): no direction declared
+    wear_direction: ClassVar[str | None] = None
 
     def nominal(self, base: PlantParams) -> dict[str, float]:
         """The parameter values at which the effect is absent, given the nominal `base`."""
@@ -129,13 +137,21 @@ class Effect:
 
     def start_points(self, base: PlantParams) -> list[dict[str, float]]:
         """Starting values of the fit: the nominal point moved inside the bounds plus a
-        few spread points (the fit keeps the best)."""
+        few spread points (the fit keeps the best); for an effect that declares
+        ``wear_direction = "down"``, also the nominal times each of `WEAR_FRACTIONS`
+        (clipped to the bounds), where that is below the nominal (a nominal of 0 has no
+        loss to start from: nothing is added)."""
         nom = self.nominal(base)
         pts = []
         for frac in (0.15, 0.5, 0.85):
             pts.append({p.name: p.from_unit(frac) for p in self.params})
         near = {p.name: p.from_unit(min(max(p.to_unit(nom[p.name]) + 0.05, 0.0), 1.0))
                 for p in self.params}
+        if self.wear_direction == "down":
+            for frac in WEAR_FRACTIONS:
+                worn = {p.name: min(max(nom[p.name] * frac, p.lo), p.hi) for p in self.params}
+                if any(worn[p.name] < nom[p.name] for p in self.params):
+                    pts.append(worn)
         return [near] + pts
 
     def describe(self) -> dict[str, Any]:

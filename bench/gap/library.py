@@ -123,6 +123,7 @@ class Preload(_Single):
            "preload's drag (eq. 5.13, 5.31: f_v on the contact forces) (eq. 5.29)")
     params = (Param("preload_n", "N", 0.0, 8000.0, "preload force"),)
     target = "effects.preload_n"
+    wear_direction = "down"     # a ball screw's preload is lost as raceways and balls wear
 
 
 class SensorDelay(_Single):

@@ -128,3 +128,21 @@ def test_calibration_bounds_contain_another_actuators_nominal():
     assert (same.lo, same.hi) == (4e-3, 6e-3)
     inside = PlantSet(["screw.lead_m"], PlantParams().with_dict({"screw.lead_m": 4e-3}))
     assert (inside.params[0].lo, inside.params[0].hi) == (4e-3, 6e-3)   # a value inside
+
+
+def test_preload_loss_gets_start_points_below_the_nominal():
+    """A preload is lost with wear: its fit also starts at 0.5 and 0.1 x the nominal
+    (docs/gap.md, "Preload loss start points"), the generic start points kept in order."""
+    eff = E.get("preload")
+    assert eff.wear_direction == "down"
+    base = PlantParams().with_dict({"effects.preload_n": 1500.0})
+    pts = [sp["preload_n"] for sp in eff.start_points(base)]
+    # what any effect gets: the nominal + 0.05 of the range, then 0.15, 0.5, 0.85 of it
+    assert pts[:4] == pytest.approx([1900.0, 1200.0, 4000.0, 6800.0])
+    assert pts[4:] == pytest.approx([750.0, 150.0])
+    assert min(pts) < 0.5 * 1500.0
+    # a nominal of 0 (the bench's own plant) has no loss to start from: nothing added
+    assert [sp["preload_n"] for sp in eff.start_points(PlantParams())] == \
+        pytest.approx([400.0, 1200.0, 4000.0, 6800.0])
+    # no other effect declares a wear direction (this task adds it to preload only)
+    assert [n for n in E.names() if E.get(n).wear_direction is not None] == ["preload"]
