@@ -74,6 +74,8 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
     p[K.P_TAUC] = se.current_time_constant_s
     p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, d.current_ki_v_per_as
+    if d.current_pi_follows_winding:       # zero on the winding's own pole R/L
+        p[K.P_KII] = d.current_kp_v_per_a * m.resistance_ohm / m.inductance_h
     p[K.P_FPWM] = d.pwm_carrier_hz
     p[K.P_PWM_SW] = 1.0 if d.pwm_mode == "switching" else 0.0
     p[K.P_BALL_DYN] = 1.0 if sim.ball_model == "dynamic" else 0.0

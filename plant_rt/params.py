@@ -238,6 +238,13 @@ class DriveParams(_Validated):
                       "switching: 10 kHz triangular carrier and inverter; averaged: ideal "
                       "averaged voltage (infinite carrier)", "section 5.3",
                       choices=("switching", "averaged"))
+    current_pi_follows_winding: bool = P(False, "-", None, None,
+                                         "true: the integral gain is kp R / L from the "
+                                         "model's winding (zero on its actual pole, as a "
+                                         "drive that identifies its motor at power-up); "
+                                         "false: the gains as given",
+                                         "chosen (the thesis' drive: fixed gains); a "
+                                         "drive's datasheet")
 
 
 @dataclass(frozen=True)

@@ -94,7 +94,8 @@ screw torque per N of preload (both rejected on the healthy logs under the bench
 def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
                     ) -> PlantParams:
     """The bench's model of the independent actuator from its datasheet: ratio, lead,
-    motor constants, rotor and screw inertias, nut mass, preload, supply and limits, and
+    motor constants, rotor and screw inertias, nut mass, preload, supply and limits, the
+    drive's current PI (its zero on the winding's own pole, session 8), and
     how its drive computes the speed (the count difference over `speed_window` SYNC
     periods) and the LVDT conditioner's lag (first order, `lvdt_tau_s`). The bench's
     friction laws and contact model stay its own (the thesis' tables): friction, the
@@ -118,6 +119,9 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
         "screw.nut_mass_kg": n.nut_mass_kg, "effects.preload_n": n.preload_n,
         "drive.current_kp_v_per_a": 2 * math.pi * n.current_bw_hz * n.inductance_h,
         "drive.current_ki_v_per_as": 2 * math.pi * n.current_bw_hz * n.resistance_ohm,
+        # its drive puts the current PI's zero on the winding's own pole (I2, ki from the
+        # winding's R): a resistance that has risen is still cancelled
+        "drive.current_pi_follows_winding": True,
         "sensors.encoder_counts_per_rev": n.encoder_counts,
         # the drive's speed: the count difference over 4 SYNC periods (its datasheet)
         "sensors.encoder_speed_window": int(n.speed_window),

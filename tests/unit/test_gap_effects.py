@@ -146,3 +146,22 @@ def test_preload_loss_gets_start_points_below_the_nominal():
         pytest.approx([400.0, 1200.0, 4000.0, 6800.0])
     # no other effect declares a wear direction (this task adds it to preload only)
     assert [n for n in E.names() if E.get(n).wear_direction is not None] == ["preload"]
+
+
+def test_a_drive_whose_current_pi_follows_its_winding():
+    """`drive.current_pi_follows_winding` (off by default: the thesis' fixed gains, the
+    kernel's vector unchanged): on, the integral gain is kp R / L of the model's winding,
+    so a resistance candidate moves it. The independent actuator's datasheet model
+    declares it, with the same gains as before at its datasheet R."""
+    from bench.gap.indiebench import datasheet_model
+    from plant_rt import kernel as K
+    from plant_rt.model import param_vector
+    thesis = PlantParams()
+    assert param_vector(thesis)[K.P_KII] == thesis.drive.current_ki_v_per_as
+    on = thesis.with_dict({"drive.current_pi_follows_winding": True,
+                           "motor.resistance_ohm": 0.8})
+    assert param_vector(on)[K.P_KII] == pytest.approx(
+        thesis.drive.current_kp_v_per_a * 0.8 / thesis.motor.inductance_h)
+    ds = datasheet_model()
+    assert ds.drive.current_pi_follows_winding
+    assert param_vector(ds)[K.P_KII] == pytest.approx(ds.drive.current_ki_v_per_as)
