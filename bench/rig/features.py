@@ -352,6 +352,7 @@ def signed_level(f: CycleFeatures) -> float:
 
 NAMING = {"position-locked": SPECIFIC, "direction-split": ("level", "reversal"),
           "catch-all": ("dwell", "index")}
+FEATURE_OF = {"drag": "level"}      # an effect named by another feature's name
 nan_ = float("nan")
 
 
@@ -387,7 +388,8 @@ def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> d
         text = f"{EFFECTS[effect]} ({f.index_at})"
     else:
         text = EFFECTS[effect]
-    others = [k for k in FEATURES if k != effect and k in thresholds
+    named = FEATURE_OF.get(effect, effect)
+    others = [k for k in FEATURES if k != named and k in thresholds
               and f.scores.get(k, 0.0) > thresholds[k]]
     if flagged and others:
         text += "; also above threshold: " + ", ".join(others)

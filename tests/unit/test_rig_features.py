@@ -153,5 +153,8 @@ def test_a_lowered_level_is_drag_not_friction(base):
     low = cycle_features(base.for_load(20), trapezoid(rng, level=-0.2))
     hit, effect, _ = judge(low, thr)
     assert hit and effect == "drag"
+    from bench.rig.features import verdict
+    text = verdict(base, low, thr)["verdict"]
+    assert text.startswith("drag lowered") and "level" not in text   # not "also above"
     high = cycle_features(base.for_load(20), trapezoid(rng, level=0.2))
     assert judge(high, thr)[1] == "level"
