@@ -32,7 +32,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap import resim as R
-from bench.gap.candidate import bound_scale
+from bench.gap.candidate import follow_model
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect, Param
 from bench.gap.fit import fit
@@ -52,10 +52,9 @@ class Uncertain:
     tol: float
     relative: bool = True
     follows_model: bool = False
-    """lo and hi are a range around the thesis' actuator's value: when the start model's
-    value lies outside it, the range is moved to that value (scaled by
-    `bench.gap.candidate.bound_scale`), so another actuator's lead or rotor is not
-    clipped into the thesis' range; a value inside it keeps it."""
+    """lo and hi are a range around the thesis' actuator's value, moved to the start
+    model's value when that lies outside it (`bench.gap.candidate.follow_model`), so
+    another actuator's lead or rotor is not clipped into the thesis' range."""
 
 
 UNCERTAIN: dict[str, Uncertain] = {
@@ -121,9 +120,7 @@ class PlantSet(Effect):
         for n in names:
             u = UNCERTAIN[n]
             prm = Param(n, resolve(n).unit, u.lo, u.hi, resolve(n).doc, log=u.log)
-            outside = (base is not None and u.follows_model
-                       and not u.lo <= float(base.get(n)) <= u.hi)
-            ps.append(prm.scaled(bound_scale(base, n)) if outside and base is not None
+            ps.append(follow_model(prm, base, n) if u.follows_model and base is not None
                       else prm)
         self.params = tuple(ps)   # type: ignore[misc]
 

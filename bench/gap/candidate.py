@@ -92,6 +92,16 @@ def bound_scale(base: PlantParams, name: str) -> float:
     return v / ref
 
 
+def follow_model(prm: Param, base: PlantParams, name: str) -> Param:
+    """`prm`, a range around the thesis' actuator's value of plant parameter `name`, as
+    used on the model `base`: the same when base's value lies inside it, else moved to
+    that value (scaled by `bound_scale`). The one rule of the library's effects
+    (`Effect.for_model`) and the calibration (`bench.gap.calibrate.PlantSet`)."""
+    if prm.lo <= float(base.get(name)) <= prm.hi:
+        return prm
+    return prm.scaled(bound_scale(base, name))
+
+
 class Effect:
     """Base class of candidate effects. Subclasses set the class attributes and override
     `plant_overrides` and/or `post`. Instances are stateless."""

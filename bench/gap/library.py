@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from bench.gap.candidate import Effect, Param, bound_scale
+from bench.gap.candidate import Effect, Param, follow_model
 from bench.gap.resim import first_order
 from plant_rt import kernel as K
 from plant_rt.model import param_vector
@@ -44,11 +44,11 @@ class _Single(Effect):
 
     def for_model(self, base: PlantParams) -> Effect:
         prm = self.params[0]
-        if not self.scales_with_model or prm.lo <= float(base.get(self.target)) <= prm.hi:
+        moved = follow_model(prm, base, self.target) if self.scales_with_model else prm
+        if moved is prm:
             return self
         eff = copy.copy(self)
-        k = bound_scale(base, self.target)
-        eff.params = tuple(p.scaled(k) for p in self.params)   # type: ignore[misc]
+        eff.params = (moved,)   # type: ignore[misc]
         return eff
 
 
