@@ -46,6 +46,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--effects", metavar="A,B,...",
                    help="restrict the diagnosis' candidate library (default: all; for quick "
                         "checks: the generator's effects are unchanged)")
+    p.add_argument("--only", metavar="EFFECT",
+                   help="independent generator: every case is this one effect at a random "
+                        "magnitude (a benchmark aimed at one effect; no nominal cases)")
     p.add_argument("--json", metavar="PATH", help="write every case and the summary here")
     p.add_argument("--markdown", metavar="PATH", help="write the results table (markdown)")
     p.set_defaults(func=run)
@@ -66,7 +69,9 @@ def independent_markdown(out: dict) -> str:
         f"Generator: independent (indie_plant), controller {out['controller']}"
         + (", actuator changed: " + ", ".join(f"{k} = {v:g}" for k, v in
                                               out["actuator_changes"].items())
-           if out.get("actuator_changes") else "") + ". Calibration "
+           if out.get("actuator_changes") else "")
+        + (f", every case a single {out['only']} (--only)" if out.get("only") else "")
+        + ". Calibration "
         f"(bench.gap.calibrate, default parameters) on one healthy log, noise seed "
         f"{cal['seed']}, {cal['wall_s']:.0f} s: "
         + ", ".join(f"{k} = {v:.4g}" for k, v in cal["params"].items()) + ".",
@@ -168,8 +173,12 @@ def run(args: argparse.Namespace) -> int:
     lib = E.parse_list(args.effects) if args.effects else None
     if args.identify and (args.generator != "independent" or args.controller != "own"):
         raise BenchError("--identify is for --generator independent --controller own")
+    if args.only and args.generator != "independent":
+        raise BenchError("--only is for --generator independent")
     if args.generator == "independent":
-        from bench.gap.indiebench import NOMINAL
+        from bench.gap.indiebench import NOMINAL, POOL
+        if args.only and args.only not in POOL:
+            raise BenchError(f"--only: unknown effect {args.only!r}; injected: {', '.join(POOL)}")
         from bench.gap.indiebench import run as indie_run
         try:
             actuator = NOMINAL.with_assignments(args.indie_set)
@@ -178,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         out = indie_run(args.cases, args.seed, args.workers, args.log_s,
                         progress=sys.stderr.isatty(), effects=lib, controller=args.controller,
                         actuator=actuator, scheduler=args.scheduler,
-                        identify=args.identify)
+                        identify=args.identify, only=args.only)
     else:
         out = bench_run(args.cases, args.seed, args.workers, args.fidelity, args.log_s,
                         progress=sys.stderr.isatty(), effects=lib, scheduler=args.scheduler)

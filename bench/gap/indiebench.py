@@ -204,15 +204,24 @@ def draw(name: str, rng: np.random.Generator) -> Truth:
     return Truth(name, plant=_draws(rng)[name]())
 
 
-def make_cases(n: int, seed: int) -> list[Case]:
-    """`n` cases, 30 % nominal and 70 % single, in a shuffled order fixed by `seed`."""
+def make_cases(n: int, seed: int, only: str | None = None) -> list[Case]:
+    """`n` cases, 30 % nominal and 70 % single, in a shuffled order fixed by `seed`.
+
+    `only`: every case is a single effect of that name (at a random magnitude), for a
+    benchmark aimed at one effect; the default draw is unchanged by it."""
+    if only is not None and only not in POOL:
+        raise ValueError(f"unknown effect {only!r}; injected effects: {', '.join(POOL)}")
     rng = np.random.default_rng(seed)
-    kinds = ["nominal"] * round(0.3 * n)
-    kinds = (kinds + ["single"] * (n - len(kinds)))[:n]
-    rng.shuffle(kinds)
+    if only is None:
+        kinds = ["nominal"] * round(0.3 * n)
+        kinds = (kinds + ["single"] * (n - len(kinds)))[:n]
+        rng.shuffle(kinds)
+    else:
+        kinds = ["single"] * n
     cases = []
     for i, kind in enumerate(kinds):
-        truths = [] if kind == "nominal" else [draw(str(rng.choice(POOL)), rng)]
+        name = only if only is not None else None
+        truths = [] if kind == "nominal" else [draw(name or str(rng.choice(POOL)), rng)]
         cases.append(Case(i, kind, truths, int(rng.integers(1, 2**31 - 1))))
     return cases
 
@@ -346,8 +355,9 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
         progress: bool = True, effects: list[str] | None = None, controller: str = "ecu",
         on_result: Callable[[dict[str, Any]], None] | None = None,
         actuator: IndieParams = NOMINAL, scheduler: str | None = None,
-        identify: str | None = None) -> dict[str, Any]:
-    """Calibrate on the healthy calibration log, then run `n` blind cases. `actuator`:
+        identify: str | None = None, only: str | None = None) -> dict[str, Any]:
+    """Calibrate on the healthy calibration log, then run `n` blind cases (`only`: every
+    case a single effect of that name, `make_cases`). `actuator`:
     the independent actuator as built (`--indie-set`: e.g. an ablation of one physical
     feature). `identify`: what the calibration does about the controller (default
     `RESIM[controller]`); the blind diagnoses re-simulate as the calibration says (the
@@ -361,7 +371,7 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
     judged_against = reference_of(cal | {"heldout_significance": sig_ref},
                              f"independent-calibration-seed-{seed + CALIBRATION_SEED_OFFSET}")
     ref = reference(duration_s, seed + 7919, controller, actuator)
-    cases = make_cases(n, seed)
+    cases = make_cases(n, seed, only)
     reserved = {seed + CALIBRATION_SEED_OFFSET, seed + HELDOUT_SEED_OFFSET}
     if any(c.noise_seed in reserved for c in cases):     # the healthy logs are never judged
         raise ValueError("a judged case drew the calibration's or the held-out log's seed")
@@ -374,6 +384,7 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
     changed = {k: v for k, v in dataclasses.asdict(actuator).items()
                if v != getattr(NOMINAL, k)}
     return {"generator": "independent", "controller": controller, "seed": seed, "cases": n,
+            "only": only,
             "actuator_changes": changed,
             "fidelity": "independent physics (indie_plant)", "log_s": duration_s,
             "library": effects or "all", "wall_s": time.perf_counter() - t0,

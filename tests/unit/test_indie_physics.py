@@ -103,3 +103,28 @@ def test_parameters_are_checked_and_named():
     with pytest.raises(ValueError, match="unknown"):
         IndieParams().with_dict({"no_such": 1.0})
     assert IndieParams().with_assignments(["backlash_m=5e-5"]).backlash_m == 5e-5
+
+
+def test_only_draws_every_case_as_that_effect_and_leaves_the_default_draw_alone():
+    from bench.gap import indiebench as IB
+    cases = IB.make_cases(6, 2031, only="preload")
+    assert [c.kind for c in cases] == ["single"] * 6
+    assert all([t.name for t in c.truths] == ["preload"] for c in cases)
+    assert len({tuple(sorted(c.truths[0].plant.items())) for c in cases}) == 6
+    # the default draw: 30 % nominal, and fixed by the seed as before
+    default = IB.make_cases(20, 2025)
+    assert sum(c.kind == "nominal" for c in default) == 6
+    assert [t.name for t in default[0].truths] == ["lvdt_gain"]
+    assert default[0].noise_seed == 1436029081
+    import pytest
+    with pytest.raises(ValueError, match="unknown effect"):
+        IB.make_cases(2, 1, only="cogging")
+
+
+def test_gap_bench_only_is_refused_for_the_bench_generator_and_unknown_effects(capsys):
+    from bench.cli import main
+    assert main(["gap-bench", "--only", "preload", "--cases", "1"]) == 2
+    assert "--only is for --generator independent" in capsys.readouterr().err
+    assert main(["gap-bench", "--generator", "independent", "--only", "cogging",
+                 "--cases", "1"]) == 2
+    assert "unknown effect 'cogging'" in capsys.readouterr().err
