@@ -159,7 +159,9 @@ class MonitorParams(ParamSet):
             lead_m=s.lead_m, lvdt_damping=se.lvdt_damping,
             lvdt_natural_rad_s=se.lvdt_natural_rad_s, encoder_damping=se.encoder_damping,
             encoder_natural_rad_s=se.encoder_natural_rad_s,
-            current_kp_v_per_a=d.current_kp_v_per_a, current_ki_v_per_as=d.current_ki_v_per_as,
+            current_kp_v_per_a=d.current_kp_v_per_a, current_ki_v_per_as=(
+                d.current_kp_v_per_a * m.resistance_ohm / m.inductance_h   # as the drive:
+                if d.current_pi_follows_winding else d.current_ki_v_per_as),  # plant_rt.model
             encoder_counts_per_rev=se.encoder_counts_per_rev,
             sync_period_s=p.sim.sync_period_s)
         return replace(mp, **overrides) if overrides else mp

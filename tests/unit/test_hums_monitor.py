@@ -106,3 +106,18 @@ def test_nominal_for_needs_the_set_points_and_the_sync_rate():
         M.nominal_for(slow)
     with pytest.raises(BenchError, match="substep"):
         M.MonitorParams.from_plant(substep_s=1.0)
+
+
+def test_monitor_follows_a_drive_whose_current_pi_follows_its_winding():
+    """The monitor's current PI is the drive's: with drive.current_pi_follows_winding the
+    integral gain is kp R / L of the winding, as plant_rt.model builds it."""
+    from plant_rt import kernel as K
+    from plant_rt.model import param_vector
+    from plant_rt.params import PlantParams
+    p = PlantParams().with_dict({"drive.current_pi_follows_winding": True,
+                                 "motor.resistance_ohm": 1.2})
+    mp = M.MonitorParams.from_plant(p)
+    assert mp.current_ki_v_per_as == pytest.approx(param_vector(p)[K.P_KII], rel=1e-12)
+    assert mp.current_ki_v_per_as != pytest.approx(PlantParams().drive.current_ki_v_per_as)
+    plain = M.MonitorParams.from_plant(PlantParams())
+    assert plain.current_ki_v_per_as == PlantParams().drive.current_ki_v_per_as
