@@ -465,10 +465,11 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
 
 
 # --- sensor vector for measure() ---------------------------------------------------------
-S_IGAIN, S_IOFF, S_LGAIN, S_LOFF, S_EGAIN, S_RATIO, S_COUNTS, S_WIN, S_SYNC = range(9)
-NS = 9
+S_IGAIN, S_IOFF, S_LGAIN, S_LOFF, S_EGAIN, S_RATIO, S_COUNTS, S_WIN, S_SYNC, S_QUANT = range(10)
+NS = 10
 # S_WIN: encoder speed window in SYNC periods (0: the sensor filter of eq. 5.1);
-# S_SYNC: the SYNC period (s)
+# S_SYNC: the SYNC period (s); S_QUANT: 1 = whole counts, 0 = the quantiser's expectation
+# over its phase (`sensors.encoder_quantised`)
 # --- measurement vector ------------------------------------------------------------------
 M_CUR, M_SPEED, M_ANGLE, M_POS, M_TEMP = range(5)
 NM = 5
@@ -476,9 +477,13 @@ NM = 5
 
 @njit(cache=True, inline="always", error_model="numpy", fastmath=FM)
 def _counts_angle(screw_angle: float, s: np.ndarray) -> float:
-    """The encoder's motor angle (rad) quantised to whole counts."""
+    """The encoder's motor angle (rad) quantised to whole counts, or (s[S_QUANT] == 0)
+    the quantiser's expectation over a uniform phase: floor(a) averages to a - 1/2 counts."""
     counts = s[S_COUNTS]
-    return math.floor(screw_angle / s[S_RATIO] / TWO_PI * counts) * TWO_PI / counts
+    a = screw_angle / s[S_RATIO] / TWO_PI * counts
+    if s[S_QUANT] == 0.0:
+        return (a - 0.5) * TWO_PI / counts
+    return math.floor(a) * TWO_PI / counts
 
 
 @njit(cache=True, error_model="numpy", fastmath=FM)

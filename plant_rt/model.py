@@ -145,6 +145,7 @@ def sensor_vector(params: PlantParams) -> np.ndarray:
     s[K.S_COUNTS] = se.encoder_counts_per_rev
     s[K.S_WIN] = se.encoder_speed_window
     s[K.S_SYNC] = params.sim.sync_period_s
+    s[K.S_QUANT] = 1.0 if se.encoder_quantised else 0.0
     return s
 
 

@@ -219,6 +219,12 @@ class SensorParams(_Validated):
         "(lvdt_natural_rad_s, lvdt_damping); > 0 = a first-order demodulator lag of this "
         "time constant instead (a conditioner's datasheet fact, e.g. 'first-order 1 ms')",
         "table 5.1 (0); a conditioner's datasheet (> 0)")
+    encoder_quantised: bool = P(
+        True, "-", None, None,
+        "the encoder angle in whole counts (true, the sensor), or (false) the quantiser's "
+        "expectation over its phase, angle - half a count: the continuous encoder a fit "
+        "simulates, so that its cost is a smooth function of the parameters",
+        "chosen")
 
 
 @dataclass(frozen=True)

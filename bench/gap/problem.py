@@ -283,6 +283,14 @@ def drive_of(trace: Trace, encoder: str = "absolute",
                    cascade=cascade)
 
 
+def continuous(params: PlantParams) -> PlantParams:
+    """`params` with the encoder's quantiser replaced by its expectation over the phase
+    (`sensors.encoder_quantised` false: angle - half a count), unchanged otherwise."""
+    if not params.sensors.encoder_quantised:
+        return params
+    return params.with_dict({"sensors.encoder_quantised": False})
+
+
 def with_rate(base: PlantParams, dt: float) -> PlantParams:
     """`base` with its SYNC period set to the log's sample period."""
     if math.isclose(dt, base.sim.sync_period_s, rel_tol=1e-3):
@@ -291,7 +299,7 @@ def with_rate(base: PlantParams, dt: float) -> PlantParams:
 
 
 def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
-                   seed: int = 999) -> dict[str, float]:
+                   seed: int = 999, sensor: PlantParams | None = None) -> dict[str, float]:
     """Sensor noise standard deviations (A, m, rad/s) that reproduce the log's
     high-frequency content through the nominal closed loop.
 
@@ -305,7 +313,7 @@ def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
     n = p.n
     for _ in range(iterations):
         z = rng.standard_normal((n, 3)) * np.array([sig[c] for c in NOISE_COLS])
-        sim = p.closed_loop(p.base, noise=z)
+        sim = p.closed_loop(p.base if sensor is None else sensor, noise=z)
         for c in NOISE_COLS:
             v = max(noise_std(sim[c]), 1e-30)
             sig[c] = max(sig[c] * min(max(target[c] / v, 0.2), 5.0), FLOORS[c] / 4)
@@ -315,18 +323,27 @@ def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
 def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
           encoder: str = "absolute", purpose: str = "gap diagnosis",
-          model: str = "plant", resim: str = "closed-loop", cascade: Any = None) -> Problem:
+          model: str = "plant", resim: str = "closed-loop", cascade: Any = None,
+          smooth_encoder: bool = True) -> Problem:
     """A Problem for `trace` against the nominal `base` (made fast-mode here).
 
+    With `smooth_encoder` (default), the model every fit, nominal and held-out evaluation
+    simulates has the continuous encoder (`continuous`): an encoder whose whole counts
+    close a loop makes the re-simulated loop, and so the cost, a step function of every
+    parameter (docs/gap.md, "A fit that reaches its minimum").
+
     Floors: sensor noise is estimated from the log (`estimate_noise`) and pushed through
-    the nominal closed loop `bootstrap` times (seeded); with `model_floor`, the difference
-    between the fast and the full-fidelity nominal plant on this log is added (squares).
+    the nominal closed loop with the sensors as declared (whole counts) `bootstrap` times
+    (seeded), against the fit's noise-free nominal: the encoder's quantisation and the
+    quantised loop's dither are in the floor; with `model_floor`, the difference between
+    the fast and the full-fidelity nominal plant on this log is added (squares).
     """
     trace = fill_gaps(trace, purpose)
     check_log(trace, purpose)
     dt = trace.dt
     base = with_rate(base, dt)
-    fast = base.with_dict({**R.FAST, "sensors.noise": False})
+    sensor = base.with_dict({**R.FAST, "sensors.noise": False})   # the sensors as declared
+    fast = continuous(sensor) if smooth_encoder else sensor       # what every fit simulates
     drive = drive_of(trace, encoder, fast, resim, cascade)
     p = Problem(fast, drive, {}, {}, 0, dt, model=model)
     cols = {c: np.asarray(trace[c], float) for c in
@@ -337,15 +354,15 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     n = len(trace)
     p.n_fit = max(MIN_SAMPLES // 2, min(n, int(round(n * (1.0 - holdout_frac)))))
     # -- noise floor ---------------------------------------------------------------------
-    ns = estimate_noise(p, cols)
+    ns = estimate_noise(p, cols, sensor=sensor)
     p.noise_sigma = ns
     nominal = p.simulate()
     rng = np.random.default_rng(seed)
     boot = []
     noisy_cols = []
-    for b in range(bootstrap):
+    for b in range(bootstrap):    # the sensors as declared (whole counts) against the fit's
         z = rng.standard_normal((n, 3)) * np.array([ns[c] for c in NOISE_COLS])
-        nc = p.closed_loop(fast, noise=z)
+        nc = p.closed_loop(sensor, noise=z)    # model: the quantisation is in the floor
         if b < 2:
             noisy_cols.append(nc)
         noisy = p.signals(nc)
@@ -353,6 +370,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     mf = {s: 0.0 for s in R.SIGNALS}
     if model_floor and model == "plant":
         full = base.with_dict({"sensors.noise": False})
+        full = continuous(full) if smooth_encoder else full
         if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
             hi = p.signals(R.closed_loop(full, drive))
             mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
@@ -363,6 +381,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
                                          + mf[s] ** 2 + FLOORS[s] ** 2)) for s in R.SIGNALS}
     p.info["nominal"] = nominal
     p.info["nominal_cols"] = p.closed_loop(fast)
+    p.info["smooth_encoder"] = smooth_encoder
     p.info["noisy_cols"] = noisy_cols
     p.info["bootstrap"] = boot
     p.info["bootstrap_energy"] = [
