@@ -105,3 +105,37 @@ def hertz_stiffness_ratio(f_axial: float, preload_n: float, ref_n: float) -> flo
 def hertz_reference(params: PlantParams) -> float:
     """F_ref (N) of the Hertzian preload law, 0 when off (eq. 5.21's linear law)."""
     return params.screw.hertz_reference_preload_n
+
+
+# --- a double nut preloaded by an interference (screw.preload_by_interference) ----------
+def worn_nut(preload_n: float, clearance_m: float, kstar: float, mslope: float, z: float,
+             g: float, ref_n: float) -> tuple[float, float]:
+    """(preload N, backlash m along the contact normal) of a double nut preloaded to
+    `preload_n` by an interference (a spacer between the halves) that has worn a
+    clearance `clearance_m` (along the normal, as `effects.backlash_m`): the clearance
+    first eats the interference, the preload falls to what the rest holds, and only the
+    clearance beyond it is lost motion (thesis eq. 2.19: the preload loss is the nut's
+    stiffness times the deformation lost; section 2.3: backlash appears when the preload
+    is null). Axial interference, both halves: 4 F / (Z k g^2) under eq. 5.21's linear
+    law (`plant_rt.wear.interference_from_preload`), 2 d0 = 6 F_ref / (Z k_ref g^2)
+    (F / F_ref)^(2/3) under the Hertzian law (`ref_n` = F_ref > 0; each half's tangent
+    stiffness 1.5 F / d0 at small loads), where the preload left is F (1 - c / 2 d0)^1.5.
+    Plain math (`plant_rt.kernel` compiles it with njit)."""
+    if preload_n <= 0.0 or clearance_m <= 0.0:
+        return preload_n, clearance_m
+    c = clearance_m / g                                   # axial clearance
+    if ref_n > 0.0:
+        kref = kstar + mslope * ref_n
+        inter = 6.0 * ref_n / (z * kref * g * g) * (preload_n / ref_n) ** (2.0 / 3.0)
+        if c < inter:
+            return preload_n * (1.0 - c / inter) ** 1.5, 0.0
+        return 0.0, (c - inter) * g
+    inter = 4.0 * preload_n / (z * (kstar + mslope * preload_n) * g * g)
+    rest = inter - c
+    if rest <= 0.0:
+        return 0.0, -rest * g
+    a = rest * z * g * g                                  # the inverse of the line above
+    den = 4.0 - a * mslope
+    if den <= 1e-12:
+        den = 1e-12
+    return a * kstar / den, 0.0

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from plant_rt.contacts import HERTZ_MIN_PRELOAD_FRAC, hertz_share
+from plant_rt.contacts import HERTZ_MIN_PRELOAD_FRAC, hertz_share, worn_nut
 from plant_rt.jit import njit
 from plant_rt.pi import clamped_pi
 from plant_rt.wear import effects_from_depth
@@ -31,6 +31,9 @@ _effects_from_depth = njit(cache=True, inline="always", error_model="numpy",
 # the Hertzian preload law of `plant_rt.contacts`, compiled here (contacts stays numba-free)
 _hertz_share = njit(cache=True, inline="always", error_model="numpy",
                     fastmath={"nnan", "ninf", "nsz"})(hertz_share)
+# a double nut preloaded by an interference that wear eats (`plant_rt.contacts.worn_nut`)
+_worn_nut = njit(cache=True, inline="always", error_model="numpy",
+                 fastmath={"nnan", "ninf", "nsz"})(worn_nut)
 
 
 @njit(cache=True, error_model="numpy", fastmath={"nnan", "ninf", "nsz"})
@@ -73,12 +76,14 @@ STATE_NAMES = (
  P_LZETA, P_LSIG, P_EZETA, P_ESIG, P_TAUC, P_KPI, P_KII, P_FPWM, P_PWM_SW, P_BALL_DYN,
  P_DT, P_NBALL, P_NSUB, P_LOAD_KIND, P_LOAD_AMP, P_LOAD_T0, P_LOAD_RATE, P_LOAD_FREQ,
  P_TRAVEL, P_AERO_GAIN, P_WEAR_ON, P_WEAR_GAIN, P_WEAR_AREA, P_WEAR_FRIC, P_LTAU,
- P_HREF, P_PDRAG) = range(58)
-NP = 58
+ P_HREF, P_PDRAG, P_INTERF) = range(59)
+NP = 59
 # P_LTAU: the LVDT's first-order time constant (s); 0: the second-order filter of eq. 5.1
 # P_HREF: the Hertzian preload law's reference preload F_ref (N); 0: eq. 5.21's linear law
 # P_PDRAG: the preloaded nut's drag torque at the screw per N of preload (N m/N), added to
 # C_s of eq. 5.14; 0: none beyond the rolling terms of eq. 5.13 and 5.31
+# P_INTERF: 1 = the preload is held by an interference that the backlash (a wear clearance)
+# eats first (screw.preload_by_interference); 0: eq. 5.29's preload force
 # load kinds (P_LOAD_KIND): the order of `LoadParams.kind`'s choices
 LOAD_KINDS = ("none", "step", "ramp", "sine", "aero")
 
@@ -193,6 +198,9 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     IMAX, VDC = p[P_IMAX], p[P_VDC]
     tau, eta, jeq = p[P_TAU], p[P_ETA], p[P_JEQ]
     fpr, backlash, fscale = u[U_PRELOAD], u[U_BACKLASH], u[U_FSCALE]
+    if p[P_INTERF] != 0.0:      # the clearance eats the preload interference first
+        fpr, backlash = _worn_nut(fpr, backlash, p[P_KSTAR], p[P_MSLOPE], p[P_Z], p[P_G],
+                                  p[P_HREF])
     if p[P_WEAR_ON] != 0.0:     # Archard wear: effects of the worn volume (plant_rt.wear)
         w_loss, w_back, w_fric = _effects_from_depth(
             x[WEAR_V] / p[P_WEAR_AREA], fpr, p[P_KSTAR], p[P_MSLOPE], p[P_Z], p[P_G],

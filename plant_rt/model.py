@@ -22,7 +22,7 @@ from ema_contract.states import Status
 from plant_rt import kernel as K
 from plant_rt import wear
 from plant_rt.aero import GustGenerator
-from plant_rt.contacts import contact_geometry, hertz_stiffness_ratio
+from plant_rt.contacts import contact_geometry, hertz_stiffness_ratio, worn_nut
 from plant_rt.params import PlantParams
 
 OVERTEMPERATURE_K = 428.0  # class H insulation, 155 degC
@@ -71,6 +71,7 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_LTAU] = se.lvdt_time_constant_s
     p[K.P_HREF] = s.hertz_reference_preload_n                  # 0: eq. 5.21's linear law
     p[K.P_PDRAG] = s.preload_drag_nm_per_n                     # 0: eq. 5.13's terms only
+    p[K.P_INTERF] = 1.0 if s.preload_by_interference else 0.0   # 0: eq. 5.29's force
     p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
     p[K.P_TAUC] = se.current_time_constant_s
     p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, d.current_ki_v_per_as
@@ -169,8 +170,14 @@ def schedule_at(params: PlantParams, t: float) -> tuple[float, float, float]:
 def effects_at(params: PlantParams, t: float, volume_m3: float) -> tuple[float, float, float]:
     """(preload N, backlash m, friction scale) at time t with `volume_m3` worn: the
     schedule's (`schedule_at`), plus Archard wear under `wear.kind = archard` (the same
-    mapping as the kernel's, `plant_rt.wear.effects_from_depth`)."""
+    mapping as the kernel's, `plant_rt.wear.effects_from_depth`); under
+    `screw.preload_by_interference` the backlash first eats the preload's interference
+    (`plant_rt.contacts.worn_nut`, before the wear, as in the kernel)."""
     preload, backlash, fscale = schedule_at(params, t)
+    if params.screw.preload_by_interference:    # the clearance eats the interference first
+        kstar, mslope, z, g = contact_geometry(params)
+        preload, backlash = worn_nut(preload, backlash, kstar, mslope, z, g,
+                                     params.screw.hertz_reference_preload_n)
     if params.wear.kind != "archard":
         return preload, backlash, fscale
     kstar, mslope, z, g = contact_geometry(params)

@@ -95,7 +95,8 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
                     ) -> PlantParams:
     """The bench's model of the independent actuator from its datasheet: ratio, lead,
     motor constants, rotor and screw inertias, nut mass, preload, supply and limits, the
-    drive's current PI (its zero on the winding's own pole, session 8), and
+    drive's current PI (its zero on the winding's own pole, session 8), its
+    spacer-preloaded nut (a backlash first eats the preload, session 9), and
     how its drive computes the speed (the count difference over `speed_window` SYNC
     periods) and the LVDT conditioner's lag (first order, `lvdt_tau_s`). The bench's
     friction laws and contact model stay its own (the thesis' tables): friction, the
@@ -122,6 +123,9 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
         # its drive puts the current PI's zero on the winding's own pole (I2, ki from the
         # winding's R): a resistance that has risen is still cancelled
         "drive.current_pi_follows_winding": True,
+        # its nut: a double nut preloaded by a spacer (an interference), so a wear clearance
+        # eats the preload first and only then opens lost motion (I8; session 9)
+        "screw.preload_by_interference": True,
         "sensors.encoder_counts_per_rev": n.encoder_counts,
         # the drive's speed: the count difference over 4 SYNC periods (its datasheet)
         "sensors.encoder_speed_window": int(n.speed_window),
