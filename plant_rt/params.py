@@ -169,12 +169,11 @@ class ScrewParams(_Validated):
         "torque' T_p = 0.05 (tan lambda)^-0.5 F_pr p / 2 pi)")
     preload_by_interference: bool = P(
         False, "-", None, None,
-        "false (default): eq. 5.29 as written, the preload a force +-F_pr on each half that "
-        "takes up any backlash; true: the double nut is preloaded by an interference (a "
-        "spacer between the halves) and effects.backlash_m is a wear clearance that first "
-        "eats it: the preload falls to what the remaining interference holds (eq. 5.21 or "
-        "the Hertzian law), only the clearance beyond it is lost motion "
-        "(plant_rt.contacts.worn_nut; docs/gap.md, 'Backlash on a preloaded nut')",
+        "false (default): eq. 5.29, the preload a force +-F_pr per half that takes up any "
+        "backlash; true: an interference (a spacer between the halves) that "
+        "effects.backlash_m, a wear clearance, eats first: the preload falls to what the "
+        "rest holds (eq. 5.21 or the Hertzian law), only the clearance beyond it is lost "
+        "motion (plant_rt.contacts.worn_nut; docs/gap.md, 'Backlash on a preloaded nut')",
         "thesis section 2.1 (fig. 2.4(b): a double nut with a thickness between the nuts; "
         "the preload reduces the axial play), eq. 2.19 (preload loss = nut stiffness x "
         "the deformation wear removes) and section 2.3 (backlash appears when the preload "
