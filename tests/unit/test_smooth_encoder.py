@@ -3,12 +3,14 @@
 function of every parameter (docs/gap.md, "A fit that reaches its minimum")."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from bench.gap import effects as E
 from bench.gap import problem as P
 from bench.gap import resim as R
+from bench.gap.cascade import Cascade
 from bench.gap.maneuvers import excitation
 from bench.harness import simulate
 from plant_rt import kernel as K
@@ -59,3 +61,25 @@ def test_cost_is_smooth_with_the_continuous_encoder():
     rough = np.diff(_costs(False))
     assert np.sum(rough > 0) >= 3                  # the quantised loop: rough
     assert np.max(np.abs(rough)) > 5 * np.max(np.abs(smooth))
+
+
+def test_continuous_only_where_the_counts_close_a_loop():
+    """The bench's own plant (speed by the filter of eq. 5.1, position on the LVDT) keeps
+    its counts: they are only in the logged angle, and its results stay bit for bit. A
+    count-difference speed, or an identified cascade on the encoder, gets the continuous
+    encoder; the measured-current re-simulation (no loop) does not."""
+    own = PlantParams().with_dict(R.FAST)
+    assert own.sensors.encoder_speed_window == 0
+    log = simulate(excitation(0.6), own).measured()
+    kept = P.build(log, own, 0.0, bootstrap=1, model_floor=False)
+    assert kept.base.sensors.encoder_quantised and not kept.info["smooth_encoder"]
+    smooth = P.build(log, COUNTED, 0.0, bootstrap=1, model_floor=False)
+    assert not smooth.base.sensors.encoder_quantised and smooth.info["smooth_encoder"]
+    enc = Cascade("encoder", 2e5, 0.0, 0.4, 0.0, 300.0, 20.0, 1)
+    assert P.build(log, own, 0.0, bootstrap=1, model_floor=False,
+                   cascade=enc).info["smooth_encoder"]
+    assert not P.build(log, own, 0.0, bootstrap=1, model_floor=False,
+                       cascade=replace(enc, source="lvdt")).info["smooth_encoder"]
+    assert not P.build(log, COUNTED, 0.0, bootstrap=1, model_floor=False,
+                       resim="measured-current").info["smooth_encoder"]
+
