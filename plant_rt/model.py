@@ -74,9 +74,7 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_INTERF] = 1.0 if s.preload_by_interference else 0.0   # 0: eq. 5.29's force
     p[K.P_EZETA], p[K.P_ESIG] = se.encoder_damping, se.encoder_natural_rad_s
     p[K.P_TAUC] = se.current_time_constant_s
-    p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, d.current_ki_v_per_as
-    if d.current_pi_follows_winding:       # zero on the winding's own pole R/L
-        p[K.P_KII] = d.current_kp_v_per_a * m.resistance_ohm / m.inductance_h
+    p[K.P_KPI], p[K.P_KII] = d.current_kp_v_per_a, current_ki(params)
     p[K.P_FPWM] = d.pwm_carrier_hz
     p[K.P_PWM_SW] = 1.0 if d.pwm_mode == "switching" else 0.0
     p[K.P_BALL_DYN] = 1.0 if sim.ball_model == "dynamic" else 0.0
@@ -95,6 +93,15 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_WEAR_GAIN] = wear.kernel_wear_gain(params)
     p[K.P_WEAR_AREA], p[K.P_WEAR_FRIC] = w.track_area_m2, w.friction_per_depth_per_m
     return p
+
+
+def current_ki(params: PlantParams) -> float:
+    """The drive's current-PI integral gain (V/(A s)): `drive.current_ki_v_per_as`, or,
+    under `drive.current_pi_follows_winding`, kp R / L (its zero on the winding's pole)."""
+    d, m = params.drive, params.motor
+    if d.current_pi_follows_winding:
+        return d.current_kp_v_per_a * m.resistance_ohm / m.inductance_h
+    return d.current_ki_v_per_as
 
 
 def equivalent_inertia(params: PlantParams) -> float:

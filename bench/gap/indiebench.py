@@ -224,8 +224,7 @@ def make_cases(n: int, seed: int, only: str | None = None) -> list[Case]:
         kinds = ["single"] * n
     cases = []
     for i, kind in enumerate(kinds):
-        name = only if only is not None else None
-        truths = [] if kind == "nominal" else [draw(name or str(rng.choice(POOL)), rng)]
+        truths = [] if kind == "nominal" else [draw(only or str(rng.choice(POOL)), rng)]
         cases.append(Case(i, kind, truths, int(rng.integers(1, 2**31 - 1))))
     return cases
 

@@ -51,7 +51,7 @@ from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K
 from plant_rt.jit import njit
-from plant_rt.model import equivalent_inertia, static_friction, viscous_friction
+from plant_rt.model import current_ki, equivalent_inertia, static_friction, viscous_friction
 from plant_rt.params import P, PlantParams, resolve
 from plant_rt.pi import clamped_pi
 
@@ -159,9 +159,7 @@ class MonitorParams(ParamSet):
             lead_m=s.lead_m, lvdt_damping=se.lvdt_damping,
             lvdt_natural_rad_s=se.lvdt_natural_rad_s, encoder_damping=se.encoder_damping,
             encoder_natural_rad_s=se.encoder_natural_rad_s,
-            current_kp_v_per_a=d.current_kp_v_per_a, current_ki_v_per_as=(
-                d.current_kp_v_per_a * m.resistance_ohm / m.inductance_h   # as the drive:
-                if d.current_pi_follows_winding else d.current_ki_v_per_as),  # plant_rt.model
+            current_kp_v_per_a=d.current_kp_v_per_a, current_ki_v_per_as=current_ki(p),
             encoder_counts_per_rev=se.encoder_counts_per_rev,
             sync_period_s=p.sim.sync_period_s)
         return replace(mp, **overrides) if overrides else mp
