@@ -82,4 +82,3 @@ def test_continuous_only_where_the_counts_close_a_loop():
                        cascade=replace(enc, source="lvdt")).info["smooth_encoder"]
     assert not P.build(log, COUNTED, 0.0, bootstrap=1, model_floor=False,
                        resim="measured-current").info["smooth_encoder"]
-
