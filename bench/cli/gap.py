@@ -53,6 +53,11 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference: absolute (zero at nut zero, the bench's "
                         "plant) or relative (start of the log)")
+    p.add_argument("--friction-split", choices=("model", "unknown"), default="model",
+                   help="where the model's Coulomb friction acts, at the nut or at the screw: "
+                        "the model's (default; the bench's own plant) or unknown (a model "
+                        "built from a datasheet, which gives a total friction): stiffness, "
+                        "preload, backlash and friction then also fit the share at the nut")
     p.add_argument("--fundamental", type=float, metavar="HZ",
                    help="command fundamental for the frequency split (default: from the "
                         "log's metadata, else the strongest line of the set-point velocity)")
@@ -125,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         model=args.model, effects=names, holdout_frac=args.holdout_frac,
         workers=args.workers, scheduler=args.scheduler, encoder=args.encoder, fit_always=args.fit_always,
         progress=not args.quiet and sys.stderr.isatty(),
-        reference=_calibration_reference(args)), log=say)
+        reference=_calibration_reference(args), friction_split=args.friction_split), log=say)
     js = res.json()
     if ctrl_line:
         js["controller"] = {"line": ctrl_line, **{
@@ -251,6 +256,9 @@ def _rig(args: argparse.Namespace) -> int:
     from bench.gap.inputs import load_log
     from bench.gap.riggap import CANDIDATES, diagnose_rig, load_calibration, text
     from bench.rig import fallback as FB
+    if args.friction_split != "model":
+        raise BenchError("--friction-split is for the thesis plant's model; a rig's "
+                         "calibration has its own friction law")
     cal, act = load_calibration(args.nominal) if args.nominal else (None, None)
     ref = FB.choose(cal, args.nominal, args.baseline, args.against)
     if ref.kind == "baseline":

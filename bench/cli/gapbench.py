@@ -78,6 +78,11 @@ def independent_markdown(out: dict) -> str:
         "",
         _controller_line(cal.get("controller")),
         "",
+        "Where the model's Coulomb friction acts: "
+        + ("unknown (a datasheet gives a total friction): stiffness, preload, backlash and "
+           "friction also fit the share at the nut." if out.get("friction_split") == "unknown"
+           else "the model's split."),
+        "",
         f"Held-out healthy log (noise seed {held['seed']}), calibrated model re-simulated "
         "as the calibration says:",
         "",

@@ -37,6 +37,7 @@ from bench.gap import effects as E
 from bench.gap import localise as LZ
 from bench.gap import resim as R
 from bench.gap.fit import Fit, fit
+from bench.gap.library import FRICTION_SPLITS
 from bench.gap.problem import Problem, build, fill_gaps
 from bench.trace import Trace
 from bench.workers import ensure_started, make_pool
@@ -77,6 +78,9 @@ class Options:
     progress: bool = False
     reference: dict[str, Any] | None = None    # the calibration judged against (name and its
                                                # held-out healthy level, `heldout_level`)
+    friction_split: str = "model"              # where the model's Coulomb friction acts:
+                                               # "model" (known) or "unknown" (the nut
+                                               # friction share fitted, library.NUT_SHARE)
 
 
 @dataclass
@@ -257,6 +261,13 @@ def _load_note(p: Problem, model: str) -> str:
     return f"axial load replayed from the load cell (load_force_n, up to {peak:.0f} N)"
 
 
+SPLIT_NOTE = {
+    "model": "the model's (where its Coulomb friction acts, nut or screw, is taken as known)",
+    "unknown": "unknown: stiffness, preload, backlash and friction also fit the share of the "
+               "nut's Coulomb friction that acts at the nut (nut_friction_share, 1 = the "
+               "model's split)"}
+
+
 def diagnose(trace: Trace, holdout: Trace | None = None, nominal: PlantParams | None = None,
              options: Options | None = None,
              log: Callable[[str], None] | None = None) -> Result:
@@ -270,6 +281,9 @@ def diagnose(trace: Trace, holdout: Trace | None = None, nominal: PlantParams | 
     names = list(o.effects) if o.effects else E.names()
     for n in names:
         E.get(n)
+    if o.friction_split not in FRICTION_SPLITS:
+        raise BenchError(f"friction split {o.friction_split!r}: choose from "
+                         f"{', '.join(FRICTION_SPLITS)}")
     base = nominal or PlantParams()
     frac = 0.0 if holdout is not None else o.holdout_frac
     if holdout is None and not 0.1 <= frac <= 0.9:
@@ -290,7 +304,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if holdout is not None:
         holdout = fill_gaps(holdout.measured(), "held-out log")
     p = build(trace.measured(), base, frac, bootstrap=o.bootstrap, encoder=o.encoder,
-              model=o.model)
+              model=o.model, friction_split=o.friction_split)
     h = None
     if holdout is not None:
         h = build(holdout.measured(), base, 0.0, bootstrap=o.bootstrap, encoder=o.encoder,
@@ -315,6 +329,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
                     if o.model == "plant" else "monitoring model (rigid screw, no PWM)",
                     "effects_not_representable": skipped,
                     "load": _load_note(p, o.model),
+                    "friction_split": SPLIT_NOTE[o.friction_split],
                     "nominal_differs_from_thesis": {k: v[1] for k, v in
                                                     PlantParams().diff(base).items()}}
     if not sig and not o.fit_always:

@@ -14,6 +14,7 @@ Scores (lower is better), with n_eff = n / L the effective number of samples:
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -24,6 +25,7 @@ from scipy.optimize import least_squares
 
 from bench.gap import effects as E
 from bench.gap.autocorr import corr_length
+from bench.gap.library import with_nut_share
 from bench.gap.problem import Problem
 
 DIFF_STEP = 0.01     # finite-difference step in [0, 1] coordinates
@@ -151,6 +153,30 @@ def _discrete_grid(problem: Problem, names: Sequence[str | E.Effect],
     return th
 
 
+def shared_once(effs: Sequence[E.Effect]) -> list[E.Effect]:
+    """A parameter that several effects of a candidate carry under one name (the nut
+    friction share, `bench.gap.library.NUT_SHARE`) is fitted once, by the last of them,
+    whose plant overrides are applied last; the others get a copy without it."""
+    out = []
+    for i, e in enumerate(effs):
+        later = {p.name for f in effs[i + 1:] for p in f.params}
+        if any(p.name in later for p in e.params):
+            e = copy.copy(e)
+            e.params = tuple(p for p in e.params if p.name not in later)  # type: ignore[misc]
+        out.append(e)
+    return out
+
+
+def for_problem(problem: Problem, names: Sequence[str | E.Effect]) -> list[E.Effect]:
+    """The effects as fitted on `problem`: bounds for its model (`Effect.for_model`); where
+    the problem declares the model's friction split unknown, the effects that show it fit
+    the nut friction share too, once per candidate (`with_nut_share`, `shared_once`)."""
+    effs = [e.for_model(problem.base) for e in resolve(names)]
+    if problem.friction_split == "unknown":
+        effs = shared_once([with_nut_share(e) for e in effs])
+    return effs
+
+
 def fit(problem: Problem, names: Sequence[str | E.Effect],
         start: list[dict[str, float]] | None = None, max_nfev: int = MAX_NFEV,
         prior: dict[str, tuple[float, float]] | None = None) -> Fit:
@@ -161,7 +187,7 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
     to a pair); otherwise each effect's own start points are tried. `prior`: see
     `Objective`.
     """
-    effs = [e.for_model(problem.base) for e in resolve(names)]
+    effs = for_problem(problem, names)
     effect_names = tuple(e.name for e in effs)
     k = sum(len(e.params) for e in effs)
     nom = [e.nominal(problem.base) for e in effs]
@@ -182,6 +208,9 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
         starts = grown
     for st in starts:
         for i, e in enumerate(effs):
+            # a start carries the effect's own parameters only (a single's fit grown to a
+            # pair may carry a parameter the pair fits once, with its other effect)
+            st[i] = {k: v for k, v in st[i].items() if any(k == q.name for q in e.params)}
             for prm in e.params:
                 v = st[i].get(prm.name, nom[i][prm.name])
                 if prm.integer_step > 0:

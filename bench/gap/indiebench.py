@@ -145,6 +145,12 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
                             "screw.preload_drag_nm_per_n": drag / n.preload_n})
 
 
+FRICTION_SPLIT = "unknown"
+"""The datasheet model's friction split (`bench.gap.library.FRICTION_SPLITS`): a datasheet
+gives a total friction, not where it acts (at the nut or at the screw), so the diagnoses
+fit it where it shows (docs/gap.md, "Where the friction acts")."""
+
+
 def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:
     """The bench's ECU (position P on the LVDT, speed PI, every SYNC) as numbers."""
     cp = cp or ControllerParams()
@@ -344,7 +350,8 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
         log.meta["controller"] = _STATE["controller"]   # re-simulated as calibrated
     t0 = time.perf_counter()
     res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects,
-                                                        reference=_STATE.get("reference")))
+                                                        reference=_STATE.get("reference"),
+                                                        friction_split=FRICTION_SPLIT))
     elapsed = time.perf_counter() - t0
     snr_each = {t.name: floor_snr(Case(case.index, case.kind, [t], case.noise_seed),
                                   duration_s, ref, controller, act) for t in case.truths}
@@ -390,8 +397,8 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
             "only": only,
             "actuator_changes": changed,
             "fidelity": "independent physics (indie_plant)", "log_s": duration_s,
-            "library": effects or "all", "wall_s": time.perf_counter() - t0,
-            "workers": workers, "floor": ref["floor"],
+            "library": effects or "all", "friction_split": FRICTION_SPLIT,
+            "wall_s": time.perf_counter() - t0, "workers": workers, "floor": ref["floor"],
             "calibration": {"seed": seed + CALIBRATION_SEED_OFFSET, "wall_s": t_cal,
                             "controller": cal["controller"],
                             "params": cal["params"], "ci95": cal["ci95"],

@@ -52,14 +52,97 @@ class _Single(Effect):
         return eff
 
 
-class Backlash(_Single):
+NUT_SHARE = Param("nut_friction_share", "-", 0.0, 1.0,
+                  "share of the model's nut Coulomb friction F_s (eq. 5.31) that acts at the "
+                  "nut; the rest acts at the screw (C_fs of eq. 5.14), the same torque at the "
+                  "motor (F_s p / 2 pi)")
+"""Where the Coulomb friction acts, at the nut (loading the balls) or at the screw (on
+the motor's side of the contacts). A stiff preloaded nut hides the split: both give the
+same motor torque and a deflection below the encoder's resolution. A compliant or loose
+nut shows it (the nut's friction deflects the contacts by F_s / k, or holds the nut while
+the screw crosses a clearance), and so does a grown friction (a larger F_s / k). A healthy
+log cannot calibrate it. When the diagnosis is told that the model's split is unknown
+(`Problem.friction_split`, `bench gap --friction-split unknown`), the effects that show it
+(stiffness, preload, backlash, friction) fit it as a second parameter (`with_nut_share`);
+otherwise they keep the model's split (docs/gap.md, "Where the friction acts")."""
+
+FRICTION_SPLITS = ("model", "unknown")
+"""How a diagnosis treats where the model's Coulomb friction acts: "model" (the model's
+split is known, as the thesis' for the bench's own plant: nothing added) or "unknown" (a
+datasheet gives a total friction, not where it acts: the effects that show it fit
+`NUT_SHARE`, `with_nut_share`)."""
+
+
+def nut_split(share: float, base: PlantParams) -> dict[str, float]:
+    """Plant overrides that keep `share` of `base`'s nut Coulomb friction F_s at the nut
+    (eq. 5.31) and move the rest to the screw's Coulomb torque C_fs (eq. 5.14) at the
+    work-equivalent F_s p / 2 pi, so the Coulomb torque the motor sees is unchanged."""
+    s = base.screw
+    moved = (1.0 - share) * s.nut_static_friction_n
+    return {"screw.nut_static_friction_n": s.nut_static_friction_n - moved,
+            "screw.support_static_friction_nm": s.support_static_friction_nm
+            + moved * s.lead_m / (2.0 * np.pi)}
+
+
+class _NutShare(_Single):
+    """An effect that shows where the nut's Coulomb friction acts. Registered with its own
+    parameter only; `with_share` gives the copy that also fits NUT_SHARE (nominal 1, the
+    model's split). A `theta` that carries the share applies it, whichever copy reads it,
+    so a fit re-simulated from the effect's name is the fit."""
+
+    def _shares(self) -> bool:
+        return any(p.name == NUT_SHARE.name for p in self.params)
+
+    def with_share(self) -> Effect:
+        if self._shares():
+            return self
+        eff = copy.copy(self)
+        eff.params = (*self.params, NUT_SHARE)   # type: ignore[misc]
+        return eff
+
+    def for_model(self, base: PlantParams) -> Effect:
+        eff = super().for_model(base)          # a copy with its own parameter only, if moved
+        if eff is self or not self._shares():
+            return eff
+        assert isinstance(eff, _NutShare)
+        return eff.with_share()
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        out = super().nominal(base)
+        return {**out, NUT_SHARE.name: 1.0} if self._shares() else out
+
+    def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
+        out = super().plant_overrides(theta, base)
+        share = theta.get(NUT_SHARE.name, 1.0)
+        return {**out, **nut_split(share, base)} if share != 1.0 else out
+
+    def start_points(self, base: PlantParams) -> list[dict[str, float]]:
+        """Effect.start_points of the effect's own parameter; with the share, each of them
+        with the model's split (share 1) and with all of the nut's friction at the screw
+        (share 0)."""
+        if not self._shares():
+            return super().start_points(base)
+        alone = copy.copy(self)
+        alone.params = self.params[:1]   # type: ignore[misc]
+        own = self.params[0].name
+        pts = [pt[own] for pt in super(_NutShare, alone).start_points(base)]
+        return [{own: v, NUT_SHARE.name: s} for s in (1.0, 0.0) for v in pts]
+
+
+def with_nut_share(eff: Effect) -> Effect:
+    """`eff` fitting NUT_SHARE as well when it shows where the nut's friction acts (an
+    effect built on `_NutShare`: stiffness, preload, backlash, friction), else `eff`."""
+    return eff.with_share() if isinstance(eff, _NutShare) else eff
+
+
+class Backlash(_NutShare):
     name = "backlash"
     doc = "lost motion between screw and nut (eq. 5.19-5.24)"
     params = (Param("backlash_m", "m", 0.0, 300e-6, "total backlash b_max"),)
     target = "effects.backlash_m"
 
 
-class Friction(_Single):
+class Friction(_NutShare):
     name = "friction"
     doc = "static/Coulomb friction torques and forces scaled (wear, lubricant loss)"
     params = (Param("friction_scale", "-", 0.2, 8.0,
@@ -107,7 +190,7 @@ class Stribeck(Effect):
                 "screw.stribeck_velocity_rad_s": theta["stribeck_velocity_rad_s"]}
 
 
-class Stiffness(_Single):
+class Stiffness(_NutShare):
     name = "stiffness"
     doc = "finite (lower) screw-nut contact stiffness k* (eq. 5.21)"
     params = (Param("contact_stiffness_n_per_m", "N/m", 1e5, 1.5e8,
@@ -116,7 +199,7 @@ class Stiffness(_Single):
     target = "screw.contact_stiffness_n_per_m"
 
 
-class Preload(_Single):
+class Preload(_NutShare):
     name = "preload"
     doc = ("double-nut preload F_pr: stiffer contacts (eq. 5.21, or the Hertzian law when the "
            "model declares screw.hertz_reference_preload_n), more rolling friction, the "

@@ -56,6 +56,8 @@ class Problem:
     holdout: Problem | None = None      # another log for held-out evaluation
     info: dict[str, Any] = field(default_factory=dict)
     model: str = "plant"                # nominal model name (bench.gap.models)
+    friction_split: str = "model"       # where the model's Coulomb friction acts: "model"
+                                        # (known) or "unknown" (bench.gap.library.NUT_SHARE)
 
     @property
     def n(self) -> int:
@@ -337,7 +339,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
           encoder: str = "absolute", purpose: str = "gap diagnosis",
           model: str = "plant", resim: str = "closed-loop", cascade: Any = None,
-          smooth_encoder: bool = True) -> Problem:
+          smooth_encoder: bool = True, friction_split: str = "model") -> Problem:
     """A Problem for `trace` against the nominal `base` (made fast-mode here).
 
     With `smooth_encoder` (default), where the encoder's counts close a loop
@@ -360,7 +362,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     drive = drive_of(trace, encoder, sensor, resim, cascade)
     smooth_encoder = smooth_encoder and counts_in_loop(sensor, drive)
     fast = continuous(sensor) if smooth_encoder else sensor       # what every fit simulates
-    p = Problem(fast, drive, {}, {}, 0, dt, model=model)
+    p = Problem(fast, drive, {}, {}, 0, dt, model=model, friction_split=friction_split)
     cols = {c: np.asarray(trace[c], float) for c in
             ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")}
     if "current_demand_a" in trace:

@@ -39,6 +39,18 @@ def _shares(d: dict[str, float], keys: tuple[str, ...] | list[str]) -> str:
     return "  ".join(f"{k} {100 * (d.get(k) or 0.0):.0f}%" for k in keys)
 
 
+def _model_lines(m: dict[str, Any]) -> list[str]:
+    out = [f"model: {m.get('name', '?')} ({m.get('fidelity', '')})"]
+    if m.get("load"):
+        out.append(f"  load: {m['load']}")
+    if m.get("friction_split"):
+        out.append(f"  friction split: {m['friction_split']}")
+    if m.get("effects_not_representable"):
+        out.append("  not tried (this model has no place for them; use --model plant): "
+                   + ", ".join(m["effects_not_representable"]))
+    return out
+
+
 def text(js: dict[str, Any], top: int = 8) -> str:
     """Console summary of the diagnosis JSON."""
     loc = js["localisation"]
@@ -48,13 +60,7 @@ def text(js: dict[str, Any], top: int = 8) -> str:
         if d.get("notes"):
             out.append(f"{'log' if key == 'log' else 'held-out log'}: "
                        + "; ".join(d["notes"]))
-    m = loc.get("model", {})
-    out.append(f"model: {m.get('name', '?')} ({m.get('fidelity', '')})")
-    if m.get("load"):
-        out.append(f"  load: {m['load']}")
-    if m.get("effects_not_representable"):
-        out.append("  not tried (this model has no place for them; use --model plant): "
-                   + ", ".join(m["effects_not_representable"]))
+    out += _model_lines(loc.get("model", {}))
     ns = sig["noise_sigma"]
     out.append("noise (estimated from the log): "
                f"current {ns['current_a']:.3g} A, speed {ns['motor_speed_rad_s']:.3g} rad/s, "

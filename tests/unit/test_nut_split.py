@@ -1,0 +1,104 @@
+"""Where the Coulomb friction acts: against a model whose friction split is declared
+unknown, the effects that show it fit the share of the model's nut friction F_s that
+stays at the nut (`bench.gap.library.nut_split`); against a model whose split is known
+(the default, the bench's own plant) they are fitted exactly as before (docs/gap.md,
+"Where the friction acts")."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bench import BenchError
+from bench.gap import effects as E
+from bench.gap import problem as P
+from bench.gap.diagnose import Options, diagnose
+from bench.gap.fit import fit, for_problem, shared_once
+from bench.gap.library import NUT_SHARE, nut_split, with_nut_share
+from bench.gap.maneuvers import excitation
+from bench.harness import simulate
+from plant_rt.model import static_friction
+from plant_rt.params import PlantParams
+
+SHOWN = ("stiffness", "preload", "backlash", "friction")
+
+
+@pytest.mark.parametrize("share", [0.0, 0.3, 1.0])
+def test_the_split_keeps_the_motor_side_coulomb_torque(share):
+    base = PlantParams().with_dict({"screw.lead_m": 4e-3, "screw.nut_static_friction_n": 300.0})
+    moved = base.with_dict(nut_split(share, base))
+    assert moved.screw.nut_static_friction_n == pytest.approx(share * 300.0)
+
+    def at_motor(q: PlantParams) -> float:    # C_s + F_s p / 2 pi, eq. 5.14 and 5.31
+        return static_friction(q) + q.screw.nut_static_friction_n * q.screw.lead_m / (2 * math.pi)
+    assert at_motor(moved) == pytest.approx(at_motor(base), rel=1e-12)
+
+
+@pytest.mark.parametrize("name", SHOWN)
+def test_the_share_is_fitted_only_when_the_split_is_unknown(name):
+    base = PlantParams()
+    eff = E.get(name)
+    own = eff.params[0].name
+    # registered (and fitted on a model whose split is known) with its own parameter only
+    assert [p.name for p in eff.params] == [own]
+    known = P.Problem(base, None, {}, {}, 0, 1e-3)            # type: ignore[arg-type]
+    assert [p.name for p in for_problem(known, [name])[0].params] == [own]
+    assert eff.start_points(base) == E.get(name).start_points(base)
+    # against a model whose split is unknown: the share too, nominal 1, from both ends
+    unknown = P.Problem(base, None, {}, {}, 0, 1e-3, friction_split="unknown")  # type: ignore[arg-type]
+    sh = for_problem(unknown, [name])[0]
+    assert [p.name for p in sh.params] == [own, NUT_SHARE.name]
+    nom = sh.nominal(base)
+    assert nom[NUT_SHARE.name] == 1.0
+    assert list(sh.plant_overrides(nom, base)) == list(eff.plant_overrides(nom, base))
+    pts = sh.start_points(base)
+    assert {sp[NUT_SHARE.name] for sp in pts} == {0.0, 1.0}
+    assert [sp[own] for sp in pts if sp[NUT_SHARE.name] == 0.0] == \
+        [sp[own] for sp in eff.start_points(base)]
+    # a fitted share re-simulates from the effect's name (the report re-resolves it)
+    th = {own: nom[own], NUT_SHARE.name: 0.25}
+    assert eff.plant_overrides(th, base) == sh.plant_overrides(th, base)
+    assert eff.plant_overrides(th, base)["screw.nut_static_friction_n"] == \
+        pytest.approx(0.25 * base.screw.nut_static_friction_n)
+    # effects that do not show the split are left alone
+    assert with_nut_share(E.get("viscous")) is E.get("viscous")
+
+
+def test_a_compliant_nut_with_its_friction_at_the_screw_is_fitted_as_stiffness():
+    """A log of the bench's plant with a soft contact (k* 3e6 N/m) and all of the nut's
+    friction at the screw: against the model with its split declared unknown, `stiffness`
+    fits the share near 0 and reaches a cost that the model's split (known, the share
+    held at 1) does not reach (the nut's friction would deflect the contacts)."""
+    nominal = PlantParams()
+    truth = nominal.with_dict({"screw.contact_stiffness_n_per_m": 3e6,
+                               **nut_split(0.0, nominal),
+                               "sensors.noise": True, "sensors.noise_seed": 11})
+    log = simulate(excitation(2.0), truth)
+    fits = {}
+    for split in ("unknown", "model"):
+        p = P.build(log.measured(), nominal, 0.3, bootstrap=2, model_floor=False,
+                    friction_split=split)
+        eff = for_problem(p, ["stiffness"])[0]
+        fits[split] = fit(p, ["stiffness"], [eff.nominal(p.base)], max_nfev=40)
+    got = fits["unknown"].theta[0]
+    assert got[NUT_SHARE.name] < 0.2
+    assert got["contact_stiffness_n_per_m"] == pytest.approx(3e6, rel=0.25)
+    assert NUT_SHARE.name not in fits["model"].theta[0]
+    assert fits["unknown"].rss < 0.5 * fits["model"].rss
+    assert np.isfinite(fits["unknown"].rss)
+
+
+def test_a_pair_fits_the_share_once_with_the_last_effect():
+    effs = shared_once([with_nut_share(E.get("friction")), with_nut_share(E.get("stiffness"))])
+    assert [p.name for p in effs[0].params] == ["friction_scale"]
+    assert [p.name for p in effs[1].params] == ["contact_stiffness_n_per_m", NUT_SHARE.name]
+    assert all(NUT_SHARE.name not in sp for sp in effs[0].start_points(PlantParams()))
+    assert [p.name for p in shared_once([E.get("viscous"),
+                                         with_nut_share(E.get("friction"))])[1].params] \
+        == ["friction_scale", NUT_SHARE.name]
+
+
+def test_a_friction_split_other_than_model_or_unknown_is_refused():
+    log = simulate(excitation(0.2), PlantParams())
+    with pytest.raises(BenchError, match="friction split 'nut'"):
+        diagnose(log, options=Options(friction_split="nut", workers=1))
