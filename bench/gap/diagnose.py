@@ -25,6 +25,7 @@ Steps:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -152,10 +153,9 @@ def evaluate(p: Problem, h: Problem | None, names: Sequence[str],
 
 
 def _strip(p: Problem) -> Problem:
-    """A copy without the bulky diagnostics (for worker processes)."""
-    q = Problem(p.base, p.drive, p.meas, p.sigma, p.n_fit, p.dt, p.noise_sigma,
-                p.model_floor, p.sigma_smooth, None, {}, p.model)
-    return q
+    """A copy without the bulky diagnostics (for worker processes): every other field is
+    the problem's (a field left out would fall back to its default in the workers)."""
+    return dataclasses.replace(p, holdout=None, info={})
 
 
 def _run(tasks: Sequence[tuple[tuple[str, ...], list[dict[str, float]] | None]], p: Problem,

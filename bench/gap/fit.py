@@ -177,6 +177,36 @@ def for_problem(problem: Problem, names: Sequence[str | E.Effect]) -> list[E.Eff
     return effs
 
 
+def _starts(problem: Problem, effs: Sequence[E.Effect], nom: list[dict[str, float]],
+            start: list[dict[str, float]] | None) -> list[list[dict[str, float]]]:
+    """Candidate starting points: every effect's own start points, in step; with `start`
+    (a pair grown from a single), `start` itself and `start` with each added effect (all
+    but the first) moved to its own start points (its value fitted alone can be far off
+    once paired). Each carries its effect's own parameters only (a single's fit grown to
+    a pair may carry one that the pair fits once, with its other effect), inside the
+    bounds, discrete ones on their grid."""
+    own = [e.start_points(problem.base) for e in effs]
+    m = max(len(s) for s in own)
+    starts = [[own[i][min(j, len(own[i]) - 1)] for i in range(len(effs))] for j in range(m)]
+    if start is not None:
+        grown = [[dict(s) for s in start]]
+        for i in range(1, len(effs)):
+            for sp in own[i]:
+                st = [dict(s) for s in start]
+                st[i] = dict(sp)
+                grown.append(st)
+        starts = grown
+    for st in starts:
+        for i, e in enumerate(effs):
+            st[i] = {k: v for k, v in st[i].items() if any(k == q.name for q in e.params)}
+            for prm in e.params:
+                v = st[i].get(prm.name, nom[i][prm.name])
+                if prm.integer_step > 0:
+                    v = prm.lo + round((v - prm.lo) / prm.integer_step) * prm.integer_step
+                st[i][prm.name] = min(max(v, prm.lo), prm.hi)
+    return starts
+
+
 def fit(problem: Problem, names: Sequence[str | E.Effect],
         start: list[dict[str, float]] | None = None, max_nfev: int = MAX_NFEV,
         prior: dict[str, tuple[float, float]] | None = None) -> Fit:
@@ -191,31 +221,7 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
     effect_names = tuple(e.name for e in effs)
     k = sum(len(e.params) for e in effs)
     nom = [e.nominal(problem.base) for e in effs]
-    # candidate starting points: every effect's own start points, in step; with `start`
-    # (a pair grown from a single), `start` itself and `start` with each added effect
-    # (all but the first) moved to its own start points (its value fitted alone can be far
-    # off once paired)
-    own = [e.start_points(problem.base) for e in effs]
-    m = max(len(s) for s in own)
-    starts = [[own[i][min(j, len(own[i]) - 1)] for i in range(len(effs))] for j in range(m)]
-    if start is not None:
-        grown = [[dict(s) for s in start]]
-        for i in range(1, len(effs)):
-            for sp in own[i]:
-                st = [dict(s) for s in start]
-                st[i] = dict(sp)
-                grown.append(st)
-        starts = grown
-    for st in starts:
-        for i, e in enumerate(effs):
-            # a start carries the effect's own parameters only (a single's fit grown to a
-            # pair may carry a parameter the pair fits once, with its other effect)
-            st[i] = {k: v for k, v in st[i].items() if any(k == q.name for q in e.params)}
-            for prm in e.params:
-                v = st[i].get(prm.name, nom[i][prm.name])
-                if prm.integer_step > 0:
-                    v = prm.lo + round((v - prm.lo) / prm.integer_step) * prm.integer_step
-                st[i][prm.name] = min(max(v, prm.lo), prm.hi)
+    starts = _starts(problem, effs, nom, start)
     # the best start by cost (one simulation each)
     effs_obj = list(effs)
     nfev0 = 0

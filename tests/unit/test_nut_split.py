@@ -102,3 +102,19 @@ def test_a_friction_split_other_than_model_or_unknown_is_refused():
     log = simulate(excitation(0.2), PlantParams())
     with pytest.raises(BenchError, match="friction split 'nut'"):
         diagnose(log, options=Options(friction_split="nut", workers=1))
+
+
+def test_the_workers_problem_keeps_the_declared_split():
+    """`bench gap` fits in worker processes on a stripped copy of the problem; the copy
+    used to be rebuilt field by field and dropped the declaration (the share was then
+    never fitted with --workers 2)."""
+    from dataclasses import fields
+
+    from bench.gap.diagnose import _strip
+    p = P.Problem(PlantParams(), None, {"x": np.zeros(3)}, {"x": 1.0}, 2, 1e-3,  # type: ignore[arg-type]
+                  info={"big": 1}, model="monitor", friction_split="unknown")
+    q = _strip(p)
+    assert q.info == {} and q.holdout is None
+    for f in fields(P.Problem):
+        if f.name not in ("info", "holdout"):
+            assert getattr(q, f.name) is getattr(p, f.name), f.name
