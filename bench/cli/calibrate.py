@@ -55,6 +55,12 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "(base_params), and bench gap --nominal starts from them")
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference (see bench gap --help)")
+    p.add_argument("--friction-split", choices=("model", "unknown"), default="model",
+                   help="the thesis plant: where the model's Coulomb friction acts, at the "
+                        "nut or at the screw, is the model's (default) or unknown (a model "
+                        "from a datasheet, which gives a total friction). A healthy log "
+                        "cannot tell, so the calibration only stores it; bench gap "
+                        "--nominal then fits it where it shows (see bench gap --help)")
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", default="calibration.json",
                    help="where to write the calibration (default calibration.json; '-': stdout)")
     p.set_defaults(func=run)
@@ -90,6 +96,9 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.output, "-o", (".json",), stdout_ok=True)   # before the fit
     args.controller = controller_of(args)
     if args.actuator:
+        if args.friction_split != "model":
+            raise BenchError("--friction-split is for the thesis plant's model; with "
+                             "--actuator the generic model has its own friction law")
         return _actuator(args)
     if len(args.log) > 1:
         raise BenchError("several healthy logs need --actuator DESC (the thesis actuator "
@@ -106,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
         cal["base_params"] = base_params(base)
     cal["heldout_significance"] = heldout_significance(cal, base, held, list(args.holdout),
                                                        args.encoder, args.model)
+    cal["friction_split"] = args.friction_split     # the model's declaration (bench gap)
     if _write(args.output, cal):
         return 0
     g0, g1 = cal["gap_before"]["heldout_part"]["total"], cal["gap_after"]["heldout_part"]["total"]
@@ -115,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
               f"{cal['nominal'][k]:.6g})")
     print(f"held-out gap (RMS, x noise floor): {g0:.3g} -> {g1:.3g}")
     print(f"controller: {controller_text(cal['controller'])}")
+    print(f"friction split: {cal['friction_split']} (bench gap --nominal uses it)")
     hs = cal["heldout_significance"]
     if hs["known"]:
         print("held-out healthy level (smoothed residual energy / floor; bench gap "

@@ -53,11 +53,13 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference: absolute (zero at nut zero, the bench's "
                         "plant) or relative (start of the log)")
-    p.add_argument("--friction-split", choices=("model", "unknown"), default="model",
+    p.add_argument("--friction-split", choices=("model", "unknown"),
                    help="where the model's Coulomb friction acts, at the nut or at the screw: "
-                        "the model's (default; the bench's own plant) or unknown (a model "
-                        "built from a datasheet, which gives a total friction): stiffness, "
-                        "preload, backlash and friction then also fit the share at the nut")
+                        "the model's (the bench's own plant) or unknown (a model built from a "
+                        "datasheet, which gives a total friction): stiffness, preload, "
+                        "backlash and friction then also fit the share at the nut. Default: "
+                        "what the calibration given with --nominal declares (bench calibrate "
+                        "--friction-split), else model")
     p.add_argument("--fundamental", type=float, metavar="HZ",
                    help="command fundamental for the frequency split (default: from the "
                         "log's metadata, else the strongest line of the set-point velocity)")
@@ -130,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
         model=args.model, effects=names, holdout_frac=args.holdout_frac,
         workers=args.workers, scheduler=args.scheduler, encoder=args.encoder, fit_always=args.fit_always,
         progress=not args.quiet and sys.stderr.isatty(),
-        reference=_calibration_reference(args), friction_split=args.friction_split), log=say)
+        reference=_calibration_reference(args), friction_split=friction_split(args)), log=say)
     js = res.json()
     if ctrl_line:
         js["controller"] = {"line": ctrl_line, **{
@@ -165,6 +167,23 @@ def _calibration_reference(args: argparse.Namespace) -> dict[str, Any] | None:
     if not (isinstance(data, dict) and isinstance(data.get("params"), dict)):
         return None
     return reference_of(data, Path(args.nominal).name, args.model, args.encoder)
+
+
+def friction_split(args: argparse.Namespace) -> str:
+    """--friction-split when given; else what the calibration given with --nominal
+    declares (`bench calibrate --friction-split`, its "friction_split"); else "model"."""
+    if args.friction_split:
+        return str(args.friction_split)
+    if not args.nominal:
+        return "model"
+    from bench import BenchError
+    from bench.gap.library import FRICTION_SPLITS
+    data = json.loads(Path(args.nominal).read_text())
+    declared = data.get("friction_split", "model") if isinstance(data, dict) else "model"
+    if declared not in FRICTION_SPLITS:
+        raise BenchError(f"{args.nominal}: friction_split {declared!r} is not one of "
+                         f"{', '.join(FRICTION_SPLITS)}")
+    return str(declared)
 
 
 def _nominal(args: argparse.Namespace, params: Any) -> Any:
@@ -256,7 +275,7 @@ def _rig(args: argparse.Namespace) -> int:
     from bench.gap.inputs import load_log
     from bench.gap.riggap import CANDIDATES, diagnose_rig, load_calibration, text
     from bench.rig import fallback as FB
-    if args.friction_split != "model":
+    if args.friction_split not in (None, "model"):
         raise BenchError("--friction-split is for the thesis plant's model; a rig's "
                          "calibration has its own friction law")
     cal, act = load_calibration(args.nominal) if args.nominal else (None, None)

@@ -65,3 +65,19 @@ def test_the_calibration_log_cannot_be_its_own_holdout(logs, capsys):
     assert _calibrate(logs, "bad.json", "--holdout", str(logs / "fit.npz")) != 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: --holdout")
+
+
+def test_the_calibration_declares_the_friction_split_and_gap_follows_it(logs, capsys):
+    """`bench calibrate --friction-split unknown` stores the model's declaration; `bench
+    gap --nominal` uses it (the JSON and the summary state it) unless --friction-split
+    says otherwise."""
+    assert _calibrate(logs, "cal_u.json", "--friction-split", "unknown") == 0
+    assert "friction split: unknown" in capsys.readouterr().out
+    assert json.loads((logs / "cal_u.json").read_text())["friction_split"] == "unknown"
+    for extra, want in (((), "unknown"), (("--friction-split", "model"), "the model's")):
+        assert main(["gap", str(logs / "judged.npz"), "--nominal", str(logs / "cal_u.json"),
+                     "--effects", "backlash", "--workers", "1", "-q", *extra,
+                     "--json", str(logs / "gap_u.json")]) == 0
+        assert f"friction split: {want}" in capsys.readouterr().out
+        model = json.loads((logs / "gap_u.json").read_text())["localisation"]["model"]
+        assert model["friction_split"].startswith(want)

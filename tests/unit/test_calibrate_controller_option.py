@@ -25,3 +25,12 @@ def test_a_value_of_the_other_path_is_one_line(tmp_path, capsys, extra, value, t
     assert len(err) == 1 and err[0].startswith(f"error: --controller {value} is not "
                                                "available ") and takes in err[0]
     assert not (tmp_path / "c.json").exists()
+
+
+def test_the_friction_split_is_refused_on_the_generic_model_in_one_line(tmp_path, capsys):
+    rc = main(["calibrate", str(tmp_path / "missing.npz"), "--actuator", "cranfield",
+               "--friction-split", "unknown", "-o", str(tmp_path / "c.json")])
+    assert rc != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --friction-split is for the thesis")
+    assert not (tmp_path / "c.json").exists()

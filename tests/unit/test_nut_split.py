@@ -118,3 +118,20 @@ def test_the_workers_problem_keeps_the_declared_split():
     for f in fields(P.Problem):
         if f.name not in ("info", "holdout"):
             assert getattr(q, f.name) is getattr(p, f.name), f.name
+
+
+def test_gap_takes_the_split_from_the_flag_then_the_calibration(tmp_path):
+    import argparse
+    import json
+
+    from bench.cli.gap import friction_split
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"params": {}, "friction_split": "unknown"}))
+    assert friction_split(argparse.Namespace(friction_split=None, nominal=None)) == "model"
+    assert friction_split(argparse.Namespace(friction_split=None, nominal=str(cal))) == "unknown"
+    assert friction_split(argparse.Namespace(friction_split="model", nominal=str(cal))) == "model"
+    cal.write_text(json.dumps({"params": {}}))        # written before the declaration existed
+    assert friction_split(argparse.Namespace(friction_split=None, nominal=str(cal))) == "model"
+    cal.write_text(json.dumps({"params": {}, "friction_split": "nut"}))
+    with pytest.raises(BenchError, match="friction_split 'nut' is not one of model, unknown"):
+        friction_split(argparse.Namespace(friction_split=None, nominal=str(cal)))
