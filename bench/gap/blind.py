@@ -379,6 +379,9 @@ def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
                         dev = abs(v - t.nominal.get(k, 0.0)) or abs(v) or 1.0
                         errs[k] = abs(got[k]["value"] - v) / dev
     rec["param_rel_err"] = errs
+    lc = js["localisation"].get("limit_cycle")
+    if lc:                  # a note, not scored (bench.gap.limitcycle)
+        rec["limit_cycle"] = {"freq_hz": lc["freq_hz"], "reproduced_by": lc["reproduced_by"]}
     return rec
 
 

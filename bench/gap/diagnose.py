@@ -35,6 +35,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap import effects as E
+from bench.gap import limitcycle as LC
 from bench.gap import localise as LZ
 from bench.gap import resim as R
 from bench.gap.fit import Fit, fit
@@ -346,6 +347,10 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
         bar.close()
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
                                                                ho_ex, sig, L, o.reference)
+    lc = LC.note(p, names)          # a note next to the verdict, not a verdict
+    if lc is not None:
+        say(f"limit cycle: {lc['note']}")
+        loc["limit_cycle"] = lc
     return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties)
 
 

@@ -108,4 +108,6 @@ def text(js: dict[str, Any], top: int = 8) -> str:
     if ja and ja.get("line"):
         out.append(ja["line"])
     out.append(line)
+    if loc.get("limit_cycle"):
+        out.append(f"  limit cycle: {loc['limit_cycle']['note']}")
     return "\n".join(out)
