@@ -110,7 +110,7 @@ def note(p: Problem, names: Sequence[str]) -> dict[str, Any] | None:
                                                    r["params"].items())
                     + f": {r['freq_hz']:.1f} Hz)" for r in d["reproduced_by"])
     d["note"] = (f"the loop oscillates by itself at {d['freq_hz']:.1f} Hz (motor speed: one "
-                 f"line holds {100 * d['line_share']:.0f} % of the residual above "
+                 f"line holds {100 * d['line_share']:.0f}\u00a0% of the residual above "
                  f"{F_LO_HZ:g} Hz); a self-excited oscillation is not locked to the set-point, "
                  "so the residual-based fit and ranking cannot match it; "
                  + (f"at this frequency the model oscillates with {who}" if who else

@@ -147,6 +147,12 @@ def _shrink(pct: float | None) -> float | None:
     return pct if pct is None else round(pct, 1)
 
 
+def _limit_cycle(js: dict[str, Any]) -> str:
+    """The limit-cycle note (bench.gap.limitcycle) as a paragraph under the verdict."""
+    lc = js["localisation"].get("limit_cycle")
+    return f"<p><b>Limit cycle:</b> {html.escape(lc['note'])}</p>" if lc else ""
+
+
 def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
     rows = "".join(
         f"<tr><td>{i}</td><td>{html.escape(c['effect'])}</td>"
@@ -159,9 +165,10 @@ def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
                    for f, cap in figs)
     return f"""<!doctype html><html><head><meta charset="utf-8"><title>gap diagnosis</title>
 <style>body{{font-family:sans-serif;max-width:1300px;margin:auto}}td,th{{padding:2px 8px;
-border-bottom:1px solid #ddd;font-size:13px}}pre{{background:#f6f6f6;padding:8px}}</style>
+border-bottom:1px solid #ddd;font-size:13px}}pre{{background:#f6f6f6;padding:8px;
+white-space:pre-wrap}}</style>
 </head><body><h1>Sim-to-real gap diagnosis</h1>
-<h2>Verdict: {html.escape(js['verdict'])}</h2>
+<h2>Verdict: {html.escape(js['verdict'])}</h2>{_limit_cycle(js)}
 <pre>{html.escape(text(js))}</pre>
 <h2>Ranking</h2><table><tr><th>#</th><th>effect</th><th>parameters (95 % CI)</th>
 <th>held-out shrink (%)</th><th>held-out gap (x floor, RMS)</th><th>BIC</th></tr>{rows}</table>

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import textwrap
 from typing import Any
 
 from bench.gap.localise import BANDS, PATHS, REGIMES
@@ -109,5 +110,6 @@ def text(js: dict[str, Any], top: int = 8) -> str:
         out.append(ja["line"])
     out.append(line)
     if loc.get("limit_cycle"):
-        out.append(f"  limit cycle: {loc['limit_cycle']['note']}")
+        out.append(textwrap.fill(loc["limit_cycle"]["note"], 88, initial_indent="  limit "
+                                 "cycle: ", subsequent_indent="    ", break_on_hyphens=False))
     return "\n".join(out)

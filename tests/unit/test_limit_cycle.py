@@ -54,3 +54,11 @@ def test_a_delayed_speed_loop_is_found_oscillating_and_its_delay_named(delayed):
 def test_the_same_actuator_without_the_delay_shows_none(delayed):
     assert not LC.detect(delayed["nominal"])["detected"]
     assert LC.note(delayed["nominal"], ["sensor_delay"]) is None
+
+
+def test_the_note_is_printed_under_the_verdict_and_on_the_report(delayed):
+    from bench.gap.report import _limit_cycle
+    note = LC.note(delayed["delay"], ["sensor_delay"])
+    js = {"localisation": {"limit_cycle": note}}
+    assert _limit_cycle(js).startswith("<p><b>Limit cycle:</b> the loop oscillates by itself")
+    assert _limit_cycle({"localisation": {}}) == ""
