@@ -347,9 +347,8 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
         bar.close()
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
                                                                ho_ex, sig, L, o.reference)
-    lc = LC.note(p, names)          # a note next to the verdict, not a verdict
+    lc = LC.note(p, names)          # a note under the verdict (the summary prints it)
     if lc is not None:
-        say(f"limit cycle: {lc['note']}")
         loc["limit_cycle"] = lc
     return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties)
 
