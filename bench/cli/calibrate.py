@@ -14,6 +14,7 @@ from typing import Any
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     from bench.gap.calibrate import DEFAULT
+    from bench.gap.library import FRICTION_SPLITS
     thesis, rig = controller_choices()
     p = subparsers.add_parser(
         "calibrate", help="fit the nominal model to a healthy log",
@@ -55,7 +56,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "(base_params), and bench gap --nominal starts from them")
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference (see bench gap --help)")
-    p.add_argument("--friction-split", choices=("model", "unknown"), default="model",
+    p.add_argument("--friction-split", choices=FRICTION_SPLITS, default="model",
                    help="the thesis plant: where the model's Coulomb friction acts, at the "
                         "nut or at the screw, is the model's (default) or unknown (a model "
                         "from a datasheet, which gives a total friction). A healthy log "

@@ -53,7 +53,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference: absolute (zero at nut zero, the bench's "
                         "plant) or relative (start of the log)")
-    p.add_argument("--friction-split", choices=("model", "unknown"),
+    from bench.gap.library import FRICTION_SPLITS
+    p.add_argument("--friction-split", choices=FRICTION_SPLITS,
                    help="where the model's Coulomb friction acts, at the nut or at the screw: "
                         "the model's (the bench's own plant) or unknown (a model built from a "
                         "datasheet, which gives a total friction): stiffness, preload, "

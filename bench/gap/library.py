@@ -48,7 +48,7 @@ class _Single(Effect):
         if moved is prm:
             return self
         eff = copy.copy(self)
-        eff.params = (moved,)   # type: ignore[misc]
+        eff.params = (moved, *self.params[1:])   # type: ignore[misc]
         return eff
 
 
@@ -99,13 +99,6 @@ class _NutShare(_Single):
         eff = copy.copy(self)
         eff.params = (*self.params, NUT_SHARE)   # type: ignore[misc]
         return eff
-
-    def for_model(self, base: PlantParams) -> Effect:
-        eff = super().for_model(base)          # a copy with its own parameter only, if moved
-        if eff is self or not self._shares():
-            return eff
-        assert isinstance(eff, _NutShare)
-        return eff.with_share()
 
     def nominal(self, base: PlantParams) -> dict[str, float]:
         out = super().nominal(base)

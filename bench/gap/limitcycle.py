@@ -81,11 +81,9 @@ def reproduced_by(p: Problem, names: Sequence[str], freq_hz: float, bin_hz: floa
         eff = E.get(name).for_model(p.base)
         if eff.in_log(p.base):
             continue                      # after the run: cannot change the loop
-        if eff.discrete:
-            points = [{q.name: v for q in eff.params} for v in eff.params[0].grid()] \
-                if len(eff.params) == 1 else eff.start_points(p.base)
-        else:
-            points = eff.start_points(p.base)
+        one = eff.params[0]
+        points = ([{one.name: v} for v in one.grid()] if eff.discrete and len(eff.params) == 1
+                  else eff.start_points(p.base))
         best = None
         for th in points:
             sim = p.simulate([eff], [th], p.n)

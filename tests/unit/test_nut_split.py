@@ -135,3 +135,17 @@ def test_gap_takes_the_split_from_the_flag_then_the_calibration(tmp_path):
     cal.write_text(json.dumps({"params": {}, "friction_split": "nut"}))
     with pytest.raises(BenchError, match="friction_split 'nut' is not one of model, unknown"):
         friction_split(argparse.Namespace(friction_split=None, nominal=str(cal)))
+
+
+def test_bounds_moved_to_the_model_keep_the_share():
+    """`_Single.for_model` moves the own parameter's bounds and keeps any other parameter
+    (the share), so a scaled effect that fits the share still fits it."""
+    eff = with_nut_share(E.get("stiffness"))
+    scaled = type(eff)()
+    scaled.params = eff.params
+    scaled.scales_with_model = True          # as lead, kt, inertia, resistance
+    base = PlantParams().with_dict({"screw.contact_stiffness_n_per_m": 1e9})   # above 1.5e8
+    moved = scaled.for_model(base)
+    assert moved is not scaled
+    assert [p.name for p in moved.params] == ["contact_stiffness_n_per_m", NUT_SHARE.name]
+    assert moved.params[0].hi > eff.params[0].hi
