@@ -33,7 +33,7 @@ from bench.profiles import Profile
 from bench.trace import Trace
 from plant_rt import kernel as K
 from plant_rt.aero import gust_sequence
-from plant_rt.model import Plant, load_noise_seed, schedule_at
+from plant_rt.model import Plant, load_noise_seed, schedule_at, separate_current_channel
 from plant_rt.params import PlantParams
 
 
@@ -71,6 +71,7 @@ def run_inputs(profile: Profile, params: PlantParams, duration_s: float | None =
     u[:, K.U_VSCALE] = params.effects.viscous_scale
     u[:, K.U_IGAIN] = params.sensors.current_gain
     u[:, K.U_IOFF] = params.sensors.current_offset_a
+    u[:, K.U_ISEP] = separate_current_channel(params)
     if ext_force_n is not None:
         u[:, K.U_FEXT] = ext_force_n(t)
     if params.load.kind == "aero":

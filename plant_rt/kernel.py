@@ -89,8 +89,12 @@ LOAD_KINDS = ("none", "step", "ramp", "sine", "aero")
 
 # --- inputs u (held over one SYNC period) -----------------------------------------------
 (U_IDEM, U_PRELOAD, U_BACKLASH, U_FSCALE, U_VSCALE, U_INOISE, U_IGAIN, U_IOFF, U_FEXT,
- U_GUST) = range(10)
-NU = 10
+ U_GUST, U_ISEP) = range(11)
+NU = 11
+# U_IGAIN, U_IOFF, U_INOISE: the current sensor's gain, offset and noise sample, which the
+# drive's current loop sees (eq. 5.2). U_ISEP: 1 = the logged current is a separate
+# channel (sensors.current_in_loop false): the drive regulates the true current and the
+# sensor's errors are in the log alone; 0 (the thesis' drive) = they enter the loop
 # U_PRELOAD, U_BACKLASH, U_FSCALE: the degradation of the period; under Archard wear
 # (p[P_WEAR_ON]) those of the new actuator, to which the wear of WEAR_V is added.
 # U_GUST: the aero load's gust force over the period (N; used only by load kind aero)
@@ -246,7 +250,10 @@ def advance(x: np.ndarray, p: np.ndarray, u: np.ndarray, out: np.ndarray) -> Non
     a_l = 1.0 - math.exp(-dt / p[P_LTAU]) if lvdt_first else 0.0
     ez, es = p[P_EZETA], p[P_ESIG]
     idem = u[U_IDEM]
-    igain, ioff, inoise = u[U_IGAIN], u[U_IOFF], u[U_INOISE]
+    if u[U_ISEP] == 0.0:        # the drive's feedback is the logged current sensor
+        igain, ioff, inoise = u[U_IGAIN], u[U_IOFF], u[U_INOISE]
+    else:                       # a separate logging channel: the drive sees the true current
+        igain, ioff, inoise = 1.0, 0.0, 0.0
     alpha_r, tamb, rth = p[P_ALPHA_R], p[P_TAMB], p[P_RTH]
     ilim = 0.0
     if idem >= IMAX:            # the drive limits the demand to i_max (table 5.2)

@@ -143,6 +143,12 @@ def ball_substeps(params: PlantParams, dt: float) -> int:
     return max(1, math.ceil(dt / h - 1e-9))
 
 
+def separate_current_channel(params: PlantParams) -> float:
+    """The kernel input U_ISEP: 1.0 when the logged current is a channel of its own
+    (`sensors.current_in_loop` false: its errors stay out of the drive's loop), else 0.0."""
+    return 0.0 if params.sensors.current_in_loop else 1.0
+
+
 def sensor_vector(params: PlantParams) -> np.ndarray:
     """The kernel's sensor vector (gains, offsets, encoder resolution and speed window)."""
     se = params.sensors
@@ -285,6 +291,7 @@ class Plant:
         u[K.U_INOISE] = self._noise[0]
         u[K.U_IGAIN] = self.params.sensors.current_gain
         u[K.U_IOFF] = self.params.sensors.current_offset_a
+        u[K.U_ISEP] = separate_current_channel(self.params)
         u[K.U_GUST] = self._gust
         return u
 

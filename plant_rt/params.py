@@ -236,6 +236,14 @@ class SensorParams(_Validated):
         "expectation over its phase, angle - half a count: the continuous encoder a fit "
         "simulates, so that its cost is a smooth function of the parameters",
         "chosen")
+    current_in_loop: bool = P(
+        True, "-", None, None,
+        "the logged current is the drive's own feedback sensor (true, the thesis' drive: "
+        "its gain, offset and noise enter the current loop, which regulates the sensed "
+        "current), or (false) a separate logging channel whose gain, offset and noise are "
+        "in the log alone while the drive regulates the true current (a datasheet fact: "
+        "where the logged current is measured)",
+        "section 5.3 (true); an actuator's datasheet (false)")
 
 
 @dataclass(frozen=True)

@@ -319,7 +319,9 @@ def heldout_significance(cal: dict[str, Any], base: PlantParams, holdouts: Seque
         each.append(heldout_level(p))
     level = {s: max(e["level"][s] for e in each) for s in R.SIGNALS}
     margin = {s: max(e["margin"][s] for e in each) for s in R.SIGNALS}
+    energy = {s: max(e["energy"][s] for e in each) for s in R.SIGNALS}
     return {"known": True, "logs": list(names), "level": level, "margin": margin,
+            "energy": energy,
             "per_log": [e["level"] for e in each], "model": model, "encoder": encoder,
             "statistic": STATISTIC,
             "rule": "bench gap --nominal: significant only where the log exceeds the larger "
@@ -337,7 +339,8 @@ def reference_of(cal: dict[str, Any], name: str, model: str | None = None,
         want is None or hs.get(key, want) == want
         for key, want in (("model", model), ("encoder", encoder)))
     return {"name": name, "level": hs.get("level") if known else None,
-            "margin": hs.get("margin"), "logs": hs.get("logs", [])}
+            "margin": hs.get("margin"), "logs": hs.get("logs", []),
+            "energy": hs.get("energy") if known else None}
 
 
 

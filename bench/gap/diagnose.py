@@ -212,8 +212,22 @@ def heldout_level(p: Problem) -> dict[str, Any]:
     L = p.info.get("corr_smooth", {})
     margin = {s: 1.0 + HELDOUT_Z * math.sqrt(2.0) * math.sqrt(2.0 * L.get(s, 1.0) / p.n)
               for s in R.SIGNALS}
+    held = p.energies(p.info["nominal"], p.n_fit, p.n)   # the part a diagnosis holds out
     return {"level": {s: float(sm[s]) for s in R.SIGNALS}, "margin": margin,
-            "samples": p.n}
+            "energy": {s: float(held[s]) for s in R.SIGNALS}, "samples": p.n}
+
+
+def excess(energies: dict[str, float], reference: dict[str, Any] | None = None) -> float:
+    """The held-out gap excess X of `energies` (residual energy / floor per signal): the
+    sum of E_s - 1, 0 at the noise floor. Against a calibration that stored the energy its
+    model leaves on a held-out healthy log (`reference["energy"]`, session 13), the sum
+    of what each signal has above that healthy energy (and above the floor): the part of
+    the gap the calibrated model does not leave on a healthy log, which is what an effect
+    can explain (eq. of the shrink: docs/gap.md, "The gap above the healthy level")."""
+    ref = (reference or {}).get("energy")
+    if not ref:
+        return float(sum(e - 1.0 for e in energies.values()))
+    return float(sum(max(e - max(ref.get(s, 1.0), 1.0), 0.0) for s, e in energies.items()))
 
 
 def calibrated_thresholds(thr: dict[str, float], reference: dict[str, Any] | None
@@ -345,6 +359,15 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     singles, pairs, best, L = _select(names, p, h, pool, bar, say)
     if bar is not None:
         bar.close()
+    if (o.reference or {}).get("energy"):     # the gap above the healthy level (session 13)
+        ho_ex = excess(ho_en, o.reference)
+        for c in singles + pairs:
+            if math.isfinite(c.heldout_excess):
+                c.heldout_excess = excess(c.heldout, o.reference)
+        loc["heldout_excess"] = {
+            "before": ho_ex, "healthy_energy": o.reference["energy"],
+            "rule": "the held-out excess counts, per signal, only the energy above the "
+                    "calibration's held-out healthy energy"}
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
                                                                ho_ex, sig, L, o.reference)
     lc = LC.note(p, names)          # a note under the verdict (the summary prints it)
@@ -513,6 +536,7 @@ def _finite(x: Any) -> Any:
 def to_json(r: Result) -> dict[str, Any]:
     """{"localisation", "ranking", "verdict"} with NaN as null."""
     h = r.holdout or r.problem
+    healthy = {"energy": (r.localisation.get("heldout_excess") or {}).get("healthy_energy")}
     ranking = []
     for c in r.ranking:
         ranking.append({
@@ -521,7 +545,7 @@ def to_json(r: Result) -> dict[str, Any]:
             "gap_before": gap_summary(h, r.gap_before_heldout),
             "gap_after": gap_summary(h, c.heldout),
             "heldout_shrink_pct": shrink_pct(
-                float(sum(e - 1.0 for e in r.gap_before_heldout.values())), c.heldout_excess),
+                excess(r.gap_before_heldout, healthy), c.heldout_excess),
             "score": {"bic": c.bic, "aic": c.aic},
         })
     loc = dict(r.localisation)

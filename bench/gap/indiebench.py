@@ -98,7 +98,8 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
     drive's current PI (its zero on the winding's own pole, session 8), its
     spacer-preloaded nut (a backlash first eats the preload, session 9), and
     how its drive computes the speed (the count difference over `speed_window` SYNC
-    periods) and the LVDT conditioner's lag (first order, `lvdt_tau_s`). The bench's
+    periods), the LVDT conditioner's lag (first order, `lvdt_tau_s`) and where its current
+    is logged (a channel of its own, out of the drive's loop; session 13). The bench's
     friction laws and contact model stay its own (the thesis' tables): friction, the
     contact stiffness (under the logged load) and the rest are what calibration is for.
 
@@ -130,7 +131,10 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
         # the drive's speed: the count difference over 4 SYNC periods (its datasheet)
         "sensors.encoder_speed_window": int(n.speed_window),
         # the LVDT conditioner: a first-order 1 ms demodulator (its datasheet)
-        "sensors.lvdt_time_constant_s": n.lvdt_tau_s})
+        "sensors.lvdt_time_constant_s": n.lvdt_tau_s,
+        # its logged current is an ADC channel of its own: the drive regulates its own
+        # current measurement (I2 on the winding's current, I13 on the log; session 13)
+        "sensors.current_in_loop": False})
     if preload_law not in PRELOAD_LAWS:
         raise ValueError(f"preload_law {preload_law!r} not one of {PRELOAD_LAWS}")
     if preload_law == "none" or n.preload_n <= 0.0:

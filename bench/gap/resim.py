@@ -53,7 +53,7 @@ from bench.loop import (
 )
 from plant_rt import kernel as K
 from plant_rt.jit import njit
-from plant_rt.model import Plant
+from plant_rt.model import Plant, separate_current_channel
 from plant_rt.params import PlantParams
 
 FAST = {"drive.pwm_mode": "averaged", "sim.ball_model": "quasistatic"}
@@ -136,6 +136,7 @@ def _plant_inputs(params: PlantParams, drive: Drive, n: int) -> np.ndarray:
     u0[K.U_VSCALE] = e.viscous_scale
     u0[K.U_IGAIN] = params.sensors.current_gain
     u0[K.U_IOFF] = params.sensors.current_offset_a
+    u0[K.U_ISEP] = separate_current_channel(params)
     u = np.empty((n, K.NU))
     u[:] = u0
     u[:, K.U_FEXT] = drive.applied_load(n)
