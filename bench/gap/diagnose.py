@@ -359,17 +359,14 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     singles, pairs, best, L = _select(names, p, h, pool, bar, say)
     if bar is not None:
         bar.close()
-    if (o.reference or {}).get("energy"):     # the gap above the healthy level (session 13)
-        ho_ex = excess(ho_en, o.reference)
-        for c in singles + pairs:
-            if math.isfinite(c.heldout_excess):
-                c.heldout_excess = excess(c.heldout, o.reference)
+    if (o.reference or {}).get("energy"):     # the shrink above the healthy level
         loc["heldout_excess"] = {
-            "before": ho_ex, "healthy_energy": o.reference["energy"],
-            "rule": "the held-out excess counts, per signal, only the energy above the "
+            "before": excess(ho_en, o.reference), "healthy_energy": o.reference["energy"],
+            "rule": "the held-out shrink counts, per signal, only the energy above the "
                     "calibration's held-out healthy energy"}
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
-                                                               ho_ex, sig, L, o.reference)
+                                                               ho_ex, sig, L, o.reference,
+                                                               ho_en)
     lc = LC.note(p, names)          # a note under the verdict (the summary prints it)
     if lc is not None:
         loc["limit_cycle"] = lc
@@ -408,7 +405,8 @@ def _localisation(trace: Trace, holdout: Trace | None, p: Any, h: Any, frac: flo
 
 
 def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_ex: Any,
-            sig: bool, L: Any, reference: dict[str, Any] | None = None
+            sig: bool, L: Any, reference: dict[str, Any] | None = None,
+            ho_en: dict[str, float] | None = None
             ) -> tuple[Any, str, list[Any], list[str], dict[str, Any]]:
     """The chosen candidate (the best single, or a pair by the rule in the selection
     record), the verdict, the ranking, the candidates tied with the chosen one and the
@@ -425,7 +423,12 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
         bp = min(better, key=lambda c: c.bic)
         if bp.bic < best.bic - PAIR_BIC:
             chosen = bp
-    shrink = shrink_pct(ho_ex, chosen.heldout_excess)
+    # the verdict's shrink: against a calibration that stored its healthy energy, of
+    # the held-out gap above that energy (session 13; the pair rule and the ties keep
+    # the whole excess)
+    shrink = shrink_pct(ho_ex, chosen.heldout_excess) if not (reference or {}).get("energy") \
+        or ho_en is None else shrink_pct(excess(ho_en, reference),
+                                         excess(chosen.heldout, reference))
     verdict = chosen.fit.name if shrink >= MIN_SHRINK_PCT and sig else (
         "unexplained" if sig else "none")
     ranking = [chosen] + sorted([c for c in singles + pairs if c is not chosen],

@@ -88,7 +88,8 @@ def text(js: dict[str, Any], top: int = 8) -> str:
                + _shares(sigs[main]["by_band"], [b[0] for b in BANDS]))
     rk = js["ranking"]
     if rk:
-        out.append("ranking (held-out shrink of the excess gap; BIC, lower is better):")
+        above = " above the calibration's healthy level" if loc.get("heldout_excess") else ""
+        out.append(f"ranking (held-out shrink of the excess gap{above}; BIC, lower is better):")
         for i, c in enumerate(rk[:top], 1):
             sh = c["heldout_shrink_pct"]
             sh_s = f"{sh:6.1f} %" if sh is not None else "   n/a  "
