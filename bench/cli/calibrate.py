@@ -132,6 +132,9 @@ def run(args: argparse.Namespace) -> int:
         print("held-out healthy level (smoothed residual energy / floor; bench gap "
               "--nominal judges against it x margin): " + ", ".join(
                   f"{s} {v:.3g} (x{hs['margin'][s]:.3g})" for s, v in hs["level"].items()))
+        print("held-out healthy energy (residual energy / floor on the part a diagnosis "
+              "holds out; bench gap --nominal counts its shrink above it): " + ", ".join(
+                  f"{s} {v:.3g}" for s, v in hs["energy"].items()))
     else:
         print(f"held-out healthy level: unknown ({hs['note']})")
     for n in cal["notes"]:

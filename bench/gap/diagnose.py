@@ -359,9 +359,10 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     singles, pairs, best, L = _select(names, p, h, pool, bar, say)
     if bar is not None:
         bar.close()
-    if (o.reference or {}).get("energy"):     # the shrink above the healthy level
+    healthy = (o.reference or {}).get("energy")
+    if healthy:                               # the shrink above the healthy level
         loc["heldout_excess"] = {
-            "before": excess(ho_en, o.reference), "healthy_energy": o.reference["energy"],
+            "before": excess(ho_en, o.reference), "healthy_energy": healthy,
             "rule": "the held-out shrink counts, per signal, only the energy above the "
                     "calibration's held-out healthy energy"}
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
@@ -547,8 +548,8 @@ def to_json(r: Result) -> dict[str, Any]:
             "params": c.fit.params_dict(),
             "gap_before": gap_summary(h, r.gap_before_heldout),
             "gap_after": gap_summary(h, c.heldout),
-            "heldout_shrink_pct": shrink_pct(
-                excess(r.gap_before_heldout, healthy), c.heldout_excess),
+            "heldout_shrink_pct": shrink_pct(excess(r.gap_before_heldout, healthy),
+                                             excess(c.heldout, healthy)),
             "score": {"bic": c.bic, "aic": c.aic},
         })
     loc = dict(r.localisation)

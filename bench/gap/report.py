@@ -163,6 +163,7 @@ def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
         for i, c in enumerate(js["ranking"], 1))
     imgs = "".join(f"<h3>{html.escape(cap)}</h3><img src='{f}' style='max-width:100%'>"
                    for f, cap in figs)
+    above = " above the healthy level" if js["localisation"].get("heldout_excess") else ""
     return f"""<!doctype html><html><head><meta charset="utf-8"><title>gap diagnosis</title>
 <style>body{{font-family:sans-serif;max-width:1300px;margin:auto}}td,th{{padding:2px 8px;
 border-bottom:1px solid #ddd;font-size:13px}}pre{{background:#f6f6f6;padding:8px;
@@ -171,5 +172,5 @@ white-space:pre-wrap}}</style>
 <h2>Verdict: {html.escape(js['verdict'])}</h2>{_limit_cycle(js)}
 <pre>{html.escape(text(js))}</pre>
 <h2>Ranking</h2><table><tr><th>#</th><th>effect</th><th>parameters (95 % CI)</th>
-<th>held-out shrink (%)</th><th>held-out gap (x floor, RMS)</th><th>BIC</th></tr>{rows}</table>
+<th>held-out shrink{above} (%)</th><th>held-out gap (x floor, RMS)</th><th>BIC</th></tr>{rows}</table>
 {imgs}<p><a href="gap.json">gap.json</a></p></body></html>"""
