@@ -7,8 +7,7 @@ frozen, validates itself on construction (NaN, out-of-range, unknown names raise
 name space (``motor.resistance_ohm`` or just ``resistance_ohm``) used by ``--set``,
 ``--list-params`` and the plant's SDO objects.
 
-Values not given in the thesis are marked ``source="chosen"`` and explained in
-``docs/model.md``.
+Values not given in the thesis are marked ``source="chosen"`` (explained in docs/model.md).
 """
 
 from __future__ import annotations
@@ -234,16 +233,11 @@ class SensorParams(_Validated):
         True, "-", None, None,
         "the encoder angle in whole counts (true, the sensor), or (false) the quantiser's "
         "expectation over its phase, angle - half a count: the continuous encoder a fit "
-        "simulates, so that its cost is a smooth function of the parameters",
-        "chosen")
-    current_in_loop: bool = P(
-        True, "-", None, None,
-        "the logged current is the drive's own feedback sensor (true, the thesis' drive: "
-        "its gain, offset and noise enter the current loop, which regulates the sensed "
-        "current), or (false) a separate logging channel whose gain, offset and noise are "
-        "in the log alone while the drive regulates the true current (a datasheet fact: "
-        "where the logged current is measured)",
-        "section 5.3 (true); an actuator's datasheet (false)")
+        "simulates, so that its cost is a smooth function of the parameters", "chosen")
+    current_in_loop: bool = P(True, "-", None, None, "the logged current is the drive's "
+                              "feedback sensor (true: its gain, offset and noise enter the "
+                              "current loop) or a channel of its own (false: in the log alone)",
+                              "section 5.3 (true); an actuator's datasheet (false)")
 
 
 @dataclass(frozen=True)
@@ -299,8 +293,7 @@ class LoadParams(_Validated):
                   "none, step, ramp, sine, or aero (hinge moment: aero_gain_n_per_m x nut "
                   "position plus seeded gusts)", "5.7.2; aero: chosen (docs/model.md)",
                   choices=("none", "step", "ramp", "sine", "aero"))
-    amplitude_n: float = P(0.0, "N", -1e5, 1e5, "final (step/ramp) or peak (sine) force",
-                           "5.7.2")
+    amplitude_n: float = P(0.0, "N", -1e5, 1e5, "final (step/ramp) or peak (sine) force", "5.7.2")
     start_s: float = P(0.0, "s", 0.0, 1e6, "time the force starts", "5.7.2")
     rate_n_per_s: float = P(1.5e6, "N/s", 1.0, 1e9, "ramp slope (step: 0.01 s rise)", "5.7.2")
     frequency_hz: float = P(2.0, "Hz", 0.0, 1e3, "sine frequency", "5.7.2")
@@ -388,9 +381,8 @@ class SimParams(_Validated):
     _group: ClassVar[str] = "sim"
     sync_period_s: float = P(1e-3, "s", 1e-4, 0.1, "SYNC (ECU sample) period",
                              "chosen (docs/model.md)")
-    substep_s: float = P(0.0, "s", 0.0, 1e-3,
-                         "integration step; 0 picks 5 us (switching PWM) or 20 us (averaged)",
-                         "chosen")
+    substep_s: float = P(0.0, "s", 0.0, 1e-3, "integration step; 0 picks 5 us (switching PWM) "
+                         "or 20 us (averaged)", "chosen")
     ball_model: str = P("dynamic", "-", None, None,
                         "dynamic: ball masses of eq. 5.16 (sub-cycled at 0.5 us); "
                         "quasistatic: massless balls, the two contacts in series",
