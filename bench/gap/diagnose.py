@@ -223,7 +223,8 @@ def excess(energies: dict[str, float], reference: dict[str, Any] | None = None) 
     model leaves on a held-out healthy log (`reference["energy"]`, session 13), the sum
     of what each signal has above that healthy energy (and above the floor): the part of
     the gap the calibrated model does not leave on a healthy log, which is what an effect
-    can explain (eq. of the shrink: docs/gap.md, "The gap above the healthy level")."""
+    can explain (docs/gap.md, "A current logged apart from the drive, and the gap above
+    the healthy level")."""
     ref = (reference or {}).get("energy")
     if not ref:
         return float(sum(e - 1.0 for e in energies.values()))
@@ -427,9 +428,10 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     # the verdict's shrink: against a calibration that stored its healthy energy, of
     # the held-out gap above that energy (session 13; the pair rule and the ties keep
     # the whole excess)
-    shrink = shrink_pct(ho_ex, chosen.heldout_excess) if not (reference or {}).get("energy") \
-        or ho_en is None else shrink_pct(excess(ho_en, reference),
-                                         excess(chosen.heldout, reference))
+    if (reference or {}).get("energy") and ho_en is not None:
+        shrink = shrink_pct(excess(ho_en, reference), excess(chosen.heldout, reference))
+    else:
+        shrink = shrink_pct(ho_ex, chosen.heldout_excess)
     verdict = chosen.fit.name if shrink >= MIN_SHRINK_PCT and sig else (
         "unexplained" if sig else "none")
     ranking = [chosen] + sorted([c for c in singles + pairs if c is not chosen],
