@@ -14,11 +14,12 @@ from bench.gap.calibrate import heldout_significance, reference_of
 
 
 class FakeProblem:
-    """What `significance` reads from a Problem: smoothed energies given per signal."""
+    """What `significance` and `heldout_level` read from a Problem: energies given per
+    signal (raw and smoothed alike)."""
 
     def __init__(self, smoothed: dict[str, float], n: int = 10_000, corr: float = 50.0):
         self.sm = {s: smoothed.get(s, 1.0) for s in R.SIGNALS}
-        self.n = n
+        self.n, self.n_fit = n, n // 2
         self.info = {"nominal": {}, "corr_smooth": {s: corr for s in R.SIGNALS}}
 
     def energies(self, sim, lo, hi):
