@@ -425,13 +425,10 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
         bp = min(better, key=lambda c: c.bic)
         if bp.bic < best.bic - PAIR_BIC:
             chosen = bp
-    # the verdict's shrink: against a calibration that stored its healthy energy, of
-    # the held-out gap above that energy (session 13; the pair rule and the ties keep
-    # the whole excess)
-    if (reference or {}).get("energy") and ho_en is not None:
-        shrink = shrink_pct(excess(ho_en, reference), excess(chosen.heldout, reference))
-    else:
-        shrink = shrink_pct(ho_ex, chosen.heldout_excess)
+    # the verdict's shrink, of the held-out gap above a calibration's healthy energy where
+    # it stored one (`excess`: the whole excess otherwise, as the pair rule and the ties)
+    shrink = (shrink_pct(ho_ex, chosen.heldout_excess) if ho_en is None else
+              shrink_pct(excess(ho_en, reference), excess(chosen.heldout, reference)))
     verdict = chosen.fit.name if shrink >= MIN_SHRINK_PCT and sig else (
         "unexplained" if sig else "none")
     ranking = [chosen] + sorted([c for c in singles + pairs if c is not chosen],
