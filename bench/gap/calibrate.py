@@ -338,6 +338,13 @@ def reference_of(cal: dict[str, Any], name: str, model: str | None = None,
     known = bool(hs.get("known")) and all(
         want is None or hs.get(key, want) == want
         for key, want in (("model", model), ("encoder", encoder)))
+    for key in ("level", "margin", "energy"):      # numbers per signal, or absent
+        v = hs.get(key)
+        if known and v is not None and not (isinstance(v, dict) and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                for x in v.values())):
+            raise BenchError(f"{name}: heldout_significance.{key} must map each signal to a "
+                             f"finite number, not {v!r}"[:200])
     return {"name": name, "level": hs.get("level") if known else None,
             "margin": hs.get("margin"), "logs": hs.get("logs", []),
             "energy": hs.get("energy") if known else None}

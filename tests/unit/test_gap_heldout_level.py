@@ -91,3 +91,18 @@ def test_reference_of_a_calibration():
     unknown = heldout_significance({"params": {}}, None, [], [])  # type: ignore[arg-type]
     assert unknown["known"] is False and unknown["level"] is None
     assert reference_of({"heldout_significance": unknown}, "c")["level"] is None
+
+
+@pytest.mark.parametrize("bad", [{"current_a": "x"}, "oops", {"current_a": float("nan")},
+                                 {"current_a": True}])
+def test_a_bad_stored_level_or_energy_is_a_one_line_error(bad):
+    """A hand-edited calibration whose held-out level, margin or energy is not a number per
+    signal is refused when it is read, naming the file and the field (it raised a bare
+    TypeError after the whole diagnosis before)."""
+    from bench import BenchError
+    good = {"known": True, "level": {"current_a": 2.0}, "margin": {"current_a": 1.4},
+            "energy": {"current_a": 1.5}, "logs": [], "model": "plant", "encoder": "absolute"}
+    assert reference_of({"heldout_significance": good}, "c.json")["energy"] == {"current_a": 1.5}
+    for key in ("level", "margin", "energy"):
+        with pytest.raises(BenchError, match=f"c.json: heldout_significance.{key} must map"):
+            reference_of({"heldout_significance": {**good, key: bad}}, "c.json")
