@@ -74,6 +74,8 @@ class PeriodSteps:
         self.bar = None
         self.latest: dict[str, dict[str, Any]] = {}
         self.fresh: set[str] = set()
+        self.tpdo1_seen = 0       # TPDO1s received in the run: the n-th answers SYNC n-1
+        self.reset_k: int | None = None   # the period whose RPDO1 carried the fault reset
         self.emcy_seen = 0
         self.on_period: Callable[[int], None] | None = None
 
@@ -98,15 +100,13 @@ class PeriodSteps:
         self.enc_sp = ecu.frames.by_name["ECU_Setpoint"]
         self.cob_rpdo, self.cob_sp = ecu._cob["EMA_RPDO1"], ecu._cob["ECU_Setpoint"]
         self.enable = int(ControlWord.ENABLE)
-        # the first RPDO also carries a fault-reset edge: it clears a command timeout the
-        # node latched before the run (a stall during set-up, when no demand of this run
-        # was in force), so that it is gone at SYNC 1, where the first demand applies
+        # the first RPDO sent also carries a fault-reset edge: it clears a command timeout
+        # the node latched before the run (a stall during set-up, when no demand of this
+        # run was in force), so that it is gone at the next SYNC, where the first demand
+        # applies. In real time the first RPDO is sent in the first period whose TPDO set
+        # has arrived, which on a loaded machine is not always period 0.
         self.first_control = self.enable | int(ControlWord.FAULT_RESET)
         self.timeout_bit = int(StatusWord.COMMAND_TIMEOUT)
-        # in lockstep the clear shows at SYNC 1; in real time the RPDO and the TPDOs cross
-        # the bus on their own clocks (a TPDO set may miss its window for a few periods on
-        # a loaded machine), so the pre-run latch is tolerated for 20 ms
-        self.grace = 1 if self.pacer is None else max(1, round(0.02 / ts))
         self.t_wall0 = time.perf_counter()
         self.last_bar = time.monotonic()
 
@@ -129,6 +129,8 @@ class PeriodSteps:
                 return
             self.latest[name] = decoded[1]  # type: ignore[index]
             self.fresh.add(name)
+            if name == "EMA_TPDO1":
+                self.tpdo1_seen += 1
 
     def sync(self, k: int) -> None:
         """Release period k: SYNC, then its set-points (known at its SYNC: sent while the
@@ -189,18 +191,31 @@ class PeriodSteps:
         elif demand < -limit_a:
             demand = -limit_a
         demand32 = float(np.float32(demand))
+        control, reset_k = self.enable, self.reset_k
+        if reset_k is None:
+            reset_k = self.reset_k = k
+            control = self.first_control
         ecu.send(can.Message(arbitration_id=self.cob_rpdo, is_extended_id=False,
                              data=self.enc_rpdo.encode({
-                                 "CurrentDemand": demand32,
-                                 "ControlWord": self.enable if k else self.first_control},
+                                 "CurrentDemand": demand32, "ControlWord": control},
                                  strict=True)))
         word = int(t1["StatusWord"])
         self.stats.periods = k + 1
-        fail_bits = self.fail_bits
-        if word & fail_bits and (k >= self.grace or word & fail_bits != self.timeout_bit):
+        fail = word & self.fail_bits
+        # a command timeout alone is the pre-run latch until the status word answers a
+        # SYNC after the fault reset: the (reset_k + 2)-th TPDO1 (the plant answers every
+        # SYNC in order, so the count, not the wall clock, says which SYNC a word is from)
+        if fail and (fail != self.timeout_bit or self.tpdo1_seen >= reset_k + 2):
             raise ecu._status_fault(word, k, self.ts)
         if len(ecu.emcy) != self.emcy_seen:
             self.emcy_seen = ecu._emcy_seen = ecu._check_emcy(self.emcy_seen, k, self.ts)
+
+    def wait_first(self, k: int) -> None:
+        """Real time, a period before the first TPDO set has arrived: no demand yet (the
+        plant applies none), the heartbeat kept on the wall clock, the next release."""
+        self.ecu.heartbeat()
+        if self.pacer is not None:
+            self.pacer.done()
 
     def end(self, k: int) -> None:
         """The period's frames into the rows, its heartbeat (on the SYNC grid in

@@ -75,7 +75,7 @@ class RunLoop(EcuClaim):
                 steps.collect(k)
                 steps.check(k)
                 if pacer is not None and len(steps.latest) < 3:
-                    pacer.done()
+                    steps.wait_first(k)
                     continue
                 steps.control(k)
                 steps.end(k)

@@ -159,9 +159,11 @@ def test_realtime_run_completes(bus_env):
     # no timing assertions (benchmarks measure those): the plant kept wall-clock time
     assert pc["cycles"] + pc["skipped_periods"] >= 280
     # the trace is its log's rows (bench.bus.rows): a TPDO that reached the ECU after the
-    # next SYNC leaves its own period's row NaN, and every such row is counted
+    # next SYNC leaves its own period's row NaN, and every such row is counted. How many
+    # are late depends on the machine's load (with one core kept busy, over half of them
+    # were), so their share is measured by benchmarks/bench_bus.py, not asserted here.
     missing = tr.meta["bus_rows"]["missing_frames"]["EMA_TPDO3"]
-    assert int((~np.isfinite(tr["position_m"])).sum()) == missing < len(tr) // 2
+    assert int((~np.isfinite(tr["position_m"])).sum()) == missing < len(tr)
     assert load_od()[0x1017].default == 100
 
 
