@@ -114,17 +114,19 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.json, "--json", (".json",), stdout_ok=True)
     if args.report:
         check_output_dir(args.report, "--report")
-    if _is_rig(args):                   # before the thesis plant's diagnosis is imported
-        return _rig(args)
+    from bench.gap.inputs import read_nominal
+    doc = read_nominal(args.nominal) if args.nominal else None   # read once, used by all
+    if _is_rig(args, doc):              # before the thesis plant's diagnosis is imported
+        return _rig(args, doc)
     from bench.gap import effects as E
     from bench.gap.diagnose import Options, diagnose
-    from bench.gap.inputs import load_log, load_nominal
+    from bench.gap.inputs import load_log
     from bench.gap.summary import text
     names = E.parse_list(args.effects)
-    nominal = _nominal(args, load_nominal(args.nominal))
+    nominal = _nominal(args, doc)
     log = _thesis_log(args)
     hold = load_log(args.holdout) if args.holdout else None
-    ctrl_line = _attach_controller(args, log, hold)
+    ctrl_line = _attach_controller(args, doc, log, hold)
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
     say = (lambda s: None) if args.quiet else (lambda s: print(f"gap: {s}", file=sys.stderr))
@@ -133,7 +135,8 @@ def run(args: argparse.Namespace) -> int:
         model=args.model, effects=names, holdout_frac=args.holdout_frac,
         workers=args.workers, scheduler=args.scheduler, encoder=args.encoder, fit_always=args.fit_always,
         progress=not args.quiet and sys.stderr.isatty(),
-        reference=_calibration_reference(args), friction_split=friction_split(args)), log=say)
+        reference=_calibration_reference(args, doc),
+        friction_split=friction_split(args, doc)), log=say)
     js = res.json()
     if ctrl_line:
         js["controller"] = {"line": ctrl_line, **{
@@ -157,65 +160,65 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _calibration_reference(args: argparse.Namespace) -> dict[str, Any] | None:
+def _calibration_reference(args: argparse.Namespace, data: dict[str, Any] | None
+                           ) -> dict[str, Any] | None:
     """The thesis-model calibration given with --nominal (`bench calibrate` output, a
-    JSON with "params"): its name and held-out healthy level for the significance test
-    (`bench.gap.calibrate.reference_of`); None for thesis values or a parameter file."""
-    if not args.nominal:
+    JSON with "params"; `data`, its object): its name and held-out healthy level for the
+    significance test (`bench.gap.calibrate.reference_of`); None for thesis values or a
+    parameter file."""
+    if data is None or not isinstance(data.get("params"), dict):
         return None
     from bench.gap.calibrate import reference_of
-    data = json.loads(Path(args.nominal).read_text())
-    if not (isinstance(data, dict) and isinstance(data.get("params"), dict)):
-        return None
     return reference_of(data, Path(args.nominal).name, args.model, args.encoder)
 
 
-def friction_split(args: argparse.Namespace) -> str:
+def friction_split(args: argparse.Namespace, data: dict[str, Any] | None) -> str:
     """--friction-split when given; else what the calibration given with --nominal
-    declares (`bench calibrate --friction-split`, its "friction_split"); else "model"."""
+    (`data`, its object) declares (`bench calibrate --friction-split`, its
+    "friction_split"); else "model"."""
     if args.friction_split:
         return str(args.friction_split)
-    if not args.nominal:
+    if data is None:
         return "model"
     from bench import BenchError
     from bench.gap.library import FRICTION_SPLITS
-    data = json.loads(Path(args.nominal).read_text())
-    declared = data.get("friction_split", "model") if isinstance(data, dict) else "model"
+    declared = data.get("friction_split", "model")
     if declared not in FRICTION_SPLITS:
         raise BenchError(f"{args.nominal}: friction_split {declared!r} is not one of "
                          f"{', '.join(FRICTION_SPLITS)}")
     return str(declared)
 
 
-def _nominal(args: argparse.Namespace, params: Any) -> Any:
-    """The model a thesis-plant calibration describes: its start model (`base_params`, the
-    values of `bench calibrate --nominal` that differ from the thesis') with the
-    calibrated params on top; `params` (load_nominal's) otherwise."""
-    if not args.nominal:
-        return params
-    data = json.loads(Path(args.nominal).read_text())
-    if not (isinstance(data, dict) and isinstance(data.get("base_params"), dict)
+def _nominal(args: argparse.Namespace, data: dict[str, Any] | None) -> Any:
+    """The model of --nominal (`data`, its object): for a thesis-plant calibration its
+    start model (`base_params`, the values of `bench calibrate --nominal` that differ
+    from the thesis') with the calibrated params on top; else its params on the thesis
+    values, or the parameter file; the thesis values without --nominal."""
+    from bench.gap.inputs import nominal_params
+    from plant_rt.params import PlantParams
+    if data is None:
+        return PlantParams()
+    if not (isinstance(data.get("base_params"), dict)
             and isinstance(data.get("params"), dict)):
-        return params
+        return nominal_params(data, args.nominal)
     from bench import BenchError
-    from plant_rt.params import ParameterError, PlantParams
+    from plant_rt.params import ParameterError
     try:
         return PlantParams().with_dict({**data["base_params"], **data["params"]})
     except ParameterError as exc:
         raise BenchError(f"{args.nominal}: {exc}") from None
 
 
-def _attach_controller(args: argparse.Namespace, log: Trace, hold: Trace | None
-                       ) -> str | None:
+def _attach_controller(args: argparse.Namespace, data: dict[str, Any] | None, log: Trace,
+                       hold: Trace | None) -> str | None:
     """When the calibration given with --nominal identified the controller (`bench
     calibrate --controller fitted-cascade|measured-current`) and the log's metadata names
     none, attach the calibration's to the log (and the --holdout log), so the diagnosis
     re-simulates under it (`bench.gap.problem.drive_of`); the line saying so, None when
-    the bench's ECU closes the loops."""
-    if not args.nominal:
+    the bench's ECU closes the loops. `data`: the --nominal file's object."""
+    if data is None:
         return None
-    data = json.loads(Path(args.nominal).read_text())
-    ctrl = data.get("controller") if isinstance(data, dict) else None
+    ctrl = data.get("controller")
     mine = ctrl.get("method", "bench-ecu") if isinstance(ctrl, dict) else "bench-ecu"
     own = log.meta.get("controller")
     if isinstance(own, dict):
@@ -235,12 +238,12 @@ def _attach_controller(args: argparse.Namespace, log: Trace, hold: Trace | None
     return f"re-simulated {how}: {controller_text(ctrl)}"
 
 
-def _is_rig(args: argparse.Namespace) -> bool:
-    """Whether --nominal is another actuator's generic calibration (bench.gap.riggap) or
-    a healthy baseline is given."""
+def _is_rig(args: argparse.Namespace, data: dict[str, Any] | None) -> bool:
+    """Whether --nominal (`data`, its object) is another actuator's generic calibration
+    (bench.gap.riggap) or a healthy baseline is given."""
     from bench import BenchError
-    from bench.gap.riggap import is_rig_calibration
-    rig = bool(args.nominal) and is_rig_calibration(args.nominal)
+    from bench.gap.riggap import is_rig_doc
+    rig = data is not None and is_rig_doc(data)
     if not rig and (args.baseline or args.against != "auto"):
         if args.nominal:
             raise BenchError(f"--baseline/--against need a calibration of another actuator "
@@ -268,18 +271,18 @@ def _thesis_log(args: argparse.Namespace) -> Trace:
     return log
 
 
-def _rig(args: argparse.Namespace) -> int:
+def _rig(args: argparse.Namespace, data: dict[str, Any] | None) -> int:
     """The log against another actuator's generic calibration (bench.gap.riggap), or
     against the healthy baseline when the calibration's model does not reach the noise
     floor or a baseline is given (bench.rig.fallback)."""
     from bench import BenchError
     from bench.gap.inputs import load_log
-    from bench.gap.riggap import CANDIDATES, diagnose_rig, load_calibration, text
+    from bench.gap.riggap import CANDIDATES, calibration_of, diagnose_rig, text
     from bench.rig import fallback as FB
     if args.friction_split not in (None, "model"):
         raise BenchError("--friction-split is for the thesis plant's model; a rig's "
                          "calibration has its own friction law")
-    cal, act = load_calibration(args.nominal) if args.nominal else (None, None)
+    cal, act = calibration_of(data, args.nominal) if data is not None else (None, None)
     ref = FB.choose(cal, args.nominal, args.baseline, args.against)
     if ref.kind == "baseline":
         return _rig_baseline(args, ref)

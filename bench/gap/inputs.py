@@ -42,11 +42,9 @@ def load_log(path: str | Path) -> Trace:
     return out
 
 
-def load_nominal(path: str | Path | None) -> PlantParams:
-    """The nominal parameters: thesis values, or a calibration file from `bench calibrate`
-    ({"params": {dotted name: value}, ...}), or a full parameter JSON."""
-    if path is None:
-        return PlantParams()
+def read_nominal(path: str | Path) -> dict[str, Any]:
+    """The JSON object of a --nominal file (a calibration or a parameter JSON), read
+    once; a missing file, bad JSON or another JSON value is a one-line BenchError."""
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such file: {path}")
@@ -54,11 +52,27 @@ def load_nominal(path: str | Path | None) -> PlantParams:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise BenchError(f"{path}: not valid JSON ({exc})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BenchError(f"{path}: cannot be read ({exc})") from None
     if not isinstance(data, dict):
         raise BenchError(f"{path}: expected a JSON object")
+    return data
+
+
+def nominal_params(data: dict[str, Any], path: str | Path) -> PlantParams:
+    """The parameters of a --nominal file's object (`read_nominal`): a calibration's
+    {"params": {dotted name: value}} on the thesis values, or a full parameter JSON."""
     try:
         if "params" in data and isinstance(data["params"], dict):
             return PlantParams().with_dict(data["params"])
         return PlantParams.from_dict(data)
     except ParameterError as exc:
         raise BenchError(f"{path}: {exc}") from None
+
+
+def load_nominal(path: str | Path | None) -> PlantParams:
+    """The nominal parameters: thesis values, or a calibration file from `bench calibrate`
+    ({"params": {dotted name: value}, ...}), or a full parameter JSON."""
+    if path is None:
+        return PlantParams()
+    return nominal_params(read_nominal(path), path)

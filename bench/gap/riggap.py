@@ -60,19 +60,33 @@ BIC_MARGIN = 10.0
 NBINS = 10
 
 
+def is_rig_doc(data: Any) -> bool:
+    """Whether a JSON object is a calibration of `bench calibrate --actuator`."""
+    return isinstance(data, dict) and str(data.get("model", "")).startswith("generic")
+
+
 def is_rig_calibration(path: str | Path) -> bool:
     """Whether `path` holds a calibration of `bench calibrate --actuator`."""
     try:
         data = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError):
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return False
-    return isinstance(data, dict) and str(data.get("model", "")).startswith("generic")
+    return is_rig_doc(data)
+
+
+def calibration_of(cal: dict[str, Any], path: str | Path) -> tuple[dict[str, Any], Actuator]:
+    """A generic calibration's object (read once by the caller) and its actuator; one
+    without an actuator description is a one-line BenchError."""
+    desc = cal.get("actuator_description")
+    if not isinstance(desc, dict):
+        raise BenchError(f"{path}: a calibration of another actuator needs its "
+                         "\"actuator_description\" (bench calibrate --actuator writes it)")
+    return cal, from_dict(desc, str(path))
 
 
 def load_calibration(path: str | Path) -> tuple[dict[str, Any], Actuator]:
-    cal = json.loads(Path(path).read_text())
-    act = from_dict(cal["actuator_description"], str(path))
-    return cal, act
+    from bench.gap.inputs import read_nominal
+    return calibration_of(read_nominal(path), path)
 
 
 def _regimes(tr: Trace) -> dict[str, np.ndarray]:

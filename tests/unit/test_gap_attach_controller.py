@@ -25,13 +25,13 @@ def _log(meta=None):
 def _args(tmp_path, controller):
     cal = tmp_path / "cal.json"
     cal.write_text(json.dumps({"params": {}, "controller": controller}))
-    return argparse.Namespace(nominal=str(cal))
+    return argparse.Namespace(nominal=str(cal)), json.loads(cal.read_text())
 
 
 def test_the_calibrations_cascade_is_attached_to_both_logs(tmp_path):
     ctrl = {"method": "fitted-cascade", "doc": "...", "cascade": CASCADE}
     log, hold = _log(), _log()
-    line = _attach_controller(_args(tmp_path, ctrl), log, hold)
+    line = _attach_controller(*_args(tmp_path, ctrl), log, hold)
     assert line.startswith("re-simulated under the controller identified by calibration "
                            "cal.json: fitted-cascade: position PI on the encoder")
     assert "every 2 SYNC period(s)" in line and "\n" not in line
@@ -41,7 +41,7 @@ def test_the_calibrations_cascade_is_attached_to_both_logs(tmp_path):
 def test_measured_current_is_attached_without_calling_it_a_controller(tmp_path):
     ctrl = {"method": "measured-current", "doc": "the logged current drives the plant"}
     log = _log()
-    line = _attach_controller(_args(tmp_path, ctrl), log, None)
+    line = _attach_controller(*_args(tmp_path, ctrl), log, None)
     assert line == ("re-simulated as calibration cal.json handles the controller: "
                     "measured-current (the logged current drives the plant)")
     assert log.meta["controller"]["method"] == "measured-current"
@@ -49,8 +49,8 @@ def test_measured_current_is_attached_without_calling_it_a_controller(tmp_path):
 
 def test_the_bench_ecu_and_no_calibration_change_nothing(tmp_path):
     log = _log()
-    assert _attach_controller(_args(tmp_path, {"method": "bench-ecu"}), log, None) is None
-    assert _attach_controller(argparse.Namespace(nominal=None), log, None) is None
+    assert _attach_controller(*_args(tmp_path, {"method": "bench-ecu"}), log, None) is None
+    assert _attach_controller(argparse.Namespace(nominal=None), None, log, None) is None
     assert "controller" not in log.meta
 
 
@@ -58,7 +58,7 @@ def test_a_log_naming_its_own_controller_keeps_it(tmp_path):
     own = {"method": "measured-current"}
     log = _log({"controller": own})
     ctrl = {"method": "fitted-cascade", "cascade": CASCADE}
-    line = _attach_controller(_args(tmp_path, ctrl), log, None)
+    line = _attach_controller(*_args(tmp_path, ctrl), log, None)
     assert line == ("re-simulated under the controller its metadata names "
                     "(measured-current), not the calibration's (fitted-cascade)")
     assert log.meta["controller"] is own

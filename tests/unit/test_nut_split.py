@@ -126,15 +126,18 @@ def test_gap_takes_the_split_from_the_flag_then_the_calibration(tmp_path):
 
     from bench.cli.gap import friction_split
     cal = tmp_path / "cal.json"
-    cal.write_text(json.dumps({"params": {}, "friction_split": "unknown"}))
-    assert friction_split(argparse.Namespace(friction_split=None, nominal=None)) == "model"
-    assert friction_split(argparse.Namespace(friction_split=None, nominal=str(cal))) == "unknown"
-    assert friction_split(argparse.Namespace(friction_split="model", nominal=str(cal))) == "model"
-    cal.write_text(json.dumps({"params": {}}))        # written before the declaration existed
-    assert friction_split(argparse.Namespace(friction_split=None, nominal=str(cal))) == "model"
-    cal.write_text(json.dumps({"params": {}, "friction_split": "nut"}))
+
+    def split(flag, doc):
+        cal.write_text(json.dumps(doc))
+        ns = argparse.Namespace(friction_split=flag, nominal=str(cal))
+        return friction_split(ns, json.loads(cal.read_text()))
+
+    assert friction_split(argparse.Namespace(friction_split=None, nominal=None), None) == "model"
+    assert split(None, {"params": {}, "friction_split": "unknown"}) == "unknown"
+    assert split("model", {"params": {}, "friction_split": "unknown"}) == "model"
+    assert split(None, {"params": {}}) == "model"   # written before the declaration existed
     with pytest.raises(BenchError, match="friction_split 'nut' is not one of model, unknown"):
-        friction_split(argparse.Namespace(friction_split=None, nominal=str(cal)))
+        split(None, {"params": {}, "friction_split": "nut"})
 
 
 def test_bounds_moved_to_the_model_keep_the_share():
