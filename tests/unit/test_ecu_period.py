@@ -63,14 +63,20 @@ def _controls(ecu: Ecu, plant_bus: can.BusABC) -> list[int]:
     return words
 
 
-def test_real_time_first_rpdo_sent_late_carries_the_fault_reset(rig):
+def _late_start(rig) -> PeriodSteps:
+    """Real time, a timeout latched before the run: SYNC 0-2 answered after their
+    windows (no RPDO in periods 0-2), their sets in by period 3, the first demand."""
     ecu, plant_bus = rig
     steps = _steps(ecu, Pace.REALTIME)
-    # SYNC 0-2 answered after their windows: no RPDO in periods 0-2; their set arrives
-    # by period 3, the first period with a demand
     for _ in range(3):
         _answer(ecu, plant_bus, steps, TIMEOUT)
     steps.control(3)
+    return steps
+
+
+def test_real_time_first_rpdo_sent_late_carries_the_fault_reset(rig):
+    ecu, plant_bus = rig
+    steps = _late_start(rig)
     steps.control(4)
     words = _controls(ecu, plant_bus)
     assert words == [int(ControlWord.ENABLE | ControlWord.FAULT_RESET),
@@ -79,10 +85,7 @@ def test_real_time_first_rpdo_sent_late_carries_the_fault_reset(rig):
 
 def test_pre_run_timeout_tolerated_until_a_word_answers_a_sync_after_the_reset(rig):
     ecu, plant_bus = rig
-    steps = _steps(ecu, Pace.REALTIME)
-    for _ in range(3):
-        _answer(ecu, plant_bus, steps, TIMEOUT)
-    steps.control(3)                 # fault reset sent with the demand of period 3
+    steps = _late_start(rig)         # fault reset sent with the demand of period 3
     _answer(ecu, plant_bus, steps, TIMEOUT)     # the answer to SYNC 3: before the reset
     steps.control(4)
     _answer(ecu, plant_bus, steps, TIMEOUT)     # SYNC 4: after the reset, still latched
@@ -92,10 +95,7 @@ def test_pre_run_timeout_tolerated_until_a_word_answers_a_sync_after_the_reset(r
 
 def test_pre_run_timeout_cleared_by_the_reset_passes(rig):
     ecu, plant_bus = rig
-    steps = _steps(ecu, Pace.REALTIME)
-    for _ in range(3):
-        _answer(ecu, plant_bus, steps, TIMEOUT)
-    steps.control(3)
+    steps = _late_start(rig)
     for k in range(4, 30):
         _answer(ecu, plant_bus, steps, TIMEOUT if k == 4 else 0)
         steps.control(k)
