@@ -22,7 +22,6 @@ position and, for the current's parts, the current, at any rate.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
@@ -65,15 +64,6 @@ def is_rig_doc(data: Any) -> bool:
     return isinstance(data, dict) and str(data.get("model", "")).startswith("generic")
 
 
-def is_rig_calibration(path: str | Path) -> bool:
-    """Whether `path` holds a calibration of `bench calibrate --actuator`."""
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        return False
-    return is_rig_doc(data)
-
-
 def calibration_of(cal: dict[str, Any], path: str | Path) -> tuple[dict[str, Any], Actuator]:
     """A generic calibration's object (read once by the caller) and its actuator; one
     without an actuator description is a one-line BenchError."""
@@ -82,11 +72,6 @@ def calibration_of(cal: dict[str, Any], path: str | Path) -> tuple[dict[str, Any
         raise BenchError(f"{path}: a calibration of another actuator needs its "
                          "\"actuator_description\" (bench calibrate --actuator writes it)")
     return cal, from_dict(desc, str(path))
-
-
-def load_calibration(path: str | Path) -> tuple[dict[str, Any], Actuator]:
-    from bench.gap.inputs import read_nominal
-    return calibration_of(read_nominal(path), path)
 
 
 def _regimes(tr: Trace) -> dict[str, np.ndarray]:

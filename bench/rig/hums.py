@@ -23,7 +23,6 @@ reference); it always states what it was judged against.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -243,10 +242,15 @@ def summary_text(a: RigAnalysis) -> str:
 
 def calibration_file(nominal: str) -> dict[str, Any]:
     """A calibration of `bench calibrate --actuator` (BenchError otherwise)."""
-    from bench.gap.riggap import is_rig_calibration
+    from bench.gap.inputs import read_nominal
+    from bench.gap.riggap import is_rig_doc
     if not Path(nominal).exists():
         raise BenchError(f"no such calibration: {nominal}")
-    if not is_rig_calibration(nominal):
+    try:
+        data: dict[str, Any] | None = read_nominal(nominal)   # read once
+    except BenchError:
+        data = None                    # unreadable or not a JSON object: said below
+    if data is None or not is_rig_doc(data):
         raise BenchError(f"{nominal}: not a calibration of `bench calibrate --actuator` "
                          "(the thesis report takes --set NAME=VALUE instead)")
-    return dict(json.loads(Path(nominal).read_text()))
+    return dict(data)

@@ -57,3 +57,17 @@ def test_a_generic_calibration_without_its_actuator_is_one_line(tmp_path, capsys
     assert len(err) == 1 and err[0] == (
         f"error: {cal}: a calibration of another actuator needs its "
         "\"actuator_description\" (bench calibrate --actuator writes it)")
+
+
+@pytest.mark.parametrize("text", ["{not json", json.dumps({"params": {}}), "[1, 2]"])
+def test_the_rig_report_refuses_what_is_not_a_generic_calibration(tmp_path, text):
+    from bench import BenchError
+    from bench.rig.hums import calibration_file
+    cal = tmp_path / "cal.json"
+    cal.write_text(text)
+    with pytest.raises(BenchError, match="not a calibration of `bench calibrate --actuator`"):
+        calibration_file(str(cal))
+    with pytest.raises(BenchError, match="no such calibration"):
+        calibration_file(str(tmp_path / "missing.json"))
+    cal.write_text(json.dumps({"model": "generic-dc", "x": 1}))
+    assert calibration_file(str(cal)) == {"model": "generic-dc", "x": 1}
