@@ -12,7 +12,7 @@ from typing import Any
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench import BenchError
-from bench.control import ControllerParams
+from bench.control import MODE_IDLE, Controller, ControllerParams
 from bench.ecu.claim import EcuClaim
 from bench.ecu.errors import (
     FAILING_BITS,
@@ -60,9 +60,11 @@ class RunLoop(EcuClaim):
         steps.setup(progress)
         self.unlisten()
         self.tap = steps.tap       # from here on every frame logged also makes the rows
-        # keep full garbage collections (tens of ms with numba and scipy loaded) out of
-        # the control loop: what exists now is not scanned again until the run ends
-        gc.collect()
+        # keep full garbage collections (0.1 s with numba and scipy loaded) out of the
+        # control loop: what exists now is not scanned again until the run ends. Frozen
+        # without a collection first: a full one holds the interpreter lock 0.1-0.3 s,
+        # which starves the set-up heartbeat thread while the node's consumer watches it
+        # (its garbage is collected after the run, when `unfreeze` returns it)
         gc.freeze()
         if stop is not None:
             stop.defer = True
@@ -98,6 +100,14 @@ class RunLoop(EcuClaim):
         trace = self.partial = self._trace(steps)
         trace.meta.update(end)
         return trace
+
+    def start_heartbeat(self) -> None:
+        """The set-up heartbeat (`EcuLink.start_heartbeat`), once the controller's compiled
+        step is loaded: the first heartbeat arms the node's consumer (0x1016), and loading
+        the step holds the interpreter lock for about 0.1 s at a time (0.4 s in all, more
+        on a loaded machine), long enough to starve the heartbeat thread."""
+        Controller().step(0.0, 0.0, MODE_IDLE, 0.0, 0.0)
+        super().start_heartbeat()
 
     def _trace(self, steps: PeriodSteps) -> Trace:
         """The run's trace from the rows of the frames recorded so far; the rows stop."""

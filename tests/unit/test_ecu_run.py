@@ -176,6 +176,51 @@ def test_a_stall_during_set_up_does_not_fail_the_run(rig):
     assert (words[1:] & int(StatusWord.ENABLED)).all()     # every demand in force
 
 
+def test_the_controller_is_loaded_before_the_first_heartbeat(rig, monkeypatch):
+    """The first ECU heartbeat arms the node's consumer (0x1016). Loading the controller's
+    compiled step holds the interpreter lock for about 0.1 s (0.3-0.5 s on a loaded
+    machine), which starved the set-up heartbeat thread and let the plant latch a timeout
+    before the run: the ECU loads it before its first heartbeat."""
+    import bench.control as control
+    events: list[str] = []
+    step = control.controller_step
+
+    def recorded_step(*a):
+        events.append("step")
+        return step(*a)
+
+    monkeypatch.setattr(control, "controller_step", recorded_step)
+    ecu = rig.new_ecu()
+    beat = ecu.heartbeat
+
+    def recorded_beat(*a, **kw):
+        events.append("heartbeat")
+        return beat(*a, **kw)
+
+    ecu.heartbeat = recorded_beat
+    ecu.start_heartbeat()
+    until(lambda: "heartbeat" in events, 1.0, "a set-up heartbeat")
+    ecu.stop_heartbeat()
+    assert events[0] == "step"
+
+
+def test_no_full_garbage_collection_while_the_node_watches_the_heartbeat(rig, monkeypatch):
+    """A full collection holds the interpreter lock (0.1 s here, 0.3 s in a loaded test
+    worker): none between the set-up and the run's end. The loop's collections still skip
+    what existed before the run (frozen)."""
+    import gc
+    collections: list[int] = []
+    frozen: list[int] = []
+    monkeypatch.setattr(gc, "collect", lambda *a: collections.append(1) or 0)
+    ecu, params = prepared(rig)
+    tr = ecu.run(make_profile("step", duration_s=0.02), params, pace=Pace.SYNC,
+                 on_period=lambda k: frozen.append(gc.get_freeze_count()))
+    assert tr.meta["complete"]
+    assert collections == []
+    assert frozen and min(frozen) > 0
+    assert gc.get_freeze_count() == 0          # unfrozen after the run
+
+
 def test_reporting_conditions_keep_the_run_valid(rig):
     """Over-current (the drive at its current limit, normal in a 40 mm step) is reported
     in the status word and by EMCY, and the run stays a success."""
