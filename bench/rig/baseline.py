@@ -300,7 +300,8 @@ def build(cycles: list[Cycle], sources: list[str] | None = None) -> Baseline:
     loads: dict[float, list[Cycle]] = {}
     for c in cycles:
         if not math.isfinite(c.load):
-            raise BenchError(f"{c.label}: the cycle has no load; a baseline is per load")
+            raise BenchError(f"{c.label}: the cycle's load is unknown (no load column or "
+                             "load key); a baseline is per load")
         loads.setdefault(c.load, []).append(c)
     srcs = sources if sources is not None else sorted({c.source for c in cycles})
     return Baseline({k: build_load(v) for k, v in sorted(loads.items())}, srcs)

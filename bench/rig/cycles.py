@@ -17,6 +17,7 @@ stroke the acceleration, constant-speed and deceleration parts.
 from __future__ import annotations
 
 import io
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -59,7 +60,8 @@ class Cycle:
 
     @property
     def label(self) -> str:
-        return f"{self.source} load {self.load:g} run {self.run} cycle {self.group}"
+        load = f"{self.load:g}" if math.isfinite(self.load) else "unknown"
+        return f"{self.source} load {load} run {self.run} cycle {self.group}"
 
 
 @dataclass(frozen=True)
@@ -89,9 +91,11 @@ def stage_number(condition: str) -> int | None:
     return int(m.group(1)) if m else None
 
 
-def read_columns(path: str | Path) -> dict[str, np.ndarray]:
-    """Every numeric column of a CSV (plain or xz/gz/bz2) or Parquet table; text columns
-    are dropped (the Cranfield table's `profile`)."""
+def read_columns(path: str | Path, text: dict[str, np.ndarray] | None = None
+                 ) -> dict[str, np.ndarray]:
+    """Every numeric column of a CSV (plain or xz/gz/bz2) or Parquet table; a column that
+    is not all numbers (the Cranfield table's text column `profile`, or a number column
+    with a text cell) is left out, or put in `text` (when given) as its cells' strings."""
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such table: {path}")
@@ -116,7 +120,9 @@ def read_columns(path: str | Path) -> dict[str, np.ndarray]:
         try:
             out[name] = col.to_numpy(zero_copy_only=False).astype(float)
         except (ValueError, TypeError):
-            continue
+            if text is not None:
+                text[name] = np.array([None if x is None else str(x)
+                                       for x in col.to_pylist()], dtype=object)
     return out
 
 
@@ -135,49 +141,192 @@ def _decompressed(path: Path) -> bytes:
 
 
 MIN_SAMPLES = 8          # a cycle shorter than this is not read
+KEYS = ("load", "run", "group")
+# a text cell that means "no value" (pyarrow's own missing-value markers), not a bad cell
+MISSING = {"", "na", "n/a", "nan", "-nan", "null", "none", "#n/a", "#na"}
 
 
 def read_cycles(path: str | Path, columns: dict[str, str] | None = None,
                 skipped: list[str] | None = None) -> list[Cycle]:
     """The motion cycles of a rig's table or of a `bench import` trace, in file order. A
-    cycle of fewer than `MIN_SAMPLES` samples, or with a sample without set-point,
-    position or current, is not read; `skipped` (when given) gets one line per such
-    cycle saying why, so that a caller reports it instead of losing it silently."""
+    cycle of fewer than `MIN_SAMPLES` samples, with a sample without set-point, position
+    or current, with a row without its load, run or cycle number, or whose time does not
+    advance, is not read (a row that repeats the one before it exactly is dropped);
+    `skipped` (when given) gets one line per such cycle, row or cell saying why, so that a
+    caller reports it instead of losing it silently. BenchError, with the first reasons,
+    when no cycle is left."""
     path = Path(path)
+    lost: list[str] = []
     if path.name.lower().endswith(".npz"):
-        return _trace_cycles(path, skipped)
-    cols = dict(DEFAULT_COLUMNS, **(columns or {}))
-    raw = read_columns(path)
+        out = _trace_cycles(path, lost)
+    else:
+        out = _table_cycles(path, dict(DEFAULT_COLUMNS, **(columns or {})), lost)
+    if skipped is not None:
+        skipped += lost
+    if not out:
+        more = f"; and {len(lost) - 3} more" if len(lost) > 3 else ""
+        why = f" ({'; '.join(lost[:3])}{more})" if lost else ""
+        raise BenchError(f"{path}: no complete motion cycle in the table{why}")
+    return out
+
+
+def line_of(path: Path, row: int) -> str:
+    """Where data row `row` (from 0) of a table is: 'line N' of a CSV (the header is line
+    1), 'row N' of a Parquet table."""
+    return f"row {row + 1}" if path.name.lower().endswith(".parquet") else f"line {row + 2}"
+
+
+def _table_cycles(path: Path, cols: dict[str, str], lost: list[str]) -> list[Cycle]:
+    """`read_cycles` of a rig's own table (CSV or Parquet)."""
+    text: dict[str, np.ndarray] = {}
+    raw = read_columns(path, text)
     if is_trace(path, raw):
-        return _trace_cycles(path, skipped)          # a bench trace, not a rig table
-    source = condition_name(path)
-    need = ["setpoint", "current"]
-    missing = [cols[k] for k in need if cols[k] not in raw]
+        return _trace_cycles(path, lost)          # a bench trace, not a rig table
+    for name in sorted(set(cols.values()) | {cols.get("position", "position")}):
+        if name in text:                          # a needed column with a text cell
+            raw[name] = _numbers(path, name, text[name], lost)
+    missing = [cols[k] for k in ("setpoint", "current") if cols[k] not in raw]
     if cols["position_error"] not in raw and cols.get("position", "position") not in raw:
         missing.append(f"{cols['position_error']} (or a position column)")
     if missing:
         raise BenchError(f"{path}: the table has no column(s) {', '.join(missing)} "
                          f"(it has: {', '.join(sorted(raw))})")
     sp = raw[cols["setpoint"]]
+    if not len(sp):
+        raise BenchError(f"{path}: the table has no rows (a header only)")
+    keys: dict[str, np.ndarray | None] = {k: raw.get(cols[k]) for k in KEYS}
+    for k, x in keys.items():
+        if x is not None and not np.isfinite(x).any():
+            raise BenchError(f"{path}: column {cols[k]} has no number in any row")
+    if keys["load"] is None:
+        lost.append(f"{path.name}: no {cols['load']} column: the cycles' load is unknown")
+    return _split(path, cols, raw, text, keys, lost)
+
+
+def _numbers(path: Path, name: str, cells: np.ndarray, lost: list[str]) -> np.ndarray:
+    """A needed column that came as text: its numbers; NaN (missing) for a blank cell and
+    for a cell that is not a number, the latter listed in `lost` with its line."""
+    out = np.full(len(cells), np.nan)
+    bad = []
+    for i, x in enumerate(cells):
+        if x is None or x.strip().lower() in MISSING:
+            continue
+        try:
+            out[i] = float(x)
+        except ValueError:
+            bad.append(i)
+    if bad:
+        first = ", ".join(f"{line_of(path, i)}: {cells[i]!r}" for i in bad[:3])
+        more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
+        lost.append(f"{path.name}: column {name}: {len(bad)} cell(s) not a number "
+                    f"({first}{more}): read as missing")
+    return out
+
+
+def _split(path: Path, cols: dict[str, str], raw: dict[str, np.ndarray],
+           text: dict[str, np.ndarray], keys: dict[str, np.ndarray | None],
+           lost: list[str]) -> list[Cycle]:
+    """The table's rows split into cycles where the cycle number changes (a row without
+    one stays with the rows before it, and its cycle is not read)."""
+    sp = raw[cols["setpoint"]]
     pos = (sp - raw[cols["position_error"]] if cols["position_error"] in raw
            else raw[cols.get("position", "position")])
-    n = len(sp)
-    group = raw.get(cols["group"], cycle_numbers(sp))
-    load = raw.get(cols["load"], np.full(n, np.nan))
-    run = raw.get(cols["run"], np.zeros(n))
+    cur = raw[cols["current"]]
     time = raw.get(cols["time"])
+    group = _filled(keys["group"]) if keys["group"] is not None else cycle_numbers(sp)
+    starts = np.flatnonzero(np.r_[True, np.diff(group) != 0])
+    bounds = [int(x) for x in starts] + [len(sp)]
+    source = condition_name(path)
     out: list[Cycle] = []
-    # rows of one cycle are contiguous in the table; keep the table's order
-    starts = np.flatnonzero(np.r_[True, np.diff(group) != 0,])
-    bounds = list(starts) + [n]
     for a, b in zip(bounds[:-1], bounds[1:], strict=False):
-        t = time[a:b] - time[a] if time is not None else np.arange(b - a, dtype=float)
-        cyc = Cycle(t, sp[a:b], pos[a:b], raw[cols["current"]][a:b], float(load[a]),
-                    int(run[a]), int(group[a]), source)
-        _keep(cyc, out, skipped)
-    if not out:
-        raise BenchError(f"{path}: no complete motion cycle in the table")
+        load, run = (_first(keys[k], a, b) for k in ("load", "run"))
+        label = (f"{source} load {_g(load)} run {_g(0.0 if keys['run'] is None else run)} "
+                 f"cycle {_g(group[a])}")
+        why = _bad_keys(path, cols, keys, text, a, b)
+        rows, notes, why = (np.arange(a, b), [], why) if why else \
+            _repeats(path, raw, text, time, a, b)
+        if why:
+            lost.append(f"{label}: {why}: not read")
+            continue
+        lost += [f"{label}: {x}" for x in notes]
+        t = time[rows] - time[rows[0]] if time is not None else np.arange(len(rows), dtype=float)
+        cyc = Cycle(t, sp[rows], pos[rows], cur[rows], load,
+                    0 if keys["run"] is None else int(run), int(group[a]), source)
+        _keep(cyc, out, lost)
     return out
+
+
+def _g(x: float) -> str:
+    return f"{int(x)}" if math.isfinite(x) and x == int(x) else (
+        f"{x:g}" if math.isfinite(x) else "?")
+
+
+def _first(x: np.ndarray | None, a: int, b: int) -> float:
+    """The first finite value of x[a:b] (NaN: none, or no column)."""
+    if x is None:
+        return float("nan")
+    ok = np.flatnonzero(np.isfinite(x[a:b]))
+    return float(x[a + ok[0]]) if len(ok) else float("nan")
+
+
+def _filled(x: np.ndarray) -> np.ndarray:
+    """`x` with each missing value replaced by the one before it (at the start: the first
+    one there is)."""
+    ok = np.isfinite(x)
+    if ok.all():
+        return x
+    idx = np.where(ok, np.arange(len(x)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    y = x[idx]
+    first = int(np.flatnonzero(ok)[0])
+    y[:first] = x[first]
+    return y
+
+
+def _bad_keys(path: Path, cols: dict[str, str], keys: dict[str, np.ndarray | None],
+              text: dict[str, np.ndarray], a: int, b: int) -> str:
+    """Why rows a..b-1 cannot be one cycle ("" they can): a row without its load, run or
+    cycle number (blank, or a text cell), or a row without a cycle number just before them
+    (it may be this cycle's first)."""
+    for k in KEYS:
+        x = keys[k]
+        if x is None:
+            continue
+        bad = np.flatnonzero(~np.isfinite(x[a:b]))
+        if len(bad):
+            r = a + int(bad[0])
+            cell = text[cols[k]][r] if cols[k] in text else None
+            what = (f"{k} {cell!r} is not a number" if cell is not None
+                    and cell.strip().lower() not in MISSING else f"no {k}")
+            return f"{what} at {line_of(path, r)}"
+    g = keys["group"]
+    if g is not None and a > 0 and not np.isfinite(g[a - 1]):
+        return f"no group at {line_of(path, a - 1)}, just before the cycle"
+    return ""
+
+
+def _repeats(path: Path, raw: dict[str, np.ndarray], text: dict[str, np.ndarray],
+             time: np.ndarray | None, a: int, b: int) -> tuple[np.ndarray, list[str], str]:
+    """The rows of the cycle a..b-1 to read, notes, and why it cannot be read ("" it can):
+    a row that repeats the one before it exactly (its time too) is dropped with a note; a
+    time that does not advance otherwise makes the cycle unreadable (its samples would be
+    split into phases at a step the rig never made)."""
+    rows = np.arange(a, b)
+    if time is None:
+        return rows, [], ""
+    same = (np.flatnonzero(np.diff(time[a:b]) == 0) + a + 1).tolist()
+    drop: list[int] = []
+    notes: list[str] = []
+    for r in same:
+        if all(x[r] == x[r - 1] or (x[r] != x[r] and x[r - 1] != x[r - 1])
+               for x in raw.values()) and all(x[r] == x[r - 1] for x in text.values()):
+            drop.append(int(r))
+            notes.append(f"{line_of(path, r)} repeats {line_of(path, r - 1)} exactly: "
+                         "dropped (the cycle is read without it)")
+        else:
+            return rows, [], (f"time does not advance at {line_of(path, r)} ({time[r]:g}, "
+                              f"as at {line_of(path, r - 1)})")
+    return (np.setdiff1d(rows, drop) if drop else rows), notes, ""
 
 
 def is_trace(path: str | Path, raw: dict[str, Any] | None = None) -> bool:
