@@ -137,13 +137,18 @@ def _read(tables: list[str], runs: list[int] | None) -> list[Any]:
     from bench import BenchError
     from bench.rig.cycles import read_cycles
     cycles = []
+    have: set[int] = set()
     lost: list[str] = []
     for t in tables:
-        cycles += [c for c in read_cycles(t, skipped=lost) if runs is None or c.run in runs]
+        mine = read_cycles(t, skipped=lost)
+        have |= {c.run for c in mine}
+        cycles += [c for c in mine if runs is None or c.run in runs]
     for line in lost:                 # reported, never dropped silently
         print(line, file=sys.stderr)
     if not cycles:
-        raise BenchError(f"no cycle of run(s) {runs} in {', '.join(tables)}")
+        raise BenchError(f"no cycle of run(s) {','.join(map(str, runs or []))} in "
+                         f"{', '.join(tables)} (they have run(s) "
+                         f"{','.join(map(str, sorted(have)))})")
     return cycles
 
 
@@ -188,18 +193,31 @@ def _load_unit(cycles: list[Any], given: str | None) -> str:
 
 def _assess(args: argparse.Namespace) -> int:
     from bench import BenchError
+    from bench.cli.outputs import check_output_file
     from bench.rig.baseline import Baseline
+    from bench.rig.fallback import in_unit, match_load
     from bench.rig.features import cycle_features, verdict
+    if args.json:
+        check_output_file(args.json, "--json", stdout_ok=True)
     base = Baseline.load(args.baseline)
     cycles = _read(args.tables, runs_list(args.runs, "--runs"))
     verdicts: list[dict[str, Any]] = []
     counts: dict[tuple[str, float], tuple[int, int, int]] = {}
+    notes: list[str] = []
     for c in cycles:
-        cal = base.thresholds.get(f"{c.load:g}")
+        # the baseline load that judges the cycle, as bench gap matches it (the unit of a
+        # trace's load converted, the nearest load within 5 %, the only one if unknown)
+        load, note = match_load(base, in_unit(c.load, c.load_unit, base.load_unit))
+        if load is None:
+            raise BenchError(f"{args.baseline}: {c.label}: {note}")
+        if note and note not in notes:
+            notes.append(note)
+        c.load = load
+        cal = base.thresholds.get(f"{load:g}")
         if cal is None:
-            raise BenchError(f"{args.baseline}: no thresholds for load {c.load:g} (build "
-                             "the baseline from two or more healthy runs of that load)")
-        f = cycle_features(base.for_load(c.load), c, base.lead_mm)
+            raise BenchError(f"{args.baseline}: no thresholds for load {base.load_text(load)} "
+                             "(build the baseline from two or more healthy runs of that load)")
+        f = cycle_features(base.for_load(load), c, base.lead_mm)
         v = verdict(base, f, cal["thresholds"])
         verdicts.append(v)
         key = (c.source, c.load)
@@ -208,6 +226,8 @@ def _assess(args: argparse.Namespace) -> int:
         if not args.quiet:
             state = "FLAGGED" if v["flagged"] else ("ok" if v["judged"] else "NOT JUDGED")
             print(f"{c.label}: {state}: {v['verdict']}")
+    for note in notes:
+        print(f"note: {note}")
     if not args.quiet and verdicts:
         print(f"against {verdicts[0]['baseline']}")
     for (src, load), (n, k, u) in sorted(counts.items()):

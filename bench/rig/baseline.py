@@ -161,6 +161,12 @@ class Baseline:
             d = json.loads(path.read_text())
         except FileNotFoundError:
             raise BenchError(f"no such baseline: {path}") from None
+        except IsADirectoryError:
+            raise BenchError(f"{path}: a directory, not a baseline JSON (give the file "
+                             "`bench rig baseline --out` wrote)") from None
+        except OSError as exc:
+            raise BenchError(f"{path}: cannot read the baseline ({exc.strerror or exc})"
+                             ) from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise BenchError(f"{path}: not a baseline JSON ({exc})") from None
         if not isinstance(d, dict) or d.get("format") != FORMAT:

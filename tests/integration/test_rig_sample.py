@@ -169,3 +169,75 @@ def test_rig_baseline_knows_its_load_unit(tmp_path, capsys):
     assert main(["gap", str(log), "--baseline", str(base)]) == 0
     out = capsys.readouterr().out
     assert "[baseline load 40]" in out and "not judged" not in out, out
+
+
+@pytest.fixture(scope="module")
+def kgf_baseline(tmp_path_factory):
+    """`bench rig baseline` of the sample's runs 1-2, its load in kgf."""
+    from bench.cli import main
+    b = tmp_path_factory.mktemp("kgf") / "base.json"
+    assert main(["rig", "baseline", str(SAMPLE / "normal_load40_runs1-4.csv.xz"), "--runs",
+                 "1,2", "--load-unit", "kgf", "--lead-mm", "5", "--out", str(b)]) == 0
+    return b
+
+
+def test_rig_assess_matches_a_load_in_newtons_as_gap_does(tmp_path, capsys, kgf_baseline,
+                                                          sample):
+    """A trace whose load is in N (392 N = 39.97 kgf) against a kgf baseline: `bench gap`
+    judged it at 40 kgf, `bench rig assess` refused it ("no thresholds for load 392"),
+    converting no unit. Both now match the load the same way (fallback.match_load)."""
+    from bench.cli import main
+    from bench.trace import Trace
+    c = sample[2][0]                                    # a held-out cycle of run 3
+    meta = {"split": {"load": 392.0, "run": 3, "group": c.group},
+            "map": [{"signal": "load_force_n", "column": "load", "unit": "N"}]}
+    log = Trace({"t_s": c.t_s, "setpoint_position_m": c.setpoint_mm / 1e3,
+                 "position_m": c.position_mm / 1e3, "current_a": c.current_a},
+                meta).save(tmp_path / "in_newtons.npz")
+    capsys.readouterr()
+    assert main(["rig", "assess", str(log), "--baseline", str(kgf_baseline)]) == 0
+    out = capsys.readouterr().out
+    assert f"in_newtons load 40 run 3 cycle {c.group}: ok" in out
+    assert "note: the cycle's load 39.97 kgf judged at the baseline's 40 kgf" in out
+    assert "in_newtons load 40: 0 / 1 cycles flagged" in out
+
+
+def test_rig_assess_without_a_load_column_or_the_asked_runs(tmp_path, capsys, kgf_baseline):
+    """A table without a load column gave "no thresholds for load nan"; runs that are not
+    in the table gave "no cycle of run(s) None" when no --runs was given (a trace without
+    a readable cycle) and never said which runs the table has."""
+    import lzma
+
+    from bench.cli import main
+    text = lzma.decompress((SAMPLE / "spalling5_load40_runs1-2.csv.xz").read_bytes()).decode()
+    head, *body = text.splitlines()
+    i = head.split(",").index("load")
+    drop = [",".join(x for k, x in enumerate(r.split(",")) if k != i) for r in [head] + body]
+    p = tmp_path / "noload.csv"
+    p.write_text("\n".join(drop) + "\n")
+    capsys.readouterr()
+    assert main(["rig", "assess", str(p), "--baseline", str(kgf_baseline), "-q"]) == 0
+    cap = capsys.readouterr()
+    assert "noload.csv: no load column: the cycles' load is unknown" in cap.err
+    assert "note: the cycle's load is unknown: judged at the baseline's only load 40 kgf" \
+        in cap.out
+    assert main(["rig", "assess", str(p), "--runs", "3,4", "--baseline",
+                 str(kgf_baseline)]) == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"error: no cycle of run(s) 3,4 in {p} (they have run(s) 1,2)")
+
+
+def test_rig_assess_checks_its_outputs_and_baseline_first(tmp_path, capsys, kgf_baseline):
+    """--json into a missing directory failed with FileNotFoundError after the results were
+    printed; a directory given as --baseline raised IsADirectoryError."""
+    from bench.cli import main
+    table = str(SAMPLE / "spalling5_load40_runs1-2.csv.xz")
+    capsys.readouterr()
+    assert main(["rig", "assess", table, "--baseline", str(kgf_baseline), "--json",
+                 str(tmp_path / "no" / "v.json")]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err.strip() == (
+        f"error: --json: cannot write {tmp_path / 'no' / 'v.json'}: directory "
+        f"{tmp_path / 'no'} does not exist")
+    assert main(["rig", "assess", table, "--baseline", str(tmp_path)]) == 2
+    assert "a directory, not a baseline JSON" in capsys.readouterr().err

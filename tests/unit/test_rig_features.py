@@ -88,6 +88,9 @@ def test_a_damaged_or_foreign_baseline_is_a_clear_error(tmp_path):
     p.write_text('{"hello": 1}')
     with pytest.raises(BenchError, match="not a baseline"):
         B.Baseline.load(p)
+    # a directory given as the baseline raised IsADirectoryError (exit 1)
+    with pytest.raises(BenchError, match="a directory, not a baseline JSON"):
+        B.Baseline.load(tmp_path)
 
 
 def test_a_drive_offset_in_every_phase_is_not_friction(base):
