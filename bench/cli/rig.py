@@ -244,8 +244,10 @@ def _assess(args: argparse.Namespace) -> int:
 
 
 def _study(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
     from bench.rig.report import write
     from bench.rig.study import run_study
+    check_output_dir(args.out, "--out")
     cal = runs_list(args.calibrate_runs, "--calibrate-runs") or []
     hold = runs_list(args.holdout_runs, "--holdout-runs") or []
     only = [x.strip() for x in args.only.split(",")] if args.only else None

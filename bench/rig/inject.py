@@ -106,6 +106,12 @@ def scales(lb: B.LoadBaseline, at_mm: float | None = None) -> Scales:
                                  if p.direction == 0] or [0.0])
     out = next((p for p in strokes if p.direction > 0), strokes[0])
     mid = 0.5 * (float(np.min(out.position_mm)) + float(np.max(out.position_mm)))
+    if at_mm is not None:
+        lo = min(float(np.min(p.position_mm)) for p in strokes)
+        hi = max(float(np.max(p.position_mm)) for p in strokes)
+        if not (math.isfinite(at_mm) and lo <= at_mm <= hi):
+            raise BenchError(f"--at-mm {at_mm:g}: outside the measured stroke of load "
+                             f"{lb.load:g} ({lo:.1f} to {hi:.1f} mm): give a position in it")
     return Scales(lb.load, si, se, float(np.mean(above)), mid if at_mm is None else at_mm)
 
 
@@ -207,15 +213,20 @@ def _judged(lb: B.LoadBaseline, c: Cycle, thr: dict[str, float], lead: float
 def _tables(tables: list[str | Path], calibrate_runs: list[int], holdout_runs: list[int],
             lost: list[str]) -> tuple[list[Cycle], list[Cycle], list[str]]:
     """The calibration and the held-out cycles of the tables (each table read once; the
-    cycles that cannot be read are listed in `lost`)."""
+    cycles that cannot be read are listed in `lost`); BenchError naming the run list of
+    which the tables have no cycle."""
     cal: list[Cycle] = []
     hold: list[Cycle] = []
+    have: set[int] = set()
     for t in tables:
         for c in read_cycles(t, skipped=lost):
+            have.add(c.run)
             if c.run in calibrate_runs:
                 cal.append(c)
             elif c.run in holdout_runs:
                 hold.append(c)
+    P.check_runs(cal, hold, calibrate_runs, holdout_runs, have,
+                 ", ".join(map(str, tables)))
     return cal, hold, [Path(t).name for t in tables]
 
 
@@ -230,11 +241,10 @@ def run_inject(tables: list[str | Path], calibrate_runs: list[int],
     t0 = time.perf_counter()
     left_out: list[str] = []          # reported, never dropped silently
     cal, hold, names = _tables(tables, calibrate_runs, holdout_runs, left_out)
-    if not cal or not hold:
-        raise BenchError(f"{', '.join(map(str, tables))}: no cycle of the calibration runs "
-                         f"{calibrate_runs} or of the held-out runs {holdout_runs}")
     base = B.build(cal, names)
     base.lead_mm = lead_mm
+    for lb in base.loads.values():      # a bump outside the stroke: refused before the work
+        scales(lb, at_mm)
     cals = P.calibrate_loads(cal, alpha, lead_mm)
     left_out += [f"{c.label}: no healthy calibration run at load {c.load:g}: not scored"
                  for c in hold if c.load not in cals]
@@ -489,6 +499,8 @@ def run_cli(args: Any, cal: list[int], hold: list[int], command: str) -> int:
     import sys
     if args.lead_mm is None:
         raise BenchError("bench rig inject needs the screw's lead (--lead-mm or --actuator)")
+    if args.at_mm is not None and not math.isfinite(args.at_mm):
+        raise BenchError(f"--at-mm must be a finite position in mm, got {args.at_mm}")
     res = run_inject(args.tables, cal, hold, args.lead_mm, parse_sizes(args.sizes),
                      parse_kinds(args.kinds), args.alpha, args.at_mm,
                      progress=sys.stderr.isatty())

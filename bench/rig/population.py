@@ -120,6 +120,20 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None =
     return Calibration(cycles[0].load, runs, thr, scores, alpha)
 
 
+def check_runs(cal: list[Cycle], hold: list[Cycle], calibrate_runs: list[int],
+               holdout_runs: list[int], have: set[int], where: str) -> None:
+    """BenchError naming the run list (calibration, held-out, or both) of which `where`
+    has no cycle; `have`: the runs it has."""
+    empty = [f"the {what} runs {','.join(map(str, runs))} ({flag})"
+             for what, flag, runs, got in (("calibration", "--calibrate-runs", calibrate_runs,
+                                            cal),
+                                           ("held-out", "--holdout-runs", holdout_runs, hold))
+             if not got]
+    if empty:
+        raise BenchError(f"{where}: no cycle of {' nor of '.join(empty)}; the healthy "
+                         f"cycles read are of run(s) {','.join(map(str, sorted(have)))}")
+
+
 def calibrate_loads(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None = None
                     ) -> dict[float, Calibration]:
     """`calibrate` for each load of the healthy calibration cycles, in load order."""

@@ -52,12 +52,22 @@ def residual_figure(study: Study, path: Path) -> Path:
     return path
 
 
+NO_FAULT = ("No fault table scored (none in the folder, or none at a load the calibration "
+            "runs have: see Not scored): the study measured the held-out healthy false-alarm "
+            "rate only, no detection rate.")
+
+
 def detection_figure(study: Study, path: Path) -> Path:
     """Detection rate per stage and load, the bench's detector beside the z-score."""
     from matplotlib.figure import Figure
     conds = study.fault_conditions
     fig = Figure(figsize=(10, 4.0))
     ax = fig.subplots()
+    if not conds:                     # healthy runs only: a false-alarm check
+        ax.text(0.5, 0.5, NO_FAULT, ha="center", va="center", wrap=True)
+        ax.set_axis_off()
+        fig.savefig(path, dpi=90)
+        return path
     x = np.arange(len(conds))
     width = 0.8 / max(1, len(study.loads))
     for i, load in enumerate(study.loads):
@@ -133,6 +143,9 @@ def markdown(study: Study, command: str) -> str:
                      f"| {thr} |")
     lines += _cv_lines(sm)
     lines += [f"Not scored: {u}." for u in sm.get("unscored", [])]
+    if not study.fault_conditions:
+        lines += ["", NO_FAULT]
+        return "\n".join(lines + _cost_lines(sm)) + "\n"
     lines += ["", "Detection rate per stage (cycles flagged; in brackets the plain z-score "
               "at the same false-alarm rate) and the effect named:", "",
               "| stage | " + " | ".join(f"load {k}" for k in sm["loads"]) + " |",
@@ -164,8 +177,13 @@ def markdown(study: Study, command: str) -> str:
             lines.append(f"| {study.condition_label(cond)} | {load} | {d['located']} / {n} | "
                          f"{_mm(d['position_mm'])} | {_mm(d['position_iqr_mm'])} | "
                          f"{_mm(d['out_mm'])} | {_mm(d['in_mm'])} |")
+    return "\n".join(lines + _cost_lines(sm)) + "\n"
+
+
+def _cost_lines(sm: dict[str, Any]) -> list[str]:
+    """The cost table of the report."""
     c = sm["cost"]
-    lines += ["", f"Cost: one cycle's features and verdict {1e3 * c['cycle_s_median']:.2f} ms "
+    lines = ["", f"Cost: one cycle's features and verdict {1e3 * c['cycle_s_median']:.2f} ms "
               f"median, {1e3 * c['cycle_s_max']:.0f} ms max (in a worker, {c['cycles']} "
               "cycles); wall time per condition over `bench.workers.run_all` (the start of "
               "the two Dask workers, once per study, is in the first condition's):", "",
@@ -175,7 +193,7 @@ def markdown(study: Study, command: str) -> str:
     if c.get("cross_validation_s"):
         lines.append(f"| healthy cross-validation (in this process) | - | "
                      f"{c['cross_validation_s']:.2f} |")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def write(study: Study, out: Path, command: str) -> dict[str, Path]:

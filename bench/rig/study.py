@@ -87,6 +87,9 @@ def score_cycle(job: tuple[B.LoadBaseline, Cycle, float | None]) -> CycleResult:
 
 def table_files(directory: str | Path) -> list[Path]:
     d = Path(directory)
+    if d.is_file():
+        raise BenchError(f"{d}: a file, not a directory: give the folder of the rig's "
+                         "tables (the healthy table(s) and the fault tables)")
     if not d.is_dir():
         raise BenchError(f"no such directory: {d}")
     files = sorted(p for p in d.iterdir()
@@ -139,10 +142,8 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
     hname, hcycles = healthy_cycles(healthy_files, lost)
     cal = [c for c in hcycles if c.run in calibrate_runs]
     hold = [c for c in hcycles if c.run in holdout_runs]
-    if not cal or not hold:
-        raise BenchError(f"{', '.join(p.name for p in healthy_files)}: no cycle of the "
-                         f"calibration runs {calibrate_runs} or of the held-out runs "
-                         f"{holdout_runs}")
+    P.check_runs(cal, hold, calibrate_runs, holdout_runs, {c.run for c in hcycles},
+                 ", ".join(p.name for p in healthy_files))
     base = B.build(cal, [p.name for p in healthy_files])
     base.lead_mm = lead_mm
     cals = P.calibrate_loads(cal, alpha, lead_mm)
@@ -221,6 +222,7 @@ def summarise(study: Study) -> dict[str, Any]:
             row["stages"][cond] = d
         out["loads"][f"{load:g}"] = row
     out["unscored"] = list(study.unscored)
+    out["fault_tables_scored"] = list(study.fault_conditions)    # [] : healthy runs only
     secs = [r.seconds for c in study.results.values() for v in c.values() for r in v]
     out["cost"] = {"cycle_s_median": float(np.median(secs)), "cycle_s_max": float(max(secs)),
                    "cycles": len(secs), "wall_s": study.wall_s,

@@ -62,10 +62,19 @@ def test_the_localised_fault_is_placed_where_it_was_put(report):
 @pytest.mark.parametrize("flag,value,message", [
     ("--sizes", "0,1", "--sizes: every size must be a finite number > 0"),
     ("--kinds", "friction,wear", "--kinds: unknown wear"),
+    # a bump centred outside the stroke was injected nowhere: "0 % / 0 %, not reached"
+    ("--at-mm", "9999", "--at-mm 9999: outside the measured stroke of load 40 (19.9 to "
+                        "140.0 mm)"),
+    ("--at-mm", "nan", "--at-mm must be a finite position in mm, got nan"),
+    # which list has no cycle (it said: "of the calibration runs [1, 2] or of the held-out
+    # runs [3, 4]")
+    ("--calibrate-runs", "8,9", "no cycle of the calibration runs 8,9 (--calibrate-runs); "
+                                "the healthy cycles read are of run(s) 1,2,3,4"),
 ])
 def test_bad_input_is_one_line(tmp_path, capsys, flag, value, message):
     rc = main(["rig", "inject", str(HEALTHY), "--calibrate-runs", "1,2", "--holdout-runs",
-               "3,4", "--lead-mm", "5", flag, value, "--out", str(tmp_path / "o")])
+               "3,4", "--lead-mm", "5", "--kinds", "localised", "--sizes", "4", flag, value,
+               "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err.startswith("error: ") and message in err
     assert len(err.splitlines()) == 1

@@ -204,3 +204,48 @@ def test_inject_lists_the_cycles_it_leaves_out(tmp_path, capsys):
     assert any("cycle" in x and "samples 10 without current: not read" in x for x in left)
     assert any("not judged: incomplete cycle" in x for x in left)
     assert "Left out: " in (out / "inject.md").read_text()
+
+
+def test_a_folder_of_healthy_runs_only_is_a_false_alarm_check(tmp_path, capsys):
+    """A folder with no fault table to score (healthy runs only, or a fault table at a load
+    the calibration runs lack) crashed with IndexError in the detection figure after
+    baseline.json and study.json were written. Now the study finishes and says it
+    measured the healthy false-alarm rate only."""
+    from bench.cli import main
+    d = tmp_path / "rig"
+    d.mkdir()
+    shutil.copy(SAMPLE / HEALTHY, d / HEALTHY)
+    out = tmp_path / "out"
+    assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
+                 "--lead-mm", "5", "--workers", "1", "--out", str(out)]) == 0
+    assert "No fault table scored" in capsys.readouterr().out
+    md = (out / "report.md").read_text()
+    assert "No fault table scored" in md and "Detection rate per stage" not in md
+    sm = json.loads((out / "study.json").read_text())
+    assert sm["fault_tables_scored"] == [] and sm["loads"]["40"]["holdout"]["cycles"] == 10
+    assert (out / "detection.png").stat().st_size > 0
+
+
+def test_study_arguments_are_checked_before_the_work(tmp_path, capsys):
+    """An --out that cannot be written failed after the whole study (FileNotFoundError,
+    FileExistsError); a file given as the folder was "no such directory"; held-out runs
+    the table lacks were "no cycle of the calibration runs [1, 2] or of the held-out runs
+    [7, 8]" (which?)."""
+    from bench.cli import main
+    (tmp_path / "f").write_text("")
+    args = ["--calibrate-runs", "1,2", "--holdout-runs", "3,4", "--workers", "1"]
+    for out, err in ((tmp_path / "f", f"--out: cannot write into {tmp_path / 'f'}: it is "
+                      "not a directory"),
+                     (tmp_path / "f" / "x", f"--out: cannot write into {tmp_path / 'f' / 'x'}"
+                      f": {tmp_path / 'f'} is not a directory")):
+        assert main(["rig", "study", str(SAMPLE), *args, "--out", str(out)]) == 2
+        assert capsys.readouterr().err.strip() == f"error: {err}"
+    assert main(["rig", "study", str(SAMPLE / HEALTHY), *args, "--out",
+                 str(tmp_path / "o")]) == 2
+    assert f"{SAMPLE / HEALTHY}: a file, not a directory" in capsys.readouterr().err
+    assert main(["rig", "study", str(SAMPLE), "--calibrate-runs", "1,2", "--holdout-runs",
+                 "7,8", "--workers", "1", "--out", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: {HEALTHY}: no cycle of the held-out runs 7,8 (--holdout-runs); the healthy "
+        "cycles read are of run(s) 1,2,3,4")
+    assert not (tmp_path / "o").exists()
