@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.rig.baseline import LoadBaseline, build_load, residuals
+from bench.rig.baseline import MIN_CYCLES, LoadBaseline, build_load, residuals
 from bench.rig.cycles import Cycle
 from bench.rig.features import FEATURES, CycleFeatures, cycle_features, judge, location
 
@@ -104,6 +104,7 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None =
     if len(runs) < 2:
         raise BenchError(f"load {cycles[0].load:g}: thresholds need at least two healthy "
                          f"calibration runs (one held out at a time), got run(s) {runs}")
+    _check_folds(cycles, runs)
     scores: dict[str, list[float]] = {k: [] for k in FEATURES}
     for r in runs:
         lb = build_load([c for c in cycles if c.run != r])
@@ -118,6 +119,23 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None =
     per = alpha / len(usable)
     thr = {k: bound(v, per, NULLS.get(k, ("log", 0))) for k, v in usable.items()}
     return Calibration(cycles[0].load, runs, thr, scores, alpha)
+
+
+def _check_folds(cycles: list[Cycle], runs: list[int]) -> None:
+    """BenchError when a leave-one-run-out fold leaves fewer cycles than a baseline needs,
+    with the real counts (cycles per run), not the fold's alone."""
+    per = {r: sum(c.run == r for c in cycles) for r in runs}
+    for r in runs:
+        rest = len(cycles) - per[r]
+        if rest < MIN_CYCLES:
+            c = cycles[0]
+            load = f"{c.load:g} {c.load_unit}".strip()
+            others = ",".join(str(x) for x in runs if x != r)
+            raise BenchError(
+                f"load {load}: the thresholds are set leave-one-run-out, and with run {r} "
+                f"held out the other run(s) ({others}) have {rest} healthy cycle(s), fewer "
+                f"than the {MIN_CYCLES} a baseline needs (cycles per run: "
+                + ", ".join(f"run {k}: {n}" for k, n in per.items()) + ")")
 
 
 def check_runs(cal: list[Cycle], hold: list[Cycle], calibrate_runs: list[int],

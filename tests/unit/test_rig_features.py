@@ -93,6 +93,22 @@ def test_a_damaged_or_foreign_baseline_is_a_clear_error(tmp_path):
         B.Baseline.load(tmp_path)
 
 
+def test_thresholds_say_which_run_is_short_of_cycles():
+    """Thresholds of one run of 1 cycle and one of 5 said "a baseline needs at least 3
+    healthy cycles, got 1" although 6 were given: the 1 is what is left when run 2 is held
+    out (leave-one-run-out). Now the message says so, with the cycles per run."""
+    from bench.rig import population as P
+    rng = np.random.default_rng(3)
+    cyc = [trapezoid(rng, run=1, group=0)] + [trapezoid(rng, run=2, group=g)
+                                               for g in range(1, 6)]
+    with pytest.raises(BenchError) as exc:
+        P.calibrate(cyc)
+    assert str(exc.value) == (
+        "load 20: the thresholds are set leave-one-run-out, and with run 2 held out the "
+        "other run(s) (1) have 1 healthy cycle(s), fewer than the 3 a baseline needs "
+        "(cycles per run: run 1: 1, run 2: 5)")
+
+
 def test_a_drive_offset_in_every_phase_is_not_friction(base):
     """The stroke features read the current against the cycle's dwell: an offset of the
     whole cycle's current (the drive's) leaves the level alone, a stroke-only rise not."""
