@@ -23,6 +23,7 @@ import errno
 import io
 import json
 import os
+import zipfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -131,25 +132,78 @@ class Trace:
 
     @classmethod
     def load(cls, path: str | Path) -> Trace:
+        """A trace file written by `save`. A file that is not one, a time t_s that is not
+        finite and strictly increasing, or an infinite value (NaN, a missing value, is
+        fine) is a one-line BenchError naming the file."""
         path = Path(path)
         if not path.exists():
             raise BenchError(f"no such file: {path}")
         suffix = path.suffix.lower()
-        if suffix == ".npz":
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["__meta__"])) if "__meta__" in z else {}
-                cols = {k: z[k] for k in z.files if k != "__meta__"}
-            return cls(cols, meta)
-        if suffix == ".csv":
-            return cls(read_csv_columns(path.read_text()), {"source": str(path)})
-        if suffix == ".parquet":
-            import pyarrow.parquet as pq
-            table = pq.read_table(path)
-            md = table.schema.metadata or {}
-            meta = json.loads(md.get(b"bench_meta", b"{}"))
-            return cls({n: table.column(n).to_numpy().astype(float)
-                        for n in table.column_names}, meta)
-        raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
+        if suffix not in TABLE_FORMATS:
+            raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
+        try:
+            cols, meta = _read_columns(path, suffix)
+        except BenchError as exc:
+            raise BenchError(f"{exc}; {NOT_A_TRACE}") from None
+        except IsADirectoryError:
+            raise BenchError(f"{path}: is a directory, not a trace file") from None
+        except Exception as exc:  # noqa: BLE001 - zipfile, numpy, json, pyarrow raise many types
+            raise BenchError(f"{path}: not a readable {suffix} trace ({type(exc).__name__}: "
+                             f"{exc})") from None
+        if "t_s" not in cols:
+            raise BenchError(f"{path}: no time column t_s (it has: "
+                             f"{', '.join(sorted(cols)) or 'none'}); {NOT_A_TRACE}")
+        try:
+            tr = cls(cols, meta)
+        except BenchError as exc:
+            raise BenchError(f"{path}: {exc}") from None
+        _check_loaded(path, tr, suffix)
+        return tr
+
+
+NOT_A_TRACE = ("not a trace the bench wrote? A rig's own table is read with "
+               "`bench import TABLE --map MAP` (docs/real-data.md)")
+
+
+def _read_columns(path: Path, suffix: str) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """The columns and metadata of a trace file (`Trace.load`); a CSV's bad row is a
+    BenchError ``PATH line N: ...``."""
+    if suffix == ".npz":
+        if not zipfile.is_zipfile(path):           # np.load would try it as a pickle
+            raise zipfile.BadZipFile("not a zip archive, as an .npz file is")
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["__meta__"])) if "__meta__" in z else {}
+            return {k: z[k] for k in z.files if k != "__meta__"}, meta
+    if suffix == ".csv":
+        return read_csv_columns(path.read_text(encoding="utf-8"), str(path)), {"source": str(path)}
+    import pyarrow.parquet as pq
+    table = pq.read_table(path)
+    md = table.schema.metadata or {}
+    meta = json.loads(md.get(b"bench_meta", b"{}"))
+    return {n: table.column(n).to_numpy().astype(float) for n in table.column_names}, meta
+
+
+def _check_loaded(path: Path, tr: Trace, suffix: str) -> None:
+    """BenchError naming `path` unless t_s is finite and strictly increasing and no
+    column holds an infinite value."""
+    def row(i: int) -> str:
+        return f"line {i + 2}" if suffix == ".csv" else f"row {i + 1}"
+    t = tr.t
+    bad = np.flatnonzero(~np.isfinite(t))
+    if len(bad):
+        raise BenchError(f"{path} {row(int(bad[0]))}: the time t_s is {t[bad[0]]} "
+                         f"({len(bad)} row(s) without a finite time); a trace needs one in "
+                         "every row")
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if len(back):
+        k = int(back[0]) + 1
+        raise BenchError(f"{path} {row(k)}: the time t_s does not increase ({t[k - 1]:g} s, "
+                         f"then {t[k]:g} s); a trace's time must increase from row to row")
+    for name, v in tr.columns.items():
+        inf = np.flatnonzero(np.isinf(v))
+        if len(inf):
+            raise BenchError(f"{path} {row(int(inf[0]))}: column {name!r} holds an infinite "
+                             "value (a missing value is NaN; inf is no measurement)")
 
 
 def memory_available() -> int:
@@ -205,24 +259,36 @@ def check_save_path(path: str | Path) -> Path:
     return probe_output(path, "trace")
 
 
-def read_csv_columns(text: str) -> dict[str, np.ndarray]:
-    """Numeric columns of a CSV text with a header row; clear errors on bad rows."""
+def read_csv_columns(text: str, source: str = "CSV") -> dict[str, np.ndarray]:
+    """Numeric columns of a CSV text with a header row; clear errors on bad rows
+    (``{source} line N: ...``)."""
     rows = list(csv.reader(io.StringIO(text)))
     if not rows:
-        raise BenchError("empty CSV table")
+        raise BenchError(f"{source}: empty CSV table")
     header = [h.strip() for h in rows[0]]
     data: list[list[float]] = []
     for lineno, row in enumerate(rows[1:], start=2):
         if not row:
             continue
         if len(row) != len(header):
-            raise BenchError(f"CSV line {lineno}: {len(row)} fields, header has {len(header)}")
+            raise BenchError(f"{source} line {lineno}: {len(row)} fields, header has "
+                             f"{len(header)}")
         try:
             data.append([float(x) if x.strip() else float("nan") for x in row])
         except ValueError:
-            raise BenchError(f"CSV line {lineno}: non-numeric value in {row!r}") from None
+            bad = next(j for j, x in enumerate(row) if x.strip() and not _is_number(x))
+            raise BenchError(f"{source} line {lineno}: column {header[bad]!r} is not a number "
+                             f"({row[bad].strip()!r})") from None
     arr = np.array(data, dtype=float).reshape(-1, len(header))
     return {h: arr[:, i].copy() for i, h in enumerate(header)}
+
+
+def _is_number(x: str) -> bool:
+    try:
+        float(x)
+    except ValueError:
+        return False
+    return True
 
 
 def concat(traces: list[Trace]) -> Trace:

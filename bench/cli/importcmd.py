@@ -81,6 +81,7 @@ def _availability(tr: Trace) -> None:
 
 def _split(args: argparse.Namespace) -> int:
     from bench import BenchError
+    from bench.cli.outputs import check_output_dir
     from bench.gap.importer import read_map, split_table
     keys = [k.strip() for k in args.split_by.split(",") if k.strip()]
     if not keys:
@@ -89,6 +90,7 @@ def _split(args: argparse.Namespace) -> int:
     outdir = Path(args.output) if args.output else Path(args.table).parent / name
     if outdir.exists() and not outdir.is_dir():
         raise BenchError(f"-o {outdir}: not a directory (with --split-by, -o is a directory)")
+    check_output_dir(outdir, "-o")                   # before the import
     mapping = read_map(args.map)
     parts = split_table(args.table, mapping, keys, args.sync_period, args.source_rate)
     try:
@@ -96,7 +98,11 @@ def _split(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise BenchError(f"-o {outdir}: cannot create the directory ({exc.strerror})") from None
     for i, (stem, tr) in enumerate(parts):
-        path = tr.save(outdir / f"{stem}.{args.format}")
+        try:
+            path = tr.save(outdir / f"{stem}.{args.format}")
+        except OSError as exc:
+            raise BenchError(f"-o {outdir}: cannot write {stem}.{args.format} "
+                             f"({exc.strerror or exc})") from None
         if i < 3:
             _describe(path, tr)
     dts = sorted({round(float(tr.meta["sample_period_s"]), 9) for _, tr in parts})

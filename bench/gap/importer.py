@@ -31,6 +31,10 @@ Either way a NaN block (a run of rows where a column that usually has a value ha
 of a decoded log, and the block is listed in ``meta["nan_blocks"]`` (table rows, time
 span); the HUMS and the gap diagnosis bridge short ones and refuse or leave out what
 longer ones hold.
+
+Nothing is dropped silently: an infinite value, a row without a time or a split key, a
+time column with one value, and two rows at one time with different values are
+BenchErrors naming the file and line (a repeated identical row is merged into one).
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ import io
 import json
 import lzma
 import math
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -69,6 +74,7 @@ UNITS: dict[str, dict[str, float]] = {
 }
 
 COMPRESSED: dict[str, Any] = {".xz": lzma.open, ".gz": gzip.open, ".bz2": bz2.open}
+FINITE = "a value must be a finite number (leave a cell blank where there is no value)"
 
 
 @dataclass(frozen=True)
@@ -124,7 +130,7 @@ def read_map(path: str | Path) -> list[MapEntry]:
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such map file: {path}")
-    text = path.read_text()
+    text = _text(path, "map")
     rows: list[dict[str, Any]]
     if path.suffix.lower() == ".json":
         try:
@@ -158,8 +164,37 @@ def read_map(path: str | Path) -> list[MapEntry]:
     return entries
 
 
+@dataclass(frozen=True)
+class Rows:
+    """Where a table's data rows are in its file, for messages: a text table's line
+    numbers (``word`` "line"), a Parquet table's row numbers from 1 ("row")."""
+    path: Path
+    numbers: np.ndarray
+    word: str = "line"
+
+    def at(self, i: int) -> str:
+        """``PATH line N`` of data row `i`."""
+        return f"{self.path} {self.word} {int(self.numbers[i])}"
+
+    def some(self, idx: np.ndarray, most: int = 5) -> str:
+        """``line 7`` or ``lines 7, 9, 12 and 4 more`` of the data rows `idx`."""
+        nums = [str(int(self.numbers[i])) for i in idx[:most]]
+        more = f" and {len(idx) - most} more" if len(idx) > most else ""
+        return f"{self.word}{'s' if len(idx) > 1 else ''} {', '.join(nums)}{more}"
+
+    def take(self, mask: np.ndarray) -> Rows:
+        return Rows(self.path, self.numbers[mask], self.word)
+
+
 def read_table(path: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
     """The named columns of a CSV or Parquet table as float arrays (blank -> NaN)."""
+    return read_rows(path, columns)[0]
+
+
+def read_rows(path: str | Path, columns: list[str]) -> tuple[dict[str, np.ndarray], Rows]:
+    """`read_table`, and where its rows are in the file (`Rows`). An infinite value is
+    refused (a BenchError naming the file, line and column): it is no measurement, and
+    a cell with no value is left blank (NaN)."""
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such table: {path}")
@@ -173,7 +208,7 @@ def read_table(path: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
     raise BenchError(f"{path}: unknown table format {suffix!r} (use .csv or .parquet)")
 
 
-def _read_parquet(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
+def _read_parquet(path: Path, columns: list[str]) -> tuple[dict[str, np.ndarray], Rows]:
     """`read_table` of a Parquet file."""
     import pyarrow.parquet as pq
     try:
@@ -188,12 +223,16 @@ def _read_parquet(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
             out[c] = table.column(c).to_numpy(zero_copy_only=False).astype(float)
         except (ValueError, TypeError):
             raise BenchError(f"{path}: column {c!r} is not numeric") from None
-    return out
+        inf = np.flatnonzero(np.isinf(out[c]))
+        if len(inf):
+            raise BenchError(f"{path} row {int(inf[0]) + 1}: column {c!r} holds an infinite "
+                             f"value ({out[c][inf[0]]}); {FINITE}")
+    return out, Rows(path, np.arange(table.num_rows) + 1, "row")
 
 
-def _read_delimited(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
+def _read_delimited(path: Path, columns: list[str]) -> tuple[dict[str, np.ndarray], Rows]:
     """`read_table` of a CSV-like text file (the delimiter sniffed: , ; tab or space)."""
-    text = _text(path)
+    text = _text(path, "table")
     sample = text[:4096]
     try:
         dialect: type[csv.Dialect] = csv.Sniffer().sniff(sample, delimiters=",;\t ")
@@ -207,26 +246,46 @@ def _read_delimited(path: Path, columns: list[str]) -> dict[str, np.ndarray]:
     _check_columns(path, columns, header)
     idx = [header.index(c) for c in columns]
     data: list[list[float]] = []
-    for lineno, row in enumerate(rd, start=2):
-        if not row or all(not x.strip() for x in row):
-            continue
-        data.append(_row_values(path, lineno, row, idx, columns))
+    lines: list[int] = []
+    try:
+        for row in rd:
+            if not row or all(not x.strip() for x in row):
+                continue
+            lines.append(rd.line_num)
+            data.append(_row_values(path, rd.line_num, row, idx, columns))
+    except csv.Error as exc:
+        raise BenchError(f"{path} line {rd.line_num}: not a readable CSV row ({exc})") from None
     if not data:
         raise BenchError(f"{path}: the table has a header but no rows")
     arr = np.array(data, float)
-    return {c: arr[:, j] for j, c in enumerate(columns)}
+    return {c: arr[:, j] for j, c in enumerate(columns)}, Rows(path, np.array(lines))
 
 
-def _text(path: Path) -> str:
-    """A text table's content, decompressed when it ends in .xz, .gz or .bz2."""
-    opener = COMPRESSED.get(path.suffix.lower())
-    if opener is None:
-        return path.read_text()
+def _text(path: Path, what: str) -> str:
+    """A text file's content (a table decompressed when it ends in .xz, .gz or .bz2);
+    a directory, an unreadable, corrupt or non-UTF-8 file is a one-line BenchError."""
+    opener = COMPRESSED.get(path.suffix.lower()) if what == "table" else None
     try:
-        with opener(path, "rt") as fh:
-            return str(fh.read())
-    except (OSError, EOFError, ValueError) as exc:
-        raise BenchError(f"{path}: cannot decompress ({exc})") from None
+        if opener is None:
+            data = path.read_bytes()
+        else:
+            with opener(path, "rb") as fh:
+                data = fh.read()
+    except IsADirectoryError:
+        raise BenchError(f"{path}: is a directory, not a {what} file") from None
+    except (PermissionError, FileNotFoundError) as exc:
+        raise BenchError(f"{path}: cannot be read ({exc.strerror})") from None
+    except (OSError, EOFError, ValueError, lzma.LZMAError, zlib.error) as exc:
+        if opener is None:
+            raise BenchError(f"{path}: cannot be read ({exc})") from None
+        raise BenchError(f"{path}: cannot decompress ({type(exc).__name__}: {exc}); is it "
+                         f"a complete {path.suffix} file?") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise BenchError(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+                         f"{exc.start}); a {what} file must be UTF-8 text"
+                         + (" (or Parquet)" if what == "table" else "")) from None
 
 
 def _row_values(path: Path, lineno: int, row: list[str], idx: list[int],
@@ -236,10 +295,14 @@ def _row_values(path: Path, lineno: int, row: list[str], idx: list[int],
     for i, c in zip(idx, columns, strict=True):
         x = row[i].strip() if i < len(row) else ""
         try:
-            vals.append(float(x) if x else math.nan)
+            v = float(x) if x else math.nan
         except ValueError:
             raise BenchError(f"{path} line {lineno}: column {c!r} is not a number: "
                              f"{x!r}") from None
+        if math.isinf(v):
+            raise BenchError(f"{path} line {lineno}: column {c!r} holds an infinite value "
+                             f"({x!r}); {FINITE}")
+        vals.append(v)
     return vals
 
 
@@ -255,8 +318,8 @@ def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: floa
     """The mapped table as a trace: at its own sample instants (``sync_period_s`` None,
     the default), or resampled to a SYNC grid of that period (see module doc)."""
     by_sig = {e.signal: e for e in mapping}
-    raw = read_table(table, map_columns(mapping))
-    return build_trace(raw, by_sig, str(table), sync_period_s, source_rate_hz)
+    raw, rows = read_rows(table, map_columns(mapping))
+    return build_trace(raw, by_sig, str(table), sync_period_s, source_rate_hz, rows)
 
 
 def map_columns(mapping: list[MapEntry]) -> list[str]:
@@ -272,24 +335,31 @@ def split_table(table: str | Path, mapping: list[MapEntry], keys: list[str],
     if not keys:
         raise BenchError("--split-by names no column")
     by_sig = {e.signal: e for e in mapping}
-    raw = read_table(table, sorted(set(map_columns(mapping)) | set(keys)))
+    if "t_s" in by_sig and by_sig["t_s"].column in keys:
+        raise BenchError(f"--split-by {by_sig['t_s'].column}: that is the table's time column "
+                         "(t_s in the map), not a key of a run; split by the columns that "
+                         "tell the runs apart (e.g. load,run,group)")
+    raw, where = read_rows(table, sorted(set(map_columns(mapping)) | set(keys)))
     kv = np.column_stack([raw[k] for k in keys])
     bad = ~np.isfinite(kv).all(axis=1)
     if bad.all():
         raise BenchError(f"{table}: the split column(s) {', '.join(keys)} have no values")
-    _, first, inverse = np.unique(np.where(bad[:, None], 0.0, kv), axis=0,
-                                  return_index=True, return_inverse=True)
+    if bad.any():
+        idx = np.flatnonzero(bad)
+        raise BenchError(f"{table}: {len(idx)} row(s) without a value in the split "
+                         f"column(s) {', '.join(keys)} ({where.some(idx)}): fill in the "
+                         "key or delete the row(s)")
+    _, first, inverse = np.unique(kv, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
     out = []
     for g in np.argsort(first):
-        rows = (inverse == g) & ~bad
-        if not rows.any():
-            continue
-        vals = kv[np.flatnonzero(rows)[0]]
+        rows = inverse == g
+        vals = kv[first[g]]
         name = "_".join(f"{k}={_key_text(v)}" for k, v in zip(keys, vals, strict=True))
         part = {c: v[rows] for c, v in raw.items()}
         try:
-            tr = build_trace(part, by_sig, str(table), sync_period_s, source_rate_hz)
+            tr = build_trace(part, by_sig, str(table), sync_period_s, source_rate_hz,
+                             where.take(rows))
         except BenchError as exc:
             raise BenchError(f"{name}: {exc}") from None
         tr.meta["split"] = {k: float(v) for k, v in zip(keys, vals, strict=True)}
@@ -303,23 +373,28 @@ def _key_text(v: float) -> str:
 
 
 def build_trace(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry], source: str,
-                sync_period_s: float | None, source_rate_hz: float | None) -> Trace:
-    """The trace of the table columns `raw` (see `import_table`)."""
+                sync_period_s: float | None, source_rate_hz: float | None,
+                rows: Rows | None = None) -> Trace:
+    """The trace of the table columns `raw` (see `import_table`); `rows`: where they are
+    in the table file (default: data row i on line i + 2 of `source`)."""
     if sync_period_s is not None and not (1e-5 <= sync_period_s <= 1.0):
         raise BenchError("the SYNC period must be between 10 us and 1 s")
-    t = _time_column(raw, by_sig, source_rate_hz)
+    if rows is None:
+        rows = Rows(Path(source), np.arange(len(next(iter(raw.values())))) + 2)
+    t = _time_column(raw, by_sig, source_rate_hz, rows)
     values = {sig: _values(raw, e) for sig, e in by_sig.items() if sig != "t_s"}
     if not values:
         raise BenchError("the map maps no signal besides time")
+    first = _same_time(t, values, by_sig, rows)
     if sync_period_s is None:
-        return _native(values, by_sig, t, source)
+        return _native(values, by_sig, t, source, first, rows)
     series = {}
     holes: dict[str, list[tuple[int, int, float, float]]] = {}
     for sig, y in values.items():
         e = by_sig[sig]
         ok = np.isfinite(y) & np.isfinite(t)
         holes[sig] = nan_blocks(ok, t)
-        series[sig] = _signal_series(sig, e, t, y, ok)
+        series[sig] = _signal_series(sig, e, t, y, ok, rows)
     t0 = max(ts[0] for ts, _ in series.values())
     t1 = min(ts[-1] for ts, _ in series.values())
     if t1 - t0 < sync_period_s:
@@ -342,20 +417,20 @@ def _values(raw: dict[str, np.ndarray], e: MapEntry) -> np.ndarray:
 
 
 def _native(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry], t: np.ndarray,
-            source: str) -> Trace:
-    """The trace at the table's own sample instants: no interpolation; a row a signal
-    has no value in stays NaN (its blocks listed as in the resampled case)."""
-    rows = np.flatnonzero(np.isfinite(t))
-    if len(rows) < 2:
-        raise BenchError("the table has fewer than 2 rows with a time")
-    ts = t[rows]
-    d = np.diff(ts)
+            source: str, kept: np.ndarray, where: Rows) -> Trace:
+    """The trace at the table's own sample instants (`kept`: the rows that do not
+    repeat the time of the row before): no interpolation; a row a signal has no value
+    in stays NaN (its blocks listed as in the resampled case)."""
+    if len(t) < 2:
+        raise BenchError(f"{where.path}: the table has fewer than 2 rows with a time")
+    d = np.diff(t)
     if np.any(d < 0):
         k = int(np.argmax(d < 0))
-        raise BenchError(f"time goes backwards in the table at row {int(rows[k + 1]) + 2} "
+        raise BenchError(f"{where.path}: time goes backwards in the table at {where.word} "
+                         f"{int(where.numbers[k + 1])} "
                          "(sort the table first, or split it: --split-by)")
-    keep = np.concatenate([[True], d > 0])
-    rows, ts = rows[keep], ts[keep]
+    rows = np.flatnonzero(kept)
+    ts = t[rows]
     out: dict[str, np.ndarray] = {}
     blocks = []
     for sig, y in values.items():
@@ -363,7 +438,8 @@ def _native(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry], t: np.nd
         ys = y[rows]
         ok = np.isfinite(ys)
         if ok.sum() < 2:
-            raise BenchError(f"column {e.column!r} ({sig}) has fewer than 2 values")
+            raise BenchError(f"{where.path}: column {e.column!r} ({sig}) has fewer than 2 "
+                             "values")
         if e.wrap:
             ys[ok] = np.unwrap(ys[ok], period=abs(e.wrap * e.factor))
         if sig == "mode":
@@ -382,12 +458,23 @@ def _native(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry], t: np.nd
 
 
 def _time_column(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
-                 source_rate_hz: float | None) -> np.ndarray:
-    """The table's time in s: its mapped t_s column, else rows at `source_rate_hz`."""
+                 source_rate_hz: float | None, where: Rows) -> np.ndarray:
+    """The table's time in s: its mapped t_s column (a value in every row, not the same
+    in all), else rows at `source_rate_hz`."""
     n = len(next(iter(raw.values())))
     if "t_s" in by_sig:
         e = by_sig["t_s"]
-        return raw[e.column] * e.factor
+        t = raw[e.column] * e.factor
+        idx = np.flatnonzero(~np.isfinite(t))
+        if len(idx):
+            raise BenchError(f"{where.path}: {len(idx)} row(s) without a time in column "
+                             f"{e.column!r} ({where.some(idx)}): every row needs its time; "
+                             "fill it in or delete the row(s)")
+        if n >= 2 and np.all(t == t[0]):
+            raise BenchError(f"{where.path}: every row has the same time in column "
+                             f"{e.column!r} ({raw[e.column][0]:g} {e.unit}): the time column "
+                             "must increase (is t_s mapped to the table's time column?)")
+        return t
     if source_rate_hz:
         if source_rate_hz <= 0:
             raise BenchError("the source rate must be > 0 Hz")
@@ -396,8 +483,34 @@ def _time_column(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
                      "give the table's fixed rate (--source-rate)")
 
 
+def _same_time(t: np.ndarray, values: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
+               where: Rows) -> np.ndarray:
+    """The rows that do not repeat the time of the row before. A row that does is merged
+    into the first row of its time: a value that row lacks is taken from it (`values`
+    changed in place); a repeated row is harmless, but a different value at the same
+    time is a BenchError naming both lines (one of them would be lost)."""
+    dup = np.flatnonzero(np.diff(t) == 0) + 1
+    first = np.ones(len(t), bool)
+    first[dup] = False
+    if not len(dup):
+        return first
+    start = np.maximum.accumulate(np.where(first, np.arange(len(t)), 0))
+    for sig, y in values.items():
+        for j in dup[np.isfinite(y[dup])]:
+            k = start[j]
+            if np.isnan(y[k]):
+                y[k] = y[j]
+            elif y[k] != y[j]:
+                raise BenchError(
+                    f"{where.path} {where.word}s {int(where.numbers[k])} and "
+                    f"{int(where.numbers[j])}: the same time ({t[j]:g} s) with different "
+                    f"values in column {by_sig[sig].column!r} ({sig}); a time must name one "
+                    "sample: delete or correct one of the rows")
+    return first
+
+
 def _signal_series(sig: str, e: MapEntry, t: np.ndarray, y: np.ndarray,
-                   ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                   ok: np.ndarray, where: Rows) -> tuple[np.ndarray, np.ndarray]:
     """(times, values) of one mapped signal's valid rows: time must not go backwards,
     repeated times keep their first row, wrapped angles are unwrapped."""
     ts, ys = t[ok], y[ok]
@@ -406,8 +519,9 @@ def _signal_series(sig: str, e: MapEntry, t: np.ndarray, y: np.ndarray,
     d = np.diff(ts)
     if np.any(d < 0):
         k = int(np.argmax(d < 0))
-        raise BenchError(f"time goes backwards in the table for {e.column!r} at row "
-                         f"{int(np.flatnonzero(ok)[k + 1]) + 2} (sort the table first)")
+        raise BenchError(f"{where.path}: time goes backwards in the table for {e.column!r} at "
+                         f"{where.word} {int(where.numbers[np.flatnonzero(ok)[k + 1]])} "
+                         "(sort the table first)")
     if np.any(d == 0):
         keep = np.concatenate([[True], d > 0])
         ts, ys = ts[keep], ys[keep]

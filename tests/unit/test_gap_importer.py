@@ -97,5 +97,88 @@ def test_time_going_backwards_is_reported(tmp_path):
     (tmp_path / "t.csv").write_text("t,x\n0,1\n0.002,2\n0.001,3\n0.003,4\n")
     (tmp_path / "m.json").write_text(json.dumps({"t_s": {"column": "t", "unit": "s"},
                                                  "position_m": {"column": "x", "unit": "m"}}))
-    with pytest.raises(BenchError, match="time goes backwards.*row 4"):
+    with pytest.raises(BenchError, match="t.csv: time goes backwards.*line 4"):
         import_table(tmp_path / "t.csv", read_map(tmp_path / "m.json"))
+
+
+TX = {"t_s": {"column": "t", "unit": "s"}, "current_a": {"column": "i", "unit": "A"}}
+
+
+def _tx(tmp_path, body: str, name: str = "t.csv"):
+    """A two-column table t,i (body: its data lines) and the map of both."""
+    (tmp_path / name).write_text("t,i\n" + body)
+    (tmp_path / "m.json").write_text(json.dumps(TX))
+    return tmp_path / name, read_map(tmp_path / "m.json")
+
+
+def test_an_infinite_value_is_refused_naming_line_and_column(tmp_path):
+    table, mapping = _tx(tmp_path, "0,1\n0.1,2\n0.2,inf\n0.3,4\n")
+    with pytest.raises(BenchError, match=r"t.csv line 4: column 'i' holds an infinite value"):
+        import_table(table, mapping)
+    table, mapping = _tx(tmp_path, "0,1\n-inf,2\n0.2,3\n")
+    with pytest.raises(BenchError, match=r"t.csv line 3: column 't' holds an infinite value"):
+        import_table(table, mapping)
+
+
+def test_an_infinite_value_in_parquet_is_refused_naming_the_row(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    pq.write_table(pa.table({"t": [0.0, 0.1, 0.2], "i": [1.0, math.inf, 2.0]}),
+                   tmp_path / "t.parquet")
+    (tmp_path / "m.json").write_text(json.dumps(TX))
+    with pytest.raises(BenchError, match=r"t.parquet row 2: column 'i' holds an infinite"):
+        import_table(tmp_path / "t.parquet", read_map(tmp_path / "m.json"))
+
+
+def test_a_row_without_a_time_is_refused_not_dropped(tmp_path):
+    table, mapping = _tx(tmp_path, "0,1\n0.1,2\n,3\n0.3,4\n")
+    for sync in (None, 0.05):
+        with pytest.raises(BenchError, match=r"1 row\(s\) without a time in column 't' "
+                                             r"\(line 4\)"):
+            import_table(table, mapping, sync)
+
+
+def test_a_repeated_time_with_another_value_is_refused(tmp_path):
+    table, mapping = _tx(tmp_path, "0,1\n0.1,2\n0.1,5\n0.2,3\n")
+    for sync in (None, 0.05):
+        with pytest.raises(BenchError, match=r"t.csv lines 3 and 4: the same time \(0.1 s\) "
+                                             r"with different values in column 'i'"):
+            import_table(table, mapping, sync)
+
+
+def test_a_repeated_row_is_dropped_and_a_blank_filled_from_its_twin(tmp_path):
+    table, mapping = _tx(tmp_path, "0,1\n0.1,2\n0.1,2\n0.2,\n0.2,3\n0.3,4\n")
+    tr = import_table(table, mapping)
+    np.testing.assert_allclose(tr.t, [0, 0.1, 0.2, 0.3])
+    np.testing.assert_allclose(tr["current_a"], [1, 2, 3, 4])     # nothing lost
+
+
+def test_a_constant_time_column_is_named(tmp_path):
+    table, mapping = _tx(tmp_path, "0,1\n0,2\n0,3\n")
+    with pytest.raises(BenchError, match="every row has the same time in column 't' "
+                                         r"\(0 s\): the time column must increase"):
+        import_table(table, mapping)
+
+
+@pytest.mark.parametrize("name, data, msg", [
+    ("t.csv.xz", b"not xz at all", r"t.csv.xz: cannot decompress \(LZMAError"),
+    ("t.csv.gz", b"\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\xffgarbage!!", "t.csv.gz: cannot decompress"),
+    ("t.csv.bz2", b"BZh9garbage", "t.csv.bz2: cannot decompress"),
+    ("t.csv", b"\xfd7zXZ\x00\x00binary", r"t.csv: not UTF-8 text \(byte 0xfd at offset 0\)"),
+    ("t.csv", "t,i\n0,\xe9\n".encode("latin-1"), r"not UTF-8 text \(byte 0xe9 at offset 6\)"),
+])
+def test_a_corrupt_or_binary_table_is_one_line(tmp_path, name, data, msg):
+    (tmp_path / name).write_bytes(data)
+    (tmp_path / "m.json").write_text(json.dumps(TX))
+    with pytest.raises(BenchError, match=msg):
+        import_table(tmp_path / name, read_map(tmp_path / "m.json"))
+
+
+def test_a_directory_as_table_or_map_is_one_line(tmp_path):
+    (tmp_path / "d.csv").mkdir()
+    (tmp_path / "d.json").mkdir()
+    (tmp_path / "m.json").write_text(json.dumps(TX))
+    with pytest.raises(BenchError, match="d.csv: is a directory, not a table file"):
+        import_table(tmp_path / "d.csv", read_map(tmp_path / "m.json"))
+    with pytest.raises(BenchError, match="d.json: is a directory, not a map file"):
+        read_map(tmp_path / "d.json")

@@ -94,3 +94,36 @@ def test_cli_bad_split_column_is_one_line(tmp_path, capsys):
                  "--split-by", "load,cycle", "-o", str(tmp_path / "runs")]) != 0
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "'cycle'" in err and err.count("\n") == 1
+
+
+def test_split_by_the_time_column_is_refused(tmp_path):
+    cranfield_like(tmp_path / "t.csv")
+    (tmp_path / "m.json").write_text(json.dumps(MAP))
+    with pytest.raises(BenchError, match="--split-by time: that is the table's time column"):
+        split_table(tmp_path / "t.csv", read_map(tmp_path / "m.json"), ["load", "time"])
+
+
+def test_split_rows_without_a_key_are_refused_not_dropped(tmp_path):
+    cranfield_like(tmp_path / "t.csv")
+    lines = (tmp_path / "t.csv").read_text().splitlines()
+    for n in (5, 40):                                      # group blank, then nan
+        f = lines[n - 1].split(",")
+        f[7] = "" if n == 5 else "nan"
+        lines[n - 1] = ",".join(f)
+    (tmp_path / "t.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "m.json").write_text(json.dumps(MAP))
+    with pytest.raises(BenchError, match=r"t.csv: 2 row\(s\) without a value in the split "
+                                         r"column\(s\) load, run, group \(lines 5, 40\)"):
+        split_table(tmp_path / "t.csv", read_map(tmp_path / "m.json"), ["load", "run", "group"])
+
+
+def test_cli_split_checks_the_output_directory_first(tmp_path, capsys, monkeypatch):
+    cranfield_like(tmp_path / "t.csv")
+    (tmp_path / "m.json").write_text(json.dumps(MAP))
+    import bench.gap.importer as imp
+    monkeypatch.setattr(imp, "split_table", lambda *a, **k: pytest.fail("split first"))
+    out = tmp_path / "t.csv" / "runs"                       # under a file: cannot be made
+    assert main(["import", str(tmp_path / "t.csv"), "--map", str(tmp_path / "m.json"),
+                 "--split-by", "load,run,group", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: -o: cannot write into {out}: {out.parent} is not a directory\n"
