@@ -143,7 +143,7 @@ def simulate(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s:
              dx0: float = 0.0) -> dict[str, np.ndarray]:
     """The model's signals at `tr`'s instants under `method`; the closed loop starts
     with the nut at the first position sample + `dx0`."""
-    load = (tr["load_force_n"] * (act.values.get("load_sign") or 1.0) if _has(tr, "load_force_n")
+    load = (tr["load_force_n"] * load_sign(act) if _has(tr, "load_force_n")
             else np.zeros(len(tr)))
     pos = np.asarray(tr["position_m"], float)
     if method == "measured-current":
@@ -155,6 +155,13 @@ def simulate(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s:
     if _has(tr, "current_a"):
         out["current_a"] = i
     return out
+
+
+def load_sign(act: Actuator) -> float:
+    """The description's load sign (+1 or -1, validated by `bench.actuator`); +1 when it
+    is unknown (`_notes` says so)."""
+    sign = act.values.get("load_sign")
+    return 1.0 if sign is None else float(sign)
 
 
 def floors(tr: Trace) -> dict[str, float]:
@@ -368,6 +375,9 @@ def _notes(act: Actuator, method: str, period_s: float,
                      "cascade) and the logged current as offset + |force current|; the "
                      "chopper's current regulation, idle-current reduction, step/microstep "
                      "ripple and resonances are not represented")
+    if act.values.get("load_sign") is None:
+        notes.append("load sign unknown: a positive logged load is taken to push the nut "
+                     "to +x (load_sign +1; not identified)")
     if act.controller.get("current_loop_tau_s") is None:
         notes.append("current loop taken as ideal (time constant 0): not identified")
     return notes
