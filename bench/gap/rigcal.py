@@ -243,13 +243,9 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     fit_scores = [score(theta, t, act, method, period_s) for t in healthy]
     held = [score(theta, t, act, method, period_s) for t in holdout]
     reach = _reaches(held or fit_scores)
-    if not reach:
-        notes.append(f"no model of this family reaches {FLOOR_FACTOR:g} x the noise floor on "
-                     f"the {'held-out' if held else 'calibration'} logs: diagnose against a "
-                     "baseline built from several healthy runs (the healthy-baseline "
-                     "fallback, docs/real-data.md: bench calibrate builds it from the "
-                     "calibration logs when they repeat one set-point cycle) rather than "
-                     "against this model")
+    unscored = not_scored(fit_scores, held, holdout)
+    notes += [f"held-out {u['log']}: {u['signal']} not scored ({u['reason']}): only "
+              f"{', '.join(u['scored']) or 'nothing'} judged on it" for u in unscored]
     return {
         "model": "generic nut-level model (bench.gap.rigmodel)",
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,
@@ -261,10 +257,27 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
         "described": {k: v for k, v in model_values(act).items() if v is not None},
         "fit_logs": [_src(t) for t in healthy], "fit_scores": fit_scores,
         "holdout_logs": [_src(t) for t in holdout], "holdout_scores": held,
-        "holdout_summary": summary(held), "reaches_noise_floor": reach,
+        "holdout_summary": summary(held), "holdout_not_scored": unscored,
+        "reaches_noise_floor": reach,
         "floor_factor": FLOOR_FACTOR, "notes": notes,
         "seconds": round(time.perf_counter() - t0, 3),
     }
+
+
+def not_scored(fit_scores: Sequence[dict[str, Any]], held: Sequence[dict[str, Any]],
+               holdout: Sequence[Trace]) -> list[dict[str, Any]]:
+    """The signals scored on the calibration logs that a held-out log could not be scored
+    on, with the reason (the log lacks the signal)."""
+    fitted = sorted({s for sc in fit_scores for s in sc})
+    out = []
+    for sc, tr in zip(held, holdout, strict=True):
+        for s in fitted:
+            if s not in sc:
+                why = (f"the log has no {s}" if not _has(tr, s) else
+                       f"the model gives no {s} under this method")
+                out.append({"log": _src(tr), "signal": s, "reason": why,
+                            "scored": list(sc)})
+    return out
 
 
 METHOD_TEXT = {
