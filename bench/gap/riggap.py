@@ -71,7 +71,34 @@ def calibration_of(cal: dict[str, Any], path: str | Path) -> tuple[dict[str, Any
     if not isinstance(desc, dict):
         raise BenchError(f"{path}: a calibration of another actuator needs its "
                          "\"actuator_description\" (bench calibrate --actuator writes it)")
+    check_values(cal, path)
     return cal, from_dict(desc, str(path))
+
+
+def check_values(cal: dict[str, Any], path: str | Path) -> None:
+    """The model values, method and sample period a generic calibration is re-simulated
+    with (`rigcal.theta_of`, `rigcal.simulate`): a one-line BenchError naming the field
+    that is missing or not a number."""
+    redo = "re-run bench calibrate --actuator"
+    vals = cal.get("values")
+    if not isinstance(vals, dict):
+        raise BenchError(f"{path}: no \"values\" object (the calibrated model values; "
+                         f"{redo})")
+    for k in RM.THETA:
+        if k not in vals and k in RM.EXTRA:
+            continue
+        v = vals.get(k)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise BenchError(f"{path}: values.{k} must be a finite number, got "
+                             f"{'nothing' if k not in vals else repr(v)} ({redo})")
+    if cal.get("method") not in RC.NEEDS and cal.get("method") != "described":
+        raise BenchError(f"{path}: method must be one of {', '.join(RC.NEEDS)}, described; "
+                         f"got {cal.get('method')!r} ({redo})")
+    per = cal.get("sample_period_s")
+    if isinstance(per, bool) or not isinstance(per, (int, float)) or not per > 0 \
+            or not math.isfinite(per):
+        raise BenchError(f"{path}: sample_period_s must be a number of seconds > 0, got "
+                         f"{per!r} ({redo})")
 
 
 def _regimes(tr: Trace) -> dict[str, np.ndarray]:

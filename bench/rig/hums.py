@@ -242,15 +242,18 @@ def summary_text(a: RigAnalysis) -> str:
 
 def calibration_file(nominal: str) -> dict[str, Any]:
     """A calibration of `bench calibrate --actuator` (BenchError otherwise)."""
-    from bench.gap.inputs import read_nominal
-    from bench.gap.riggap import is_rig_doc
+    from bench.gap.inputs import BaselineAsNominal, read_nominal
+    from bench.gap.riggap import calibration_of, is_rig_doc
     if not Path(nominal).exists():
         raise BenchError(f"no such calibration: {nominal}")
     try:
         data: dict[str, Any] | None = read_nominal(nominal)   # read once
+    except BaselineAsNominal:
+        raise                          # a baseline given as --nominal: its own message
     except BenchError:
         data = None                    # unreadable or not a JSON object: said below
     if data is None or not is_rig_doc(data):
         raise BenchError(f"{nominal}: not a calibration of `bench calibrate --actuator` "
                          "(the thesis report takes --set NAME=VALUE instead)")
+    calibration_of(data, nominal)      # its description, values, method, sample period
     return dict(data)
