@@ -422,9 +422,11 @@ def _run_rig_report(args: argparse.Namespace) -> int:
 
 
 def run_report(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
     from bench.hums.report import write_report
     if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
         raise BenchError("--period must be > 0 s")
+    check_output_dir(args.out, "--out")             # before the logs are analysed
     if _rig_report(args):
         return _run_rig_report(args)
     page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,

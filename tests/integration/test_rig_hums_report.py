@@ -178,3 +178,26 @@ def test_a_log_of_several_cycles_with_its_load_in_newtons(data, calibrated, tmp_
     assert code == 0 and b["cycles"] == 3 and b["load"] == 40.0
     assert any("judged at the baseline's 40" in n for n in b["notes"])
     assert js["verdict"] == "DEGRADED" and b["flagged"] >= 2
+
+
+def rig_log(path: Path, seconds: float = 13.0, current: bool = True) -> Path:
+    """A 25 Hz rig table: a 20 -> 140 mm trapezoid, position lagging, current."""
+    from bench.trace import Trace
+    t = np.arange(int(round(seconds / 0.04))) * 0.04
+    sp = np.interp(t, [0, 0.3, 5.3, 8.3, 13.3], [0.02, 0.02, 0.14, 0.14, 0.02])
+    cols = {"t_s": t, "setpoint_position_m": sp, "position_m": np.roll(sp, 2)}
+    if current:
+        cols["current_a"] = 0.3 + 0.1 * np.sign(np.gradient(sp))
+    Trace(cols).save(path)
+    return path
+
+
+def test_an_output_directory_that_cannot_be_made_is_one_line_before_the_work(tmp_path,
+                                                                              capsys):
+    # was FileNotFoundError at the catch-all (rc 1) after the analysis
+    log = rig_log(tmp_path / "rig.npz")
+    (tmp_path / "afile").write_text("")
+    assert main(["hums", "report", str(log), "--out", str(tmp_path / "afile" / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"error: --out: cannot write into {tmp_path / 'afile' / 'x'}: "
+                   f"{tmp_path / 'afile'} is not a directory"]
