@@ -43,6 +43,9 @@ NEEDS = {
 }
 """Signals each calibration method needs (current_a is also used by fit-gains if logged)."""
 MIN_FLOOR = {"position_m": 1e-7, "current_a": 1e-4}
+MIN_SAMPLES = 5
+"""Measured samples a signal's noise floor needs (`rigmodel.noise_floor`): a log with
+fewer position samples cannot be scored against the model."""
 DEFAULT_PERIOD_S = 1e-3
 X0_FLOORS = 20.0     # the initial nut position is fitted within +- this many floors
 GAINS = ("kp_1_s", "kv_a_s_per_m", "ki_a_per_m", "feedforward", "current_limit_a")
@@ -52,6 +55,19 @@ LINEAR = ("current_offset_a", "feedforward")     # fitted on a linear scale, oth
 
 def _has(tr: Trace, name: str) -> bool:
     return name in tr and bool(np.isfinite(tr[name]).any())
+
+
+def too_short(tr: Trace) -> str | None:
+    """Why `tr` is too short to be scored against the model (None when it is not): its
+    length and what it needs (`MIN_SAMPLES` position samples)."""
+    n = int(np.isfinite(tr["position_m"]).sum()) if "position_m" in tr else 0
+    if n >= MIN_SAMPLES:
+        return None
+    dt = tr.dt
+    span = float(tr.t[-1] - tr.t[0]) if len(tr) else 0.0
+    rate = f", {(MIN_SAMPLES - 1) * dt:.3g} s at its {dt * 1e3:.3g} ms rate" if dt > 0 else ""
+    return (f"the log is too short: {n} position sample(s) over {span:.3g} s; the model's "
+            f"noise floor needs at least {MIN_SAMPLES} samples{rate}")
 
 
 def choose_method(traces: Sequence[Trace], act: Actuator, method: str) -> str:
@@ -70,10 +86,13 @@ def choose_method(traces: Sequence[Trace], act: Actuator, method: str) -> str:
                          "logged current is not its torque): log the set-point instead")
     for i, tr in enumerate(traces):
         miss = [s for s in NEEDS.get(method, NEEDS["fit-gains"]) if not _has(tr, s)]
+        src = tr.meta.get("source", f"log {i + 1}")
         if miss:
-            src = tr.meta.get("source", f"log {i + 1}")
             raise BenchError(f"{src}: calibration ({method}) not available: needs "
                              f"{', '.join(miss)}")
+        short = too_short(tr)
+        if short:
+            raise BenchError(f"{src}: calibration ({method}) not available: {short}")
     return method
 
 

@@ -229,6 +229,10 @@ def diagnose_rig(tr: Trace, cal: dict[str, Any], act: Actuator,
     if lack:
         raise BenchError(f"the gap against a generic calibration not available: needs "
                          f"{', '.join(lack)}")
+    short = RC.too_short(tr)
+    if short:
+        raise BenchError(f"{tr.meta.get('source', 'log')}: the gap against a generic "
+                         f"calibration not available: {short}")
     sim, fl = model_signals(tr, cal, act)
     loc = localise(tr, sim, fl)
     ratios = {s: math.sqrt(e) for s, e in loc["energy"].items()}

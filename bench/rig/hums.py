@@ -129,6 +129,12 @@ def _sections(trace: Trace, ref: FB.Reference, rig: bool) -> dict[str, str | Non
                "HEALTHY... --actuator DESC, then --nominal CAL.json)")
         out[MODEL_CP] = out[MODEL_CP] or why
         out[MODEL_CI] = out[MODEL_CI] or why
+    else:
+        from bench.gap.rigcal import too_short
+        short = too_short(trace)
+        if short:
+            out[MODEL_CP] = out[MODEL_CP] or f"not available: {short}"
+            out[MODEL_CI] = out[MODEL_CI] or f"not available: {short}"
     if ref.kind != "baseline":
         out[BASELINE] = out[BASELINE] or (
             "not available: needs a healthy baseline (--baseline BASE.json from bench rig "
@@ -205,10 +211,14 @@ def _verdict(a: RigAnalysis, ref: FB.Reference) -> tuple[str, list[str]]:
                            f"the calibrated model {ref.cal_path}")
     m = a.model
     if m is None:
-        return "UNKNOWN", pre + ["no verdict without a reference: a calibration of this "
-                                 "actuator (--nominal CAL.json) or a healthy baseline "
-                                 "(--baseline BASE.json)" if ref.kind == "none" else
-                                 "no reference this log can be judged against"]
+        if ref.kind == "none":
+            why = ("no verdict without a reference: a calibration of this actuator "
+                   "(--nominal CAL.json) or a healthy baseline (--baseline BASE.json)")
+        elif ref.calibration is not None and a.sections[MODEL_CP]:
+            why = f"the calibrated model gave no verdict ({a.sections[MODEL_CP]})"
+        else:
+            why = "no reference this log can be judged against"
+        return "UNKNOWN", pre + [why]
     reasons = []
     for s, r in m["rms_ratio"].items():
         side = "above" if r > m["threshold"][s] else "within"

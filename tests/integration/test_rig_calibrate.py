@@ -165,3 +165,13 @@ def test_a_held_out_log_that_is_a_fitted_one_is_refused(tmp_path, capsys, copy):
     assert main(["calibrate", str(tmp_path / "h1.npz"), str(held), "--actuator",
                  "cranfield", "-o", str(cal)]) == 2
     assert f"{held} is given twice as a healthy log" in capsys.readouterr().err
+
+
+def test_a_log_too_short_for_a_noise_floor_is_refused():
+    # a 2-sample log was calibrated with rc 0 and NaN ratios
+    short = synthetic(1, 0.0)
+    short.columns = {k: v[:3] for k, v in short.columns.items()}
+    with pytest.raises(BenchError, match=r"synthetic 1: calibration \(described\) not "
+                       r"available: the log is too short: 3 position sample\(s\) over 0.08 s; "
+                       r"the model's noise floor needs at least 5 samples, 0.16 s"):
+        RC.calibrate_rig([short], from_dict(DESCRIBED))
