@@ -17,8 +17,9 @@ Each section declares the signals it needs (`SECTIONS`, read through
   baseline's, the rig features (`bench.rig.features`) and their verdict.
 
 The verdict is the baseline's when one is the reference (`bench.rig.fallback.choose`),
-else the model's (HEALTHY within its threshold, DEGRADED above), else UNKNOWN (no
-reference); it always states what it was judged against.
+else the model's (HEALTHY within its threshold, DEGRADED above; UNKNOWN when the log
+lacks a signal the calibration's healthy logs were scored on, or is too short for the
+model), else UNKNOWN (no reference); it always states what it was judged against.
 """
 
 from __future__ import annotations
@@ -179,6 +180,7 @@ def _model(a: RigAnalysis, ref: FB.Reference) -> None:
     a.model = {"calibration": ref.cal_path, "indexes": RG.indexes(a.trace, sim),
                "rms_ratio": ratios, "threshold": thr, "noise_floor": fl,
                "significant": any(ratios[s] > thr[s] for s in ratios),
+               "not_judged": RG.not_judged(cal, ratios),
                "reaches_noise_floor": bool(cal.get("reaches_noise_floor")),
                "healthy_ratio": FB.model_ratio(cal)}
 
@@ -225,6 +227,10 @@ def _verdict(a: RigAnalysis, ref: FB.Reference) -> tuple[str, list[str]]:
         reasons.append(f"{s} RMS {r:.2f} x its noise floor, {side} the threshold "
                        f"{m['threshold'][s]:.2f} (the calibration's worst healthy ratio, at "
                        "least 2)")
+    if m.get("not_judged"):      # a verdict without a signal it rests on is no verdict
+        return "UNKNOWN", pre + reasons + [
+            "the calibrated model's verdict needs every signal its healthy logs were scored "
+            "on; not judged: " + "; ".join(f"{s} ({why})" for s, why in m["not_judged"].items())]
     return ("DEGRADED" if m["significant"] else "HEALTHY"), pre + reasons
 
 

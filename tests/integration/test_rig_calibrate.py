@@ -175,3 +175,20 @@ def test_a_log_too_short_for_a_noise_floor_is_refused():
                        r"available: the log is too short: 3 position sample\(s\) over 0.08 s; "
                        r"the model's noise floor needs at least 5 samples, 0.16 s"):
         RC.calibrate_rig([short], from_dict(DESCRIBED))
+
+
+def test_the_gap_on_a_log_without_current_ranks_no_current_effect_and_says_so():
+    # current_offset was ranked (and fitted) on a log without current, and the
+    # "no significant gap" did not say current was not judged
+    from bench.gap import riggap as RG
+    cal = RC.calibrate_rig([synthetic(1, 200.0)], from_dict(DESCRIBED))
+    log = synthetic(3, 0.0)
+    del log.columns["current_a"]
+    js = RG.diagnose_rig(log, cal, from_dict(DESCRIBED), ("current_offset", "inertia"))
+    assert [r["effect"] for r in js["ranking"]] == ["inertia"]
+    assert js["not_available"] == {
+        "current_offset": "not available: needs current_a (the log has no current_a)"}
+    assert js["judged_on"] == ["position_m"]
+    assert js["not_judged"] == {"current_a": "the log has no current_a"}
+    assert "judged on position_m only; not judged: current_a (the log has no current_a)" \
+        in RG.text(js).splitlines()[-1]

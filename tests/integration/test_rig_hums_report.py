@@ -234,3 +234,20 @@ def test_a_log_too_short_for_the_model_says_how_long_it_is_and_must_be(tmp_path,
     assert why in capsys.readouterr().err
     assert main(["gap", str(log), "--nominal", str(cal)]) == 2
     assert why.replace("not available: ", "") in capsys.readouterr().err
+
+
+def test_a_log_without_a_signal_the_model_was_scored_on_gets_no_verdict(tmp_path, capsys):
+    # was HEALTHY (rc 0) on position alone, with Ci "not available"
+    log = rig_log(tmp_path / "nocur.npz", current=False)
+    code, js, _ = _report([log, "--nominal", rig_calibration(tmp_path / "cal.json")],
+                          tmp_path / "out")
+    assert code == 3 and js["verdict"] == "UNKNOWN"
+    assert js["reasons"][-1] == ("the calibrated model's verdict needs every signal its "
+                                 "healthy logs were scored on; not judged: current_a (the "
+                                 "log has no current_a)")
+    assert js["model"]["rms_ratio"].keys() == {"position_m"}
+    assert "not judged: current_a" in capsys.readouterr().err
+    # a calibration scored on position only judges the same log
+    cal = rig_calibration(tmp_path / "cal_pos.json", scored=("position_m",))
+    code, js, _ = _report([log, "--nominal", cal], tmp_path / "out2")
+    assert code == 0 and js["verdict"] in ("HEALTHY", "DEGRADED")
