@@ -307,5 +307,5 @@ def text(js: dict[str, Any]) -> str:
         lines.append(f"  {i}. {r['effect']:21s} dBIC {r['delta_bic']:9.1f}  {vals}")
     for e, why in js.get("not_available", {}).items():
         lines.append(f"  {e}: {why}")
-    lines.append(f"verdict: {js['verdict']} ({judged_text(js)}; baseline: {js['baseline']})")
+    lines.append(f"verdict: {js['verdict']} (baseline: {js['baseline']}); {judged_text(js)}")
     return "\n".join(lines)
