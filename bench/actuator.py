@@ -60,7 +60,8 @@ MECHANISM: dict[str, Field] = {
     "coulomb_friction_n": Field("N", 0.0, 1e6, "Coulomb friction at the nut"),
     "viscous_friction_n_s_per_m": Field("N s/m", 0.0, 1e8, "viscous friction at the nut"),
     "current_offset_a": Field("A", -100.0, 100.0, "offset of the logged current"),
-    "load_sign": Field("-", -1.0, 1.0, "+1: a positive logged load pushes the nut to +x"),
+    "load_sign": Field("-", -1.0, 1.0, "+1: a positive logged load pushes the nut to +x, "
+                       "-1: to -x (only these two, or unknown: taken as +1)"),
     "encoder_speed_window_periods": Field(
         "sample periods", 0.0, 16.0,
         "how the drive computes the logged motor speed: N >= 1 = the encoder count "
@@ -159,6 +160,10 @@ def from_dict(data: dict[str, Any], where: str = "actuator") -> Actuator:
     if structure not in STRUCTURES:
         raise BenchError(f"{where}: controller structure must be one of "
                          f"{', '.join(STRUCTURES)}, got {structure!r}")
+    sign = values["load_sign"]
+    if sign is not None and sign not in (-1.0, 1.0):
+        raise BenchError(f"{where}: load_sign must be +1 or -1 (the direction a positive "
+                         f"logged load pushes the nut) or \"unknown\", got {sign:g}")
     gains = _group(ctrl, CONTROLLER, f"{where} controller", sources, ("structure",))
     refs = data.get("sources", [])
     refs = [refs] if isinstance(refs, str) else list(refs)

@@ -96,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap.inputs import load_nominal
     check_output_file(args.output, "-o", (".json",), stdout_ok=True)   # before the fit
     args.controller = controller_of(args)
+    distinct_logs(args.log, args.holdout)                   # before the fit
     if args.actuator:
         if args.friction_split != "model":
             raise BenchError("--friction-split is for the thesis plant's model; with "
@@ -165,16 +166,39 @@ def _thesis_logs(args: argparse.Namespace) -> tuple[Any, list[Any]]:
         raise BenchError(f"{args.log[0]}: the thesis plant's calibration not available: "
                          f"needs {', '.join(lack)}; for another actuator give --actuator "
                          "DESC (docs/real-data.md)")
-    same = [h for h in args.holdout if Path(h).resolve() == Path(args.log[0]).resolve()]
-    if same:
-        raise BenchError(f"--holdout {same[0]} is the calibration log itself: a held-out "
-                         "log must be another healthy run")
     held = [load_log(h) for h in args.holdout]
     for h, tr in zip(args.holdout, held, strict=True):
         if missing(tr, [n for n in NEEDS["calibrate: thesis plant"] if n != SYNC_RATE]):
             raise BenchError(f"{h}: held-out log not usable: needs "
                              f"{', '.join(missing(tr, NEEDS['calibrate: thesis plant']))}")
     return log, held
+
+
+def distinct_logs(healthy: list[str], holdout: list[str]) -> None:
+    """Every log once: a held-out log that is one of the fitted ones (the same file, or
+    the same bytes under another name) or a log given twice is a one-line error (a
+    duplicate would score the fit on its own data, or count one run twice)."""
+    import hashlib
+
+    from bench import BenchError
+    seen: dict[Any, tuple[str, str]] = {}
+    for role, p in [("healthy", h) for h in healthy] + [("--holdout", h) for h in holdout]:
+        path = Path(p)
+        if not path.is_file():
+            continue                                # load_log says it
+        keys = [("file", path.resolve()),
+                ("content", path.stat().st_size, hashlib.sha256(path.read_bytes()).digest())]
+        for key in keys:
+            if key in seen:
+                role0, p0 = seen[key]
+                same = "the same file as" if key[0] == "file" else "the same content as"
+                if role == "--holdout" and role0 == "healthy":
+                    raise BenchError(f"--holdout {p} is {same} the fitted log {p0}: a "
+                                     "held-out log must be another healthy run")
+                raise BenchError(f"{p} is given twice as a {role} log ({same} {p0}): give "
+                                 "each log once")
+        for key in keys:
+            seen[key] = (role, p)
 
 
 def controller_text(ctrl: dict[str, Any]) -> str:

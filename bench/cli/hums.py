@@ -150,7 +150,11 @@ def _add_report(s: argparse._SubParsersAction) -> None:
                      "ECU mode or speed set-point, e.g. a rig's table at 25 Hz imported with "
                      "`bench import`) gets the model-free indexes, and with --nominal or "
                      "--baseline the calibrated model's indexes or the healthy baseline's "
-                     "features and verdict; what it cannot support is listed as not available.")
+                     "features and verdict; what it cannot support is listed as not available. "
+                     "Judged against the calibrated model, its verdict needs every signal the "
+                     "calibration's healthy logs were scored on (position, and current when "
+                     "they had it) and at least 5 position samples: without one the verdict "
+                     "is UNKNOWN (exit 3).")
     q.add_argument("logs", nargs="+", metavar="LOG", help="bus log (.log, .asc, .blf, .trc, .mf4) or trace file")
     q.add_argument("--out", default="hums-report", metavar="DIR",
                    help="output directory (default: %(default)s)")
@@ -422,9 +426,11 @@ def _run_rig_report(args: argparse.Namespace) -> int:
 
 
 def run_report(args: argparse.Namespace) -> int:
+    from bench.cli.outputs import check_output_dir
     from bench.hums.report import write_report
     if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
         raise BenchError("--period must be > 0 s")
+    check_output_dir(args.out, "--out")             # before the logs are analysed
     if _rig_report(args):
         return _run_rig_report(args)
     page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,

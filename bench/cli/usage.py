@@ -92,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
 
     from bench.bus.logs import load_trace
     from bench.usage import UsageSettings, accumulate, usage_of_trace
-    from bench.usage.accumulator import missing_signals, trace_params
-    from bench.usage.table import format_table
+    from bench.usage.accumulator import trace_params
+    from bench.usage.table import format_table, notes
 
     _check(args)
     settings = _settings(args, UsageSettings)
@@ -105,14 +105,17 @@ def run(args: argparse.Namespace) -> int:
         if args.load_rating_n is not None:
             params = params.with_dict({"screw.dynamic_load_rating_n": args.load_rating_n})
         runs.append((f, usage_of_trace(tr, settings, params)))
-        lacking = missing_signals(tr)
-        if lacking:
-            print(f"{f}: no {'; no '.join(lacking)}: those quantities are 0", file=sys.stderr)
     print(format_table([(Path(f).name, s) for f, s in runs]))
+    for f, s in runs:
+        for line in notes(Path(f).name, s):
+            print(line)
     per_actuator = accumulate([s for _, s in runs])
     if args.by_actuator:
         print()
         print(format_table([(f"actuator {k}", s) for k, s in per_actuator.items()]))
+        for k, s in per_actuator.items():
+            for line in notes(f"actuator {k}", s):
+                print(line)
     if args.json:
         doc = {"settings": settings.to_dict(),
                "runs": [{"file": str(f), **s.to_json()} for f, s in runs],

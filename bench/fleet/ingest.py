@@ -63,13 +63,15 @@ def usage_columns(trace: Trace) -> dict[str, Any]:
     from bench.usage.settings import TEMP_EDGES_K
     u = usage_of_trace(trace)
     d = u.as_dict()
-    hot = sum(float(t) for lo, t in zip(TEMP_EDGES_K[:-1], u.temperature_time_s, strict=True)
-              if lo >= HOT_K)
+    hot = None if "temperature_time_s" in u.not_available else sum(
+        float(t) for lo, t in zip(TEMP_EDGES_K[:-1], u.temperature_time_s, strict=True)
+        if lo >= HOT_K)
     row = {"travel_m": d["nut_travel_m"], "screw_revs": d["screw_revolutions"],
-           "reversals": int(d["reversals"]), "equivalent_load_n": d["fm_n"],
+           "reversals": int(d["reversals"]) if math.isfinite(d["reversals"]) else None,
+           "equivalent_load_n": d["fm_n"],
            "life_consumed": d["life_consumed"], "i2t_a2s": d["i2t_a2s"],
            "time_hot_s": hot}
-    return {k: (v if isinstance(v, int) or math.isfinite(v) else None)
+    return {k: (v if v is None or isinstance(v, int) or math.isfinite(v) else None)
             for k, v in row.items()}
 
 

@@ -27,6 +27,10 @@ SAMPLING = ("sample_period_s", "resampled", "split")
 resampled, and the key values it was split by (`bench import --split-by`)."""
 
 
+class BaselineAsNominal(BenchError):
+    """A healthy baseline file given where a calibration or parameter file goes."""
+
+
 def load_log(path: str | Path) -> Trace:
     """A log or trace file as a Trace of measured columns (BenchError if unreadable)."""
     from bench.bus.logs import load_trace
@@ -56,6 +60,11 @@ def read_nominal(path: str | Path) -> dict[str, Any]:
         raise BenchError(f"{path}: cannot be read ({exc})") from None
     if not isinstance(data, dict):
         raise BenchError(f"{path}: expected a JSON object")
+    from bench.rig.baseline import FORMAT
+    if data.get("format") == FORMAT:
+        raise BaselineAsNominal(f"{path}: a healthy baseline (bench rig baseline), not a calibration "
+                         f"or parameter file: bench gap and bench hums report take it with "
+                         f"--baseline {path}")
     return data
 
 

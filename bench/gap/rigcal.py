@@ -43,6 +43,9 @@ NEEDS = {
 }
 """Signals each calibration method needs (current_a is also used by fit-gains if logged)."""
 MIN_FLOOR = {"position_m": 1e-7, "current_a": 1e-4}
+MIN_SAMPLES = 5
+"""Measured samples a signal's noise floor needs (`rigmodel.noise_floor`): a log with
+fewer position samples cannot be scored against the model."""
 DEFAULT_PERIOD_S = 1e-3
 X0_FLOORS = 20.0     # the initial nut position is fitted within +- this many floors
 GAINS = ("kp_1_s", "kv_a_s_per_m", "ki_a_per_m", "feedforward", "current_limit_a")
@@ -52,6 +55,19 @@ LINEAR = ("current_offset_a", "feedforward")     # fitted on a linear scale, oth
 
 def _has(tr: Trace, name: str) -> bool:
     return name in tr and bool(np.isfinite(tr[name]).any())
+
+
+def too_short(tr: Trace) -> str | None:
+    """Why `tr` is too short to be scored against the model (None when it is not): its
+    length and what it needs (`MIN_SAMPLES` position samples)."""
+    n = int(np.isfinite(tr["position_m"]).sum()) if "position_m" in tr else 0
+    if n >= MIN_SAMPLES:
+        return None
+    dt = tr.dt
+    span = float(tr.t[-1] - tr.t[0]) if len(tr) else 0.0
+    rate = f", {(MIN_SAMPLES - 1) * dt:.3g} s at its {dt * 1e3:.3g} ms rate" if dt > 0 else ""
+    return (f"the log is too short: {n} position sample(s) over {span:.3g} s; the model's "
+            f"noise floor needs at least {MIN_SAMPLES} samples{rate}")
 
 
 def choose_method(traces: Sequence[Trace], act: Actuator, method: str) -> str:
@@ -70,10 +86,13 @@ def choose_method(traces: Sequence[Trace], act: Actuator, method: str) -> str:
                          "logged current is not its torque): log the set-point instead")
     for i, tr in enumerate(traces):
         miss = [s for s in NEEDS.get(method, NEEDS["fit-gains"]) if not _has(tr, s)]
+        src = tr.meta.get("source", f"log {i + 1}")
         if miss:
-            src = tr.meta.get("source", f"log {i + 1}")
             raise BenchError(f"{src}: calibration ({method}) not available: needs "
                              f"{', '.join(miss)}")
+        short = too_short(tr)
+        if short:
+            raise BenchError(f"{src}: calibration ({method}) not available: {short}")
     return method
 
 
@@ -143,7 +162,7 @@ def simulate(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s:
              dx0: float = 0.0) -> dict[str, np.ndarray]:
     """The model's signals at `tr`'s instants under `method`; the closed loop starts
     with the nut at the first position sample + `dx0`."""
-    load = (tr["load_force_n"] * (act.values.get("load_sign") or 1.0) if _has(tr, "load_force_n")
+    load = (tr["load_force_n"] * load_sign(act) if _has(tr, "load_force_n")
             else np.zeros(len(tr)))
     pos = np.asarray(tr["position_m"], float)
     if method == "measured-current":
@@ -155,6 +174,13 @@ def simulate(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s:
     if _has(tr, "current_a"):
         out["current_a"] = i
     return out
+
+
+def load_sign(act: Actuator) -> float:
+    """The description's load sign (+1 or -1, validated by `bench.actuator`); +1 when it
+    is unknown (`_notes` says so)."""
+    sign = act.values.get("load_sign")
+    return 1.0 if sign is None else float(sign)
 
 
 def floors(tr: Trace) -> dict[str, float]:
@@ -236,13 +262,9 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     fit_scores = [score(theta, t, act, method, period_s) for t in healthy]
     held = [score(theta, t, act, method, period_s) for t in holdout]
     reach = _reaches(held or fit_scores)
-    if not reach:
-        notes.append(f"no model of this family reaches {FLOOR_FACTOR:g} x the noise floor on "
-                     f"the {'held-out' if held else 'calibration'} logs: diagnose against a "
-                     "baseline built from several healthy runs (the healthy-baseline "
-                     "fallback, docs/real-data.md: bench calibrate builds it from the "
-                     "calibration logs when they repeat one set-point cycle) rather than "
-                     "against this model")
+    unscored = not_scored(fit_scores, held, holdout)
+    notes += [f"held-out {u['log']}: {u['signal']} not scored ({u['reason']}): only "
+              f"{', '.join(u['scored']) or 'nothing'} judged on it" for u in unscored]
     return {
         "model": "generic nut-level model (bench.gap.rigmodel)",
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,
@@ -254,10 +276,27 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
         "described": {k: v for k, v in model_values(act).items() if v is not None},
         "fit_logs": [_src(t) for t in healthy], "fit_scores": fit_scores,
         "holdout_logs": [_src(t) for t in holdout], "holdout_scores": held,
-        "holdout_summary": summary(held), "reaches_noise_floor": reach,
+        "holdout_summary": summary(held), "holdout_not_scored": unscored,
+        "reaches_noise_floor": reach,
         "floor_factor": FLOOR_FACTOR, "notes": notes,
         "seconds": round(time.perf_counter() - t0, 3),
     }
+
+
+def not_scored(fit_scores: Sequence[dict[str, Any]], held: Sequence[dict[str, Any]],
+               holdout: Sequence[Trace]) -> list[dict[str, Any]]:
+    """The signals scored on the calibration logs that a held-out log could not be scored
+    on, with the reason (the log lacks the signal)."""
+    fitted = sorted({s for sc in fit_scores for s in sc})
+    out = []
+    for sc, tr in zip(held, holdout, strict=True):
+        for s in fitted:
+            if s not in sc:
+                why = (f"the log has no {s}" if not _has(tr, s) else
+                       f"the model gives no {s} under this method")
+                out.append({"log": _src(tr), "signal": s, "reason": why,
+                            "scored": list(sc)})
+    return out
 
 
 METHOD_TEXT = {
@@ -368,6 +407,9 @@ def _notes(act: Actuator, method: str, period_s: float,
                      "cascade) and the logged current as offset + |force current|; the "
                      "chopper's current regulation, idle-current reduction, step/microstep "
                      "ripple and resonances are not represented")
+    if act.values.get("load_sign") is None:
+        notes.append("load sign unknown: a positive logged load is taken to push the nut "
+                     "to +x (load_sign +1; not identified)")
     if act.controller.get("current_loop_tau_s") is None:
         notes.append("current loop taken as ideal (time constant 0): not identified")
     return notes

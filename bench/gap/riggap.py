@@ -55,6 +55,9 @@ DOC = {
     "localised_resistance": "a resistance at one nut position (spall, dent, debris)",
 }
 NEEDS = ("setpoint_position_m", "position_m")
+CURRENT_EFFECTS = ("current_offset",)
+"""Effects that act only through the logged current (the model's current offset is added
+to its logged current, nothing else): ranked only on a log with current_a."""
 BIC_MARGIN = 10.0
 NBINS = 10
 
@@ -71,7 +74,34 @@ def calibration_of(cal: dict[str, Any], path: str | Path) -> tuple[dict[str, Any
     if not isinstance(desc, dict):
         raise BenchError(f"{path}: a calibration of another actuator needs its "
                          "\"actuator_description\" (bench calibrate --actuator writes it)")
+    check_values(cal, path)
     return cal, from_dict(desc, str(path))
+
+
+def check_values(cal: dict[str, Any], path: str | Path) -> None:
+    """The model values, method and sample period a generic calibration is re-simulated
+    with (`rigcal.theta_of`, `rigcal.simulate`): a one-line BenchError naming the field
+    that is missing or not a number."""
+    redo = "re-run bench calibrate --actuator"
+    vals = cal.get("values")
+    if not isinstance(vals, dict):
+        raise BenchError(f"{path}: no \"values\" object (the calibrated model values; "
+                         f"{redo})")
+    for k in RM.THETA:
+        if k not in vals and k in RM.EXTRA:
+            continue
+        v = vals.get(k)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise BenchError(f"{path}: values.{k} must be a finite number, got "
+                             f"{'nothing' if k not in vals else repr(v)} ({redo})")
+    if cal.get("method") not in RC.NEEDS and cal.get("method") != "described":
+        raise BenchError(f"{path}: method must be one of {', '.join(RC.NEEDS)}, described; "
+                         f"got {cal.get('method')!r} ({redo})")
+    per = cal.get("sample_period_s")
+    if isinstance(per, bool) or not isinstance(per, (int, float)) or not per > 0 \
+            or not math.isfinite(per):
+        raise BenchError(f"{path}: sample_period_s must be a number of seconds > 0, got "
+                         f"{per!r} ({redo})")
 
 
 def _regimes(tr: Trace) -> dict[str, np.ndarray]:
@@ -198,14 +228,24 @@ def diagnose_rig(tr: Trace, cal: dict[str, Any], act: Actuator,
                  candidates: tuple[str, ...] = tuple(CANDIDATES)) -> dict[str, Any]:
     """Localisation, indexes, ranking and verdict of `tr` against `cal` (module doc)."""
     t0 = time.perf_counter()
-    lack = [s for s in NEEDS if s not in tr or not np.isfinite(tr[s]).any()]
+    needs = dict.fromkeys(NEEDS + RC.NEEDS.get(str(cal.get("method")), ()))
+    lack = [s for s in needs if s not in tr or not np.isfinite(tr[s]).any()]
     if lack:
         raise BenchError(f"the gap against a generic calibration not available: needs "
                          f"{', '.join(lack)}")
+    short = RC.too_short(tr)
+    if short:
+        raise BenchError(f"{tr.meta.get('source', 'log')}: the gap against a generic "
+                         f"calibration not available: {short}")
     sim, fl = model_signals(tr, cal, act)
     loc = localise(tr, sim, fl)
     ratios = {s: math.sqrt(e) for s, e in loc["energy"].items()}
     thr = thresholds(cal, ratios)
+    unjudged = not_judged(cal, ratios)
+    why = unjudged.get("current_a", "the log has no current_a")
+    absent = {e: f"not available: needs current_a ({why})"
+              for e in candidates if e in CURRENT_EFFECTS and "current_a" not in ratios}
+    candidates = tuple(e for e in candidates if e not in absent)
     significant = any(ratios[s] > thr[s] for s in ratios)
     n = sum(int(np.isfinite(tr[s]).sum()) for s in ratios)
     rss0, _ = _fit_candidate(tr, act, cal, (), fl, 0.0)
@@ -232,8 +272,25 @@ def diagnose_rig(tr: Trace, cal: dict[str, Any], act: Actuator,
             "baseline": f"calibration of {act.name} on {len(cal.get('fit_logs', []))} "
                         "healthy log(s)",
             "rms_ratio": ratios, "threshold": thr, "significant": significant,
+            "judged_on": list(ratios), "not_judged": unjudged, "not_available": absent,
             "localisation": loc, "indexes": indexes(tr, sim), "ranking": ranking,
             "verdict": verdict, "seconds": round(time.perf_counter() - t0, 3)}
+
+
+def not_judged(cal: dict[str, Any], ratios: dict[str, float]) -> dict[str, str]:
+    """The signals the calibration was scored on (its healthy logs) that the log could not
+    be judged on, with the reason (the log has none)."""
+    healthy = cal.get("holdout_summary") or RC.summary(cal.get("fit_scores", []))
+    return {s: f"the log has no {s}" for s in healthy if s not in ratios}
+
+
+def judged_text(js: dict[str, Any]) -> str:
+    """Which signals the diagnosis judged, and which of the calibration's it could not."""
+    out = "judged on " + ", ".join(js["judged_on"])
+    if js.get("not_judged"):
+        out += " only; not judged: " + "; ".join(f"{s} ({why})"
+                                                for s, why in js["not_judged"].items())
+    return out
 
 
 def text(js: dict[str, Any]) -> str:
@@ -248,5 +305,7 @@ def text(js: dict[str, Any]) -> str:
     for i, r in enumerate(js["ranking"][:4], start=1):
         vals = "; ".join(f"{k} = {v:.4g}" for k, v in r["values"].items())
         lines.append(f"  {i}. {r['effect']:21s} dBIC {r['delta_bic']:9.1f}  {vals}")
-    lines.append(f"verdict: {js['verdict']} (baseline: {js['baseline']})")
+    for e, why in js.get("not_available", {}).items():
+        lines.append(f"  {e}: {why}")
+    lines.append(f"verdict: {js['verdict']} (baseline: {js['baseline']}); {judged_text(js)}")
     return "\n".join(lines)

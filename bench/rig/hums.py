@@ -17,8 +17,9 @@ Each section declares the signals it needs (`SECTIONS`, read through
   baseline's, the rig features (`bench.rig.features`) and their verdict.
 
 The verdict is the baseline's when one is the reference (`bench.rig.fallback.choose`),
-else the model's (HEALTHY within its threshold, DEGRADED above), else UNKNOWN (no
-reference); it always states what it was judged against.
+else the model's (HEALTHY within its threshold, DEGRADED above; UNKNOWN when the log
+lacks a signal the calibration's healthy logs were scored on, or is too short for the
+model), else UNKNOWN (no reference); it always states what it was judged against.
 """
 
 from __future__ import annotations
@@ -129,6 +130,12 @@ def _sections(trace: Trace, ref: FB.Reference, rig: bool) -> dict[str, str | Non
                "HEALTHY... --actuator DESC, then --nominal CAL.json)")
         out[MODEL_CP] = out[MODEL_CP] or why
         out[MODEL_CI] = out[MODEL_CI] or why
+    else:
+        from bench.gap.rigcal import too_short
+        short = too_short(trace)
+        if short:
+            out[MODEL_CP] = out[MODEL_CP] or f"not available: {short}"
+            out[MODEL_CI] = out[MODEL_CI] or f"not available: {short}"
     if ref.kind != "baseline":
         out[BASELINE] = out[BASELINE] or (
             "not available: needs a healthy baseline (--baseline BASE.json from bench rig "
@@ -173,6 +180,7 @@ def _model(a: RigAnalysis, ref: FB.Reference) -> None:
     a.model = {"calibration": ref.cal_path, "indexes": RG.indexes(a.trace, sim),
                "rms_ratio": ratios, "threshold": thr, "noise_floor": fl,
                "significant": any(ratios[s] > thr[s] for s in ratios),
+               "not_judged": RG.not_judged(cal, ratios),
                "reaches_noise_floor": bool(cal.get("reaches_noise_floor")),
                "healthy_ratio": FB.model_ratio(cal)}
 
@@ -205,16 +213,24 @@ def _verdict(a: RigAnalysis, ref: FB.Reference) -> tuple[str, list[str]]:
                            f"the calibrated model {ref.cal_path}")
     m = a.model
     if m is None:
-        return "UNKNOWN", pre + ["no verdict without a reference: a calibration of this "
-                                 "actuator (--nominal CAL.json) or a healthy baseline "
-                                 "(--baseline BASE.json)" if ref.kind == "none" else
-                                 "no reference this log can be judged against"]
+        if ref.kind == "none":
+            why = ("no verdict without a reference: a calibration of this actuator "
+                   "(--nominal CAL.json) or a healthy baseline (--baseline BASE.json)")
+        elif ref.calibration is not None and a.sections[MODEL_CP]:
+            why = f"the calibrated model gave no verdict ({a.sections[MODEL_CP]})"
+        else:
+            why = "no reference this log can be judged against"
+        return "UNKNOWN", pre + [why]
     reasons = []
     for s, r in m["rms_ratio"].items():
         side = "above" if r > m["threshold"][s] else "within"
         reasons.append(f"{s} RMS {r:.2f} x its noise floor, {side} the threshold "
                        f"{m['threshold'][s]:.2f} (the calibration's worst healthy ratio, at "
                        "least 2)")
+    if m.get("not_judged"):      # a verdict without a signal it rests on is no verdict
+        return "UNKNOWN", pre + reasons + [
+            "the calibrated model's verdict needs every signal its healthy logs were scored "
+            "on; not judged: " + "; ".join(f"{s} ({why})" for s, why in m["not_judged"].items())]
     return ("DEGRADED" if m["significant"] else "HEALTHY"), pre + reasons
 
 
@@ -242,15 +258,18 @@ def summary_text(a: RigAnalysis) -> str:
 
 def calibration_file(nominal: str) -> dict[str, Any]:
     """A calibration of `bench calibrate --actuator` (BenchError otherwise)."""
-    from bench.gap.inputs import read_nominal
-    from bench.gap.riggap import is_rig_doc
+    from bench.gap.inputs import BaselineAsNominal, read_nominal
+    from bench.gap.riggap import calibration_of, is_rig_doc
     if not Path(nominal).exists():
         raise BenchError(f"no such calibration: {nominal}")
     try:
         data: dict[str, Any] | None = read_nominal(nominal)   # read once
+    except BaselineAsNominal:
+        raise                          # a baseline given as --nominal: its own message
     except BenchError:
         data = None                    # unreadable or not a JSON object: said below
     if data is None or not is_rig_doc(data):
         raise BenchError(f"{nominal}: not a calibration of `bench calibrate --actuator` "
                          "(the thesis report takes --set NAME=VALUE instead)")
+    calibration_of(data, nominal)      # its description, values, method, sample period
     return dict(data)

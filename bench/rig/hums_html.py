@@ -239,8 +239,10 @@ def _gap(a: H.RigAnalysis, e: Any) -> list[str]:
     g = a.gap
     if g is None:
         return []
+    from bench.gap.riggap import judged_text
     loc = g["localisation"]
     parts = [f"<h3>Gap against the calibrated model: {e(g['verdict'])}</h3>"
+             f"<p>{e(judged_text(g))}.</p>"
              f"<p>{e(g['baseline'])}; significant when a signal's RMS exceeds its "
              "threshold (the larger of 2 and the worst ratio the calibration's held-out "
              "healthy logs left).</p><table><tr><th>signal</th><th>noise floor</th>"
@@ -267,6 +269,8 @@ def _gap(a: H.RigAnalysis, e: Any) -> list[str]:
                          "</td></tr>")
         parts.append("</table><p>A candidate is named when it lowers the BIC by more than "
                      "10 and the gap is significant.</p>")
+    for eff, why in g.get("not_available", {}).items():
+        parts.append(f"<p>{e(eff)}: {e(why)}</p>")
     png = gap_figure(g)
     parts.append(f"<img alt='gap by nut position' src='data:image/png;base64,{png}'>")
     return parts

@@ -32,7 +32,7 @@ from bench.usage.settings import (
     TEMP_EDGES_K,
     UsageSettings,
 )
-from bench.usage.summary import UNKNOWN, UsageSummary
+from bench.usage.summary import UNKNOWN, UsageSummary, blank
 from bench.usage.tracker import Tracker
 from plant_rt.params import ParameterError, PlantParams
 
@@ -73,6 +73,7 @@ class UsageAccumulator:
         self.s = UsageSummary(load_rating_n=geometry.load_rating_n,
                               preload_mode=s.preload_mode, preload_n=geometry.preload_n)
         self._last_load = math.nan
+        self._seen = dict.fromkeys(NEEDS, 0)
 
     def push(self, cols: Mapping[str, Any]) -> None:
         """A block of rows: columns by trace name (``motor_angle_rad``, ``position_m``,
@@ -87,6 +88,9 @@ class UsageAccumulator:
             return np.asarray(cols[name], dtype=float) if name in cols else nan
 
         s, dt = self.s, self.dt
+        for c in self._seen:
+            names = TEMPERATURE_COLUMNS if c == TEMPERATURE_COLUMNS[0] else (c,)
+            self._seen[c] += sum(int(np.isfinite(col(x)).sum()) for x in names if x in cols)
         s.samples += n
         s.duration_s += n * dt
         drev = self.screw.push(col("motor_angle_rad") * (self.geo.ratio / TWO_PI))
@@ -155,7 +159,20 @@ class UsageAccumulator:
             self.position.series(), POS_RANGE_EDGES_M, POS_MEAN_EDGES_M)
         s.load_cycles, s.load_range_max_n, s.load_rainflow = _rainflow(
             self.load.series(), LOAD_RANGE_EDGES_N, LOAD_MEAN_EDGES_N)
+        self._unavailable(s)
         return s
+
+    def _unavailable(self, s: UsageSummary) -> None:
+        """What the signals seen cannot give: NaN (null in JSON, "n/a" in the table) with
+        the reason in `s.not_available`, not 0."""
+        lack: dict[str, list[str]] = {}
+        for sig, names in NEEDS.items():
+            if not self._seen[sig]:
+                for q in names:
+                    lack.setdefault(q, []).append(sig)
+        na = {q: f"needs {' and '.join(sigs)}" for q, sigs in lack.items()}
+        blank(s, na)
+        s.not_available = na
 
 
 def _rainflow(points: np.ndarray, range_edges: np.ndarray, mean_edges: np.ndarray
@@ -173,22 +190,25 @@ def _rainflow(points: np.ndarray, range_edges: np.ndarray, mean_edges: np.ndarra
     return float(cyc[:, 2].sum()), float(cyc[:, 0].max()), mat
 
 
-SIGNALS = {"motor_angle_rad": "revolutions, travel, reversals, life consumed",
-           "load_force_n": "load cycles, load spectrum, F_m, life consumed",
-           "position_m": "position cycles", "current_a": "I2t",
-           "motor_speed_rad_s": "motion regimes"}
-
-
-def missing_signals(trace: Trace) -> list[str]:
-    """What the usage of `trace` lacks: "column (what it gives)" for each absent or
-    all-NaN signal."""
-    out = [f"{c} ({what})" for c, what in SIGNALS.items()
-           if c not in trace or not np.isfinite(trace[c]).any()]
-    if not any(c in trace and np.isfinite(trace[c]).any() for c in TEMPERATURE_COLUMNS):
-        out.append("winding_temperature_k (time at temperature)")
-    return out
-
-
+NEEDS: dict[str, tuple[str, ...]] = {
+    "motor_angle_rad": ("screw_revolutions", "nut_travel_m", "reversals",
+                        "revolutions_dwell", "revolutions_slow",
+                        "revolutions_fast", "load_cube_sum", "damage", "damage_nut1",
+                        "damage_nut2", "load_spectrum_rev", "fm_n", "l10_rev",
+                        "life_consumed"),
+    "load_force_n": ("load_cycles", "load_range_max_n", "load_rainflow", "load_cube_sum",
+                     "damage", "damage_nut1", "damage_nut2", "load_spectrum_rev", "fm_n",
+                     "l10_rev", "life_consumed"),
+    "position_m": ("position_cycles", "position_range_max_m", "position_rainflow"),
+    "current_a": ("i2t_a2s", "current_rms_a"),
+    "motor_speed_rad_s": ("dwell_s", "slow_s", "fast_s", "revolutions_dwell",
+                          "revolutions_slow", "revolutions_fast"),
+    TEMPERATURE_COLUMNS[0]: ("temperature_max_k", "temperature_time_s"),
+}
+"""The quantities each signal is needed for (`UsageAccumulator._unavailable`). The nut
+travel and the reversals are not taken from the position when there is no motor angle:
+through the position hysteresis (chosen for the thesis' LVDT) a noisier position sensor's
+noise would count as motion (a 25 Hz rig's table: 57 reversals on one out-and-back)."""
 def trace_params(trace: Trace) -> PlantParams:
     """The plant parameters a trace carries (``meta["params"]``), else the defaults."""
     p = trace.meta.get("params")

@@ -11,6 +11,7 @@ run ends and the next begins). The spectra and rainflow matrices have fixed bins
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
 from typing import Any
 
@@ -86,6 +87,7 @@ class UsageSummary:
     temperature_time_s: np.ndarray = field(default_factory=lambda: _zeros("temperature_time_s"))
     position_rainflow: np.ndarray = field(default_factory=lambda: _zeros("position_rainflow"))
     load_rainflow: np.ndarray = field(default_factory=lambda: _zeros("load_rainflow"))
+    not_available: dict[str, str] = field(default_factory=dict)   # quantity -> reason
 
     # -- derived ---------------------------------------------------------------------------
     @property
@@ -95,7 +97,10 @@ class UsageSummary:
 
     @property
     def l10_rev(self) -> float:
-        """Rating life at F_m: (C_a / F_m)^3 x 10^6 revolutions."""
+        """Rating life at F_m: (C_a / F_m)^3 x 10^6 revolutions (NaN when the revolutions
+        or the load are not available)."""
+        if math.isnan(self.load_cube_sum) or math.isnan(self.screw_revolutions):
+            return math.nan
         return life.rating_life_rev(self.load_rating_n, self.fm_n)
 
     @property
@@ -133,13 +138,16 @@ class UsageSummary:
         return {name: getattr(self, name) for name in ARRAYS}
 
     def to_json(self) -> dict[str, Any]:
-        """Everything, JSON-ready (no inf: None)."""
+        """Everything, JSON-ready (no inf or NaN: None); `not_available`: the quantities
+        the run's signals cannot give (null) and why."""
         def clean(v: float) -> float | None:
             return v if math.isfinite(v) else None
         return {"actuator_serial": self.actuator_serial, "source": self.source,
                 "preload_mode": self.preload_mode,
                 **{k: clean(v) for k, v in self.as_dict().items()},
-                **{k: a.tolist() for k, a in self.arrays().items()},
+                **{k: (None if k in self.not_available else a.tolist())
+                   for k, a in self.arrays().items()},
+                "not_available": dict(self.not_available),
                 "bins": {"load_edges_n": _edges(LOAD_EDGES_N),
                          "temperature_edges_k": _edges(TEMP_EDGES_K),
                          "position_range_edges_m": _edges(POS_RANGE_EDGES_M),
@@ -147,6 +155,15 @@ class UsageSummary:
                          "load_range_edges_n": _edges(LOAD_RANGE_EDGES_N),
                          "load_mean_edges_n": _edges(LOAD_MEAN_EDGES_N)},
                 "regimes": list(REGIMES)}
+
+
+def blank(s: UsageSummary, names: Iterable[str]) -> None:
+    """Set the scalar quantities `names` of `s` to NaN (not available; the derived ones,
+    F_m, L10, life consumed and RMS current, follow from them)."""
+    scalars = {f.name for f in fields(s) if f.type in ("float", float)}
+    for name in names:
+        if name in scalars:
+            setattr(s, name, math.nan)
 
 
 def _edges(e: np.ndarray) -> list[float | None]:
@@ -192,4 +209,9 @@ def merged(a: UsageSummary, b: UsageSummary) -> UsageSummary:
         setattr(new, name, min(getattr(a, name), getattr(b, name)))
     for name in ARRAYS:
         setattr(new, name, getattr(a, name) + getattr(b, name))
+    # what one run cannot give, the sum cannot either (named with the run)
+    new.not_available = {**a.not_available, **{
+        k: f"{v} ({b.source or 'a run'})" for k, v in b.not_available.items()
+        if k not in a.not_available}}
+    blank(new, new.not_available)
     return new

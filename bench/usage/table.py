@@ -10,23 +10,25 @@ COLUMNS = (
     ("actuator", 10, lambda s: s.actuator_serial),
     ("runs", 4, lambda s: f"{s.runs:g}"),
     ("time s", 8, lambda s: f"{s.duration_s:.1f}"),
-    ("screw rev", 9, lambda s: f"{s.screw_revolutions:.2f}"),
-    ("travel m", 8, lambda s: f"{s.nut_travel_m:.4f}"),
-    ("revers.", 7, lambda s: f"{s.reversals:g}"),
-    ("pos cyc", 7, lambda s: f"{s.position_cycles:g}"),
-    ("load cyc", 8, lambda s: f"{s.load_cycles:g}"),
+    ("screw rev", 9, lambda s: _num(s.screw_revolutions, ".2f")),
+    ("travel m", 8, lambda s: _num(s.nut_travel_m, ".4f")),
+    ("revers.", 7, lambda s: _num(s.reversals, "g")),
+    ("pos cyc", 7, lambda s: _num(s.position_cycles, "g")),
+    ("load cyc", 8, lambda s: _num(s.load_cycles, "g")),
     ("Fm N", 7, lambda s: _num(s.fm_n, ".0f")),
     ("L10 rev", 9, lambda s: _num(s.l10_rev, ".3g")),
-    ("life used", 9, lambda s: f"{s.life_consumed:.3e}"),
-    ("I2t A2s", 8, lambda s: f"{s.i2t_a2s:.4g}"),
+    ("life used", 9, lambda s: _num(s.life_consumed, ".3e")),
+    ("I2t A2s", 8, lambda s: _num(s.i2t_a2s, ".4g")),
     ("Tmax K", 6, lambda s: _num(s.temperature_max_k, ".1f")),
     ("dwell/slow/fast s", 17,
-     lambda s: f"{s.dwell_s:.1f}/{s.slow_s:.1f}/{s.fast_s:.1f}"),
+     lambda s: "/".join(_num(v, ".1f") for v in (s.dwell_s, s.slow_s, s.fast_s))),
 )
 
 
 def _num(v: float, fmt: str) -> str:
-    return format(v, fmt) if math.isfinite(v) else ("-" if math.isnan(v) or v < 0 else "inf")
+    """`v` formatted; NaN (not available: `notes` says why) as n/a."""
+    return format(v, fmt) if math.isfinite(v) else ("n/a" if math.isnan(v) else
+                                                     "-" if v < 0 else "inf")
 
 
 def format_table(rows: list[tuple[str, UsageSummary]]) -> str:
@@ -38,3 +40,11 @@ def format_table(rows: list[tuple[str, UsageSummary]]) -> str:
         lines.append(label.ljust(width) + "  " + "  ".join(
             str(get(s)).rjust(w) for _, w, get in COLUMNS))
     return "\n".join(lines)
+
+
+def notes(label: str, s: UsageSummary) -> list[str]:
+    """Lines under the table: the quantities `s` has no value for, grouped by reason."""
+    why: dict[str, list[str]] = {}
+    for q, reason in s.not_available.items():
+        why.setdefault(reason, []).append(q)
+    return [f"{label}: not available ({reason}): {', '.join(qs)}" for reason, qs in why.items()]

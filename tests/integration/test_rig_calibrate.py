@@ -129,3 +129,66 @@ def test_needs_declarations_are_the_consumers_own():
     from bench.gap.problem import NEEDED
     from bench.hums.monitor import NOMINAL_DRIVE
     assert PLANT_RESIM == NEEDED and MONITOR_DRIVE == NOMINAL_DRIVE
+
+
+GAINS = {"position_kp_1_s": 12.0, "speed_kp_a_s_per_m": 60.0, "speed_ki_a_per_m": 900.0,
+         "speed_feedforward": 0.8, "current_limit_a": 4.0}
+DESCRIBED = {**KNOWN, "controller": {**KNOWN["controller"], **GAINS}}
+
+
+def test_a_held_out_signal_that_could_not_be_scored_is_said():
+    # a held-out log without current was scored on position alone and nothing said so
+    held = synthetic(3, 0.0)
+    del held.columns["current_a"]
+    cal = RC.calibrate_rig([synthetic(1, 200.0)], from_dict(DESCRIBED), [held])
+    assert cal["method"] == "described" and list(cal["holdout_summary"]) == ["position_m"]
+    assert cal["holdout_not_scored"] == [{"log": "synthetic 3", "signal": "current_a",
+                                          "reason": "the log has no current_a",
+                                          "scored": ["position_m"]}]
+    assert ("held-out synthetic 3: current_a not scored (the log has no current_a): only "
+            "position_m judged on it") in cal["notes"]
+
+
+@pytest.mark.parametrize("copy", [False, True])
+def test_a_held_out_log_that_is_a_fitted_one_is_refused(tmp_path, capsys, copy):
+    synthetic(1, 200.0).save(tmp_path / "h1.npz")
+    held = tmp_path / "h1.npz"
+    if copy:                                   # the same bytes under another name
+        held = tmp_path / "again.npz"
+        held.write_bytes((tmp_path / "h1.npz").read_bytes())
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(tmp_path / "h1.npz"), "--actuator", "cranfield",
+                 "--holdout", str(held), "-o", str(cal)]) == 2
+    err = capsys.readouterr().err
+    assert f"--holdout {held} is the same {'content' if copy else 'file'} as the fitted " \
+           f"log {tmp_path / 'h1.npz'}" in err and not cal.exists()
+    assert main(["calibrate", str(tmp_path / "h1.npz"), str(held), "--actuator",
+                 "cranfield", "-o", str(cal)]) == 2
+    assert f"{held} is given twice as a healthy log" in capsys.readouterr().err
+
+
+def test_a_log_too_short_for_a_noise_floor_is_refused():
+    # a 2-sample log was calibrated with rc 0 and NaN ratios
+    short = synthetic(1, 0.0)
+    short.columns = {k: v[:3] for k, v in short.columns.items()}
+    with pytest.raises(BenchError, match=r"synthetic 1: calibration \(described\) not "
+                       r"available: the log is too short: 3 position sample\(s\) over 0.08 s; "
+                       r"the model's noise floor needs at least 5 samples, 0.16 s"):
+        RC.calibrate_rig([short], from_dict(DESCRIBED))
+
+
+def test_the_gap_on_a_log_without_current_ranks_no_current_effect_and_says_so():
+    # current_offset was ranked (and fitted) on a log without current, and the
+    # "no significant gap" did not say current was not judged
+    from bench.gap import riggap as RG
+    cal = RC.calibrate_rig([synthetic(1, 200.0)], from_dict(DESCRIBED))
+    log = synthetic(3, 0.0)
+    del log.columns["current_a"]
+    js = RG.diagnose_rig(log, cal, from_dict(DESCRIBED), ("current_offset", "inertia"))
+    assert [r["effect"] for r in js["ranking"]] == ["inertia"]
+    assert js["not_available"] == {
+        "current_offset": "not available: needs current_a (the log has no current_a)"}
+    assert js["judged_on"] == ["position_m"]
+    assert js["not_judged"] == {"current_a": "the log has no current_a"}
+    assert "judged on position_m only; not judged: current_a (the log has no current_a)" \
+        in RG.text(js).splitlines()[-1]

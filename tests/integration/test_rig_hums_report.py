@@ -178,3 +178,76 @@ def test_a_log_of_several_cycles_with_its_load_in_newtons(data, calibrated, tmp_
     assert code == 0 and b["cycles"] == 3 and b["load"] == 40.0
     assert any("judged at the baseline's 40" in n for n in b["notes"])
     assert js["verdict"] == "DEGRADED" and b["flagged"] >= 2
+
+
+def rig_log(path: Path, seconds: float = 13.0, current: bool = True) -> Path:
+    """A 25 Hz rig table: a 20 -> 140 mm trapezoid, position lagging, current."""
+    from bench.trace import Trace
+    t = np.arange(int(round(seconds / 0.04))) * 0.04
+    sp = np.interp(t, [0, 0.3, 5.3, 8.3, 13.3], [0.02, 0.02, 0.14, 0.14, 0.02])
+    cols = {"t_s": t, "setpoint_position_m": sp, "position_m": np.roll(sp, 2)}
+    if current:
+        cols["current_a"] = 0.3 + 0.1 * np.sign(np.gradient(sp))
+    Trace(cols).save(path)
+    return path
+
+
+def test_an_output_directory_that_cannot_be_made_is_one_line_before_the_work(tmp_path,
+                                                                              capsys):
+    # was FileNotFoundError at the catch-all (rc 1) after the analysis
+    log = rig_log(tmp_path / "rig.npz")
+    (tmp_path / "afile").write_text("")
+    assert main(["hums", "report", str(log), "--out", str(tmp_path / "afile" / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"error: --out: cannot write into {tmp_path / 'afile' / 'x'}: "
+                   f"{tmp_path / 'afile'} is not a directory"]
+
+
+def rig_calibration(path: Path, scored: tuple[str, ...] = ("position_m", "current_a")) -> Path:
+    """A calibration of `bench calibrate --actuator` (a DC drive, the generic model's
+    values of tests/integration/test_rig_calibrate.py) that reaches the noise floor on
+    healthy logs scored on `scored`."""
+    from bench.gap.rigmodel import EXTRA
+    vals = {**EXTRA, "mass_kg": 400.0, "force_per_a_n": 1500.0, "coulomb_n": 120.0,
+            "viscous_n_s_per_m": 1500.0, "current_offset_a": 0.1, "kp_1_s": 12.0,
+            "kv_a_s_per_m": 60.0, "ki_a_per_m": 900.0, "feedforward": 0.8,
+            "current_limit_a": 4.0, "current_tau_s": 0.0}
+    score = {s: {"rms": 1.0, "noise_floor": 1.0, "ratio": 1.0} for s in scored}
+    path.write_text(json.dumps({
+        "model": "generic nut-level model (bench.gap.rigmodel)", "actuator": "dc",
+        "actuator_description": {"name": "dc", "motor_kind": "dc_current_loop"},
+        "method": "fit-gains", "sample_period_s": 1e-3, "values": vals,
+        "fit_logs": ["h1"], "fit_scores": [score], "holdout_summary": {},
+        "reaches_noise_floor": True, "floor_factor": 2.0}))
+    return path
+
+
+def test_a_log_too_short_for_the_model_says_how_long_it_is_and_must_be(tmp_path, capsys):
+    # was "error: fidelity coefficient: empty window" (rc 2)
+    log = rig_log(tmp_path / "two.npz", seconds=0.08)
+    cal = rig_calibration(tmp_path / "cal.json")
+    code, js, _ = _report([log, "--nominal", cal], tmp_path / "out")
+    why = ("not available: the log is too short: 2 position sample(s) over 0.04 s; the "
+           "model's noise floor needs at least 5 samples, 0.16 s at its 40 ms rate")
+    assert code == 3 and js["verdict"] == "UNKNOWN"
+    assert js["sections"]["calibrated model: Cp, mean error (eq. 6.4-6.5)"] == why
+    assert why in capsys.readouterr().err
+    assert main(["gap", str(log), "--nominal", str(cal)]) == 2
+    assert why.replace("not available: ", "") in capsys.readouterr().err
+
+
+def test_a_log_without_a_signal_the_model_was_scored_on_gets_no_verdict(tmp_path, capsys):
+    # was HEALTHY (rc 0) on position alone, with Ci "not available"
+    log = rig_log(tmp_path / "nocur.npz", current=False)
+    code, js, _ = _report([log, "--nominal", rig_calibration(tmp_path / "cal.json")],
+                          tmp_path / "out")
+    assert code == 3 and js["verdict"] == "UNKNOWN"
+    assert js["reasons"][-1] == ("the calibrated model's verdict needs every signal its "
+                                 "healthy logs were scored on; not judged: current_a (the "
+                                 "log has no current_a)")
+    assert js["model"]["rms_ratio"].keys() == {"position_m"}
+    assert "not judged: current_a" in capsys.readouterr().err
+    # a calibration scored on position only judges the same log
+    cal = rig_calibration(tmp_path / "cal_pos.json", scored=("position_m",))
+    code, js, _ = _report([log, "--nominal", cal], tmp_path / "out2")
+    assert code == 0 and js["verdict"] in ("HEALTHY", "DEGRADED")

@@ -68,3 +68,28 @@ def test_bad_input_is_one_line(tmp_path, capsys, args, message):
     assert main(["usage", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and message in err[0]
+
+
+def test_a_run_without_a_signal_reports_not_available_not_zero(tmp_path, capsys):
+    # a table with set-point and position only: travel, reversals, I2t, RMS current and
+    # life consumed were printed and written as 0 (only stderr said "those quantities
+    # are 0")
+    t = np.arange(326) * 0.04
+    sp = np.interp(t, [0, 0.3, 5.3, 8.3, 13.3], [0.02, 0.02, 0.14, 0.14, 0.02])
+    Trace({"t_s": t, "setpoint_position_m": sp, "position_m": sp}).save(tmp_path / "r.npz")
+    out = tmp_path / "u.json"
+    assert main(["usage", str(tmp_path / "r.npz"), "--json", str(out)]) == 0
+    text = capsys.readouterr().out.splitlines()
+    row = text[1].split()     # run actuator runs time rev travel revers. pos load Fm L10 life I2t
+    assert row[4:7] == ["n/a"] * 3 and row[7] == "1" and row[11:13] == ["n/a"] * 2
+    assert "r.npz: not available (needs motor_angle_rad): screw_revolutions, nut_travel_m, " \
+           "reversals" in text
+    assert any(line.startswith("r.npz: not available (needs current_a): i2t_a2s, "
+                               "current_rms_a") for line in text)
+    run = json.loads(out.read_text())["runs"][0]
+    for key in ("nut_travel_m", "reversals", "i2t_a2s", "current_rms_a", "life_consumed",
+                "screw_revolutions", "load_spectrum_rev"):
+        assert run[key] is None, key
+    assert run["not_available"]["i2t_a2s"] == "needs current_a"
+    assert run["not_available"]["life_consumed"] == "needs motor_angle_rad and load_force_n"
+    assert run["position_cycles"] == 1.0 and run["duration_s"] == pytest.approx(13.04)

@@ -181,3 +181,16 @@ def test_ingest_passes_workers_and_scheduler_to_the_pool(tmp_path, monkeypatch):
                    scheduler="tcp://127.0.0.1:1", progress=False)
     assert seen["workers"] == 3 and seen["scheduler"] == "tcp://127.0.0.1:1"
     assert [j[2] for j in seen["jobs"]] == [None] and res.files == 1
+
+
+def test_usage_columns_of_a_run_without_motor_angle_are_null():
+    """A run without encoder angle, current or temperature: its travel, revolutions,
+    reversals, life, I2t and time hot are NULL (not 0; reversals were int(NaN))."""
+    from bench.trace import Trace
+    n = 200
+    tr = Trace({"t_s": np.arange(n) * 1e-3, "position_m": np.linspace(0, 0.01, n),
+                "load_force_n": np.full(n, 100.0)}, {"period_s": 1e-3})
+    u = G.usage_columns(tr)
+    assert {k for k, v in u.items() if v is None} == {
+        "travel_m", "screw_revs", "reversals", "equivalent_load_n", "life_consumed",
+        "i2t_a2s", "time_hot_s"}

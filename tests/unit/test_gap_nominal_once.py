@@ -69,5 +69,50 @@ def test_the_rig_report_refuses_what_is_not_a_generic_calibration(tmp_path, text
         calibration_file(str(cal))
     with pytest.raises(BenchError, match="no such calibration"):
         calibration_file(str(tmp_path / "missing.json"))
-    cal.write_text(json.dumps({"model": "generic-dc", "x": 1}))
-    assert calibration_file(str(cal)) == {"model": "generic-dc", "x": 1}
+    cal.write_text(json.dumps(GOOD))
+    assert calibration_file(str(cal)) == GOOD
+
+
+GOOD = {"model": "generic-dc", "actuator_description": {"motor_kind": "dc_current_loop"},
+        "method": "fit-gains", "sample_period_s": 1e-3,
+        "values": {k: 1.0 for k in ("mass_kg", "force_per_a_n", "coulomb_n",
+                                    "viscous_n_s_per_m", "current_offset_a", "kp_1_s",
+                                    "kv_a_s_per_m", "ki_a_per_m", "feedforward",
+                                    "current_limit_a", "current_tau_s")}}
+
+
+@pytest.mark.parametrize("change, msg", [
+    ({"values": None}, 'no "values" object'),
+    ({"values": {**GOOD["values"], "mass_kg": "heavy"}},
+     "values.mass_kg must be a finite number, got 'heavy'"),
+    ({"values": {k: v for k, v in GOOD["values"].items() if k != "kp_1_s"}},
+     "values.kp_1_s must be a finite number, got nothing"),
+    ({"method": "guess"}, "method must be one of"),
+    ({"sample_period_s": 0}, "sample_period_s must be a number of seconds > 0"),
+])
+def test_a_generic_calibration_with_a_bad_field_is_one_line(tmp_path, capsys, change, msg):
+    # these reached the CLI's catch-all (ValueError, KeyError: 'values', rc 1)
+    from bench import BenchError
+    from bench.rig.hums import calibration_file
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({k: v for k, v in {**GOOD, **change}.items() if v is not None}))
+    assert main(["gap", str(tmp_path / "any.npz"), "--nominal", str(cal)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {cal}: {msg}")
+    with pytest.raises(BenchError, match=msg):
+        calibration_file(str(cal))
+
+
+def test_a_baseline_given_as_nominal_says_to_pass_it_as_baseline(tmp_path, capsys):
+    # was "unknown parameter group 'thresholds'"
+    from bench import BenchError
+    from bench.rig.hums import calibration_file
+    base = tmp_path / "base.json"
+    base.write_text(json.dumps({"format": "bench-rig-baseline/1", "thresholds": {},
+                                "loads": []}))
+    assert main(["gap", str(tmp_path / "any.npz"), "--nominal", str(base)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: {base}: a healthy baseline (bench rig baseline), not a calibration or "
+        f"parameter file: bench gap and bench hums report take it with --baseline {base}")
+    with pytest.raises(BenchError, match="take it with --baseline"):
+        calibration_file(str(base))

@@ -69,3 +69,16 @@ def test_derived_nut_values():
     assert v["mass_kg"] == pytest.approx(10.0 + (2e-5 + 4e-4) * w * w)     # eq. 5.12 at the nut
     assert v["force_per_a_n"] == pytest.approx(0.5 * 2.0 * 0.9 * w)
     assert v["kp_1_s"] is None
+
+
+@pytest.mark.parametrize("sign", [0, 0.5, -0.3])
+def test_load_sign_other_than_plus_or_minus_one_is_refused(sign):
+    # it was accepted in [-1, 1] and a 0 became +1 in the re-simulation (`or 1.0`)
+    with pytest.raises(BenchError, match=r"load_sign must be \+1 or -1 .* got "):
+        from_dict({"motor_kind": "dc_current_loop", "load_sign": sign}, "act.json")
+
+
+def test_load_sign_minus_one_flips_the_load_and_unknown_is_plus_one():
+    from bench.gap.rigcal import load_sign
+    assert load_sign(from_dict({"motor_kind": "dc_current_loop", "load_sign": -1})) == -1.0
+    assert load_sign(from_dict({"motor_kind": "dc_current_loop"})) == 1.0

@@ -171,3 +171,28 @@ def test_accumulate_per_actuator():
                               params=P0.with_dict({"screw.dynamic_load_rating_n": 30000.0}))
     with pytest.raises(BenchError, match="does not add"):
         accumulate([one, other_ca])
+
+
+def test_what_a_run_lacks_is_nan_not_zero_and_stays_so_when_accumulated():
+    # quantities of an absent signal were 0 (I2t, life consumed, ...), and summed as such
+    steps = np.concatenate([[0.0], np.full(1000, 0.002)])
+    full = usage_of_trace(trace_of(steps, np.full(1001, 3000.0),
+                                   current_a=np.full(1001, 2.0)), EXACT, serial="7")
+    nocur = usage_of_trace(trace_of(steps, np.full(1001, 3000.0)), EXACT, serial="7")
+    assert full.i2t_a2s == pytest.approx(4.0 * 1.001) and not full.not_available.get("i2t_a2s")
+    assert math.isnan(nocur.i2t_a2s) and math.isnan(nocur.current_rms_a)
+    assert nocur.not_available["i2t_a2s"] == "needs current_a"
+    assert nocur.life_consumed == pytest.approx(full.life_consumed)     # has what it needs
+    js = nocur.to_json()
+    assert js["i2t_a2s"] is None and js["not_available"]["current_rms_a"] == "needs current_a"
+    acc = accumulate([full, nocur])["7"]
+    assert math.isnan(acc.i2t_a2s) and acc.life_consumed == pytest.approx(
+        2 * full.life_consumed)
+    # no motor angle: no revolutions, travel, reversals, nor the life they give
+    pos = usage_of_trace(Trace({"t_s": np.arange(100) * DT, "position_m": np.zeros(100),
+                                "load_force_n": np.full(100, 1e3)}, {"period_s": DT}))
+    d = pos.as_dict()
+    assert all(math.isnan(d[k]) for k in ("screw_revolutions", "nut_travel_m", "reversals",
+                                          "life_consumed", "fm_n", "l10_rev"))
+    assert pos.not_available["life_consumed"] == "needs motor_angle_rad"
+    assert d["load_cycles"] == 0.0 and d["position_cycles"] == 0.0     # measured: none
