@@ -130,19 +130,16 @@ def test_an_infinite_value_in_parquet_is_refused_naming_the_row(tmp_path):
         import_table(tmp_path / "t.parquet", read_map(tmp_path / "m.json"))
 
 
-def test_a_row_without_a_time_is_refused_not_dropped(tmp_path):
-    table, mapping = _tx(tmp_path, "0,1\n0.1,2\n,3\n0.3,4\n")
+@pytest.mark.parametrize("rows, message", [
+    ("0,1\n0.1,2\n,3\n0.3,4\n", r"1 row\(s\) without a time in column 't' \(line 4\)"),
+    ("0,1\n0.1,2\n0.1,5\n0.2,3\n",
+     r"t.csv lines 3 and 4: the same time \(0.1 s\) with different values in column 'i'"),
+], ids=["a row without a time", "a repeated time with another value"])
+def test_a_row_without_a_time_or_a_repeated_time_is_refused_not_dropped(tmp_path, rows,
+                                                                         message):
+    table, mapping = _tx(tmp_path, rows)
     for sync in (None, 0.05):
-        with pytest.raises(BenchError, match=r"1 row\(s\) without a time in column 't' "
-                                             r"\(line 4\)"):
-            import_table(table, mapping, sync)
-
-
-def test_a_repeated_time_with_another_value_is_refused(tmp_path):
-    table, mapping = _tx(tmp_path, "0,1\n0.1,2\n0.1,5\n0.2,3\n")
-    for sync in (None, 0.05):
-        with pytest.raises(BenchError, match=r"t.csv lines 3 and 4: the same time \(0.1 s\) "
-                                             r"with different values in column 'i'"):
+        with pytest.raises(BenchError, match=message):
             import_table(table, mapping, sync)
 
 
