@@ -209,6 +209,8 @@ NEEDS: dict[str, tuple[str, ...]] = {
 travel and the reversals are not taken from the position when there is no motor angle:
 through the position hysteresis (chosen for the thesis' LVDT) a noisier position sensor's
 noise would count as motion (a 25 Hz rig's table: 57 reversals on one out-and-back)."""
+
+
 def trace_params(trace: Trace) -> PlantParams:
     """The plant parameters a trace carries (``meta["params"]``), else the defaults."""
     p = trace.meta.get("params")
