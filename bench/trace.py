@@ -276,14 +276,15 @@ def read_csv_columns(text: str, source: str = "CSV") -> dict[str, np.ndarray]:
         try:
             data.append([float(x) if x.strip() else float("nan") for x in row])
         except ValueError:
-            bad = next(j for j, x in enumerate(row) if x.strip() and not _is_number(x))
+            bad = next(j for j, x in enumerate(row) if x.strip() and not is_number(x))
             raise BenchError(f"{source} line {lineno}: column {header[bad]!r} is not a number "
                              f"({row[bad].strip()!r})") from None
     arr = np.array(data, dtype=float).reshape(-1, len(header))
     return {h: arr[:, i].copy() for i, h in enumerate(header)}
 
 
-def _is_number(x: str) -> bool:
+def is_number(x: str) -> bool:
+    """Whether `x` parses as a float."""
     try:
         float(x)
     except ValueError:

@@ -65,6 +65,7 @@ def _check(args: argparse.Namespace) -> None:
 
 def _settings(args: argparse.Namespace, cls):
     """The usage settings: --preload, --preload-n, then every --set NAME=VALUE."""
+    from bench.trace import is_number
     values: dict = {"preload_mode": args.preload,
                     "preload_n": -1.0 if args.preload_n is None else args.preload_n}
     known = {i.leaf: i for i in cls.infos()}
@@ -75,16 +76,8 @@ def _settings(args: argparse.Namespace, cls):
             raise BenchError(f"--set {a!r}: expected NAME=VALUE with NAME one of "
                              + ", ".join(f"usage.{k}" for k in known))
         values[leaf] = value.strip() if known[leaf].type is str else float(value) \
-            if _is_number(value) else value
+            if is_number(value) else value
     return cls.from_dict(values)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def run(args: argparse.Namespace) -> int:

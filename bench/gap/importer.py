@@ -217,6 +217,7 @@ def _read_parquet(path: Path, columns: list[str]) -> tuple[dict[str, np.ndarray]
         raise BenchError(f"{path}: cannot read Parquet ({exc})") from None
     have = table.column_names
     _check_columns(path, columns, have)
+    rows = Rows(path, np.arange(table.num_rows) + 1, "row")
     out = {}
     for c in columns:
         try:
@@ -225,9 +226,9 @@ def _read_parquet(path: Path, columns: list[str]) -> tuple[dict[str, np.ndarray]
             raise BenchError(f"{path}: column {c!r} is not numeric") from None
         inf = np.flatnonzero(np.isinf(out[c]))
         if len(inf):
-            raise BenchError(f"{path} row {int(inf[0]) + 1}: column {c!r} holds an infinite "
+            raise BenchError(f"{rows.at(int(inf[0]))}: column {c!r} holds an infinite "
                              f"value ({out[c][inf[0]]}); {FINITE}")
-    return out, Rows(path, np.arange(table.num_rows) + 1, "row")
+    return out, rows
 
 
 def _read_delimited(path: Path, columns: list[str]) -> tuple[dict[str, np.ndarray], Rows]:
