@@ -262,6 +262,13 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     fit_scores = [score(theta, t, act, method, period_s) for t in healthy]
     held = [score(theta, t, act, method, period_s) for t in holdout]
     reach = _reaches(held or fit_scores)
+    if not reach:
+        notes.append(f"no model of this family reaches {FLOOR_FACTOR:g} x the noise floor on "
+                     f"the {'held-out' if held else 'calibration'} logs: diagnose against a "
+                     "baseline built from several healthy runs (the healthy-baseline "
+                     "fallback, docs/real-data.md: bench calibrate builds it from the "
+                     "calibration logs when they repeat one set-point cycle) rather than "
+                     "against this model")
     unscored = not_scored(fit_scores, held, holdout)
     notes += [f"held-out {u['log']}: {u['signal']} not scored ({u['reason']}): only "
               f"{', '.join(u['scored']) or 'nothing'} judged on it" for u in unscored]

@@ -96,6 +96,8 @@ def test_report_against_a_baseline_names_it(data, tmp_path):
 def test_calibrate_writes_the_baseline_when_above_the_floor(calibrated, capsys):
     cal = json.loads(calibrated.read_text())
     assert cal["reaches_noise_floor"] is False
+    assert any(n.startswith("no model of this family reaches 2 x the noise floor on the "
+                            "held-out logs: diagnose against a baseline") for n in cal["notes"])
     ref = cal["baseline"]
     assert ref["file"] == "cal.baseline.json" and ref["loads"]["40"]["runs"] == [1, 2]
     assert ref["loads"]["40"]["cycles"] == 6 and ref["loads"]["40"]["thresholds"]
