@@ -62,9 +62,9 @@ def read_nominal(path: str | Path) -> dict[str, Any]:
         raise BenchError(f"{path}: expected a JSON object")
     from bench.rig.baseline import FORMAT
     if data.get("format") == FORMAT:
-        raise BaselineAsNominal(f"{path}: a healthy baseline (bench rig baseline), not a calibration "
-                         f"or parameter file: bench gap and bench hums report take it with "
-                         f"--baseline {path}")
+        raise BaselineAsNominal(f"{path}: a healthy baseline (bench rig baseline), not a "
+                                f"calibration or parameter file: bench gap and bench hums "
+                                f"report take it with --baseline {path}")
     return data
 
 
