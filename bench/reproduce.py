@@ -21,6 +21,7 @@ from bench.freqresp import FreqResponse, current_loop, position_loop, speed_loop
 from bench.harness import simulate
 from bench.profiles import make_profile, sine, step
 from bench.trace import Trace
+from plant_rt.contacts import helix_rad
 from plant_rt.params import PlantParams
 
 
@@ -102,7 +103,7 @@ def p4(res: Result, params: PlantParams) -> None:
     expect = 15e3 * params.screw.lead_m / (2 * math.pi) * params.reducer.ratio \
         / params.reducer.efficiency                                         # eq. 5.35
     s = params.screw
-    lever_ratio = math.tan(math.radians(s.helix_angle_deg)) * s.lever_m \
+    lever_ratio = math.tan(helix_rad(s)) * s.lever_m \
         / (s.lead_m / (2 * math.pi))
     tq = {}
     for sign in (+1, -1, 0):

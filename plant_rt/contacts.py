@@ -24,14 +24,26 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from plant_rt.params import PlantParams
+    from plant_rt.params import PlantParams, ScrewParams
+
+
+def helix_rad(s: ScrewParams) -> float:
+    """The helix angle alpha (rad) at the screw's lead: `helix_angle_deg` at
+    `helix_reference_lead_m`; at another lead on the same screw radius tan alpha scales with
+    the lead (tan alpha = p / 2 pi r_m), so that the reaction lever of eq. 5.10 and 5.15,
+    the torque an axial force needs, follows a lead change as the kinematics do (eq. 5.26).
+    A reference lead of 0 keeps alpha whatever the lead."""
+    alpha = math.radians(s.helix_angle_deg)
+    ref = s.helix_reference_lead_m
+    if ref <= 0.0 or s.lead_m == ref:
+        return alpha
+    return math.atan(math.tan(alpha) * s.lead_m / ref)
 
 
 def normal_to_axis(params: PlantParams) -> float:
     """g = cos(alpha) sin(beta): contact-normal motion per unit of axial motion (eq. 5.26)."""
     s = params.screw
-    return math.cos(math.radians(s.helix_angle_deg)) * math.sin(
-        math.radians(s.contact_angle_deg))
+    return math.cos(helix_rad(s)) * math.sin(math.radians(s.contact_angle_deg))
 
 
 def real_contact_stiffness(params: PlantParams) -> float:

@@ -22,7 +22,7 @@ from ema_contract.states import Status
 from plant_rt import kernel as K
 from plant_rt import wear
 from plant_rt.aero import GustGenerator
-from plant_rt.contacts import contact_geometry, hertz_stiffness_ratio, worn_nut
+from plant_rt.contacts import contact_geometry, helix_rad, hertz_stiffness_ratio, worn_nut
 from plant_rt.params import PlantParams
 
 OVERTEMPERATURE_K = 428.0  # class H insulation, 155 degC
@@ -56,7 +56,7 @@ def param_vector(params: PlantParams) -> np.ndarray:
     p[K.P_CS] = static_friction(params)                                               # eq. 5.14
     p[K.P_STRA], p[K.P_STRV] = s.stribeck_amplitude, s.stribeck_velocity_rad_s
     p[K.P_CVISC] = viscous_friction(params)                                           # eq. 5.13
-    alpha = math.radians(s.helix_angle_deg)
+    alpha = helix_rad(s)                                     # at this lead (eq. 5.26)
     beta = math.radians(s.contact_angle_deg)
     p[K.P_Z], p[K.P_LEAD] = s.balls_active, s.lead_m
     p[K.P_G] = math.cos(alpha) * math.sin(beta)                                       # eq. 5.26

@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections import Counter
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, ClassVar
 
@@ -177,6 +178,11 @@ class ScrewParams(_Validated):
         "the preload reduces the axial play), eq. 2.19 (preload loss = nut stiffness x "
         "the deformation wear removes) and section 2.3 (backlash appears when the preload "
         "is null); a spacer-preloaded nut's datasheet")
+    helix_reference_lead_m: float = P(
+        5e-3, "m", 0.0, 0.1, "the lead at which helix_angle_deg holds; at another lead the "
+        "helix follows it, tan alpha ~ p at the same r_m, and so does the torque per axial "
+        "force (plant_rt.contacts.helix_rad); 0: alpha as given at any lead",
+        "table 5.4: 3.04 deg = atan(p / 2 pi r_m) at p 5 mm, r_m 15 mm")
 
     @property
     def lever_m(self) -> float:
@@ -427,9 +433,7 @@ def _infos() -> list[ParamInfo]:
 PARAMS: list[ParamInfo] = _infos()
 _BY_NAME: dict[str, ParamInfo] = {p.name: p for p in PARAMS}
 # Leaf aliases only where unique ("backlash_m" -> "effects.backlash_m").
-_leaf_counts: dict[str, int] = {}
-for _p in PARAMS:
-    _leaf_counts[_p.leaf] = _leaf_counts.get(_p.leaf, 0) + 1
+_leaf_counts = Counter(p.leaf for p in PARAMS)
 _ALIASES: dict[str, str] = {p.leaf: p.name for p in PARAMS if _leaf_counts[p.leaf] == 1}
 
 
@@ -586,14 +590,9 @@ class PlantParams:
     def diff(self, other: PlantParams) -> dict[str, tuple[Any, Any]]:
         """Parameters that differ: name -> (self value, other value)."""
         a, b = self.flat(), other.flat()
-        out = {}
-        for k in a:
-            va, vb = a[k], b[k]
-            same = (va == vb) or (isinstance(va, float) and isinstance(vb, float)
-                                  and math.isnan(va) and math.isnan(vb))
-            if not same:
-                out[k] = (va, vb)
-        return out
+        return {k: (a[k], b[k]) for k in a if not (a[k] == b[k] or (
+            isinstance(a[k], float) and isinstance(b[k], float)
+            and math.isnan(a[k]) and math.isnan(b[k])))}
 
 
 THESIS = PlantParams()

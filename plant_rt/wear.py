@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from plant_rt.contacts import contact_geometry
+from plant_rt.contacts import contact_geometry, helix_rad
 
 if TYPE_CHECKING:
     from plant_rt.params import PlantParams
@@ -66,7 +66,7 @@ def rolling_distance_per_rad(params: PlantParams) -> float:
     (m/rad): the ball centre travels the helix of radius r_m (length r_m / cos alpha per
     radian) at half the screw's relative speed, as the cage of a rolling bearing does."""
     s = params.screw
-    return 0.5 * s.nominal_radius_m / math.cos(math.radians(s.helix_angle_deg))
+    return 0.5 * s.nominal_radius_m / math.cos(helix_rad(s))
 
 
 def kernel_wear_gain(params: PlantParams) -> float:

@@ -44,7 +44,7 @@ from bench.workers import run_all
 from indie_plant.controller import Cascade
 from indie_plant.generate import simulate as indie_simulate
 from indie_plant.params import IndieParams
-from plant_rt.contacts import normal_to_axis
+from plant_rt.contacts import helix_rad, normal_to_axis
 from plant_rt.params import PlantParams
 
 LOG_S = 10.0
@@ -79,7 +79,7 @@ def rolling_friction_for_drag(params: PlantParams, drag_nm: float) -> float:
     screw radian) give f_v (2 F_pr / g) (cos(alpha) r + p / 2 pi)."""
     s = params.screw
     g = normal_to_axis(params)
-    lever = math.cos(math.radians(s.helix_angle_deg)) * s.lever_m + s.lead_m / (2 * math.pi)
+    lever = math.cos(helix_rad(s)) * s.lever_m + s.lead_m / (2 * math.pi)
     return drag_nm * g / (2.0 * params.effects.preload_n * lever)
 
 
@@ -118,6 +118,9 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
         "reducer.inertia_kg_m2": 2e-5, "screw.screw_inertia_kg_m2": 5e-5,
         "motor.current_max_a": n.current_limit_a, "motor.supply_voltage_v": n.supply_v,
         "reducer.ratio": n.ratio, "screw.lead_m": n.lead_m,
+        # the thesis' helix angle is kept at this lead (the nominal lever, calibrated
+        # through kt and friction); a change of lead from it moves the helix (tan ~ p)
+        "screw.helix_reference_lead_m": n.lead_m,
         "screw.nut_mass_kg": n.nut_mass_kg, "effects.preload_n": n.preload_n,
         "drive.current_kp_v_per_a": 2 * math.pi * n.current_bw_hz * n.inductance_h,
         "drive.current_ki_v_per_as": 2 * math.pi * n.current_bw_hz * n.resistance_ohm,
