@@ -3,11 +3,12 @@ of rows (a whole trace, or one row of the live watcher) and `summary` says the u
 far. Blocks of any size give the same numbers (the hysteresis trackers are resumable,
 everything else is a sum), so a live run and its log agree (`tests/unit/test_usage.py`).
 
-`usage_of_trace` is the whole-trace entry point: the geometry (lead, reducer ratio), the
-rating C_a and the preload come from the trace's plant parameters when it carries them
-(an in-process run, a bus run, a log whose SDO traffic had them all), else from the
-defaults of `plant_rt.params`; the serial from the log's SDO traffic (object 0x1018 sub 4)
-or from what the ECU read (``meta["node"]["identity"]``).
+`usage_of_trace` is the whole-trace entry point: the position hysteresis is raised to ten
+times the log's own position noise where that is larger (`bench.usage.hysteresis`); the
+geometry (lead, reducer ratio), the rating C_a and the preload come from the trace's plant
+parameters when it carries them (an in-process run, a bus run, a log whose SDO traffic had
+them all), else from the defaults of `plant_rt.params`; the serial from the log's SDO
+traffic (object 0x1018 sub 4) or from what the ECU read (``meta["node"]["identity"]``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import rainflow
 
 from bench import BenchError
 from bench.trace import Trace
+from bench.usage import hysteresis as H
 from bench.usage import life
 from bench.usage.settings import (
     LOAD_EDGES_N,
@@ -60,20 +62,31 @@ class UsageAccumulator:
     """Rows in (`push`), usage out (`summary`); see the module docstring."""
 
     def __init__(self, period_s: float, geometry: Geometry,
-                 settings: UsageSettings | None = None) -> None:
+                 settings: UsageSettings | None = None,
+                 hysteresis: Mapping[str, H.Hysteresis] | None = None) -> None:
+        """`hysteresis`: each counter's (`bench.usage.hysteresis.of_log`); default the
+        settings' alone."""
         if not (math.isfinite(period_s) and period_s > 0):
             raise BenchError(f"usage: the sample period must be > 0 s, not {period_s}")
         self.dt = float(period_s)
         self.geo = geometry
         self.settings = settings or UsageSettings()
         s = self.settings
-        self.screw = Tracker(s.reversal_hysteresis_m / geometry.lead_m)   # in revolutions
-        self.position = Tracker(s.position_hysteresis_m)
-        self.load = Tracker(s.load_hysteresis_n)
+        h = dict(hysteresis or H.of_settings(s))
+        self.screw = Tracker(h["reversal"].used / geometry.lead_m)   # in revolutions
+        self.position = Tracker(h["position"].used)
+        self.load = Tracker(h["load"].used)
         self.s = UsageSummary(load_rating_n=geometry.load_rating_n,
                               preload_mode=s.preload_mode, preload_n=geometry.preload_n)
+        self._record(h)
         self._last_load = math.nan
         self._seen = dict.fromkeys(NEEDS, 0)
+
+    def _record(self, h: Mapping[str, H.Hysteresis]) -> None:
+        """The hystereses used and why (the why names the log's noise)."""
+        s = self.s
+        s.position_hysteresis_m, s.load_hysteresis_n = h["position"].used, h["load"].used
+        s.hysteresis = {c: x.why() for c, x in h.items()}
 
     def push(self, cols: Mapping[str, Any]) -> None:
         """A block of rows: columns by trace name (``motor_angle_rad``, ``position_m``,
@@ -241,6 +254,7 @@ def usage_of_trace(trace: Trace, settings: UsageSettings | None = None,
     period = trace.meta.get("period_s")
     if not isinstance(period, int | float) or not period > 0:
         period = trace.dt if len(trace) > 1 else params.sim.sync_period_s
-    acc = UsageAccumulator(float(period), Geometry.of(params, settings), settings)
+    acc = UsageAccumulator(float(period), Geometry.of(params, settings), settings,
+                           H.of_log(settings, trace.columns))
     acc.push(trace.columns)
     return acc.summary(serial or trace_serial(trace), str(trace.meta.get("source", "")))

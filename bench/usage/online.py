@@ -5,7 +5,9 @@ end of a run equal `bench usage` on its log.
 
 The run's parameters (SYNC period, encoder resolution, lead, reducer ratio, C_a, preload) are those the ECU's SDO traffic
 revealed when it revealed them all (as the log decoder takes them), else the watcher's
-nominal ones; the serial number is the one the ECU read from 0x1018 sub 4.
+nominal ones; the serial number is the one the ECU read from 0x1018 sub 4. The hystereses
+are the settings': the noise rule of `bench usage` (`bench.usage.hysteresis`) needs the
+whole log's noise before the first row is counted.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from bench.usage.accumulator import Geometry, UsageAccumulator
+from bench.usage.hysteresis import of_settings
 from bench.usage.settings import UsageSettings
 from bench.usage.summary import UNKNOWN, UsageSummary, accumulate
 from plant_rt.params import PlantParams
@@ -25,6 +28,9 @@ COLUMNS = ("encoder_counts", "position_m", "load_force_n", "current_a", "motor_s
 TWO_PI = 2.0 * math.pi
 BLOCK = 256
 """Rows pushed at a time (the totals do not depend on it)."""
+LIVE = "live: no noise rule, it needs the whole log's noise"
+"""Why the hystereses are the settings' (`bench.usage.hysteresis`): on a log of the bench's
+own plant `bench usage` keeps the settings too, so the totals agree."""
 
 
 class OnlineUsage:
@@ -46,7 +52,7 @@ class OnlineUsage:
             self.end_run()
             p = self._params()
             self._acc = UsageAccumulator(p.sim.sync_period_s, Geometry.of(p, self.settings),
-                                         self.settings)
+                                         self.settings, of_settings(self.settings, LIVE))
             self._cpr = float(p.sensors.encoder_counts_per_rev)
             self._run = run
         self._rows.append(tuple(vals.get(c, math.nan) for c in COLUMNS))

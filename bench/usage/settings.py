@@ -11,6 +11,10 @@ counting as motion, reversals or cycles (docs/usage.md, "Hysteresis"):
   so that a noise peak of 5 sigma on each side does not close a cycle;
 - load cycles: 100 N on the load cell, 50 times its 2 N noise and 50 of its 2 N steps;
   below the resolution of a spectrum of 500 N bins.
+
+These are floors: on a noisier log (another rig's sensors) the position counter takes
+`position_noise_factor` (10) x the log's own position noise when that is larger, the load
+counter `load_noise_factor` (0, off) x its load noise (`bench.usage.hysteresis`).
 """
 
 from __future__ import annotations
@@ -37,10 +41,20 @@ class UsageSettings(ParamSet):
         "chosen: above encoder dither, below gust oscillations (module docstring)")
     position_hysteresis_m: float = P(
         20e-6, "m", 0.0, 0.01, "LVDT position range below which a position cycle is "
-        "filtered out before rainflow counting", "chosen: 10 x LVDT noise std")
+        "filtered out before rainflow counting (a floor: position_noise_factor)",
+        "chosen: 10 x LVDT noise std")
     load_hysteresis_n: float = P(
         100.0, "N", 0.0, 1e5, "load range below which a load cycle is filtered out before "
-        "rainflow counting", "chosen: 50 x load cell noise std")
+        "rainflow counting (a floor: load_noise_factor)", "chosen: 50 x load cell noise std")
+    position_noise_factor: float = P(
+        10.0, "-", 0.0, 100.0, "the position hysteresis is at least this many times the "
+        "log's own position noise (white-noise sigma from the second differences); 0: the "
+        "setting alone", "chosen: as the default, a 5-sigma noise peak each way does not "
+        "close a cycle (bench.usage.hysteresis)")
+    load_noise_factor: float = P(
+        0.0, "-", 0.0, 100.0, "the load hysteresis is at least this many times the log's "
+        "own load noise; 0 (default): the setting alone", "chosen: off, the second "
+        "differences read a gust load's roughness as noise (bench.usage.hysteresis)")
     dwell_speed_m_s: float = P(
         0.5e-3, "m/s", 0.0, 1.0, "nut speed (encoder) below which the actuator dwells",
         "chosen: 12 x the encoder speed noise (0.2 rad/s on the motor = 0.04 mm/s)")

@@ -19,6 +19,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.usage import life
+from bench.usage.hysteresis import merged_why
 from bench.usage.settings import (
     LOAD_EDGES_N,
     LOAD_MEAN_EDGES_N,
@@ -41,7 +42,8 @@ SUMS = ("runs", "samples", "duration_s", "screw_revolutions", "nut_travel_m", "r
         "position_cycles", "load_cycles", "load_cube_sum", "damage", "damage_nut1",
         "damage_nut2", "i2t_a2s", "time_unknown_regime_s", "dwell_s", "slow_s", "fast_s",
         "revolutions_dwell", "revolutions_slow", "revolutions_fast", "load_samples")
-MAXIMA = ("position_range_max_m", "load_range_max_n", "load_max_n", "temperature_max_k")
+MAXIMA = ("position_range_max_m", "load_range_max_n", "load_max_n", "temperature_max_k",
+          "position_hysteresis_m", "load_hysteresis_n")
 MINIMA = ("load_min_n",)
 
 
@@ -87,6 +89,9 @@ class UsageSummary:
     temperature_time_s: np.ndarray = field(default_factory=lambda: _zeros("temperature_time_s"))
     position_rainflow: np.ndarray = field(default_factory=lambda: _zeros("position_rainflow"))
     load_rainflow: np.ndarray = field(default_factory=lambda: _zeros("load_rainflow"))
+    position_hysteresis_m: float = 0.0     # the hystereses used (bench.usage.hysteresis)
+    load_hysteresis_n: float = 0.0
+    hysteresis: dict[str, str] = field(default_factory=dict)      # counter -> used and why
     not_available: dict[str, str] = field(default_factory=dict)   # quantity -> reason
 
     # -- derived ---------------------------------------------------------------------------
@@ -143,7 +148,7 @@ class UsageSummary:
         def clean(v: float) -> float | None:
             return v if math.isfinite(v) else None
         return {"actuator_serial": self.actuator_serial, "source": self.source,
-                "preload_mode": self.preload_mode,
+                "preload_mode": self.preload_mode, "hysteresis": dict(self.hysteresis),
                 **{k: clean(v) for k, v in self.as_dict().items()},
                 **{k: (None if k in self.not_available else a.tolist())
                    for k, a in self.arrays().items()},
@@ -209,6 +214,9 @@ def merged(a: UsageSummary, b: UsageSummary) -> UsageSummary:
         setattr(new, name, min(getattr(a, name), getattr(b, name)))
     for name in ARRAYS:
         setattr(new, name, getattr(a, name) + getattr(b, name))
+    new.hysteresis = merged_why(a.hysteresis, b.hysteresis,
+                                {"position": new.position_hysteresis_m,
+                                 "load": new.load_hysteresis_n})
     # what one run cannot give, the sum cannot either (named with the run)
     new.not_available = {**a.not_available, **{
         k: f"{v} ({b.source or 'a run'})" for k, v in b.not_available.items()

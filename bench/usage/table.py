@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from bench.usage.hysteresis import text
 from bench.usage.summary import UsageSummary
 
 COLUMNS = (
@@ -43,8 +44,11 @@ def format_table(rows: list[tuple[str, UsageSummary]]) -> str:
 
 
 def notes(label: str, s: UsageSummary) -> list[str]:
-    """Lines under the table: the quantities `s` has no value for, grouped by reason."""
+    """Lines under the table: the hysteresis of each counter and why
+    (`bench.usage.hysteresis`), the quantities `s` has no value for, grouped by reason."""
     why: dict[str, list[str]] = {}
     for q, reason in s.not_available.items():
         why.setdefault(reason, []).append(q)
-    return [f"{label}: not available ({reason}): {', '.join(qs)}" for reason, qs in why.items()]
+    head = [f"{label}: hysteresis: {text(s.hysteresis)}"] if s.hysteresis else []
+    return head + [f"{label}: not available ({reason}): {', '.join(qs)}"
+                   for reason, qs in why.items()]
