@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from bench.gap.candidate import Effect, Param, follow_model
+from bench.gap.candidate import Effect, Param, bound_scale
 from bench.gap.resim import first_order
 from plant_rt import kernel as K
 from plant_rt.model import param_vector
@@ -39,12 +39,15 @@ class _Single(Effect):
         return {self.target: theta[self.params[0].name]}
 
     scales_with_model: ClassVar[bool] = False
-    """Bounds written around the thesis' actuator's value: moved to the start model's
-    value (scaled by `bound_scale`) when that value lies outside them."""
+    """Bounds written around the thesis' actuator's value: scaled to the start model's
+    value (`bound_scale`), so that the candidate moves both ways from any actuator's
+    nominal (a value on an edge could move one way only; docs/gap.md, "A lead change
+    moves the helix"). The calibration keeps `follow_model`."""
 
     def for_model(self, base: PlantParams) -> Effect:
         prm = self.params[0]
-        moved = follow_model(prm, base, self.target) if self.scales_with_model else prm
+        k = bound_scale(base, self.target) if self.scales_with_model else 1.0
+        moved = prm if k == 1.0 else prm.scaled(k)
         if moved is prm:
             return self
         eff = copy.copy(self)
