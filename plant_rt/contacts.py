@@ -32,7 +32,7 @@ def helix_rad(s: ScrewParams) -> float:
     `helix_reference_lead_m`; at another lead on the same screw radius tan alpha scales with
     the lead (tan alpha = p / 2 pi r_m), so that the reaction lever of eq. 5.10 and 5.15,
     the torque an axial force needs, follows a lead change as the kinematics do (eq. 5.26).
-    A reference lead of 0 keeps alpha whatever the lead."""
+    A reference lead of 0 (the default, the thesis' model) keeps alpha whatever the lead."""
     alpha = math.radians(s.helix_angle_deg)
     ref = s.helix_reference_lead_m
     if ref <= 0.0 or s.lead_m == ref:

@@ -179,10 +179,11 @@ class ScrewParams(_Validated):
         "the deformation wear removes) and section 2.3 (backlash appears when the preload "
         "is null); a spacer-preloaded nut's datasheet")
     helix_reference_lead_m: float = P(
-        5e-3, "m", 0.0, 0.1, "the lead at which helix_angle_deg holds; at another lead the "
-        "helix follows it, tan alpha ~ p at the same r_m, and so does the torque per axial "
-        "force (plant_rt.contacts.helix_rad); 0: alpha as given at any lead",
-        "table 5.4: 3.04 deg = atan(p / 2 pi r_m) at p 5 mm, r_m 15 mm")
+        0.0, "m", 0.0, 0.1, "0 (default): alpha as given at any lead (the thesis' model); "
+        "> 0: the lead at which helix_angle_deg holds, at another lead the helix follows "
+        "it, tan alpha ~ p at the same r_m, and so does the torque per axial force "
+        "(plant_rt.contacts.helix_rad)", "0: thesis (table 5.4's 3.04 deg is atan(p / 2 pi "
+        "r_m) at its 5 mm); > 0: a screw's geometry (docs/gap.md, 'A lead change moves the helix')")
 
     @property
     def lever_m(self) -> float:

@@ -126,30 +126,33 @@ def test_static_equilibrium_under_load():
 
 @pytest.mark.parametrize("lead_mm", [4.5, 5.5])
 def test_the_torque_an_axial_load_needs_follows_the_lead(lead_mm):
-    """A lead change on the same screw moves the helix (tan alpha ~ p) and with it the
+    """With the screw's geometry declared (`screw.helix_reference_lead_m` 5 mm, the table's
+    lead), a lead change on the same screw moves the helix (tan alpha ~ p) and with it the
     reaction lever of eq. 5.10 and 5.15: holding a 5 kN load, the reaction torque scales
-    with the lead, as the work p / 2 pi per radian says. Before, the lever kept the
-    thesis' helix angle, so a lead change moved the kinematics and left the torque."""
-    def held(lead_m: float) -> float:
+    with the lead, as the work p / 2 pi per radian says. Without it (the thesis' model,
+    and every model before the parameter) the lever keeps the table's helix angle, so a
+    lead change moves the kinematics and leaves the torque."""
+    def held(lead_m: float, ref_m: float) -> float:
         p = PlantParams().with_dict({"load.kind": "ramp", "load.amplitude_n": 5e3,
-                                     "load.start_s": 0.05, "screw.lead_m": lead_m})
+                                     "load.start_s": 0.05, "screw.lead_m": lead_m,
+                                     "screw.helix_reference_lead_m": ref_m})
         tr = simulate(sine(amplitude_m=0.0, duration_s=0.5), p)
         return float(np.mean(tr["reaction_torque_nm"][tr.t > 0.4]))
-    ratio = held(lead_mm * 1e-3) / held(5e-3)
-    assert ratio == pytest.approx(lead_mm / 5.0, rel=5e-3)
+    assert held(lead_mm * 1e-3, 5e-3) / held(5e-3, 5e-3) == pytest.approx(lead_mm / 5.0,
+                                                                           rel=5e-3)
+    assert held(lead_mm * 1e-3, 0.0) / held(5e-3, 0.0) == pytest.approx(1.0, abs=2e-3)
 
 
 def test_the_helix_angle_holds_at_its_reference_lead():
-    """At the reference lead (the thesis' 5 mm) the table's 3.04 deg is used as given, bit
-    for bit; a reference of 0 keeps it at any lead (the model before the lead rule)."""
+    """At the reference lead the table's 3.04 deg is used as given, bit for bit; the
+    default reference, 0, keeps it at any lead (the thesis' model, as before the rule)."""
     from plant_rt.contacts import helix_rad
-    s = PlantParams().screw
-    assert helix_rad(s) == math.radians(3.04)
-    other = PlantParams().with_dict({"screw.lead_m": 6e-3}).screw
+    geometry = {"screw.helix_reference_lead_m": 5e-3}
+    assert helix_rad(PlantParams().with_dict(geometry).screw) == math.radians(3.04)
+    other = PlantParams().with_dict({**geometry, "screw.lead_m": 6e-3}).screw
     assert math.tan(helix_rad(other)) == pytest.approx(math.tan(math.radians(3.04)) * 1.2)
-    fixed = PlantParams().with_dict({"screw.lead_m": 6e-3,
-                                     "screw.helix_reference_lead_m": 0.0}).screw
-    assert helix_rad(fixed) == math.radians(3.04)
+    thesis = PlantParams().with_dict({"screw.lead_m": 6e-3}).screw
+    assert helix_rad(thesis) == math.radians(3.04)
 
 
 @pytest.mark.parametrize("preload", [0.0, 3e3])
