@@ -45,13 +45,11 @@ class _Single(Effect):
     moves the helix"). The calibration keeps `follow_model`."""
 
     def for_model(self, base: PlantParams) -> Effect:
-        prm = self.params[0]
         k = bound_scale(base, self.target) if self.scales_with_model else 1.0
-        moved = prm if k == 1.0 else prm.scaled(k)
-        if moved is prm:
+        if k == 1.0:
             return self
         eff = copy.copy(self)
-        eff.params = (moved, *self.params[1:])   # type: ignore[misc]
+        eff.params = (self.params[0].scaled(k), *self.params[1:])   # type: ignore[misc]
         return eff
 
 
