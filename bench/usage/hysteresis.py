@@ -124,9 +124,9 @@ def of_log(settings: UsageSettings, columns: Mapping[str, Any]) -> dict[str, Hys
         setting = out[c].setting
         y = np.asarray(columns[signal], dtype=float) if signal in columns else np.zeros(0)
         n = int(np.isfinite(y).sum())
-        sigma = noise_floor(y) if n else math.nan
+        sigma = noise_floor(y) if n and factor > 0 else math.nan   # rule off: not needed
         used = setting
-        if factor > 0 and n and math.isfinite(sigma):
+        if math.isfinite(sigma):
             low = sigma * (1.0 - SCATTER_SIGMAS * SCATTER / math.sqrt(n))
             if factor * low > setting:
                 used = factor * sigma
