@@ -27,6 +27,7 @@ from bench.gap import resim as R
 from bench.gap.autocorr import corr_length
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect
+from bench.gap.rigmodel import noise_floor
 from bench.trace import MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
 
@@ -149,13 +150,12 @@ class Problem:
 
 def noise_std(y: np.ndarray) -> float:
     """White-noise standard deviation of `y` from its second difference (robust MAD):
-    var(d2 y) = 6 sigma^2 for white noise; smooth motion barely contributes at 1 kHz."""
+    var(d2 y) = 6 sigma^2 for white noise; smooth motion barely contributes at 1 kHz.
+    The one estimator of the bench (`bench.gap.rigmodel.noise_floor`), 0.0 below 10
+    finite samples (a fit's weight, where the floor's NaN would poison the cost)."""
+    y = np.asarray(y, float)
     y = y[np.isfinite(y)]
-    if len(y) < 10:
-        return 0.0
-    d2 = np.diff(y, 2)
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
-    return 1.4826 * mad / math.sqrt(6.0)
+    return noise_floor(y) if len(y) >= 10 else 0.0
 
 
 MAX_GAP_FRACTION = 0.02   # lost SYNC rows (NaN) tolerated and interpolated

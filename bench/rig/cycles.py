@@ -16,6 +16,8 @@ stroke the acceleration, constant-speed and deceleration parts.
 
 from __future__ import annotations
 
+import csv
+import functools
 import io
 import math
 import re
@@ -171,9 +173,32 @@ def read_cycles(path: str | Path, columns: dict[str, str] | None = None,
 
 
 def line_of(path: Path, row: int) -> str:
-    """Where data row `row` (from 0) of a table is: 'line N' of a CSV (the header is line
-    1), 'row N' of a Parquet table."""
-    return f"row {row + 1}" if path.name.lower().endswith(".parquet") else f"line {row + 2}"
+    """Where data row `row` (from 0) of a table is: 'line N' of a CSV, counting the blank
+    lines the reader skips (`_data_lines`), 'row N' of a Parquet table."""
+    if path.name.lower().endswith(".parquet"):
+        return f"row {row + 1}"
+    try:
+        st = path.stat()
+        lines = _data_lines(str(path), st.st_mtime_ns, st.st_size)
+    except OSError:
+        lines = ()
+    return f"line {lines[row] if row < len(lines) else row + 2}"
+
+
+@functools.lru_cache(maxsize=4)
+def _data_lines(path: str, mtime_ns: int, size: int) -> tuple[int, ...]:
+    """The file line of each data row of a CSV (from 1; the header's line is not one):
+    pyarrow's reader skips empty lines, so row k is the k-th non-empty row after the
+    header. Only read for a message (the file's time and size key the cache)."""
+    text = _decompressed(Path(path)).decode("utf-8", errors="replace")
+    rd = csv.reader(io.StringIO(text))
+    starts: list[int] = []
+    prev = 0
+    for row in rd:
+        if row:                           # [] for an empty line
+            starts.append(prev + 1)
+        prev = rd.line_num
+    return tuple(starts[1:])
 
 
 def _table_cycles(path: Path, cols: dict[str, str], lost: list[str]) -> list[Cycle]:

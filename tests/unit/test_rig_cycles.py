@@ -160,3 +160,21 @@ def test_a_table_without_a_load_column_says_so(tmp_path):
     assert len(cyc) == 4 and np.isnan(cyc[0].load)
     assert cyc[0].label == "t load unknown run 1 cycle 51"
     assert lost == ["t.csv: no load column: the cycles' load is unknown"]
+
+
+def test_a_line_number_counts_the_blank_lines_before_it(tmp_path):
+    """The CSV reader skips blank lines, and the message counted data rows from the
+    header as if there were none: a text cell after a blank line was named one line too
+    early (line 52 for a cell on line 53), and a repeated row likewise."""
+    t = rows()
+    t[N + 5][COL["current"]] = "abc"
+    text = [HEADER] + [",".join(r) for r in t]
+    text.insert(11, "")                   # a blank line after data row 9 (line 11)
+    text.insert(3, "\r")                  # and an empty CRLF line after data row 1
+    p = tmp_path / "t.csv"
+    p.write_text("\n".join(text) + "\n")
+    lost: list[str] = []
+    read_cycles(p, skipped=lost)
+    assert text[line(N + 5) + 1] == ",".join(t[N + 5])      # its line, two blanks later
+    assert lost[0] == (f"t.csv: column current: 1 cell(s) not a number (line "
+                       f"{line(N + 5) + 2}: 'abc'): read as missing")

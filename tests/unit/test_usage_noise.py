@@ -143,3 +143,16 @@ def test_what_the_json_and_the_accumulation_say():
     # the live watcher's accumulator: the settings, and why
     live = UsageAccumulator(0.01, Geometry.of(PlantParams(), UsageSettings()))
     assert live.summary().hysteresis["position"] == "20 um (setting; no noise rule applied)"
+
+
+def test_the_gap_fit_and_the_rig_tools_share_one_white_noise_estimator():
+    """`bench.gap.problem.noise_std` (the fits' weights) and `rigmodel.noise_floor` (the
+    rig tools' floors, the usage hysteresis) were two copies of the same formula; now one
+    is the other, but for the fit's 0.0 below 10 finite samples (the floor's NaN)."""
+    from bench.gap.problem import noise_std
+    from bench.gap.rigmodel import noise_floor
+    rng = np.random.default_rng(3)
+    y = np.cumsum(rng.normal(size=500)) * 1e-3 + 0.02 * rng.normal(size=500)
+    y[::9] = np.nan
+    assert noise_std(y) == noise_floor(y) > 0.0
+    assert noise_std(y[:10]) == 0.0 and math.isnan(noise_floor(y[:4]))
