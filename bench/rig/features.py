@@ -108,6 +108,8 @@ class CycleFeatures:
     periodic_out_mm: float = float("nan")
     periodic_in_mm: float = float("nan")
     index_at: str = ""                    # the phase and index of the largest index |z|
+    # per phase: the cycle's mean position error less the baseline's mean of it (mm)
+    position_shift_mm: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     incomplete: str = ""                  # why the cycle cannot be judged ("" it can)
 
@@ -230,7 +232,8 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
     return CycleFeatures(cycle.label, cycle.source, cycle.load, cycle.run, cycle.group,
                          scores, loc[1], loc[2], loc[3],
                          side["out"], side["in"], levels["out"], levels["in"],
-                         per[1], per[2], per[3], idx_at, notes, incomplete(lb, cycle))
+                         per[1], per[2], per[3], idx_at, position_shifts(lb, cycle),
+                         notes, incomplete(lb, cycle))
 
 
 def stroke_signal(lb: LoadBaseline) -> str:
@@ -267,6 +270,36 @@ def index_score(lb: LoadBaseline, cycle: Cycle) -> tuple[float, str]:
             if not math.isfinite(best) or z > best:
                 best, at = z, f"{phase} {key}"
     return best, at
+
+
+def position_shifts(lb: LoadBaseline, cycle: Cycle) -> dict[str, float]:
+    """Per phase the cycle and the baseline share: the cycle's mean position error less
+    the baseline's mean of that index, in mm (what the verdict of a position-error index
+    reports beside it)."""
+    from bench.rig.baseline import phase_indexes
+    key = "position_error_mean"
+    return {phase: vals[key] - lb.indexes[phase][key][0]
+            for phase, vals in phase_indexes(cycle).items()
+            if key in lb.indexes.get(phase, {}) and math.isfinite(vals[key])}
+
+
+def shift_text(shifts: dict[str, float]) -> str:
+    """The verdict's words on a position-error index: each phase's shift in mm and, when
+    every phase moved the same way by a similar amount (the smallest at least half the
+    largest), what gives such a shift. A one-sided load (the Cranfield rig's) holds the
+    nut on one flank of a play, so a play shows so, not at the reversals
+    (docs/real-data.md, variant 5)."""
+    if not shifts:
+        return ""
+    text = ("; the mean position error of each phase against the healthy mean: "
+            + ", ".join(f"{k} {v:+.3f} mm" for k, v in shifts.items()))
+    v = np.array(list(shifts.values()))
+    if len(v) > 1 and (np.all(v > 0) or np.all(v < 0)) and \
+            np.min(np.abs(v)) >= 0.5 * np.max(np.abs(v)):
+        text += (" (the same way in every phase: what a play held on one flank by a "
+                 "one-sided load, a nut softer under the load, or a moved position-sensor "
+                 "zero gives)")
+    return text
 
 
 def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, float]:
@@ -386,6 +419,8 @@ def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> d
                 f"largest at {f.periodic_mm:.1f} mm)")
     elif effect == "index" and f.index_at:
         text = f"{EFFECTS[effect]} ({f.index_at})"
+        if f.index_at.endswith("position_error_mean"):
+            text += shift_text(f.position_shift_mm)
     else:
         text = EFFECTS[effect]
     named = FEATURE_OF.get(effect, effect)
