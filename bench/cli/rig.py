@@ -65,7 +65,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     i.add_argument("--sizes", metavar="LIST", help="fault sizes in units of the healthy "
                    "spread (default 0.25,0.5,1,2,4,8)")
     i.add_argument("--kinds", metavar="LIST", help="fault kinds (default: friction,"
-                   "backlash,localised,periodic)")
+                   "backlash,loaded_play,localised,periodic)")
     i.add_argument("--at-mm", type=float, metavar="MM", help="centre of the localised "
                    "bump, measured position (default: the middle of the out-stroke)")
     i.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
@@ -106,13 +106,17 @@ def runs_list(text: str | None, flag: str) -> list[int] | None:
 
 def _check(args: argparse.Namespace) -> None:
     from bench import BenchError
-    if getattr(args, "actuator", None) and getattr(args, "lead_mm", None) is None:
+    if getattr(args, "actuator", None):
         from bench.actuator import load
-        lead_m = load(args.actuator).get("lead_m")
-        if lead_m is None:
-            raise BenchError(f"{args.actuator}: the description gives no lead_m "
-                             "(use --lead-mm)")
-        args.lead_mm = 1e3 * lead_m
+        desc = load(args.actuator)
+        sign = desc.get("load_sign")      # the side a loaded play sits on (rig inject)
+        args.load_sign = 1.0 if sign is None else float(sign)
+        lead_m = desc.get("lead_m")
+        if getattr(args, "lead_mm", None) is None:
+            if lead_m is None:
+                raise BenchError(f"{args.actuator}: the description gives no lead_m "
+                                 "(use --lead-mm)")
+            args.lead_mm = 1e3 * lead_m
     lead = getattr(args, "lead_mm", None)
     if lead is not None and not (math.isfinite(lead) and lead > 0):
         raise BenchError("--lead-mm must be a finite length > 0")

@@ -57,8 +57,10 @@ then the direction-split one, and the catch-alls (dwell, index) only when nothin
 is above. (The first order, periodic then localised before everything else, was set
 after the first study; it named injected friction localised or index, and was changed
 on 2026-11-24 from injected faults only: docs/real-data.md "What else the bench sees:
-injected faults".) The verdict lists every feature against its threshold and names the
-baseline used.
+injected faults".) A cycle named by a mean position-error index that moved alike in
+every phase is named `offset` instead (variant 6, session 17: a play held on one flank by
+a one-sided load; a name only). The verdict lists every feature against its threshold and
+names the baseline used.
 """
 
 from __future__ import annotations
@@ -85,6 +87,9 @@ EFFECTS = {
     "level": "friction-like effect (current raised in both directions)",
     "drag": "drag lowered in both directions (less friction, or the preload's drag lost)",
     "reversal": "backlash-like effect (position error at the reversals)",
+    "offset": ("position offset in every phase, backlash-like under a one-sided load (a "
+               "play held on one flank by the load, a nut softer under the load, or a "
+               "moved position-sensor zero)"),
 }
 
 
@@ -283,23 +288,22 @@ def position_shifts(lb: LoadBaseline, cycle: Cycle) -> dict[str, float]:
             if key in lb.indexes.get(phase, {}) and math.isfinite(vals[key])}
 
 
+def common_shift(shifts: dict[str, float]) -> bool:
+    """True when every phase's mean position error moved the same way by a similar amount
+    (the smallest shift at least half the largest): a position offset of the whole cycle.
+    A one-sided load (the Cranfield rig's) holds the nut on one flank of a play, so a play
+    shows so, not at the reversals (docs/real-data.md, variants 5 and 6)."""
+    v = np.array(list(shifts.values()))
+    return bool(len(v) > 1 and (np.all(v > 0) or np.all(v < 0))
+                and np.min(np.abs(v)) >= 0.5 * np.max(np.abs(v)))
+
+
 def shift_text(shifts: dict[str, float]) -> str:
-    """The verdict's words on a position-error index: each phase's shift in mm and, when
-    every phase moved the same way by a similar amount (the smallest at least half the
-    largest), what gives such a shift. A one-sided load (the Cranfield rig's) holds the
-    nut on one flank of a play, so a play shows so, not at the reversals
-    (docs/real-data.md, variant 5)."""
+    """The verdict's words on a position-error index: each phase's shift in mm."""
     if not shifts:
         return ""
-    text = ("; the mean position error of each phase against the healthy mean: "
+    return ("; the mean position error of each phase against the healthy mean: "
             + ", ".join(f"{k} {v:+.3f} mm" for k, v in shifts.items()))
-    v = np.array(list(shifts.values()))
-    if len(v) > 1 and (np.all(v > 0) or np.all(v < 0)) and \
-            np.min(np.abs(v)) >= 0.5 * np.max(np.abs(v)):
-        text += (" (the same way in every phase: what a play held on one flank by a "
-                 "one-sided load, a nut softer under the load, or a moved position-sensor "
-                 "zero gives)")
-    return text
 
 
 def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, float]:
@@ -357,7 +361,8 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
 
     (Variant 1 of 2026-11-24, designed from injected faults: docs/real-data.md "What else
     the bench sees: injected faults".) A level below the healthy one is named `drag`, not
-    friction (variant 4: a friction growth raises the current)."""
+    friction (variant 4: a friction growth raises the current). An index that is a mean
+    position error moved alike in every phase is named `offset` (variant 6)."""
     ratios = {k: f.scores[k] / thresholds[k] for k in FEATURES
               if k in thresholds and math.isfinite(f.scores.get(k, nan_))
               and thresholds[k] > 0}
@@ -372,7 +377,16 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
         return True, spec, reasons
     if split == "level" and signed_level(f) < 0:
         return True, "drag", reasons
+    if not split and best["catch-all"] == "index" and is_offset(f):
+        return True, "offset", reasons
     return True, split or best["catch-all"], reasons
+
+
+def is_offset(f: CycleFeatures) -> bool:
+    """The cycle's largest phase index is a mean position error, and every phase's moved
+    alike (`common_shift`): named `offset` instead of `index` (variant 6, session 17; a
+    name only, the cycle was flagged by the index feature)."""
+    return f.index_at.endswith("position_error_mean") and common_shift(f.position_shift_mm)
 
 
 def signed_level(f: CycleFeatures) -> float:
@@ -385,7 +399,7 @@ def signed_level(f: CycleFeatures) -> float:
 
 NAMING = {"position-locked": SPECIFIC, "direction-split": ("level", "reversal"),
           "catch-all": ("dwell", "index")}
-FEATURE_OF = {"drag": "level"}      # an effect named by another feature's name
+FEATURE_OF = {"drag": "level", "offset": "index"}   # effects named by another feature
 nan_ = float("nan")
 
 
@@ -417,7 +431,7 @@ def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> d
                 f"{f.location_mm:.1f} mm of travel (out-stroke alone {f.out_mm:.1f} mm, "
                 f"in-stroke alone {f.in_mm:.1f} mm; the lead-periodic projection is "
                 f"largest at {f.periodic_mm:.1f} mm)")
-    elif effect == "index" and f.index_at:
+    elif effect in ("index", "offset") and f.index_at:
         text = f"{EFFECTS[effect]} ({f.index_at})"
         if f.index_at.endswith("position_error_mean"):
             text += shift_text(f.position_shift_mm)

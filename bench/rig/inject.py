@@ -31,6 +31,17 @@ The fault models (written down, with their rationale, before any result was look
   the nut against one flank in a stroke). Size: b in units of the baseline's spread of
   the stroke position error, beside it b in mm. Limitation: the logged position's own
   noise passes the operator too (noise smaller than the play is absorbed at standstill).
+- loaded_play (a play under a one-sided load; session 17, docs/real-data.md variants 5
+  and 6): a load of one
+  sign over the whole cycle, well above the nut's friction (the Cranfield rig's 20, 40
+  and -40 kgf), holds the nut on the loaded flank of the play in both strokes and at
+  standstill, so the play is never taken up at a reversal: the nut sits b/2 from where
+  the motor puts it, towards the side the load pushes it (`Scales.push`: the sign of the
+  load times the actuator description's `load_sign`), in every sample. The logged
+  position is shifted by that much; the current is unchanged. Size: b in units of the
+  spread of the stroke position error, as for backlash. The kind's own effect: offset
+  (a flagged cycle named by a mean position-error index that moved alike in every phase,
+  `features.judge`).
 - localised (a dent, a spall or debris at one spot of the raceway): while the spot is
   under the nut the balls roll over it and the current is raised; the nut covers about
   `NUT_MM` of travel, so a rectangular bump of height h (A) over a nut length centred on
@@ -46,7 +57,7 @@ The spread of the stroke current (sigma_I) is the RMS over the out- and in-strok
 aligned samples of the baseline's per-sample spread of the current the stroke features
 read (`features.stroke_signal`: against the standstill); sigma_e is the same for the
 position error. The kind's own effect: friction -> level, backlash -> reversal,
-localised -> localised, periodic -> periodic.
+loaded_play -> offset, localised -> localised, periodic -> periodic.
 """
 
 from __future__ import annotations
@@ -67,13 +78,14 @@ from bench.rig import population as P
 from bench.rig.cycles import Cycle, condition_name, phases, read_cycles
 from bench.rig.features import cycle_features, judge, location, stroke_signal
 
-KINDS = ("friction", "backlash", "localised", "periodic")
-EXPECTED = {"friction": "level", "backlash": "reversal", "localised": "localised",
-            "periodic": "periodic"}
+KINDS = ("friction", "backlash", "loaded_play", "localised", "periodic")
+EXPECTED = {"friction": "level", "backlash": "reversal", "loaded_play": "offset",
+            "localised": "localised", "periodic": "periodic"}
 SIZES = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)     # in units of the healthy spread
 NUT_MM = 22.0                                # travel a nut covers (about a nut length)
 RATE_GOAL = 0.9                              # "the size found in 90 % of cycles"
-UNITS = {"friction": "A", "backlash": "mm", "localised": "A", "periodic": "A"}
+UNITS = {"friction": "A", "backlash": "mm", "loaded_play": "mm", "localised": "A",
+         "periodic": "A"}
 
 
 @dataclass
@@ -84,15 +96,19 @@ class Scales:
     sigma_e_mm: float         # spread of the stroke position error, mm
     stroke_current_a: float   # mean stroke current above the standstill, A
     at_mm: float              # where the localised bump is centred (measured position)
+    push: float = 1.0         # the direction the load pushes the nut along x (+1 or -1)
 
     def physical(self, kind: str, size: float) -> float:
-        """A size in sigma -> A (friction, localised, periodic) or mm (backlash)."""
-        return size * (self.sigma_e_mm if kind == "backlash" else self.sigma_i_a)
+        """A size in sigma -> A (friction, localised, periodic) or mm (the plays)."""
+        return size * (self.sigma_e_mm if UNITS[kind] == "mm" else self.sigma_i_a)
 
 
-def scales(lb: B.LoadBaseline, at_mm: float | None = None) -> Scales:
+def scales(lb: B.LoadBaseline, at_mm: float | None = None, load_sign: float = 1.0
+           ) -> Scales:
     """The spreads of one load's baseline over its strokes (RMS of the per-sample
-    spreads), its mean stroke current above the standstill and the bump's centre."""
+    spreads), its mean stroke current above the standstill, the bump's centre and the
+    direction the load pushes the nut (`load_sign`: +1 when a positive logged load pushes
+    it to +x)."""
     sig = stroke_signal(lb)
     strokes = [p for p in lb.phases.values() if p.direction != 0]
     if not strokes:
@@ -112,7 +128,8 @@ def scales(lb: B.LoadBaseline, at_mm: float | None = None) -> Scales:
         if not (math.isfinite(at_mm) and lo <= at_mm <= hi):
             raise BenchError(f"--at-mm {at_mm:g}: outside the measured stroke of load "
                              f"{lb.load:g} ({lo:.1f} to {hi:.1f} mm): give a position in it")
-    return Scales(lb.load, si, se, float(np.mean(above)), mid if at_mm is None else at_mm)
+    return Scales(lb.load, si, se, float(np.mean(above)), mid if at_mm is None else at_mm,
+                  -load_sign if lb.load < 0 else load_sign)
 
 
 def moving(cycle: Cycle) -> np.ndarray:
@@ -148,6 +165,13 @@ def backlash(cycle: Cycle, width_mm: float) -> Cycle:
     return dataclasses.replace(cycle, position_mm=play(cycle.position_mm, width_mm, first))
 
 
+def loaded_play(cycle: Cycle, width_mm: float, push: float) -> Cycle:
+    """The logged nut position through a play of `width_mm` held on its loaded flank: the
+    nut sits half the play from the motor's position towards `push` (+1: +x) in every
+    sample (current unchanged)."""
+    return dataclasses.replace(cycle, position_mm=cycle.position_mm + push * 0.5 * width_mm)
+
+
 def localised(cycle: Cycle, height_a: float, at_mm: float, width_mm: float = NUT_MM
               ) -> Cycle:
     """A current bump of `height_a` (A) while the measured position is within half a
@@ -170,6 +194,8 @@ def inject(cycle: Cycle, kind: str, size: float, sc: Scales, lead_mm: float) -> 
         return friction(cycle, x)
     if kind == "backlash":
         return backlash(cycle, x)
+    if kind == "loaded_play":
+        return loaded_play(cycle, x, sc.push)
     if kind == "localised":
         return localised(cycle, x, sc.at_mm)
     if kind == "periodic":
@@ -233,9 +259,11 @@ def _tables(tables: list[str | Path], calibrate_runs: list[int], holdout_runs: l
 def run_inject(tables: list[str | Path], calibrate_runs: list[int],
                holdout_runs: list[int], lead_mm: float, sizes: tuple[float, ...] = SIZES,
                kinds: tuple[str, ...] = KINDS, alpha: float = P.ALPHA,
-               at_mm: float | None = None, progress: bool = False) -> dict[str, Any]:
+               at_mm: float | None = None, progress: bool = False, load_sign: float = 1.0
+               ) -> dict[str, Any]:
     """The injection study: baseline and thresholds from `calibrate_runs` (as `bench rig
-    study`), every held-out cycle scored unmodified and with each kind and size."""
+    study`), every held-out cycle scored unmodified and with each kind and size
+    (`load_sign`: the actuator description's, for the side a loaded play sits on)."""
     if set(calibrate_runs) & set(holdout_runs):
         raise BenchError("a run cannot be both a calibration and a held-out run")
     t0 = time.perf_counter()
@@ -255,7 +283,7 @@ def run_inject(tables: list[str | Path], calibrate_runs: list[int],
     if not hold:
         raise BenchError("no held-out cycle at a load the calibration runs have")
     loads = sorted({c.load for c in hold})
-    sc = {load: scales(base.for_load(load), at_mm) for load in loads}
+    sc = {load: scales(base.for_load(load), at_mm, load_sign) for load in loads}
     cells: dict[tuple[str, float, float], Cell] = {}
     healthy = {load: Cell() for load in loads}
     jobs = [(kind, s) for kind in kinds for s in sizes]
@@ -503,7 +531,7 @@ def run_cli(args: Any, cal: list[int], hold: list[int], command: str) -> int:
         raise BenchError(f"--at-mm must be a finite position in mm, got {args.at_mm}")
     res = run_inject(args.tables, cal, hold, args.lead_mm, parse_sizes(args.sizes),
                      parse_kinds(args.kinds), args.alpha, args.at_mm,
-                     progress=sys.stderr.isatty())
+                     progress=sys.stderr.isatty(), load_sign=getattr(args, "load_sign", 1.0))
     paths = write(res, Path(args.out), command)
     print(markdown(res, command))
     print("written: " + ", ".join(str(p) for p in paths.values()))

@@ -179,11 +179,11 @@ def test_a_lowered_level_is_drag_not_friction(base):
     assert judge(high, thr)[1] == "level"
 
 
-def test_a_position_shift_in_every_phase_is_reported_with_what_gives_one():
+def test_a_position_shift_in_every_phase_is_named_an_offset():
     """A play held on one flank by a one-sided load shifts the nut in every phase (docs
-    real-data.md, variant 5): the verdict of a position-error index gives each phase's
-    shift and, when all moved the same way alike, what gives that; a shift of one phase
-    alone gets the numbers only."""
+    real-data.md, variants 5 and 6): flagged by a mean position-error index, it was named
+    `index`; now, with every phase moved alike, `offset` (backlash-like under a one-sided
+    load), each phase's shift in the verdict. A shift of one phase alone stays `index`."""
     from bench.rig.features import verdict
     rng = np.random.default_rng(21)
 
@@ -199,11 +199,14 @@ def test_a_position_shift_in_every_phase_is_reported_with_what_gives_one():
     assert set(f.position_shift_mm) == {"out", "dwell_top", "in"}
     assert all(abs(v - 0.1) < 0.01 for v in f.position_shift_mm.values())
     v = verdict(base, f, {"index": 10.0})
-    assert v["effect"] == "index" and "out +0.10" in v["verdict"]
-    assert "the same way in every phase" in v["verdict"]
+    assert v["effect"] == "offset" and "out +0.10" in v["verdict"]
+    assert "backlash-like under a one-sided load" in v["verdict"]
+    assert v["location_mm"] is None
     one = noisy(trapezoid(rng))
     d = next(s for s in phases(one.setpoint_mm) if s.name == "dwell_top")
     one.position_mm[d.start:d.stop] -= 0.1               # the dwell alone
     w = verdict(base, cycle_features(lb, one), {"index": 10.0})
     assert w["effect"] == "index" and "dwell_top +0.10" in w["verdict"]
-    assert "the same way" not in w["verdict"]
+    assert "backlash" not in w["verdict"]
+    # a direction-split feature above its threshold is named before the catch-all
+    assert judge(f, {"index": 10.0, "level": 1e-6})[1] in ("level", "drag")
