@@ -166,7 +166,9 @@ def from_dict(data: dict[str, Any], where: str = "actuator") -> Actuator:
                          f"logged load pushes the nut) or \"unknown\", got {sign:g}")
     gains = _group(ctrl, CONTROLLER, f"{where} controller", sources, ("structure",))
     refs = data.get("sources", [])
-    refs = [refs] if isinstance(refs, str) else list(refs)
+    refs = [refs] if isinstance(refs, str) else refs
+    if not isinstance(refs, list):
+        raise BenchError(f"{where}: sources must be a text or a list of texts, got {refs!r}")
     return Actuator(str(data.get("name", where)), kind, values, gains, structure, sources,
                     tuple(str(r) for r in refs))
 
@@ -192,8 +194,16 @@ def load(spec: str | Path) -> Actuator:
             data = json.loads(path.read_text())
         else:
             raise BenchError(f"{path}: an actuator description is .json or .toml")
-    except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:
+    except (json.JSONDecodeError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise BenchError(f"{path}: not valid {path.suffix[1:].upper()} ({exc})") from None
+    except RecursionError:
+        raise BenchError(f"{path}: not an actuator description (nested too deep to read)"
+                         ) from None
+    except IsADirectoryError:
+        raise BenchError(f"{path}: a directory, not an actuator description") from None
+    except OSError as exc:
+        raise BenchError(f"{path}: cannot read the actuator description "
+                         f"({exc.strerror or exc})") from None
     return from_dict(data, path.name)
 
 

@@ -49,6 +49,21 @@ def scheduler_address(scheduler: str | None = None) -> str | None:
     return addr or None
 
 
+def check_address(address: str) -> None:
+    """BenchError unless `address` reads as a Dask scheduler address (a distributed
+    Client given one that does not, such as "bogus", raised, then hung the interpreter's
+    exit for 40 s in its __del__ and printed a traceback)."""
+    from distributed.comm.addressing import get_address_host_port, parse_address
+    try:
+        scheme, _ = parse_address(address)
+        if scheme not in ("inproc", "ucx"):         # no host:port to check
+            get_address_host_port(address)
+    except ValueError as exc:
+        raise BenchError(f"not a Dask scheduler address: {address!r} ({exc}); give "
+                         "--scheduler (or $BENCH_DASK_SCHEDULER) as tcp://HOST:PORT"
+                         ) from None
+
+
 def default_workers() -> int:
     """Two workers, or one on a one-core machine."""
     return max(1, min(2, os.cpu_count() or 1))
@@ -63,6 +78,8 @@ class Engine:
                  announce: bool = False, timeout: float | None = None) -> None:
         self.workers = max(1, int(workers))
         self.scheduler = scheduler_address(scheduler)
+        if self.scheduler is not None:
+            check_address(self.scheduler)
         self.announce = announce
         self.timeout = timeout if timeout is not None else (
             START_TIMEOUT_S if self.scheduler is None else CONNECT_TIMEOUT_S)

@@ -57,10 +57,11 @@ class Trace:
     def __post_init__(self) -> None:
         if "t_s" not in self.columns:
             raise BenchError("a trace needs a time column t_s")
-        n = len(self.columns["t_s"])
+        n = None
         for k, v in list(self.columns.items()):
-            arr = np.asarray(v, dtype=float)
-            if arr.ndim != 1 or len(arr) != n:
+            arr = _column(k, v)
+            n = len(arr) if n is None else n
+            if len(arr) != n:
                 raise BenchError(f"trace column {k!r} has length {len(arr)}, expected {n}")
             self.columns[k] = arr
 
@@ -161,6 +162,21 @@ class Trace:
         return tr
 
 
+def _column(name: str, values: Any) -> np.ndarray:
+    """One trace column as a 1-D float array; BenchError naming it when it is not one
+    (a single value, a table, text, complex numbers)."""
+    if np.iscomplexobj(values):
+        raise BenchError(f"trace column {name!r} holds complex numbers, not real ones")
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise BenchError(f"trace column {name!r} is not a column of numbers ({exc})") from None
+    if arr.ndim != 1:
+        raise BenchError(f"trace column {name!r} is {arr.ndim}-D (shape {arr.shape}), not "
+                         "one value per row")
+    return arr
+
+
 NOT_A_TRACE = ("not a trace the bench wrote? A rig's own table is read with "
                "`bench import TABLE --map MAP` (docs/real-data.md)")
 
@@ -184,11 +200,13 @@ def _read_columns(path: Path, suffix: str) -> tuple[dict[str, np.ndarray], dict[
 
 
 def _check_loaded(path: Path, tr: Trace, suffix: str) -> None:
-    """BenchError naming `path` unless t_s is finite and strictly increasing and no
-    column holds an infinite value."""
+    """BenchError naming `path` unless it has rows, t_s is finite and strictly increasing
+    and no column holds an infinite value."""
     def row(i: int) -> str:
         return f"line {i + 2}" if suffix == ".csv" else f"row {i + 1}"
     t = tr.t
+    if not len(t):
+        raise BenchError(f"{path}: the trace has no rows (no sample to read)")
     bad = np.flatnonzero(~np.isfinite(t))
     if len(bad):
         raise BenchError(f"{path} {row(int(bad[0]))}: the time t_s is {t[bad[0]]} "

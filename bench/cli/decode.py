@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from bench import BenchError
 
@@ -33,6 +32,21 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def check_arguments(args: argparse.Namespace) -> None:
+    """Refuse, before the log is read, a period or resolution no log can have and an
+    output that cannot be written."""
+    import math
+
+    from bench.cli.outputs import check_output_file
+    if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
+        raise BenchError(f"--period must be a finite number of seconds > 0, not "
+                         f"{args.period:g}")
+    if args.counts_per_rev is not None and args.counts_per_rev < 1:
+        raise BenchError(f"--counts-per-rev must be >= 1, not {args.counts_per_rev}")
+    if args.output:
+        check_output_file(args.output, "-o", (".csv", ".parquet", ".npz"))
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -40,9 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from bench.bus.logread import LogIssues, report_issues
     from bench.bus.logs import trace_from_log
 
-    if args.output and Path(args.output).suffix.lower() not in (".csv", ".parquet", ".npz"):
-        raise BenchError(f"unknown table format {Path(args.output).suffix!r} "
-                         "(use .csv, .parquet or .npz)")
+    check_arguments(args)
     issues = LogIssues(20)
     tr = trace_from_log(args.file, args.node_id, args.period, args.counts_per_rev, issues)
     for line in report_issues(issues):

@@ -165,21 +165,38 @@ def _table(out: dict, top1_goal: float = 0.9, nominal_goal: float = 0.95) -> str
     return "\n".join(lines) + "\n"
 
 
-def run(args: argparse.Namespace) -> int:
+def check_arguments(args: argparse.Namespace) -> list | None:
+    """Refuse, before minutes of work, what the benchmark cannot run or write (the
+    effects library asked for is returned)."""
     from bench import BenchError
-    from bench.gap.blind import run as bench_run
+    from bench.cli.outputs import check_output_file
     if args.cases < 1:
         raise BenchError("--cases must be >= 1")
     if args.workers < 1:
         raise BenchError("--workers must be >= 1")
     if not 2.0 <= args.log_s <= 120.0:
         raise BenchError("--log-s must be between 2 and 120 s")
+    if args.seed < 0:
+        raise BenchError(f"--seed must be >= 0, not {args.seed}")
     from bench.gap import effects as E
+    if args.effects is not None and not args.effects.strip(", "):
+        raise BenchError("--effects lists no effect")
     lib = E.parse_list(args.effects) if args.effects else None
     if args.identify and (args.generator != "independent" or args.controller != "own"):
         raise BenchError("--identify is for --generator independent --controller own")
-    if args.only and args.generator != "independent":
-        raise BenchError("--only is for --generator independent")
+    for flag, given in (("--only", args.only), ("--indie-set", args.indie_set)):
+        if given and args.generator != "independent":
+            raise BenchError(f"{flag} is for --generator independent")
+    for flag, path in (("--json", args.json), ("--markdown", args.markdown)):
+        if path:
+            check_output_file(path, flag)
+    return lib
+
+
+def run(args: argparse.Namespace) -> int:
+    from bench import BenchError
+    from bench.gap.blind import run as bench_run
+    lib = check_arguments(args)
     if args.generator == "independent":
         from bench.gap.indiebench import NOMINAL, POOL
         if args.only and args.only not in POOL:

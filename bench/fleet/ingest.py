@@ -88,8 +88,12 @@ def expand(paths: Iterable[str]) -> list[Path]:
             raise BenchError(f"no such file or directory: {p}")
         for h in hits:
             if h.is_dir():
-                found.update(f for f in h.rglob("*")
-                             if f.is_file() and f.suffix.lower() in LOG_SUFFIXES)
+                logs = {f for f in h.rglob("*")
+                        if f.is_file() and f.suffix.lower() in LOG_SUFFIXES}
+                if not logs and not glob.has_magic(p):
+                    raise BenchError(f"{p}: a directory with no log in it (none of "
+                                     f"{', '.join(LOG_SUFFIXES)}, searched recursively)")
+                found.update(logs)
             elif h.is_file():
                 found.add(h)
     return sorted(found)

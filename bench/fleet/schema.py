@@ -78,7 +78,11 @@ def version(con: Any) -> int:
     if not has:
         return 0
     row = con.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-    return int(row[0]) if row else 0
+    try:
+        return int(row[0]) if row else 0
+    except (TypeError, ValueError):
+        raise BenchError(f"not a fleet store: its schema_version is {row[0]!r}, not a "
+                         "number") from None
 
 
 def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
@@ -88,6 +92,12 @@ def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
     if have > SCHEMA_VERSION:
         raise BenchError(f"the fleet store has schema version {have}, newer than this "
                          f"bench's {SCHEMA_VERSION}: update the bench")
+    tables = [r[0] for r in con.execute("SELECT table_name FROM information_schema.tables"
+                                        ).fetchall()]
+    if have == 0 and tables:
+        raise BenchError(f"not a fleet store: a database with table(s) "
+                         f"{', '.join(sorted(tables))} and no schema version (a fleet store "
+                         "is made in a new file)")
     for k in range(have, target):
         con.execute("BEGIN TRANSACTION")
         try:
@@ -117,11 +127,21 @@ def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERS
         raise BenchError(f"{p}: cannot open the fleet store: "
                          f"{str(exc).splitlines()[0]}") from None
     if read_only:
-        have = version(con)
+        try:
+            have = version(con)
+        except BenchError as exc:
+            con.close()
+            raise BenchError(f"{p}: {exc}") from None
         if have != SCHEMA_VERSION:
             con.close()
             raise BenchError(f"{p}: fleet store schema version {have}, this bench reads "
-                             f"{SCHEMA_VERSION} (run `bench fleet ingest` on it to migrate)")
+                             f"{SCHEMA_VERSION} ("
+                             + ("update the bench)" if have > SCHEMA_VERSION else
+                                "run `bench fleet ingest` on it to migrate)"))
         return con
-    migrate(con, target)
+    try:
+        migrate(con, target)
+    except BenchError as exc:
+        con.close()
+        raise BenchError(f"{p}: {exc}") from None
     return con

@@ -56,6 +56,9 @@ def read_nominal(path: str | Path) -> dict[str, Any]:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise BenchError(f"{path}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise BenchError(f"{path}: not a calibration or parameter JSON (nested too deep "
+                         "to read)") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise BenchError(f"{path}: cannot be read ({exc})") from None
     if not isinstance(data, dict):

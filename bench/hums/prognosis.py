@@ -54,6 +54,11 @@ T0 = -1e-6
 """Start time of the filter: a first ground test at t = 0 is an update."""
 
 
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
 @dataclass
 class PrognosisCalibration:
     """The observation model (index curves of w and their noise), the prior of the wear
@@ -78,9 +83,32 @@ class PrognosisCalibration:
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> PrognosisCalibration:
         try:
-            return cls(**d)
+            cal = cls(**d)
         except TypeError as exc:
             raise BenchError(f"not a prognosis calibration: {exc}") from None
+        cal._check()
+        return cal
+
+    def _check(self) -> None:
+        """BenchError naming the first field of a read calibration that has the wrong
+        shape (the filter would fail on it later with a TypeError)."""
+        def numbers(x: Any, n: int | None = None) -> bool:
+            return (isinstance(x, list) and all(_is_number(v) for v in x)
+                    and (n is None or len(x) == n))
+        n = len(self.w_grid) if numbers(self.w_grid) else 0
+        checks = [("w_grid", n >= 2, "a list of at least 2 numbers"),
+                  ("curves", isinstance(self.curves, dict)
+                   and all(numbers(c, n) for c in self.curves.values()),
+                   "index name -> a list of numbers, one per w_grid point"),
+                  ("sigma", isinstance(self.sigma, dict)
+                   and all(_is_number(v) for v in self.sigma.values()),
+                   "index name -> a number")]
+        checks += [(k, _is_number(getattr(self, k)), "a number") for k in (
+            "lnk_mean", "lnk_std", "lnk_time_mean", "lnk_time_std", "exposure_rate_mean",
+            "lfs_std", "warn_w", "v_fail_m3")]
+        for name, ok, what in checks:
+            if not ok:
+                raise BenchError(f"not a prognosis calibration: {name} is not {what}")
 
     def curve(self, name: str, w: np.ndarray) -> np.ndarray:
         """The index `name` at wear w (linear beyond both ends of the grid)."""

@@ -15,6 +15,7 @@ indexes is an error.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections import defaultdict
 from pathlib import Path
@@ -34,7 +35,12 @@ def read_trends(path: str | Path) -> dict[str, dict[float, dict[str, float]]]:
         raise BenchError(f"no trends file {p}")
     acc: dict[str, dict[float, dict[str, list[float]]]] = defaultdict(
         lambda: defaultdict(lambda: defaultdict(list)))
-    with p.open(newline="") as fh:
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise BenchError(f"{p}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
+                         f"{exc.start}): not a trends CSV") from None
+    with io.StringIO(text, newline="") as fh:
         rd = csv.DictReader(fh)
         missing = [c for c in COLUMNS if c not in (rd.fieldnames or [])]
         if missing:
@@ -118,5 +124,10 @@ def load_calibration(path: str | Path | None) -> PrognosisCalibration:
                          "--usage` first, or pass --calibration FILE.json")
     try:
         return PrognosisCalibration.from_json(json.loads(p.read_text()))
+    except BenchError as exc:
+        raise BenchError(f"{p}: {exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise BenchError(f"{p}: not JSON ({exc})") from None
+    except RecursionError:
+        raise BenchError(f"{p}: not a prognosis calibration (nested too deep to read)"
+                         ) from None

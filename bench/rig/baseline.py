@@ -169,6 +169,9 @@ class Baseline:
                              ) from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise BenchError(f"{path}: not a baseline JSON ({exc})") from None
+        except RecursionError:
+            raise BenchError(f"{path}: not a baseline JSON (nested too deep to read)"
+                             ) from None
         if not isinstance(d, dict) or d.get("format") != FORMAT:
             raise BenchError(f"{path}: not a baseline written by `bench rig baseline`")
         loads = {}

@@ -141,6 +141,35 @@ def test_trends_csv_errors(tmp_path):
         prognose_trends(f, synthetic_calibration())
 
 
+@pytest.mark.parametrize("change, msg", [
+    ({"w_grid": "x"}, "w_grid is not a list of at least 2 numbers"),
+    ({"curves": 5}, "curves is not index name -> a list of numbers, one per w_grid point"),
+    ({"curves": {"ci_harmonic": [1.0, 0.9]}}, "curves is not index name -> a list of"),
+    ({"sigma": None}, "sigma is not index name -> a number"),
+    ({"lnk_mean": "a"}, "lnk_mean is not a number"),
+])
+def test_a_calibration_of_the_wrong_shape_is_one_line(tmp_path, capsys, change, msg):
+    """Found by fuzzing (session 17): a calibration JSON with the right keys and values
+    of the wrong type reached the CLI's catch-all (TypeError, exit 1); a trends file
+    that is not UTF-8 too (UnicodeDecodeError)."""
+    import json
+
+    from bench.cli import main
+    cf = tmp_path / "cal.json"
+    cf.write_text(json.dumps({**synthetic_calibration().to_json(), **change}))
+    f = tmp_path / "trends.csv"
+    write_trends(f, synthetic_calibration(), {"RIG-7": 1 / 25.0})
+    assert main(["hums", "prognose", "--trends", str(f), "--calibration", str(cf)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {cf}: not a prognosis calibration: {msg}"), err
+    assert "\n" not in err
+    cf.write_text(json.dumps(synthetic_calibration().to_json()))
+    f.write_bytes(b"\x91\xb6garbage")
+    assert main(["hums", "prognose", "--trends", str(f), "--calibration", str(cf)]) == 2
+    assert capsys.readouterr().err.strip() == (f"error: {f}: not UTF-8 text (byte 0x91 at "
+                                               "offset 0): not a trends CSV")
+
+
 def test_bench_hums_prognose_on_a_trends_csv(tmp_path, capsys):
     import json
 

@@ -62,6 +62,40 @@ def test_a_newer_store_is_refused(tmp_path):
         Store(path)
 
 
+def test_a_database_that_is_not_a_fleet_store_is_one_line(tmp_path):
+    """Found by fuzzing (session 17): a DuckDB file of other tables given to `bench fleet
+    ingest` got the fleet's tables added to it, or failed with "CatalogException: Table
+    with name "runs" already exists!" (exit 1); a schema_version that is not a number
+    was a ValueError (exit 1) in every fleet command; `status` on a newer store said to
+    migrate it with `ingest`, which refuses it."""
+    other, runs, bad = (tmp_path / n for n in ("other.duckdb", "runs.duckdb", "bad.duckdb"))
+    con = duckdb.connect(str(other))
+    con.execute("CREATE TABLE x (a INTEGER)")
+    con.close()
+    con = duckdb.connect(str(runs))
+    con.execute("CREATE TABLE runs (a INTEGER)")
+    con.close()
+    for path, tables in ((other, "x"), (runs, "runs")):
+        with pytest.raises(BenchError, match=f"^{path}: not a fleet store: a database with "
+                                             f"table\\(s\\) {tables} and no schema version"):
+            Store(path)
+    assert {r[0] for r in duckdb.connect(str(other)).execute(
+        "SELECT table_name FROM information_schema.tables").fetchall()} == {"x"}
+    Store(bad).close()
+    con = duckdb.connect(str(bad))
+    con.execute("UPDATE meta SET value = 'x' WHERE key = 'schema_version'")
+    con.close()
+    for read_only in (False, True):
+        with pytest.raises(BenchError, match=f"^{bad}: not a fleet store: its schema_version "
+                                             "is 'x', not a number"):
+            Store(bad, read_only=read_only)
+    con = duckdb.connect(str(bad))
+    con.execute("UPDATE meta SET value = '9' WHERE key = 'schema_version'")
+    con.close()
+    with pytest.raises(BenchError, match=r"schema version 9, this bench reads 2 \(update "):
+        Store(bad, read_only=True)
+
+
 def test_read_only_needs_an_existing_current_store(tmp_path):
     with pytest.raises(BenchError, match="no fleet store"):
         Store(tmp_path / "none.duckdb", read_only=True)
@@ -155,6 +189,11 @@ def test_expand_files_dirs_globs_and_missing(tmp_path):
     assert [p.name for p in G.expand([str(tmp_path / "**" / "*.log")])] == ["y.log", "x.log"]
     with pytest.raises(BenchError, match="no such file"):
         G.expand([str(tmp_path / "nope")])
+    # an empty directory was "0 files ... 0 runs stored", exit 0, and made the store
+    # (found by fuzzing, session 17)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(BenchError, match="empty: a directory with no log in it"):
+        G.expand([str(tmp_path / "empty")])
 
 
 def test_actuator_id_rule(tmp_path):

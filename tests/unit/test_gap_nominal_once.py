@@ -116,3 +116,12 @@ def test_a_baseline_given_as_nominal_says_to_pass_it_as_baseline(tmp_path, capsy
         f"parameter file: bench gap and bench hums report take it with --baseline {base}")
     with pytest.raises(BenchError, match="take it with --baseline"):
         calibration_file(str(base))
+
+
+def test_a_nominal_json_nested_too_deep_is_one_line(tmp_path, capsys):
+    # found by fuzzing (session 17): RecursionError reached the catch-all (exit 1)
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000)
+    assert main(["gap", str(tmp_path / "any.npz"), "--nominal", str(deep)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: {deep}: not a calibration or parameter JSON (nested too deep to read)")

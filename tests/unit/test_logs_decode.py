@@ -109,3 +109,22 @@ def test_garbage_sync_counters_are_refused_not_grown_into_rows(tmp_path, capsys)
     err = capsys.readouterr().err
     assert err.startswith("error: the SYNC counters make no sense: ") and \
         len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("extra, msg", [
+    (["--period", "inf"], "--period must be a finite number of seconds > 0, not inf"),
+    (["--period", "-1"], "--period must be a finite number of seconds > 0, not -1"),
+    (["--period", "0"], "--period must be a finite number of seconds > 0, not 0"),
+    (["--counts-per-rev", "0"], "--counts-per-rev must be >= 1, not 0"),
+    (["-o", "{tmp}/missing/out.csv"], "-o: cannot write {tmp}/missing/out.csv: directory "
+                                      "{tmp}/missing does not exist"),
+])
+def test_decode_refuses_bad_options_before_reading_the_log(tmp_path, capsys, extra, msg):
+    """Found by fuzzing (session 17): `--period inf` or `-1` printed "2000 SYNC periods of
+    inf ms" (or -1000 ms) and exited 0; `--period 0` and `--counts-per-rev 0` were taken
+    for "not given"; an -o into a missing directory failed after the decoding (exit 1,
+    FileNotFoundError)."""
+    log = write_log(tmp_path / "a.log", run(20))
+    argv = ["decode", str(log), *(a.format(tmp=tmp_path) for a in extra)]
+    assert main(argv) == 2
+    assert capsys.readouterr().err.strip() == f"error: {msg.format(tmp=tmp_path)}"

@@ -91,6 +91,10 @@ def test_a_damaged_or_foreign_baseline_is_a_clear_error(tmp_path):
     # a directory given as the baseline raised IsADirectoryError (exit 1)
     with pytest.raises(BenchError, match="a directory, not a baseline JSON"):
         B.Baseline.load(tmp_path)
+    # JSON nested too deep reached the catch-all (RecursionError, exit 1; session 17)
+    p.write_text("[" * 100_000)
+    with pytest.raises(BenchError, match="not a baseline JSON \\(nested too deep to read\\)"):
+        B.Baseline.load(p)
 
 
 def test_thresholds_say_which_run_is_short_of_cycles():

@@ -82,3 +82,23 @@ def test_load_sign_minus_one_flips_the_load_and_unknown_is_plus_one():
     from bench.gap.rigcal import load_sign
     assert load_sign(from_dict({"motor_kind": "dc_current_loop", "load_sign": -1})) == -1.0
     assert load_sign(from_dict({"motor_kind": "dc_current_loop"})) == 1.0
+
+
+@pytest.mark.parametrize("name, content, msg", [
+    ("act.json", None, "act.json: a directory, not an actuator description"),
+    ("act.json", b"\x91\xb6garbage", r"act.json: not valid JSON \('utf-8' codec"),
+    ("act.toml", b"\xff\x00garbage", r"act.toml: not valid TOML \('utf-8' codec"),
+    ("act.json", b"[" * 100_000, r"act.json: not an actuator description \(nested too deep"),
+    ("act.json", b'{"motor_kind": "dc_current_loop", "sources": 5}',
+     "act.json: sources must be a text or a list of texts, got 5"),
+], ids=["directory", "json-not-utf8", "toml-not-utf8", "nested-too-deep", "sources-5"])
+def test_an_unreadable_actuator_description_is_one_line(tmp_path, name, content, msg):
+    # found by fuzzing `bench calibrate --actuator` (session 17): exit 1 with
+    # IsADirectoryError, UnicodeDecodeError, RecursionError, TypeError
+    path = tmp_path / name
+    if content is None:
+        path.mkdir()
+    else:
+        path.write_bytes(content)
+    with pytest.raises(BenchError, match=msg):
+        load(path)

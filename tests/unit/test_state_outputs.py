@@ -99,3 +99,29 @@ def test_good_outputs_pass_the_check(tmp_path):
     check_output_dir(tmp_path / "new" / "deeper", "--report")
     assert not (tmp_path / "new").exists()          # checking creates nothing
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--json", "{missing}/b.json"], "--json: cannot write {missing}/b.json: directory "
+                                     "{missing} does not exist"),
+    (["--json", "{tmp}"], "--json: cannot write {tmp}: it is a directory"),
+    (["--markdown", "{missing}/b.md"], "--markdown: cannot write {missing}/b.md: directory "
+                                       "{missing} does not exist"),
+    (["--indie-set", "speed_window=1"], "--indie-set is for --generator independent"),
+    (["--effects", ""], "--effects lists no effect"),
+    (["--seed", "-1"], "--seed must be >= 0, not -1"),
+], ids=["json-no-dir", "json-a-dir", "markdown-no-dir", "indie-set-alone", "effects-empty",
+        "seed-negative"])
+def test_gap_bench_arguments_are_checked_before_the_work(tmp_path, capsys, monkeypatch,
+                                                         extra, message):
+    """Found by fuzzing (session 17): these started the blind benchmark (minutes) and
+    then failed at the end (FileNotFoundError / IsADirectoryError, exit 1), ran with the
+    option ignored (--indie-set, an empty --effects) or failed in numpy (ValueError)."""
+    import bench.gap.blind
+
+    def boom(*a, **k):
+        raise AssertionError("the benchmark started before its arguments were checked")
+    monkeypatch.setattr(bench.gap.blind, "run", boom)
+    fmt = {"tmp": tmp_path, "missing": tmp_path / "no" / "dir"}
+    rc = main(["gap-bench", *(a.format(**fmt) for a in extra)])
+    one_line(capsys, rc, message.format(**fmt))

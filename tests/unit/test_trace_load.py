@@ -56,3 +56,29 @@ def test_a_rig_table_given_as_a_trace_points_to_bench_import(tmp_path):
     with pytest.raises(BenchError, match=r"num.csv: no time column t_s \(it has: set_point, "
                                          r"time\); .*`bench import TABLE --map MAP`"):
         Trace.load(tmp_path / "num.csv")
+
+
+@pytest.mark.parametrize("columns, msg", [
+    ({"t_s": np.float64(3.0), "current_a": np.float64(1.0)},
+     r"t.npz: trace column 't_s' is 0-D \(shape \(\)\), not one value per row"),
+    ({"t_s": np.array(["a", "b"]), "current_a": np.array([1.0, 2.0])},
+     r"t.npz: trace column 't_s' is not a column of numbers \(could not convert"),
+    ({"t_s": np.zeros((3, 3))}, r"t.npz: trace column 't_s' is 2-D \(shape \(3, 3\)\)"),
+    ({"t_s": np.arange(3.0), "position_m": np.ones(3) * 1j},
+     "t.npz: trace column 'position_m' holds complex numbers, not real ones"),
+    ({"t_s": np.array([]), "position_m": np.array([])}, "t.npz: the trace has no rows"),
+])
+def test_an_npz_whose_columns_are_not_a_trace_is_one_line(tmp_path, columns, msg):
+    """Found by fuzzing (session 17): a single value or text in an .npz was an exit 1
+    (TypeError: len() of unsized object / ValueError) in usage, gap, calibrate and hums
+    report; complex numbers lost their imaginary part and an empty trace gave `bench
+    usage` a run of 0 s, both with exit 0."""
+    np.savez(tmp_path / "t.npz", **columns)
+    with pytest.raises(BenchError, match=msg):
+        Trace.load(tmp_path / "t.npz")
+
+
+def test_a_header_only_csv_trace_has_no_rows(tmp_path):
+    (tmp_path / "t.csv").write_text("t_s,position_m\n")
+    with pytest.raises(BenchError, match="t.csv: the trace has no rows"):
+        Trace.load(tmp_path / "t.csv")

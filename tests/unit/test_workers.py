@@ -105,3 +105,21 @@ def test_the_usage_campaign_runs_on_the_given_scheduler(monkeypatch):
     assert main(["hums", "campaign", "--usage", "--runs", "2",
                  "--scheduler", "tcp://127.0.0.1:8786"]) != 0
     assert seen == [["tcp://127.0.0.1:8786"]]
+
+
+@pytest.mark.parametrize("address", ["bogus", "tcp://host:abc", "foo://host:1"])
+def test_a_scheduler_address_that_is_not_one_is_refused_at_once(monkeypatch, address):
+    """Found by fuzzing (session 17): `--scheduler bogus` printed the error, then the
+    half-made distributed Client hung the interpreter's exit for 40 s and printed a
+    TimeoutError traceback from its __del__."""
+    import time
+
+    from bench import BenchError
+    from bench.cluster import Engine
+    t0 = time.monotonic()
+    with pytest.raises(BenchError, match=f"not a Dask scheduler address: '{address}'"):
+        Engine(2, address)
+    monkeypatch.setenv(ENV_SCHEDULER, address)
+    with pytest.raises(BenchError, match=r"\$BENCH_DASK_SCHEDULER\) as tcp://HOST:PORT"):
+        Engine(2)
+    assert time.monotonic() - t0 < 5.0
