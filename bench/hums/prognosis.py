@@ -54,7 +54,6 @@ T0 = -1e-6
 """Start time of the filter: a first ground test at t = 0 is an update."""
 
 
-
 def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
