@@ -95,6 +95,8 @@ def parse_line(text: str) -> can.Message:
         raise ValueError(f"standard id 0x{can_id:X} above 0x7FF")
     if ext and can_id & 0x20000000:     # error frame as written by CanutilsLogWriter
         return can.Message(timestamp=float(m["ts"]), is_error_frame=True)
+    if can_id > 0x1FFFFFFF:             # candump writes no other flag into the id
+        raise ValueError(f"extended id 0x{can_id:08X} above 0x1FFFFFFF")
     if data.startswith("R"):
         if fd:
             raise ValueError("remote frame in CAN FD")

@@ -182,6 +182,7 @@ def trace_from_messages(messages: Iterable[Any], node_id: int | None = None,
         "source": source, "node_id": frames.node_id, "period_s": ts, "counts_per_rev": cpr,
         **dec.count, "missing_frames": rows.missing(dec.seen), "sorted_by_time": sort_by_time,
         "runs": dec.run, "emcy": dec.emcy, "params_from_sdo": sorted(values),
+        "row_frames_seen": sorted(dec.seen),
         "issues": [{"line": i.line, "reason": i.reason} for i in kept],
         "issue_count": len(issues or []),
     }
@@ -228,6 +229,10 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
         raise BenchError(f"{path}: nothing to decode: {tr.meta['frames']} frames, no SYNC "
                          f"frame, so no control period"
                          + (f"; {n} bad lines ({first_issue})" if n else ""))
+    if not set(tr.meta["row_frames_seen"]) - {"ECU_Setpoint"}:
+        raise BenchError(f"{path}: {len(tr)} SYNC periods but not one frame of node "
+                         f"0x{tr.meta['node_id']:02X} (its TPDOs, the RPDO to it): the node "
+                         "was not on the bus, or the log is of another node (--node-id)")
     return tr
 
 

@@ -132,3 +132,14 @@ def test_gap_refuses_a_gap_it_cannot_bridge(logs):
     assert r.returncode == 2
     assert r.stderr.startswith("error: gap diagnosis: 30 samples missing in")
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_a_log_of_another_node_is_one_line_not_a_table_of_nothing(logs, capsys):
+    """`bench decode LOG --node-id 0x11` on node 0x10's log exited 0 with 2000 empty rows,
+    "0 run(s)" and "no lost, missing, duplicate or out-of-order frame"."""
+    assert main(["decode", str(logs / "good.log"), "--node-id", "0x11"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {logs / 'good.log'}: 2000 SYNC periods but not one "
+                          "frame of node 0x11")
+    assert len(err.strip().splitlines()) == 1
+    assert main(["decode", str(logs / "good.log"), "--node-id", "0x10"]) == 0

@@ -58,6 +58,17 @@ def test_bad_lines_are_reported_with_numbers_and_the_rest_kept(tmp_path):
     assert "truncated" in issues[0].reason and "line 2" in str(issues[0])
 
 
+def test_an_extended_id_above_29_bits_is_a_bad_line_but_an_error_frame_is_kept():
+    """An 8-digit id with bits above 0x1FFFFFFF (other than candump's error flag) was read
+    as an extended frame with a 32-bit id, and `bench replay` played it."""
+    for line in ("(1.0) vcan0 80000000#00", "(1.0) vcan0 5FFFFFFF#00",
+                 "(1.0) vcan0 40000123#R"):
+        with pytest.raises(ValueError, match="extended id .* above 0x1FFFFFFF"):
+            parse_line(line)
+    assert parse_line("(1.0) vcan0 1FFFFFFF#00").arbitration_id == 0x1FFFFFFF
+    assert parse_line("(1.0) vcan0 20000004#0000080000000000").is_error_frame
+
+
 @settings(max_examples=100, deadline=None)
 @given(st.text(alphabet="()0123456789.#ABCDEFR vcan\t", max_size=40))
 def test_parse_line_never_raises_anything_but_valueerror(text):
