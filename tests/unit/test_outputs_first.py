@@ -1,0 +1,129 @@
+"""Found by fuzzing (session 17): `bench reproduce`, `bench hums fit|sweep|rul|campaign`
+checked their output options only when writing them, after minutes of work (exit 1,
+FileExistsError / FileNotFoundError / IsADirectoryError, a --doc with unbalanced markers
+refused at the end), and a negative --seed failed in numpy (exit 1 ValueError) in
+`bench hums prognose`, `bench hums campaign` and `bench fleet synth`.
+
+Every long step is stubbed by one that fails with "the work started": a bad option must
+fail before it, in one line, with exit 2; a good one must get to it (creating nothing)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from bench import BenchError
+from bench.cli import main
+
+STARTED = "the work started"
+
+
+@pytest.fixture
+def stub_work(monkeypatch, tmp_path):
+    """The long steps of reproduce, hums and fleet synth raise BenchError(STARTED)."""
+    import bench.fleet.synth
+    import bench.hums.campaign
+    import bench.hums.monitor
+    import bench.hums.prognosis_campaign
+    import bench.hums.prognosis_trends
+    import bench.hums.rul_run
+    import bench.hums.sweep
+    import bench.reproduce
+
+    def started(*a, **k):
+        raise BenchError(STARTED)
+    for mod, name in ((bench.reproduce, "run"), (bench.hums.monitor, "fitted"),
+                      (bench.hums.sweep, "run"), (bench.hums.rul_run, "run_rul"),
+                      (bench.hums.campaign, "run_campaign"),
+                      (bench.hums.prognosis_campaign, "run_usage_campaign"),
+                      (bench.hums.prognosis_trends, "load_calibration"),
+                      (bench.hums.prognosis_trends, "prognose_trends"),
+                      (bench.fleet.synth, "synth")):
+        monkeypatch.setattr(mod, name, started)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))    # the default cal path
+    monkeypatch.chdir(tmp_path)              # reproduce's default --out and --figures
+
+
+def _paths(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    doc = tmp_path / "half.md"
+    doc.write_text("# doc\n<!-- sweep:begin -->\n<!-- rul-noise:begin -->\n"
+                   "<!-- usage-campaign:end -->\n<!-- campaign:begin -->\n")
+    binary = tmp_path / "binary.md"
+    binary.write_bytes(b"\xff\xfe\x00bad")
+    return {"tmp": tmp_path, "afile": afile, "missing": tmp_path / "no" / "dir",
+            "doc": doc, "binary": binary}
+
+
+BAD = {
+    "reproduce-out-under-a-file": (
+        ["reproduce", "--out", "{afile}/sub/r.md"],
+        "--out: cannot write {afile}/sub/r.md: {afile} is not a directory"),
+    "reproduce-out-read-only": (
+        ["reproduce", "--out", "/proc/bench-x/r.md"],
+        "--out: cannot write /proc/bench-x/r.md: directory /proc is not writable"),
+    "reproduce-out-a-dir": (
+        ["reproduce", "--out", "{tmp}"], "--out: cannot write {tmp}: it is a directory"),
+    "reproduce-json-no-dir": (
+        ["reproduce", "--json", "{missing}/r.json"],
+        "--json: cannot write {missing}/r.json: directory {missing} does not exist"),
+    "reproduce-json-read-only": (
+        ["reproduce", "--json", "/proc/r.json"],
+        "--json: cannot write /proc/r.json: directory /proc is not writable"),
+    "reproduce-figures-a-file": (
+        ["reproduce", "--figures", "{afile}"],
+        "--figures: cannot write into {afile}: it is not a directory"),
+    "reproduce-figures-read-only": (
+        ["reproduce", "--figures", "/proc/figs"],
+        "--figures: cannot write into /proc/figs: directory /proc is not writable"),
+}
+
+
+def _run(args, message, paths, capsys):
+    t0 = time.perf_counter()
+    rc = main([a.format(**paths) for a in args])
+    assert time.perf_counter() - t0 < 2.0
+    err = capsys.readouterr().err.strip()
+    assert rc == 2, err
+    assert err.startswith(f"error: {message.format(**paths)}"), err
+    assert len(err.splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_option_fails_before_the_work_in_one_line(tmp_path, capsys, stub_work, case):
+    paths = _paths(tmp_path)
+    before = sorted(tmp_path.rglob("*"))
+    _run(*BAD[case], paths, capsys)
+    assert sorted(tmp_path.rglob("*")) == before        # nothing made, no probe left
+
+
+GOOD = {
+    "reproduce-defaults": ["reproduce"],         # docs/reproduction.md, docs/figures made
+    "reproduce-out-new-dirs": ["reproduce", "--out", "{tmp}/new/deeper/r.md",
+                               "--json", "{tmp}/r.json", "--figures", "{tmp}/new/figs"],
+}
+
+
+@pytest.mark.parametrize("case", list(GOOD))
+def test_good_options_reach_the_work_and_make_nothing(tmp_path, capsys, stub_work, case):
+    paths = _paths(tmp_path)
+    (tmp_path / "ok.md").write_text("<!-- sweep:begin -->\nold\n<!-- sweep:end -->\n")
+    before = sorted(tmp_path.rglob("*"))
+    _run(GOOD[case], STARTED, paths, capsys)
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_output_file_with_parents_made(tmp_path):
+    """`check_output_file(make_parents=True)`: missing directories are fine when they can
+    be made; a dangling symlink on the way is not a directory."""
+    from bench.cli.outputs import check_output_file
+    deep = tmp_path / "a" / "b" / "c.json"
+    assert check_output_file(deep, "--json", make_parents=True) == deep
+    with pytest.raises(BenchError, match="directory .* does not exist"):
+        check_output_file(deep, "--json")
+    (tmp_path / "link").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(BenchError, match=f"{tmp_path / 'link'} is not a directory"):
+        check_output_file(tmp_path / "link" / "x.json", "--json", make_parents=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link"]
