@@ -8,12 +8,15 @@ which also catches read-only file systems and works for root). They create nothi
 A directory the command creates with its parents (`check_output_dir`, and the parent of a
 file with ``make_parents=True``) need not exist: its nearest existing ancestor must be a
 directory that can take a new file (no component of the path is a file).
+`check_outputs` checks a command's output options by name, `check_doc_section` a markdown
+file whose generated section the command replaces.
 """
 
 from __future__ import annotations
 
 import os
 import tempfile
+from argparse import Namespace
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -84,3 +87,33 @@ def check_output_dir(path: str | Path, flag: str) -> Path:
         raise BenchError(f"{flag}: cannot write into {p}: directory {p} is not writable")
     return p
 
+
+def check_outputs(args: Namespace, files: Iterable[str] = (), dirs: Iterable[str] = (),
+                  make_parents: bool = True) -> None:
+    """The output options of `args` that are given (attributes `files`, written as files,
+    and `dirs`, directories made with their parents; `--name-with-dashes` in messages),
+    checked before the work. `make_parents`: the files' missing directories are made."""
+    for name in files:
+        if getattr(args, name, None):
+            check_output_file(getattr(args, name), _flag(name), make_parents=make_parents)
+    for name in dirs:
+        if getattr(args, name, None):
+            check_output_dir(getattr(args, name), _flag(name))
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def check_doc_section(path: str | Path, name: str, flag: str = "--doc") -> Path:
+    """Markdown file `path` (made with its parents if missing) whose generated section
+    `name` the command replaces (`bench.hums.table.replace_section`): writable, and when
+    it exists readable as text with its section markers balanced."""
+    from bench.hums.table import section_text
+    p = check_output_file(path, flag, make_parents=True)
+    if os.path.lexists(p):
+        try:
+            section_text(p, name)
+        except BenchError as exc:
+            raise BenchError(f"{flag}: {exc}") from None
+    return p

@@ -78,6 +78,60 @@ BAD = {
     "reproduce-figures-read-only": (
         ["reproduce", "--figures", "/proc/figs"],
         "--figures: cannot write into /proc/figs: directory /proc is not writable"),
+    "fit-json-under-a-file": (
+        ["hums", "fit", "--json", "{afile}/f.json"],
+        "--json: cannot write {afile}/f.json: {afile} is not a directory"),
+    "fit-json-a-dir": (
+        ["hums", "fit", "--json", "{tmp}"], "--json: cannot write {tmp}: it is a directory"),
+    "sweep-figures-a-file": (
+        ["hums", "sweep", "--figures", "{afile}"],
+        "--figures: cannot write into {afile}: it is not a directory"),
+    "sweep-doc-under-a-file": (
+        ["hums", "sweep", "--doc", "{afile}/d.md"],
+        "--doc: cannot write {afile}/d.md: {afile} is not a directory"),
+    "sweep-doc-unbalanced": (
+        ["hums", "sweep", "--doc", "{doc}"],
+        "--doc: {doc}: unbalanced generated-section markers for 'sweep'"),
+    "sweep-doc-not-text": (
+        ["hums", "sweep", "--doc", "{binary}"], "--doc: {binary}: cannot read it as text"),
+    "rul-figures-read-only": (
+        ["hums", "rul", "--figures", "/proc/figs"],
+        "--figures: cannot write into /proc/figs: directory /proc is not writable"),
+    "rul-noise-doc-unbalanced": (
+        ["hums", "rul", "--noise", "--doc", "{doc}"],
+        "--doc: {doc}: unbalanced generated-section markers for 'rul-noise'"),
+    "rul-json-read-only": (
+        ["hums", "rul", "--json", "/proc/x/r.json"],
+        "--json: cannot write /proc/x/r.json: directory /proc is not writable"),
+    "campaign-json-under-a-file": (
+        ["hums", "campaign", "--json", "{afile}/a/c.json"],
+        "--json: cannot write {afile}/a/c.json: {afile} is not a directory"),
+    "campaign-doc-unbalanced": (
+        ["hums", "campaign", "--doc", "{doc}"],
+        "--doc: {doc}: unbalanced generated-section markers for 'campaign'"),
+    "campaign-figures-a-file": (
+        ["hums", "campaign", "--figures", "{afile}"],
+        "--figures: cannot write into {afile}: it is not a directory"),
+    "campaign-trends-out-alone": (
+        ["hums", "campaign", "--trends-out", "{tmp}/t.csv"], "--trends-out is for --usage"),
+    "campaign-calibration-out-alone": (
+        ["hums", "campaign", "--calibration-out", "{tmp}/c.json"],
+        "--calibration-out is for --usage"),
+    "usage-trends-out-under-a-file": (
+        ["hums", "campaign", "--usage", "--trends-out", "{afile}/t.csv"],
+        "--trends-out: cannot write {afile}/t.csv: {afile} is not a directory"),
+    "usage-calibration-out-read-only": (
+        ["hums", "campaign", "--usage", "--calibration-out", "/proc/c.json"],
+        "--calibration-out: cannot write /proc/c.json: directory /proc is not writable"),
+    "usage-calibration-out-a-dir": (
+        ["hums", "campaign", "--usage", "--calibration-out", "{tmp}"],
+        "--calibration-out: cannot write {tmp}: it is a directory"),
+    "usage-doc-unbalanced": (
+        ["hums", "campaign", "--usage", "--doc", "{doc}"],
+        "--doc: {doc}: unbalanced generated-section markers for 'usage-campaign'"),
+    "prognose-json-under-a-file": (
+        ["hums", "prognose", "--trends", "{tmp}/t.csv", "--json", "{afile}/p.json"],
+        "--json: cannot write {afile}/p.json: {afile} is not a directory"),
 }
 
 
@@ -103,6 +157,14 @@ GOOD = {
     "reproduce-defaults": ["reproduce"],         # docs/reproduction.md, docs/figures made
     "reproduce-out-new-dirs": ["reproduce", "--out", "{tmp}/new/deeper/r.md",
                                "--json", "{tmp}/r.json", "--figures", "{tmp}/new/figs"],
+    "fit-json-new-dirs": ["hums", "fit", "--json", "{tmp}/new/deeper/f.json"],
+    "sweep-doc-new": ["hums", "sweep", "--doc", "{tmp}/new/hums.md", "--figures",
+                      "{tmp}/new/figs", "--json", "{tmp}/s.json"],
+    "sweep-doc-balanced": ["hums", "sweep", "--doc", "{tmp}/ok.md"],
+    "rul-doc-other-section-unbalanced": ["hums", "rul", "--doc", "{doc}"],
+    "campaign-seed-0": ["hums", "campaign", "--seed", "0", "--doc", "{tmp}/ok.md"],
+    "usage-default-calibration": ["hums", "campaign", "--usage", "--trends-out",
+                                  "{tmp}/new/t.csv"],
 }
 
 
