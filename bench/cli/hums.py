@@ -220,11 +220,13 @@ def _params(args: argparse.Namespace):
 
 
 def _check_args(args: argparse.Namespace, section: str | None = None) -> None:
-    """--workers and the output options given (their directories made; `section`:
+    """--workers, --seed and the output options given (their directories made; `section`:
     the one --doc gets), checked before the work."""
     from bench.cli.outputs import check_doc_section, check_outputs
     if getattr(args, "workers", None) is not None and args.workers < 1:
         raise BenchError("--workers must be >= 1")
+    if getattr(args, "seed", 0) < 0:
+        raise BenchError(f"--seed must be >= 0, not {args.seed}")
     check_outputs(args, files=("json", "trends_out", "calibration_out"), dirs=("figures",))
     if section and args.doc:
         check_doc_section(args.doc, section)
