@@ -219,9 +219,17 @@ def _params(args: argparse.Namespace):
         raise BenchError(str(exc)) from None
 
 
-def _check_workers(args: argparse.Namespace) -> None:
+def _check_args(args: argparse.Namespace, section: str | None = None) -> None:
+    """--workers, --seed and the output options given (their directories made; `section`:
+    the one --doc gets), checked before the work."""
+    from bench.cli.outputs import check_doc_section, check_outputs
     if getattr(args, "workers", None) is not None and args.workers < 1:
         raise BenchError("--workers must be >= 1")
+    if getattr(args, "seed", 0) < 0:
+        raise BenchError(f"--seed must be >= 0, not {args.seed}")
+    check_outputs(args, files=("json", "trends_out", "calibration_out"), dirs=("figures",))
+    if section and args.doc:
+        check_doc_section(args.doc, section)
 
 
 def _print_rows(rows) -> None:
@@ -246,6 +254,7 @@ def _doc_dir(doc: str | None) -> Path | None:
 def run_fit(args: argparse.Namespace) -> int:
     from bench.hums import monitor as M
     params = _params(args)
+    _check_args(args)
     t0 = time.perf_counter()
     fit, _ = M.fitted(params)
     print(f"monitor position gain: {fit.gain_thesis_units:.2f} (rad/s)/V thesis units = "
@@ -263,7 +272,7 @@ def run_fit(args: argparse.Namespace) -> int:
 def run_sweep(args: argparse.Namespace) -> int:
     from bench.hums import sweep as S
     from bench.hums.table import check, replace_section
-    _check_workers(args)
+    _check_args(args, "sweep")
     res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
                 scheduler=args.scheduler)
     rows = S.rows(res)
@@ -288,7 +297,7 @@ def run_sweep(args: argparse.Namespace) -> int:
 def run_rul(args: argparse.Namespace) -> int:
     from bench.hums import rul_run as R
     from bench.hums.table import replace_section
-    _check_workers(args)
+    _check_args(args, "rul-noise" if args.noise else "rul")
     from bench.workers import session
     with session(args.workers, args.scheduler):     # one cluster: the runs, calibration
         res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
@@ -309,7 +318,7 @@ def run_rul(args: argparse.Namespace) -> int:
 
 def run_campaign(args: argparse.Namespace) -> int:
     from bench.hums import campaign as R
-    _check_workers(args)
+    _check_campaign_outputs(args)
     if args.usage:
         return _run_usage_campaign(args)
     args.runs = 20 if args.runs is None else args.runs
@@ -331,6 +340,20 @@ def run_campaign(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_campaign_outputs(args: argparse.Namespace) -> None:
+    """The campaign's options, before it starts: those of --usage only without it are
+    refused, the calibration's default path (the cache) is checked as --calibration-out."""
+    from bench.hums.prognosis_trends import default_calibration_path
+    if not args.usage:
+        for flag, given in (("--trends-out", args.trends_out),
+                            ("--calibration-out", args.calibration_out)):
+            if given:
+                raise BenchError(f"{flag} is for --usage")
+    else:
+        args.calibration_out = args.calibration_out or str(default_calibration_path())
+    _check_args(args, "usage-campaign" if args.usage else "campaign")
+
+
 def _doc_section(doc: str, name: str, text: str, paths: list[Path]) -> None:
     """Replace section `name` of `doc` with `text` and links to the figures `paths`."""
     from bench.hums.table import figure_links, replace_section
@@ -343,7 +366,6 @@ def _doc_section(doc: str, name: str, text: str, paths: list[Path]) -> None:
 
 def _run_usage_campaign(args: argparse.Namespace) -> int:
     from bench.hums import prognosis_campaign as PC
-    from bench.hums.prognosis_trends import default_calibration_path
     n = 50 if args.runs is None else args.runs
     nh = 5 if args.healthy is None else args.healthy
     if n < 1 or nh < 0 or args.max_days < 2:
@@ -354,7 +376,7 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
                                     workers=args.workers, max_days=args.max_days)
     text = PC.markdown(res)
     print(text)
-    cal_path = Path(args.calibration_out or default_calibration_path())
+    cal_path = Path(args.calibration_out)
     cal_path.parent.mkdir(parents=True, exist_ok=True)
     cal_path.write_text(json.dumps(res.cal.to_json(), indent=1))
     print(f"wrote the prognosis calibration {cal_path}")
@@ -371,6 +393,7 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
 
 def run_prognose(args: argparse.Namespace) -> int:
     from bench.hums.prognosis_trends import load_calibration, prognose_trends, table, to_json
+    _check_args(args)
     cal = load_calibration(args.calibration)
     results, skipped = prognose_trends(args.trends, cal, args.seed)
     if skipped:

@@ -27,6 +27,17 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def check_outputs(args: argparse.Namespace) -> None:
+    """--out (its directories made), --json and --figures, checked before the run."""
+    from bench.cli.outputs import check_output_dir, check_output_file
+    if args.out:
+        check_output_file(args.out, "--out", make_parents=True)
+    if args.json:
+        check_output_file(args.json, "--json")
+    if args.figures:
+        check_output_dir(args.figures, "--figures")
+
+
 def run(args: argparse.Namespace) -> int:
     from bench import reproduce as R
     from plant_rt.params import ParameterError, PlantParams
@@ -34,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
         params = PlantParams().with_assignments(args.set)
     except ParameterError as exc:
         raise BenchError(str(exc)) from None
+    check_outputs(args)
     t0 = time.perf_counter()
     res = R.run(params, only=args.only, progress=True)
     elapsed = time.perf_counter() - t0

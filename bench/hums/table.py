@@ -83,17 +83,31 @@ def replace_section(path: str | Path, name: str, body: str) -> Path:
     path = Path(path)
     begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
     block = f"{begin}\n{body.rstrip()}\n{end}"
-    text = path.read_text() if path.exists() else ""
+    text = section_text(path, name)
     if begin in text and end in text:
         pat = re.compile(re.escape(begin) + r".*?" + re.escape(end), re.S)
         text = pat.sub(lambda _m: block, text, count=1)
-    elif begin in text or end in text:
-        raise BenchError(f"{path}: unbalanced generated-section markers for {name!r}")
     else:
         text = (text.rstrip() + "\n\n" if text.strip() else "") + block + "\n"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     return path
+
+
+def section_text(path: str | Path, name: str) -> str:
+    """The text of `path` ("" if it does not exist) in which section `name` can be
+    replaced: BenchError if it cannot be read as text or has only one of the markers
+    (checked before the work by `bench.cli.outputs.check_doc_section`)."""
+    path = Path(path)
+    if not path.exists():
+        return ""
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BenchError(f"{path}: cannot read it as text ({exc})") from None
+    if (f"<!-- {name}:begin -->" in text) != (f"<!-- {name}:end -->" in text):
+        raise BenchError(f"{path}: unbalanced generated-section markers for {name!r}")
+    return text
 
 
 def figure_links(paths: list[Path] | None, doc_dir: Path | None = None) -> list[str]:
