@@ -85,6 +85,19 @@ def version(con: Any) -> int:
                          "number") from None
 
 
+def _refuse_foreign(con: Any, have: int) -> None:
+    """BenchError for a database of other tables (no schema version, yet tables): not a
+    fleet store, and not to be written into."""
+    if have:
+        return
+    tables = [r[0] for r in con.execute("SELECT table_name FROM information_schema.tables"
+                                        ).fetchall()]
+    if tables:
+        raise BenchError(f"not a fleet store: a database with table(s) "
+                         f"{', '.join(sorted(tables))} and no schema version (a fleet store "
+                         "is made in a new file)")
+
+
 def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
     """Apply the migrations from the store's version up to `target`, each with its
     version bump in one transaction; returns the version reached."""
@@ -92,12 +105,7 @@ def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
     if have > SCHEMA_VERSION:
         raise BenchError(f"the fleet store has schema version {have}, newer than this "
                          f"bench's {SCHEMA_VERSION}: update the bench")
-    tables = [r[0] for r in con.execute("SELECT table_name FROM information_schema.tables"
-                                        ).fetchall()]
-    if have == 0 and tables:
-        raise BenchError(f"not a fleet store: a database with table(s) "
-                         f"{', '.join(sorted(tables))} and no schema version (a fleet store "
-                         "is made in a new file)")
+    _refuse_foreign(con, have)
     for k in range(have, target):
         con.execute("BEGIN TRANSACTION")
         try:
@@ -111,6 +119,22 @@ def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
     return max(have, target)
 
 
+def _check_magic(p: Path) -> None:
+    """BenchError when `p` is a file but not a DuckDB database (its header has "DUCK" at
+    byte 8): DuckDB's own messages for a Parquet or CSV file given as the store do not
+    say so ("Cannot launch in-memory database in read-only mode")."""
+    if not p.is_file() or p.stat().st_size == 0:
+        return
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(12)
+    except OSError as exc:
+        raise BenchError(f"{p}: cannot read the fleet store ({exc.strerror})") from None
+    if head[8:12] != b"DUCK":
+        raise BenchError(f"{p}: not a fleet store (not a DuckDB database file; a fleet store "
+                         "is the file `bench fleet ingest --db` makes)")
+
+
 def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERSION
             ) -> Any:
     """A DuckDB connection to the store at `path`, migrated to `target` (read-only: not
@@ -121,6 +145,7 @@ def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERS
         raise BenchError(f"no fleet store at {p} (make one with `bench fleet ingest`)")
     if not read_only and p.parent and not p.parent.exists():
         raise BenchError(f"{p.parent}: no such directory for the fleet store")
+    _check_magic(p)
     try:
         con = duckdb.connect(str(p), read_only=read_only)
     except duckdb.Error as exc:
@@ -129,6 +154,7 @@ def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERS
     if read_only:
         try:
             have = version(con)
+            _refuse_foreign(con, have)
         except BenchError as exc:
             con.close()
             raise BenchError(f"{p}: {exc}") from None

@@ -62,6 +62,20 @@ def test_a_newer_store_is_refused(tmp_path):
         Store(path)
 
 
+def test_a_file_that_is_not_a_duckdb_database_is_named_so(tmp_path):
+    """`bench fleet status --db x.parquet` said "cannot open the fleet store: Catalog
+    Error: Cannot launch in-memory database in read-only mode!"."""
+    pq = tmp_path / "x.parquet"
+    pq.write_bytes(b"PAR1" + bytes(40) + b"PAR1")
+    junk = tmp_path / "r.duckdb"
+    junk.write_bytes(bytes(range(100)))
+    for path in (pq, junk):
+        for read_only in (False, True):
+            with pytest.raises(BenchError, match=f"^{path}: not a fleet store \\(not a "
+                                                 "DuckDB database file"):
+                Store(path, read_only=read_only)
+
+
 def test_a_database_that_is_not_a_fleet_store_is_one_line(tmp_path):
     """Found by fuzzing (session 17): a DuckDB file of other tables given to `bench fleet
     ingest` got the fleet's tables added to it, or failed with "CatalogException: Table
@@ -76,9 +90,10 @@ def test_a_database_that_is_not_a_fleet_store_is_one_line(tmp_path):
     con.execute("CREATE TABLE runs (a INTEGER)")
     con.close()
     for path, tables in ((other, "x"), (runs, "runs")):
-        with pytest.raises(BenchError, match=f"^{path}: not a fleet store: a database with "
-                                             f"table\\(s\\) {tables} and no schema version"):
-            Store(path)
+        for read_only in (False, True):     # status said "run `bench fleet ingest` on it"
+            with pytest.raises(BenchError, match=f"^{path}: not a fleet store: a database "
+                                                 f"with table\\(s\\) {tables} and no schema"):
+                Store(path, read_only=read_only)
     assert {r[0] for r in duckdb.connect(str(other)).execute(
         "SELECT table_name FROM information_schema.tables").fetchall()} == {"x"}
     Store(bad).close()
