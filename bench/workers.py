@@ -39,7 +39,7 @@ from typing import Any
 from tqdm import tqdm
 
 from bench import BenchError
-from bench.cluster import Engine, default_workers, scheduler_address
+from bench.cluster import Engine, check_address, default_workers, scheduler_address
 
 RETRIES = 1
 
@@ -96,6 +96,8 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
     worker that dies costs the tasks it held (`chunk` jobs each), run again elsewhere."""
     jobs = list(jobs)
     addr = scheduler_address(scheduler)
+    if addr is not None:          # refused even when the jobs run here (one job, 1 worker)
+        check_address(addr)
     n = (default_workers() if addr is None else 2) if workers is None else int(workers)
     results: list[Any] = [None] * len(jobs)
     bar: Any = None

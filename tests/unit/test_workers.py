@@ -123,3 +123,17 @@ def test_a_scheduler_address_that_is_not_one_is_refused_at_once(monkeypatch, add
     with pytest.raises(BenchError, match=r"\$BENCH_DASK_SCHEDULER\) as tcp://HOST:PORT"):
         Engine(2)
     assert time.monotonic() - t0 < 5.0
+
+
+def test_a_bad_scheduler_address_is_refused_when_the_jobs_would_run_here(monkeypatch):
+    """`--scheduler bogus` with one job (or one worker) ran the job in-process and exited
+    0: the address was never looked at (found by fuzzing, session 17)."""
+    from bench import BenchError
+    from bench.workers import run_all
+    with pytest.raises(BenchError, match="not a Dask scheduler address: 'bogus'"):
+        run_all(abs, [-1], workers=1, scheduler="bogus")
+    monkeypatch.setenv(ENV_SCHEDULER, "tcp://h:abc")
+    with pytest.raises(BenchError, match="not a Dask scheduler address"):
+        run_all(abs, [-1, -2], workers=1)
+    monkeypatch.delenv(ENV_SCHEDULER)
+    assert run_all(abs, [-1, -2], workers=1) == [1, 2]
