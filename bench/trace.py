@@ -57,10 +57,9 @@ class Trace:
     def __post_init__(self) -> None:
         if "t_s" not in self.columns:
             raise BenchError("a trace needs a time column t_s")
-        n = None
+        n = len(_column("t_s", self.columns["t_s"]))
         for k, v in list(self.columns.items()):
             arr = _column(k, v)
-            n = len(arr) if n is None else n
             if len(arr) != n:
                 raise BenchError(f"trace column {k!r} has length {len(arr)}, expected {n}")
             self.columns[k] = arr

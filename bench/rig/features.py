@@ -71,7 +71,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.rig.baseline import Baseline, LoadBaseline, incomplete, residuals
+from bench.rig.baseline import Baseline, LoadBaseline, incomplete, phase_indexes, residuals
 from bench.rig.cycles import Cycle, phases, ramps
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
@@ -228,7 +228,8 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
              if np.isfinite([levels["out"], levels["in"]]).any() else nan)
     per = _periodic({k: (profiles[k][0], res[k][1]) for k in ("out", "in") if k in profiles},
                     lead_mm)
-    idx, idx_at = index_score(lb, cycle)
+    pidx = phase_indexes(cycle)                 # read by the index feature and the shifts
+    idx, idx_at = index_score(lb, pidx)
     scores = {"localised": loc[0], "level": abs(level),
               "reversal": _reversal(lb, cycle), "periodic": per[0],
               "dwell": dwell_score(lb, cycle), "index": idx}
@@ -237,7 +238,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
     return CycleFeatures(cycle.label, cycle.source, cycle.load, cycle.run, cycle.group,
                          scores, loc[1], loc[2], loc[3],
                          side["out"], side["in"], levels["out"], levels["in"],
-                         per[1], per[2], per[3], idx_at, position_shifts(lb, cycle),
+                         per[1], per[2], per[3], idx_at, position_shifts(lb, pidx),
                          notes, incomplete(lb, cycle))
 
 
@@ -260,13 +261,14 @@ def dwell_score(lb: LoadBaseline, cycle: Cycle) -> float:
     return best
 
 
-def index_score(lb: LoadBaseline, cycle: Cycle) -> tuple[float, str]:
-    """(the largest |z| of the cycle's phase indexes against the baseline's mean and
-    spread times sqrt(1 + 1/n), "phase index" where it is); NaN without indexes."""
-    from bench.rig.baseline import phase_indexes
+def index_score(lb: LoadBaseline, indexes: dict[str, dict[str, float]]
+                ) -> tuple[float, str]:
+    """(the largest |z| of a cycle's phase `indexes` (`baseline.phase_indexes`) against
+    the baseline's mean and spread times sqrt(1 + 1/n), "phase index" where it is); NaN
+    without indexes."""
     infl = math.sqrt(1.0 + 1.0 / lb.n)
     best, at = float("nan"), ""
-    for phase, vals in phase_indexes(cycle).items():
+    for phase, vals in indexes.items():
         for key, v in vals.items():
             m, sd = lb.indexes.get(phase, {}).get(key, (nan_, nan_))
             if not (math.isfinite(v) and math.isfinite(m) and sd > 0):
@@ -277,14 +279,14 @@ def index_score(lb: LoadBaseline, cycle: Cycle) -> tuple[float, str]:
     return best, at
 
 
-def position_shifts(lb: LoadBaseline, cycle: Cycle) -> dict[str, float]:
-    """Per phase the cycle and the baseline share: the cycle's mean position error less
-    the baseline's mean of that index, in mm (what the verdict of a position-error index
-    reports beside it)."""
-    from bench.rig.baseline import phase_indexes
+def position_shifts(lb: LoadBaseline, indexes: dict[str, dict[str, float]]
+                    ) -> dict[str, float]:
+    """Per phase a cycle (its phase `indexes`) and the baseline share: the cycle's mean
+    position error less the baseline's mean of that index, in mm (what the verdict of a
+    position-error index reports beside it)."""
     key = "position_error_mean"
     return {phase: vals[key] - lb.indexes[phase][key][0]
-            for phase, vals in phase_indexes(cycle).items()
+            for phase, vals in indexes.items()
             if key in lb.indexes.get(phase, {}) and math.isfinite(vals[key])}
 
 
