@@ -29,13 +29,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 def check_outputs(args: argparse.Namespace) -> None:
     """--out (its directories made), --json and --figures, checked before the run."""
-    from bench.cli.outputs import check_output_dir, check_output_file
-    if args.out:
-        check_output_file(args.out, "--out", make_parents=True)
-    if args.json:
-        check_output_file(args.json, "--json")
-    if args.figures:
-        check_output_dir(args.figures, "--figures")
+    from bench.cli import outputs
+    outputs.check_outputs(args, files=("out",))
+    outputs.check_outputs(args, files=("json",), dirs=("figures",), make_parents=False)
 
 
 def run(args: argparse.Namespace) -> int:
