@@ -63,6 +63,10 @@ def read_nominal(path: str | Path) -> dict[str, Any]:
         raise BenchError(f"{path}: cannot be read ({exc})") from None
     if not isinstance(data, dict):
         raise BenchError(f"{path}: expected a JSON object")
+    if not data:
+        raise BenchError(f"{path}: an empty JSON object holds no parameter: give a "
+                         "calibration (bench calibrate) or a parameter file, or leave "
+                         "--nominal out for the thesis values")
     from bench.rig.baseline import FORMAT
     if data.get("format") == FORMAT:
         raise BaselineAsNominal(f"{path}: a healthy baseline (bench rig baseline), not a "

@@ -125,3 +125,18 @@ def test_a_nominal_json_nested_too_deep_is_one_line(tmp_path, capsys):
     assert main(["gap", str(tmp_path / "any.npz"), "--nominal", str(deep)]) == 2
     assert capsys.readouterr().err.strip() == (
         f"error: {deep}: not a calibration or parameter JSON (nested too deep to read)")
+
+
+def test_an_empty_nominal_object_is_refused_not_read_as_the_thesis_values(tmp_path, capsys):
+    # session 18: `--nominal` of a file holding `{}` ran on the thesis values and exited 0,
+    # as if the user had given no --nominal (a truncated or placeholder calibration)
+    from bench import BenchError
+    from bench.gap.inputs import load_nominal
+    empty = tmp_path / "empty.json"
+    empty.write_text("{}")
+    with pytest.raises(BenchError, match="holds no parameter"):
+        load_nominal(empty)
+    assert main(["gap", str(tmp_path / "any.npz"), "--nominal", str(empty)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: {empty}: an empty JSON object holds no parameter: give a calibration "
+        "(bench calibrate) or a parameter file, or leave --nominal out for the thesis values")
