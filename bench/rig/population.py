@@ -160,34 +160,69 @@ def calibrate_loads(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | 
 
 
 def cross_validate(cycles: list[Cycle], k: int, alpha: float = ALPHA,
-                   lead_mm: float | None = None, max_splits: int = 20) -> dict[str, Any]:
+                   lead_mm: float | None = None, max_splits: int = 20,
+                   faults: dict[str, list[Cycle]] | None = None) -> dict[str, Any]:
     """The healthy false-alarm rate, cross-validated: every choice of `k` of the healthy
     runs (at most `max_splits`, a fixed-seed sample beyond) calibrates a baseline and its
     thresholds as `calibrate` does, and the cycles of the other runs are judged against
     them. With ten held-out cycles a rate of 0 / 10 still allows a true rate of 26 %;
     over all the splits of four runs (six for k = 2) every healthy cycle is judged
-    several times, by thresholds that never saw its run. A measurement only: no
-    threshold is set from it. Empty when there are fewer than k + 1 runs."""
-    import itertools
-    runs = sorted({c.run for c in cycles})
-    if k < 2 or len(runs) <= k:
+    several times, by thresholds that never saw its run. `faults` (condition -> its
+    cycles at this load): each split also judges them, so the detection rate of every
+    condition is given for every choice of calibration runs (`split_rates`), not for one.
+    A measurement only: no threshold is set from it. Empty when there are fewer than
+    k + 1 runs. In this process; `split_jobs`, `judge_splits` and `summarise_splits` are
+    its parts for a caller that spreads the work over workers (`bench rig study`)."""
+    jobs = split_jobs(cycles, k, alpha, lead_mm, max_splits, faults)
+    if not jobs:
         return {}
+    return summarise_splits(cycles, k, [judge_splits(j) for j in jobs])
+
+
+def splits_of(runs: list[int], k: int, max_splits: int = 20) -> list[tuple[int, ...]]:
+    """Every choice of `k` of `runs` (at most `max_splits`, a fixed-seed sample beyond);
+    none when fewer than k + 1 runs leave no run to judge."""
+    import itertools
+    if k < 2 or len(runs) <= k:
+        return []
     splits = list(itertools.combinations(runs, k))
     if len(splits) > max_splits:
         rng = np.random.default_rng(0)
         pick = sorted(rng.choice(len(splits), max_splits, replace=False))
         splits = [splits[i] for i in pick]
-    flagged = judged = 0
-    effects: dict[str, int] = {}
-    per_split: list[dict[str, Any]] = []
+    return splits
+
+
+def split_jobs(cycles: list[Cycle], k: int, alpha: float = ALPHA,
+               lead_mm: float | None = None, max_splits: int = 20,
+               faults: dict[str, list[Cycle]] | None = None) -> list[tuple[Any, ...]]:
+    """The `judge_splits` jobs of `cross_validate`: the held-out healthy cycles first,
+    then one job per fault condition, each over every split (so a condition's cycles
+    travel to a worker once, not once per split); none when there are fewer than k + 1
+    runs."""
+    splits = splits_of(sorted({c.run for c in cycles}), k, max_splits)
+    if not splits:
+        return []
+    return [(cycles, splits, alpha, lead_mm, "", None)] + [
+        (cycles, splits, alpha, lead_mm, cond, cs) for cond, cs in (faults or {}).items()]
+
+
+def judge_splits(job: tuple[Any, ...]) -> dict[str, Any]:
+    """One job of `cross_validate` (a worker job): for every split, the calibration runs'
+    baseline and thresholds, then the cycles judged against them: the other healthy
+    runs' (condition "") or one fault condition's (counts; incomplete cycles are not
+    judged)."""
+    cycles, splits, alpha, lead_mm, cond, judged_cycles = job
+    out: list[dict[str, Any]] = []
     for cal_runs in splits:
         mine = [c for c in cycles if c.run in cal_runs]
         thr = calibrate(mine, alpha, lead_mm).thresholds
         lb = build_load(mine)
+        todo = ([c for c in cycles if c.run not in cal_runs] if judged_cycles is None
+                else judged_cycles)
         n = f = 0
-        for c in cycles:
-            if c.run in cal_runs:
-                continue
+        effects: dict[str, int] = {}
+        for c in todo:
             feat = cycle_features(lb, c, lead_mm)
             if feat.incomplete:
                 continue
@@ -196,13 +231,44 @@ def cross_validate(cycles: list[Cycle], k: int, alpha: float = ALPHA,
             f += int(hit)
             if hit:
                 effects[effect] = effects.get(effect, 0) + 1
-        flagged += f
-        judged += n
-        per_split.append({"calibrate_runs": list(cal_runs), "judged": n, "flagged": f})
-    return {"k": k, "runs": runs, "splits": len(splits), "judged": judged,
-            "flagged": flagged, "rate": flagged / judged if judged else float("nan"),
-            "effects": effects, "per_split": per_split,
-            "rate_95": clopper_pearson(flagged, judged)}
+        out.append({"calibrate_runs": list(cal_runs), "judged": n, "flagged": f,
+                    "effects": effects})
+    return {"condition": cond, "splits": out}
+
+
+def summarise_splits(cycles: list[Cycle], k: int, results: list[dict[str, Any]]
+                     ) -> dict[str, Any]:
+    """`cross_validate`'s result from its jobs' `judge_splits` results (the held-out
+    healthy job first, as `split_jobs` orders them)."""
+    healthy = results[0]["splits"]
+    flagged = sum(r["flagged"] for r in healthy)
+    judged = sum(r["judged"] for r in healthy)
+    effects: dict[str, int] = {}
+    for r in healthy:
+        for e, n in r["effects"].items():
+            effects[e] = effects.get(e, 0) + n
+    per_split = [{"calibrate_runs": r["calibrate_runs"], "judged": r["judged"],
+                  "flagged": r["flagged"]} for r in healthy]
+    out: dict[str, Any] = {
+        "k": k, "runs": sorted({c.run for c in cycles}), "splits": len(healthy),
+        "judged": judged, "flagged": flagged,
+        "rate": flagged / judged if judged else float("nan"), "effects": effects,
+        "per_split": per_split, "rate_95": clopper_pearson(flagged, judged)}
+    if len(results) > 1:
+        out["faults"] = {r["condition"]: split_rates(r["splits"]) for r in results[1:]}
+    return out
+
+
+def split_rates(splits: list[dict[str, Any]]) -> dict[str, Any]:
+    """A fault condition's detection rate under every split (`judge_splits`' counts):
+    each split's counts and the least, median and largest of their rates."""
+    rates = [c["flagged"] / c["judged"] for c in splits if c["judged"]]
+    nan = float("nan")
+    return {"per_split": [{"calibrate_runs": c["calibrate_runs"], "judged": c["judged"],
+                           "flagged": c["flagged"]} for c in splits],
+            "min": min(rates) if rates else nan,
+            "median": float(np.median(rates)) if rates else nan,
+            "max": max(rates) if rates else nan}
 
 
 def clopper_pearson(k: int, n: int, conf: float = 0.95) -> list[float]:

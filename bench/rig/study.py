@@ -161,13 +161,10 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
         todo.append((name, read_cycles(p, skipped=lost)))
     study.unscored[:0] = lost               # cycles not read, before what was not scored
     _score(study, todo, base, cals, lead_mm, workers, progress, scheduler)
-    t0 = time.perf_counter()
     healthy_runs = sorted(set(calibrate_runs) | set(holdout_runs))
-    for load in cals:
-        mine = [c for c in hcycles if c.load == load and c.run in healthy_runs]
-        study.cross_validation[load] = P.cross_validate(mine, len(calibrate_runs), alpha,
-                                                        lead_mm)
-    study.cross_validation_s = time.perf_counter() - t0
+    _cross_validate(study, [c for c in hcycles if c.run in healthy_runs],
+                    [(n, cs) for n, cs in todo if n != hname], len(calibrate_runs), alpha,
+                    lead_mm, workers, progress, scheduler)
     study.summary = summarise(study)
     return study
 
@@ -195,6 +192,35 @@ def _score(study: Study, todo: list[tuple[str, list[Cycle]]], base: B.Baseline,
         for (lb, _, _), r in zip(jobs, res, strict=True):
             per.setdefault(lb.load, []).append(r)
         study.results[name] = per
+
+
+def _cross_validate(study: Study, healthy: list[Cycle], faults: list[tuple[str, list[Cycle]]],
+                    k: int, alpha: float, lead_mm: float | None, workers: int | None,
+                    progress: bool, scheduler: str | None) -> None:
+    """`population.cross_validate` of every load, its jobs (the held-out healthy runs, then
+    each fault condition, each over every split) spread over `run_all`: the
+    healthy false-alarm rate and every fault condition's detection rate under every
+    choice of `k` healthy calibration runs."""
+    from bench.workers import run_all
+    t0 = time.perf_counter()
+    per_load: dict[float, tuple[list[Cycle], int]] = {}
+    jobs: list[tuple[Any, ...]] = []
+    for load in study.loads:
+        mine = [c for c in healthy if c.load == load]
+        fl = {name: [c for c in cs if c.load == load] for name, cs in faults}
+        fl = {name: cs for name, cs in fl.items() if cs}
+        js = P.split_jobs(mine, k, alpha, lead_mm, faults=fl)
+        per_load[load] = (mine, len(js))
+        jobs += js
+    res = run_all(P.judge_splits, jobs, workers=workers, progress=progress,
+                  desc="cross-validation", unit="condition", scheduler=scheduler
+                  ) if jobs else []
+    at = 0
+    for load, (mine, n) in per_load.items():
+        study.cross_validation[load] = (P.summarise_splits(mine, k, res[at:at + n])
+                                        if n else {})
+        at += n
+    study.cross_validation_s = time.perf_counter() - t0
 
 
 def summarise(study: Study) -> dict[str, Any]:

@@ -112,7 +112,7 @@ def test_study_on_the_sample_writes_the_report(tmp_path, capsys):
     assert row["holdout"]["cycles"] == 10 and row["holdout"]["flagged"] <= 1
     assert row["stages"]["spalling5_load40_runs1-2"]["rate"] >= 0.9
     for name in ("report.md", "report.html", "residual.png", "detection.png",
-                 "baseline.json"):
+                 "location.png", "baseline.json"):
         assert (out / name).stat().st_size > 0
     assert "runs 1,2" in (out / "report.md").read_text()
     assert main(["rig", "study", str(SAMPLE), "--calibrate-runs", "1,2", "--holdout-runs",

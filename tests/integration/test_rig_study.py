@@ -62,6 +62,33 @@ def test_cross_validation_judges_every_held_out_cycle_of_every_split():
     assert P.cross_validate(cyc, 4) == {}              # no run left to hold out
 
 
+def test_cross_validation_gives_every_fault_conditions_rate_under_every_split():
+    """The detection rate of a fault condition depends on which healthy runs calibrate
+    (docs/real-data.md: on the Cranfield set -40 kgf stage 7 is 72-92 % over the six
+    pairs of runs 1-4): every split also judges the fault cycles, each against its own
+    baseline and thresholds."""
+    from bench.rig.baseline import build_load
+    from bench.rig.features import cycle_features, judge
+    cyc = read_cycles(SAMPLE / HEALTHY)
+    spall = read_cycles(SAMPLE / SPALL)
+    cv = P.cross_validate(cyc, 2, lead_mm=5.0, faults={"spall": spall})
+    plain = P.cross_validate(cyc, 2, lead_mm=5.0)
+    assert {k: v for k, v in cv.items() if k != "faults"} == plain   # healthy part unchanged
+    r = cv["faults"]["spall"]
+    assert len(r["per_split"]) == 6
+    assert all(s["judged"] == len(spall) for s in r["per_split"])
+    rates = [s["flagged"] / s["judged"] for s in r["per_split"]]
+    assert (r["min"], r["max"]) == (min(rates), max(rates))
+    assert r["min"] <= r["median"] <= r["max"]
+    for runs in ([1, 2], [3, 4]):                  # two splits by hand
+        cal = [c for c in cyc if c.run in runs]
+        thr = P.calibrate(cal, lead_mm=5.0).thresholds
+        lb = build_load(cal)
+        hand = sum(judge(cycle_features(lb, c, 5.0), thr)[0] for c in spall)
+        assert next(s for s in r["per_split"] if s["calibrate_runs"] == runs)["flagged"] \
+            == hand
+
+
 def test_study_takes_two_healthy_tables_and_reports_what_it_cannot_score(tmp_path, capsys):
     from bench.cli import main
     t = _table()
@@ -98,6 +125,12 @@ def test_study_takes_two_healthy_tables_and_reports_what_it_cannot_score(tmp_pat
     md = (out / "report.md").read_text()
     assert "| backlash1 |" in md and "Not scored: backlash1" in md
     assert "Healthy false alarms, cross-validated" in md
+    # every fault table's rate under every split of runs 1-4, beside the study's own
+    spl = row["cross_validation"]["faults"]
+    assert set(spl) == {"backlash1", SPALL.removesuffix(".csv.xz")}
+    own = next(s for s in spl["backlash1"]["per_split"] if s["calibrate_runs"] == [1, 2])
+    assert own["flagged"] / own["judged"] == row["stages"]["backlash1"]["rate"]
+    assert "Detection rate under every choice of calibration runs" in md
     assert main(["rig", "study", str(d), "--calibrate-runs", "1,2", "--holdout-runs", "3,4",
                  "--only", "spalling9", "--out", str(out)]) == 2
     assert "--only spalling9: no such fault table" in capsys.readouterr().err
