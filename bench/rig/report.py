@@ -162,9 +162,8 @@ def _cv_lines(sm: dict[str, Any]) -> list[str]:
             if row.get("cross_validation")]
     if not rows:
         return []
-    k = rows[0][1]["k"]
-    out = ["", f"Healthy false alarms, cross-validated: every choice of {k} of the healthy "
-           "runs calibrates (as above), the cycles of the other healthy runs are judged; a "
+    out = ["", f"Healthy false alarms, cross-validated: {_choices(rows[0][1])} calibrates "
+           "(as above), the cycles of the other healthy runs are judged; a "
            "measurement only, no threshold comes from it:", "",
            "| load | healthy runs | splits | cycles flagged / judged | rate (95 % interval) "
            "| effects named |", "|---|---|---|---|---|---|"]
@@ -174,6 +173,16 @@ def _cv_lines(sm: dict[str, Any]) -> list[str]:
                    f"{cv['flagged']} / {cv['judged']} | {_pct(cv['rate'])} "
                    f"({_interval(cv['rate_95'])}) | {eff} |")
     return out + [""]
+
+
+def _choices(cv: dict[str, Any]) -> str:
+    """'every choice of k of the healthy runs', or, where `population.splits_of` drew a
+    sample of them, how many of how many."""
+    k, n = cv["k"], math.comb(len(cv["runs"]), cv["k"])
+    if cv["splits"] < n:
+        return (f"each of a fixed-seed sample of {cv['splits']} of the {n} choices of {k} "
+                "of the healthy runs")
+    return f"every choice of {k} of the healthy runs"
 
 
 def split_range(study: Study, load: str, cond: str) -> dict[str, Any] | None:
@@ -190,10 +199,9 @@ def _split_lines(study: Study) -> list[str]:
     cvs = [row.get("cross_validation") or {} for row in sm["loads"].values()]
     if not any(cv.get("faults") for cv in cvs):
         return []
-    k = next(cv["k"] for cv in cvs if cv.get("faults"))
-    n = max(cv.get("splits", 0) for cv in cvs)
+    cv0 = next(cv for cv in cvs if cv.get("faults"))
     lines = ["", f"Detection rate under every choice of calibration runs: each of the "
-             f"{n} splits of the cross-validation (every choice of {k} of the healthy runs) "
+             f"{cv0['splits']} splits of the cross-validation ({_choices(cv0)}) "
              "calibrates a baseline and thresholds as above, and every fault cycle at that "
              "load is judged against them (a measurement only). Per stage and load: the "
              "rate of this study's calibration runs, then the least, median and largest "

@@ -89,6 +89,19 @@ def test_cross_validation_gives_every_fault_conditions_rate_under_every_split():
             == hand
 
 
+def test_the_report_says_when_the_splits_are_a_sample_of_the_choices():
+    """With ten healthy runs and two calibrating there are 45 choices and the
+    cross-validation takes a fixed-seed sample of 20 (`splits_of`): the report said
+    'every choice'."""
+    from bench.rig.report import _choices
+    assert len(P.splits_of(list(range(1, 11)), 2)) == 20
+    assert len(P.splits_of([1, 2, 3, 4], 2)) == 6
+    assert _choices({"k": 2, "runs": [1, 2, 3, 4], "splits": 6}) == \
+        "every choice of 2 of the healthy runs"
+    assert _choices({"k": 2, "runs": list(range(1, 11)), "splits": 20}) == \
+        "each of a fixed-seed sample of 20 of the 45 choices of 2 of the healthy runs"
+
+
 def test_study_takes_two_healthy_tables_and_reports_what_it_cannot_score(tmp_path, capsys):
     from bench.cli import main
     t = _table()
