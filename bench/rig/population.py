@@ -171,12 +171,15 @@ def cross_validate(cycles: list[Cycle], k: int, alpha: float = ALPHA,
     cycles at this load): each split also judges them, so the detection rate of every
     condition is given for every choice of calibration runs (`split_rates`), not for one.
     A measurement only: no threshold is set from it. Empty when there are fewer than
-    k + 1 runs. In this process; `split_jobs`, `judge_splits` and `summarise_splits` are
-    its parts for a caller that spreads the work over workers (`bench rig study`)."""
-    jobs = split_jobs(cycles, k, alpha, lead_mm, max_splits, faults)
+    k + 1 runs. In this process; `split_jobs`, `calibrate_split`, `judge_splits` and
+    `summarise_splits` are its parts for a caller that spreads the work over workers
+    (`bench rig study`)."""
+    jobs = split_jobs(cycles, k, alpha, lead_mm, max_splits)
     if not jobs:
         return {}
-    return summarise_splits(cycles, k, [judge_splits(j) for j in jobs])
+    splits = [calibrate_split(j) for j in jobs]
+    return summarise_splits(cycles, k, splits, {cond: judge_splits((splits, cs))
+                                                for cond, cs in (faults or {}).items()})
 
 
 def splits_of(runs: list[int], k: int, max_splits: int = 20) -> list[tuple[int, ...]]:
@@ -194,68 +197,70 @@ def splits_of(runs: list[int], k: int, max_splits: int = 20) -> list[tuple[int, 
 
 
 def split_jobs(cycles: list[Cycle], k: int, alpha: float = ALPHA,
-               lead_mm: float | None = None, max_splits: int = 20,
-               faults: dict[str, list[Cycle]] | None = None) -> list[tuple[Any, ...]]:
-    """The `judge_splits` jobs of `cross_validate`: the held-out healthy cycles first,
-    then one job per fault condition, each over every split (so a condition's cycles
-    travel to a worker once, not once per split); none when there are fewer than k + 1
-    runs."""
-    splits = splits_of(sorted({c.run for c in cycles}), k, max_splits)
-    if not splits:
-        return []
-    return [(cycles, splits, alpha, lead_mm, "", None)] + [
-        (cycles, splits, alpha, lead_mm, cond, cs) for cond, cs in (faults or {}).items()]
+               lead_mm: float | None = None, max_splits: int = 20
+               ) -> list[tuple[Any, ...]]:
+    """One `calibrate_split` job per choice of `k` healthy runs (`cross_validate`); none
+    when there are fewer than k + 1 runs."""
+    return [(cycles, cal_runs, alpha, lead_mm)
+            for cal_runs in splits_of(sorted({c.run for c in cycles}), k, max_splits)]
 
 
-def judge_splits(job: tuple[Any, ...]) -> dict[str, Any]:
-    """One job of `cross_validate` (a worker job): for every split, the calibration runs'
-    baseline and thresholds, then the cycles judged against them: the other healthy
-    runs' (condition "") or one fault condition's (counts; incomplete cycles are not
-    judged)."""
-    cycles, splits, alpha, lead_mm, cond, judged_cycles = job
-    out: list[dict[str, Any]] = []
-    for cal_runs in splits:
-        mine = [c for c in cycles if c.run in cal_runs]
-        thr = calibrate(mine, alpha, lead_mm).thresholds
-        lb = build_load(mine)
-        todo = ([c for c in cycles if c.run not in cal_runs] if judged_cycles is None
-                else judged_cycles)
-        n = f = 0
-        effects: dict[str, int] = {}
-        for c in todo:
-            feat = cycle_features(lb, c, lead_mm)
-            if feat.incomplete:
-                continue
-            hit, effect, _ = judge(feat, thr)
-            n += 1
-            f += int(hit)
-            if hit:
-                effects[effect] = effects.get(effect, 0) + 1
-        out.append({"calibrate_runs": list(cal_runs), "judged": n, "flagged": f,
-                    "effects": effects})
-    return {"condition": cond, "splits": out}
+def calibrate_split(job: tuple[Any, ...]) -> dict[str, Any]:
+    """One split of `cross_validate` (a worker job): the calibration runs' baseline and
+    thresholds, computed once per split and kept for `judge_splits`, and the other
+    healthy runs' cycles judged against them."""
+    cycles, cal_runs, alpha, lead_mm = job
+    mine = [c for c in cycles if c.run in cal_runs]
+    out = {"calibrate_runs": list(cal_runs), "baseline": build_load(mine),
+           "thresholds": calibrate(mine, alpha, lead_mm).thresholds, "lead_mm": lead_mm}
+    out.update(_count(out, [c for c in cycles if c.run not in cal_runs]))
+    return out
 
 
-def summarise_splits(cycles: list[Cycle], k: int, results: list[dict[str, Any]]
-                     ) -> dict[str, Any]:
-    """`cross_validate`'s result from its jobs' `judge_splits` results (the held-out
-    healthy job first, as `split_jobs` orders them)."""
-    healthy = results[0]["splits"]
-    flagged = sum(r["flagged"] for r in healthy)
-    judged = sum(r["judged"] for r in healthy)
+def judge_splits(job: tuple[list[dict[str, Any]], list[Cycle]]) -> list[dict[str, Any]]:
+    """One fault condition's cycles judged under every split (a worker job): the splits'
+    `calibrate_split` results and the cycles; counts per split."""
+    splits, cycles = job
+    return [{"calibrate_runs": s["calibrate_runs"], **_count(s, cycles)} for s in splits]
+
+
+def _count(split: dict[str, Any], cycles: list[Cycle]) -> dict[str, Any]:
+    """`cycles` judged against one split's baseline and thresholds: judged, flagged and
+    the effects named (incomplete cycles are not judged)."""
+    n = f = 0
     effects: dict[str, int] = {}
-    for r in healthy:
+    for c in cycles:
+        feat = cycle_features(split["baseline"], c, split["lead_mm"])
+        if feat.incomplete:
+            continue
+        hit, effect, _ = judge(feat, split["thresholds"])
+        n += 1
+        f += int(hit)
+        if hit:
+            effects[effect] = effects.get(effect, 0) + 1
+    return {"judged": n, "flagged": f, "effects": effects}
+
+
+def summarise_splits(cycles: list[Cycle], k: int, splits: list[dict[str, Any]],
+                     faults: dict[str, list[dict[str, Any]]] | None = None
+                     ) -> dict[str, Any]:
+    """`cross_validate`'s result from its splits (`calibrate_split`) and each fault
+    condition's counts under them (`judge_splits`)."""
+    flagged = sum(r["flagged"] for r in splits)
+    judged = sum(r["judged"] for r in splits)
+    effects: dict[str, int] = {}
+    for r in splits:
         for e, n in r["effects"].items():
             effects[e] = effects.get(e, 0) + n
     per_split = [{"calibrate_runs": r["calibrate_runs"], "judged": r["judged"],
-                  "flagged": r["flagged"]} for r in healthy]
+                  "flagged": r["flagged"]} for r in splits]
     out: dict[str, Any] = {
-        "k": k, "runs": sorted({c.run for c in cycles}), "splits": len(healthy),
+        "k": k, "runs": sorted({c.run for c in cycles}), "splits": len(splits),
         "judged": judged, "flagged": flagged,
         "rate": flagged / judged if judged else float("nan"), "effects": effects,
         "per_split": per_split, "rate_95": clopper_pearson(flagged, judged)}
-    if len(results) > 1:
-        out["faults"] = {r["condition"]: split_rates(r["splits"]) for r in results[1:]}
+    if faults:
+        out["faults"] = {cond: split_rates(counts) for cond, counts in faults.items()}
     return out
 
 

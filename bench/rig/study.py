@@ -197,29 +197,32 @@ def _score(study: Study, todo: list[tuple[str, list[Cycle]]], base: B.Baseline,
 def _cross_validate(study: Study, healthy: list[Cycle], faults: list[tuple[str, list[Cycle]]],
                     k: int, alpha: float, lead_mm: float | None, workers: int | None,
                     progress: bool, scheduler: str | None) -> None:
-    """`population.cross_validate` of every load, its jobs (the held-out healthy runs, then
-    each fault condition, each over every split) spread over `run_all`: the
-    healthy false-alarm rate and every fault condition's detection rate under every
-    choice of `k` healthy calibration runs."""
+    """`population.cross_validate` of every load over `run_all`: each split's baseline
+    and thresholds once (with the held-out healthy runs judged), then each fault
+    condition judged under every split of its load: the healthy false-alarm rate and
+    every fault condition's detection rate under every choice of `k` healthy
+    calibration runs."""
     from bench.workers import run_all
     t0 = time.perf_counter()
-    per_load: dict[float, tuple[list[Cycle], int]] = {}
-    jobs: list[tuple[Any, ...]] = []
+    mine = {load: [c for c in healthy if c.load == load] for load in study.loads}
+    jobs = {load: P.split_jobs(cs, k, alpha, lead_mm) for load, cs in mine.items()}
+    flat = [j for js in jobs.values() for j in js]
+    done = run_all(P.calibrate_split, flat, workers=workers, progress=progress,
+                   desc="cross-validation", unit="split", scheduler=scheduler
+                   ) if flat else []
+    splits: dict[float, list[dict[str, Any]]] = {}
+    for load, js in jobs.items():
+        splits[load], done = done[:len(js)], done[len(js):]
+    keys = [(load, name, [c for c in cs if c.load == load]) for load in study.loads
+            if splits[load] for name, cs in faults]
+    keys = [(load, name, cs) for load, name, cs in keys if cs]
+    counts = run_all(P.judge_splits, [(splits[load], cs) for load, _, cs in keys],
+                     workers=workers, progress=progress, desc="fault tables by split",
+                     unit="condition", scheduler=scheduler) if keys else []
     for load in study.loads:
-        mine = [c for c in healthy if c.load == load]
-        fl = {name: [c for c in cs if c.load == load] for name, cs in faults}
-        fl = {name: cs for name, cs in fl.items() if cs}
-        js = P.split_jobs(mine, k, alpha, lead_mm, faults=fl)
-        per_load[load] = (mine, len(js))
-        jobs += js
-    res = run_all(P.judge_splits, jobs, workers=workers, progress=progress,
-                  desc="cross-validation", unit="condition", scheduler=scheduler
-                  ) if jobs else []
-    at = 0
-    for load, (mine, n) in per_load.items():
-        study.cross_validation[load] = (P.summarise_splits(mine, k, res[at:at + n])
-                                        if n else {})
-        at += n
+        fl = {name: n for (ld, name, _), n in zip(keys, counts, strict=True) if ld == load}
+        study.cross_validation[load] = (P.summarise_splits(mine[load], k, splits[load], fl)
+                                        if splits[load] else {})
     study.cross_validation_s = time.perf_counter() - t0
 
 
