@@ -42,14 +42,21 @@ def residual_figure(study: Study, path: Path) -> Path:
                 where = row["stages"].get(cond, {}).get("position_mm", float("nan"))
                 if not healthy and math.isfinite(where):
                     ax.axvline(where, color=color, ls=":", lw=0.8)
-            ax.set_title(f"load {load:g}, {stroke}-stroke: mean current residual")
-            ax.set_xlabel("measured position (mm)")
-            ax.set_ylabel("residual (baseline sd)")
-            ax.grid(alpha=0.3)
+            _stroke_panel(ax, f"load {load:g}, {stroke}-stroke: mean current residual",
+                          "residual (baseline sd)")
         axes[i][1].legend(fontsize=6, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=72)
     return path
+
+
+def _stroke_panel(ax: Any, title: str, ylabel: str, fontsize: float | None = None) -> None:
+    """One stroke's panel of the residual and location figures: against measured
+    position."""
+    ax.set_title(title, **({} if fontsize is None else {"fontsize": fontsize}))
+    ax.set_xlabel("measured position (mm)")
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
 
 
 def location_figure(study: Study, path: Path) -> Path:
@@ -83,11 +90,8 @@ def location_figure(study: Study, path: Path) -> Path:
                         label=f"{cond} (held-out runs)" if healthy else
                         study.condition_label(cond))
             span = f"one lead ({lead:g} mm)" if lead else "5 samples"
-            ax.set_title(f"load {load:g}, {stroke}-stroke: mean residual over {span}",
-                         fontsize=9)
-            ax.set_xlabel("measured position (mm)")
-            ax.set_ylabel("residual less its median (baseline sd)")
-            ax.grid(alpha=0.3)
+            _stroke_panel(ax, f"load {load:g}, {stroke}-stroke: mean residual over {span}",
+                          "residual less its median (baseline sd)", fontsize=9)
         axes[i][1].legend(fontsize=6, ncol=3)
     fig.tight_layout()
     fig.savefig(path, dpi=72)
