@@ -28,7 +28,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.hums import rul as R
-from bench.hums.verdict import LEVELS, UNKNOWN
+from bench.hums.verdict import LEVELS, UNKNOWN, judged_ci
 
 DAY_S = 86400.0
 N_TREND = 10
@@ -57,13 +57,6 @@ class ActuatorStatus:
     def level(self) -> int:
         """0-3 (HEALTHY..FAILURE), -1 for UNKNOWN."""
         return LEVELS.index(self.verdict) if self.verdict in LEVELS else -1
-
-
-def judged_ci(ci: np.ndarray, ci_harmonic: np.ndarray) -> np.ndarray:
-    """The Ci the verdict reads: harmonic Ci where finite, else broadband Ci."""
-    ci = np.asarray(ci, dtype=float)
-    h = np.asarray(ci_harmonic, dtype=float)
-    return np.where(np.isfinite(h), h, ci)
 
 
 def slope_per_day(t_s: np.ndarray, y: np.ndarray, n: int = N_TREND) -> float:
