@@ -82,7 +82,10 @@ def test_summary_table_matches_the_json_and_the_command_line(noisy_logs, tmp_pat
     healthy = js["healthy.npz"]
     assert healthy["verdict"] == "HEALTHY" and healthy["indexes"]["ci"] >= 0.93
     assert healthy["rul"].startswith("not computed: skipped here")
-    assert "needs a periodic log" not in (out / "report.html").read_text()
+    text = (out / "report.html").read_text()
+    assert "needs a periodic log" not in text
+    from bench.reports import stylesheet
+    assert stylesheet() in text and text.count("<style>") == 1     # the reports' base page
 
 
 def _predictions() -> list[Prediction]:
