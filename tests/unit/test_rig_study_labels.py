@@ -33,3 +33,19 @@ def test_labels_and_order():
     assert mixed.condition_label("backlash1_runs1-5") == "backlash1_runs1-5"
     assert getattr(mixed, "stage_header", "condition") == "condition"
     assert sorted(mixed.fault_conditions, key=condition_key) == mixed.fault_conditions
+
+
+def test_every_rig_action_has_a_description():
+    """`bench rig ACTION --help` says what the action does, not only its usage."""
+    import argparse
+
+    from bench.cli import rig
+    top = argparse.ArgumentParser()
+    rig.add_subparser(top.add_subparsers())
+    actions = next(a for a in top._actions if isinstance(a, argparse._SubParsersAction))
+    sub = next(a for a in actions.choices["rig"]._actions
+               if isinstance(a, argparse._SubParsersAction))
+    assert set(sub.choices) == {"baseline", "assess", "study", "inject"}
+    for name, p in sub.choices.items():
+        assert p.description and len(p.description) > 80, name
+        assert p.description.split()[0] in p.format_help(), name
