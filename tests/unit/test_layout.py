@@ -234,3 +234,12 @@ def test_the_judged_ci_rule_is_written_once():
     users = ("bench/hums/report.py", "bench/hums/live.py", "bench/cli/demo.py",
              "bench/fleet/status.py")
     assert all("judged_ci" in (ROOT / u).read_text() for u in users)
+
+
+def test_one_base64_png_helper():
+    """A figure becomes a base64 PNG in `bench.reports.png_base64` only (a module that
+    both saves a figure and base64-encodes is writing its own)."""
+    own = [rel for rel, path in ((p.relative_to(ROOT).as_posix(), p) for p in MODULES.values())
+           if rel != "bench/reports/__init__.py"
+           and "b64encode" in (text := path.read_text()) and "savefig" in text]
+    assert not own, own
