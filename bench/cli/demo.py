@@ -130,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
 
     print("HUMS: indexes against the monitoring model, verdicts, report", flush=True)
     from bench.hums.report import write_report  # heavy, as above
+    from bench.hums.verdict import judged_ci
     t0 = time.perf_counter()
     page, analyses = write_report([str(p) for p in logs], out / "hums", PlantParams(),
                                   rul=False, progress=False)
@@ -138,11 +139,12 @@ def run(args: argparse.Namespace) -> int:
           f"{'lost motion um':>14s}")
     for a in analyses:
         ix = a.indexes
-        ci = ix.ci_harmonic if math.isfinite(ix.ci_harmonic) else ix.ci
+        ci = judged_ci(ix.ci, ix.ci_harmonic)
         lm = ix.lost_motion_m * 1e6 if math.isfinite(ix.lost_motion_m) else float("nan")
         print(f"  {a.name:16s} {a.verdict:9s} {ix.cp:7.3f} {ci:7.3f} {ix.peak_ratio:10.2f} "
               f"{lm:14.1f}")
         rows.append({"log": a.name, "verdict": a.verdict, "cp": ix.cp, "ci": ci,
+                     "ci_broadband": ix.ci,
                      "peak_ratio": ix.peak_ratio, "lost_motion_um": lm,
                      "reasons": a.reasons})
     print(f"  report: {page} ({time.perf_counter() - t0:.1f} s)")

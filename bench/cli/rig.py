@@ -13,6 +13,32 @@ import sys
 from pathlib import Path
 from typing import Any
 
+DESCRIPTIONS = {
+    "baseline": "A healthy baseline from the given healthy runs: per load, set-point "
+        "phase, direction and aligned sample, the mean and pooled spread of "
+        "current and position error; and the thresholds of every feature from "
+        "leave-one-run-out prediction on those runs. Writes BASE.json, which "
+        "`bench rig assess`, `bench gap --baseline` and `bench hums report "
+        "--baseline` read.",
+    "assess": "Judge every motion cycle of the given tables or traces against a "
+        "baseline (`bench rig baseline`), each at its own load: flagged or not, "
+        "the effect named (friction- or backlash-like, localised, periodic, "
+        "...) and where it lies; per condition the share of cycles flagged. "
+        "Incomplete cycles are not judged.",
+    "study": "A development set end to end: the baseline and thresholds from the "
+        "calibration runs, the false-alarm rate on the held-out healthy runs "
+        "(and cross-validated over the choices of calibration runs), the "
+        "detection rate and effect named per fault table and load, where the "
+        "effect lies, and the cost. Writes report.md, report.html, study.json, "
+        "baseline.json and the figures into --out.",
+    "inject": "Known faults (friction, backlash, a play under a one-sided load, a "
+        "localised bump, a periodic line) injected into the held-out healthy "
+        "cycles at sizes in units of the healthy spread, then judged against the "
+        "baseline of the calibration runs: the detection rate and the share "
+        "named right per kind, size and load.",
+}
+"""What each action does (its --help)."""
+
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
@@ -25,7 +51,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                     "or Parquet with set_point, position_error (mm), current (A), load, "
                     "run, group (one motion cycle), time; or `bench import` traces (.npz/.parquet).")
     sub = p.add_subparsers(dest="rig_command", metavar="ACTION")
-    b = sub.add_parser("baseline", help="build a healthy baseline and its thresholds")
+    b = sub.add_parser("baseline", help="build a healthy baseline and its thresholds",
+                       description=DESCRIPTIONS["baseline"])
     b.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")
     b.add_argument("--runs", metavar="LIST", help="runs to use (e.g. 1,2; default: all)")
     b.add_argument("-o", "--out", required=True, metavar="BASE.json", help="baseline file")
@@ -34,13 +61,15 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "whose load is logged in N is matched to it; `bench import` traces "
                         "carry theirs")
     _common(b)
-    a = sub.add_parser("assess", help="diagnose cycles against a baseline")
+    a = sub.add_parser("assess", help="diagnose cycles against a baseline",
+                       description=DESCRIPTIONS["assess"])
     a.add_argument("tables", nargs="+", metavar="LOG", help="tables or traces to assess")
     a.add_argument("--baseline", required=True, metavar="BASE.json")
     a.add_argument("--runs", metavar="LIST", help="only these runs (default: all)")
     a.add_argument("--json", metavar="PATH", help="write every verdict here ('-': stdout)")
     a.add_argument("-q", "--quiet", action="store_true", help="only the per-condition rates")
-    s = sub.add_parser("study", help="a rig's development set end to end, with a report")
+    s = sub.add_parser("study", help="a rig's development set end to end, with a report",
+                       description=DESCRIPTIONS["study"])
     s.add_argument("directory", metavar="DIR", help="folder of the rig's tables")
     s.add_argument("--calibrate-runs", required=True, metavar="LIST",
                    help="healthy runs the baseline and thresholds use (e.g. 1,2)")
@@ -56,7 +85,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     s.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
     _common(s)
     i = sub.add_parser("inject", help="sensitivity: known faults injected into held-out "
-                                      "healthy cycles, detection and naming per size")
+                       "healthy cycles, detection and naming per size",
+                       description=DESCRIPTIONS["inject"])
     i.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")
     i.add_argument("--calibrate-runs", required=True, metavar="LIST",
                    help="healthy runs the baseline and thresholds use (e.g. 1,2)")

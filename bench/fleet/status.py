@@ -13,14 +13,16 @@ then the warning level 0.80, a cubic fitted to Ci(t) from the threshold crossing
 latest test is extrapolated to the failure level 0.56; the band is the 5-95 % spread of
 a residual bootstrap of that fit. Where the algorithm does not apply (no crossing yet,
 or too few tests between the crossings) the RUL is "n/a" with the reason.
-The usage consumed is the sum of the runs' ``life_consumed`` (fraction of L10, Palmgren-
-Miner; docs/usage.md); n/a when no run had a load signal.
+The usage consumed is the sum of the logged runs' ``life_consumed`` (fraction of L10,
+Palmgren-Miner; docs/usage.md); n/a when no run had a load signal, and a note under the
+table where an actuator at WARNING or FAILURE shows ~0 (`usage_note`).
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import math
+import textwrap
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,7 +30,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.hums import rul as R
-from bench.hums.verdict import LEVELS, UNKNOWN
+from bench.hums.verdict import LEVELS, UNKNOWN, judged_ci
 
 DAY_S = 86400.0
 N_TREND = 10
@@ -57,13 +59,6 @@ class ActuatorStatus:
     def level(self) -> int:
         """0-3 (HEALTHY..FAILURE), -1 for UNKNOWN."""
         return LEVELS.index(self.verdict) if self.verdict in LEVELS else -1
-
-
-def judged_ci(ci: np.ndarray, ci_harmonic: np.ndarray) -> np.ndarray:
-    """The Ci the verdict reads: harmonic Ci where finite, else broadband Ci."""
-    ci = np.asarray(ci, dtype=float)
-    h = np.asarray(ci_harmonic, dtype=float)
-    return np.where(np.isfinite(h), h, ci)
 
 
 def slope_per_day(t_s: np.ndarray, y: np.ndarray, n: int = N_TREND) -> float:
@@ -190,9 +185,33 @@ def rul_text(st: ActuatorStatus) -> str:
 
 
 def usage_text(st: ActuatorStatus) -> str:
+    """The usage consumed, as the sum over the logged runs it is."""
     if not math.isfinite(st.life_consumed):
         return "n/a (no run with a load signal)"
-    return f"{100.0 * st.life_consumed:.3g} % of L10"
+    return f"{100.0 * st.life_consumed:.3g} % of L10 in the logged runs"
+
+
+USAGE_NOTE_BELOW = 1e-6
+"""L10 life consumed (fraction) below which a WARNING or FAILURE actuator's usage is ~0:
+its wear did not come from the logged runs (`usage_note`)."""
+
+
+def usage_note(rows: list[ActuatorStatus]) -> str:
+    """What ~0 % of L10 next to WARNING or FAILURE means ("" when no line shows it): the
+    usage sums the logged runs only. In a synthetic fleet those are unloaded ground
+    tests, and the wear comes from flights that are not logged, one synthetic day
+    standing for many real ones (the time compression of `bench.fleet.synth`)."""
+    odd = [st.ident for st in rows if st.level >= 2 and math.isfinite(st.life_consumed)
+           and st.life_consumed < USAGE_NOTE_BELOW]
+    if not odd:
+        return ""
+    names = ", ".join(odd[:5]) + (f" and {len(odd) - 5} more" if len(odd) > 5 else "")
+    return (f"note: {names}: WARNING or FAILURE with ~0 % of L10 used. The usage column "
+            "sums the logged runs only, and this wear did not come from them. In a "
+            "synthetic fleet (`bench fleet synth`) the logs are unloaded ground tests and "
+            "the wear comes from flights that are not logged, each synthetic day standing "
+            "for many real ones (the time compression K in fleet-truth.json, docs/fleet.md); "
+            "on a real fleet, log the flights' load for the usage to count them.")
 
 
 HEADER = ("actuator", "tests", "last test (UTC)", "level", "Ci", "trend Ci/day",
@@ -212,4 +231,5 @@ def format_table(rows: list[ActuatorStatus]) -> str:
     for r in [HEADER, *body]:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r[:-2], widths, strict=True))
                      + "  " + r[-2] + "  |  " + r[-1])
-    return "\n".join(lines)
+    note = usage_note(rows)
+    return "\n".join(lines + (textwrap.wrap(note, 100) if note else []))

@@ -124,12 +124,23 @@ def _fig_paths(loc: dict[str, Any], t: np.ndarray, out: Path) -> bool:
             ax.plot(t, r * scale, lw=0.6, color="k")
             ax.set_ylabel(f"{name}\n({unit})", fontsize=8)
         axes[-1].set_xlabel("t (s)")
-        axes[0].set_title("path residuals (shading: " + ", ".join(
-            f"{r} {c}" for r, c in REGIME_COLOURS.items()) + ")", fontsize=9)
+        axes[0].set_title("path residuals, the motion regimes shaded", fontsize=9)
+        if reg is not None:
+            axes[0].legend(handles=_regime_handles(reg), fontsize=7, ncol=5,
+                           loc="lower left", bbox_to_anchor=(0.0, 1.12), frameon=False)
         fig.tight_layout()
         fig.savefig(out / "path_residuals.png", dpi=110)
         return True
     return False
+
+
+def _regime_handles(reg: np.ndarray) -> list[Any]:
+    """Legend entries of the shaded regimes the log has (dwell: unshaded)."""
+    from matplotlib.patches import Patch
+    present = {REGIMES[int(k)] for k in np.unique(reg)}
+    return [Patch(facecolor=c, alpha=0.15 if r != "dwell" else 0.0, edgecolor="0.6",
+                  label=r if r != "dwell" else "dwell (unshaded)")
+            for r, c in REGIME_COLOURS.items() if r in present]
 
 
 def _shade(ax, t: np.ndarray, reg: np.ndarray) -> None:

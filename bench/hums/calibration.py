@@ -24,6 +24,7 @@ from bench.hums.fusion import (
     FEATURES,
     Calibration,
     causal_median,
+    crossing_backlash,
     estimates,
     feature_values,
     fused_backlash,
@@ -141,13 +142,4 @@ def _job(job: tuple[str, Any]) -> Any:
 
 def _fail_backlash(b_um: list[float], ci: list[float], failure: float = FAILURE) -> float:
     """The backlash at which the sweep's Ci crosses `failure` (linear interpolation)."""
-    b = np.asarray(b_um)
-    c = np.asarray(ci)
-    k = np.flatnonzero(c < failure)
-    if not len(k):
-        # extrapolate the last segment
-        return float(b[-1] + (failure - c[-1]) * (b[-1] - b[-2]) / (c[-1] - c[-2]))
-    j = int(k[0])
-    if j == 0:
-        return float(b[0])
-    return float(b[j - 1] + (failure - c[j - 1]) * (b[j] - b[j - 1]) / (c[j] - c[j - 1]))
+    return crossing_backlash(b_um, ci, failure)

@@ -46,6 +46,10 @@ class Calibration:
     offset_um: dict[str, float]          # healthy bias of each estimate (removed)
     weights: dict[str, float]
     warn_um: float
+    """The detection level (um): the causal 3-period median of the fused estimate above it
+    is backlash measurably above every healthy calibration run (1.5 x their largest, >= 6
+    sigma): the fused predictor's warning, from which it predicts the RUL. Not a level of
+    wear: the wear levels are `backlash_at_ci` of the thesis' Ci levels."""
     floor_um: float
     fail_um: float
     lm_model: list[float] = field(default_factory=list)   # LM = l0 + kappa I_f + k_b b
@@ -53,6 +57,27 @@ class Calibration:
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
+
+    def backlash_at_ci(self, level: float) -> float:
+        """The backlash (um) at which the calibration sweep's Ci crosses `level`: the
+        thesis' Ci levels (section 6.5) in backlash, so that the fused estimate is graded
+        on the scale Ci is (0.93 -> ~18 um, 0.80 -> ~40 um, 0.56 -> b_fail ~90 um on the
+        bench's plant)."""
+        return crossing_backlash(self.backlash_um, self.ci_curve, level)
+
+
+def crossing_backlash(b_um: list[float], ci: list[float], level: float) -> float:
+    """The backlash at which a sweep's Ci (falling with backlash) first crosses `level`,
+    linearly interpolated (the last segment extrapolated when it never does)."""
+    b = np.asarray(b_um, dtype=float)
+    c = np.asarray(ci, dtype=float)
+    k = np.flatnonzero(c < level)
+    if not len(k):
+        return float(b[-1] + (level - c[-1]) * (b[-1] - b[-2]) / (c[-1] - c[-2]))
+    j = int(k[0])
+    if j == 0:
+        return float(b[0])
+    return float(b[j - 1] + (level - c[j - 1]) * (b[j] - b[j - 1]) / (c[j] - c[j - 1]))
 
 
 def feature_values(table: dict[str, np.ndarray], name: str) -> np.ndarray:

@@ -49,7 +49,8 @@ class PeriodResult:
     def row(self) -> dict[str, Any]:
         ix = self.indexes
         return {"run": self.run, "period": self.period, "t_start_s": self.t_start_s,
-                "cp": ix.cp, "ci": ix.ci, "ci_harmonic": ix.ci_harmonic,
+                "cp": ix.cp, "ci": V.judged_ci(ix.ci, ix.ci_harmonic),
+                "ci_broadband": ix.ci, "ci_harmonic": ix.ci_harmonic,
                 "peak_ratio": ix.peak_ratio, "mean_error_m": ix.mean_error_m,
                 "lost_motion_m": ix.lost_motion_m, "level": LEVELS[self.level]}
 
@@ -312,7 +313,7 @@ def watch(bus: can.BusABC, hums: LiveHums, on_result: Callable[[PeriodResult], N
 
 def format_result(r: PeriodResult) -> str:
     ix = r.indexes
-    ci = ix.ci_harmonic if math.isfinite(ix.ci_harmonic) else ix.ci
+    ci = V.judged_ci(ix.ci, ix.ci_harmonic)
     lm = ix.lost_motion_m * 1e6 if math.isfinite(ix.lost_motion_m) else float("nan")
     return (f"run {r.run} period {r.period:4d} t {r.t_start_s:8.2f} s  Cp {ix.cp:6.3f}  "
             f"Ci {ci:6.3f}  peak ratio {ix.peak_ratio:5.2f}  lost motion {lm:6.1f} um  "

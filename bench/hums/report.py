@@ -11,10 +11,7 @@ Figures are embedded as base64 PNG, so the HTML file is all there is.
 
 from __future__ import annotations
 
-import base64
 import hashlib
-import html
-import io
 import json
 import math
 import os
@@ -27,7 +24,13 @@ import numpy as np
 from bench import BenchError
 from bench.hums import indexes as I
 from bench.hums import monitor as M
-from bench.hums.verdict import LEVELS, UNKNOWN, judge  # noqa: F401  (LEVELS, UNKNOWN: re-exported)
+from bench.hums.verdict import (  # noqa: F401  (LEVELS, UNKNOWN: re-exported)
+    LEVELS,
+    UNKNOWN,
+    index_record,
+    judge,
+    judged_ci,
+)
 from bench.jsonsafe import json_safe
 from bench.trace import MEASURED, MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
@@ -92,6 +95,7 @@ class LogAnalysis:
     missing: list[str] = field(default_factory=list)
     bridged: dict[str, int] = field(default_factory=dict)   # signal -> samples bridged
     notes: list[str] = field(default_factory=list)          # what the log lost / repeated
+    rul_note: str = ""                                       # why there is no RUL
 
 
 def _cache_dir() -> Path:
@@ -173,13 +177,32 @@ def analyse(trace: Trace, name: str, params: PlantParams | None = None,
     elif have_i and have_x and n_periods >= 1:
         rows = list(I.period_indexes(meas, nom, 1.0 / f0, kin=None))
         out.period_table = I.as_table(rows)
-    if rul and n_periods >= MIN_PERIODS_FOR_TREND and out.period_table:
+    out.rul_note = _no_rul(rul, f0, n_periods, have_i and have_x, trend_blocked)
+    if not out.rul_note and out.period_table:
         from bench.hums import fusion as R
         cal = cached_calibration(M.nominal_plant(params), kp, progress)
         t_end = out.period_table["t_start_s"] + 1.0 / f0
         out.fused = (R.FusedPredictor(cal).run(t_end, out.period_table), cal, t_end)
     out.verdict, out.reasons = verdict(out)
     return out
+
+
+def _no_rul(rul: bool, f0: float, n_periods: int, both: bool, blocked: set[str]) -> str:
+    """Why the log gets no fused RUL ("" when it gets one)."""
+    if not rul:
+        return ("not computed: skipped here (`bench hums report LOG` computes it on a "
+                f"periodic log of >= {MIN_PERIODS_FOR_TREND} command periods)")
+    if blocked:
+        return ("signals missing: " + ", ".join(sorted(blocked))
+                + " missing over a stretch too long to bridge")
+    if not both:
+        return "needs current and position: the fused predictor reads current_a and position_m"
+    if not math.isfinite(f0):
+        return "not periodic: the fused predictor reads command periods"
+    if n_periods < MIN_PERIODS_FOR_TREND:
+        return (f"{n_periods} command period{'s' if n_periods != 1 else ''}: the fused "
+                f"predictor needs >= {MIN_PERIODS_FOR_TREND}")
+    return ""
 
 
 def _log_notes(meta: dict[str, Any]) -> list[str]:
@@ -209,7 +232,8 @@ def _unjudged(meas: Trace, name: str, why: str, missing: list[str],
     ix.unavailable = {k: f"not available {why}" for k in I.INDEX_SIGNALS}
     nom = Trace({"t_s": t.copy(), **{c: np.full(len(t), np.nan)
                                       for c in ("position_m", "current_a")}})
-    out = LogAnalysis(name, meas, nom, math.nan, ix, "", [], missing=missing, notes=notes)
+    out = LogAnalysis(name, meas, nom, math.nan, ix, "", [], missing=missing, notes=notes,
+                      rul_note=f"log too short: {why}")
     out.verdict, out.reasons = verdict(out)
     return out
 
@@ -222,25 +246,18 @@ def verdict(a: LogAnalysis) -> tuple[str, list[str]]:
 
 # --- rendering -----------------------------------------------------------------------------
 
-def _png(fig: Any) -> str:
-    import matplotlib.pyplot as plt
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=80)
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
 def _figures(a: LogAnalysis) -> list[tuple[str, str]]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """(caption, base64 PNG) of each figure of one log (matplotlib `Figure` API)."""
+    from matplotlib.figure import Figure
+
+    from bench.reports import png_base64
     out = []
     tr, nm = a.trace, a.nominal
     t = tr.t
     n = len(t)
     show = slice(0, min(n, int(4.0 / max(tr.dt, 1e-9)))) if n * tr.dt > 8 else slice(0, n)
-    fig, ax = plt.subplots(1, 2, figsize=(11, 3.4))
+    fig = Figure(figsize=(11, 3.4))
+    ax = fig.subplots(1, 2)
     if "position_m" in tr:
         ax[0].plot(t[show], 1e3 * tr["position_m"][show], "k", lw=1.5, label="log (LVDT)")
         ax[0].plot(t[show], 1e3 * nm["position_m"][show], "C0--", label="nominal model")
@@ -252,65 +269,108 @@ def _figures(a: LogAnalysis) -> list[tuple[str, str]]:
     ax[1].set(title="motor current", xlabel="t (s)", ylabel="A")
     ax[1].legend(fontsize=8)
     out.append(("Measured signals against the nominal model"
-                + (" (first 4 s)" if show.stop < n else ""), _png(fig)))
+                + (" (first 4 s)" if show.stop < n else ""), png_base64(fig)))
     if "current_a" in tr and np.isfinite(tr["current_a"]).all() and n >= 64:
-        fig, ax = plt.subplots(figsize=(6, 3.2))
+        fig = Figure(figsize=(6, 3.2))
+        ax1 = fig.subplots()
         f, amp = I.amplitude_spectrum(tr["current_a"], tr.dt)
         fn, an = I.amplitude_spectrum(nm["current_a"], tr.dt)
-        ax.plot(fn, an, "C0", lw=2, label="nominal model")
-        ax.plot(f, amp, "k", lw=1, label="log")
+        ax1.plot(fn, an, "C0", lw=2, label="nominal model")
+        ax1.plot(f, amp, "k", lw=1, label="log")
         top = 20 * a.f0_hz if math.isfinite(a.f0_hz) else 50.0
-        ax.set(xlim=(0, top), title="current spectrum (Hann, amplitude)", xlabel="Hz",
-               ylabel="A")
-        ax.legend(fontsize=8)
-        out.append(("Current spectrum (eq. 6.3)", _png(fig)))
+        ax1.set(xlim=(0, top), title="current spectrum (Hann, amplitude)", xlabel="Hz",
+                ylabel="A")
+        ax1.legend(fontsize=8)
+        out.append(("Current spectrum (eq. 6.3)", png_base64(fig)))
     pt = a.period_table
     if pt and len(pt["ci"]) >= 2:
-        te = pt["t_start_s"] + 1.0 / a.f0_hz
-        fig, ax = plt.subplots(1, 2, figsize=(11, 3.4))
-        ax[0].plot(te, pt["ci"], ".", ms=3, label="Ci")
-        ax[0].plot(te, pt["ci_harmonic"], ".", ms=3, label="Ci, 15 harmonics")
-        for lv, c in ((0.93, "C2"), (0.80, "C1"), (0.56, "C3")):
-            ax[0].axhline(lv, color=c, ls="--", lw=1)
-        ax[0].set(title="current fidelity per command period", xlabel="t (s)")
-        ax[0].legend(fontsize=8)
-        ax[1].plot(te, 1e6 * pt["lost_motion_m"], ".", ms=3, label="lost motion (um)")
-        if a.fused is not None:
-            fr, cal, _ = a.fused
-            ax[1].plot(te, fr.b_um, "-", lw=1, label="fused backlash estimate (um)")
-            ax[1].axhline(cal.warn_um, color="C1", ls="--", lw=1, label="warning level")
-        ax[1].set(title="backlash indicators per period", xlabel="t (s)")
-        ax[1].legend(fontsize=8)
-        out.append(("Trend per command period", _png(fig)))
+        out.append(("Trend per command period", png_base64(_trend_figure(a))))
     if a.fused is not None and a.fused[0].predictions:
-        fr = a.fused[0]
-        ps = fr.predictions
-        tp = np.array([p.t_pred_s for p in ps])
-        fig, ax = plt.subplots(figsize=(6, 3.2))
-        ax.plot(tp, [p.rul_s for p in ps], "C1", label="RUL, median")
-        ax.fill_between(tp, [p.band()[0] - p.t_pred_s for p in ps],
-                        [min(p.band()[1] - p.t_pred_s, 1e3) for p in ps], color="C1",
-                        alpha=0.25, label="90 % band")
-        ax.set(title="predicted remaining useful life", xlabel="t (s)", ylabel="s",
-               ylim=(0, None))
-        ax.legend(fontsize=8)
-        out.append(("Remaining useful life (fused predictor)", _png(fig)))
+        out.append(("Remaining useful life (fused predictor)", png_base64(_rul_figure(a))))
     return out
 
 
+def _trend_figure(a: LogAnalysis) -> Any:
+    """Ci per period against the thesis' levels; the backlash indicators per period with
+    the fused estimate's detection level and the backlash of the warning and failure."""
+    from matplotlib.figure import Figure
+
+    from bench.hums import rul as R
+    pt = a.period_table
+    te = pt["t_start_s"] + 1.0 / a.f0_hz
+    fig = Figure(figsize=(11, 3.4))
+    ax = fig.subplots(1, 2)
+    ax[0].plot(te, judged_ci(pt["ci"], pt["ci_harmonic"]), "o", ms=3, color="C0",
+               label="Ci (judged: 15 harmonics)")
+    ax[0].plot(te, pt["ci"], ".", ms=3, color="0.6", label="Ci broadband (eq. 6.6)")
+    for lv, c, name in ((R.THRESHOLD, "C2", "threshold"), (R.WARNING, "C1", "warning"),
+                        (R.FAILURE, "C3", "failure")):
+        ax[0].axhline(lv, color=c, ls="--", lw=1, label=f"{name} {lv}")
+    ax[0].set(title="current fidelity per command period", xlabel="t (s)")
+    ax[0].legend(fontsize=7, ncol=2)
+    ax[1].plot(te, 1e6 * pt["lost_motion_m"], ".", ms=3, label="lost motion (um)")
+    if a.fused is not None:
+        fr, cal, _ = a.fused
+        ax[1].plot(te, fr.b_um, "-", lw=1, label="fused backlash estimate (um)")
+        for b, c, ls, name in (
+                (cal.warn_um, "0.4", ":", f"detection level {cal.warn_um:.2f} um"),
+                (cal.backlash_at_ci(R.WARNING), "C1", "--",
+                 f"warning: Ci {R.WARNING} at {cal.backlash_at_ci(R.WARNING):.0f} um"),
+                (cal.fail_um, "C3", "--", f"failure: Ci {R.FAILURE} at {cal.fail_um:.0f} um")):
+            ax[1].axhline(b, color=c, ls=ls, lw=1, label=name)
+    ax[1].set(title="backlash indicators per period", xlabel="t (s)", ylabel="um")
+    ax[1].legend(fontsize=7)
+    return fig
+
+
+def _rul_figure(a: LogAnalysis) -> Any:
+    """The fused predictor's RUL per period: median and 90 % band. A prediction without
+    failure (inf: the fitted growth never reaches b_fail) is drawn at the top of the
+    frame, the band clipped there alike on both bounds."""
+    from matplotlib.figure import Figure
+    fr = a.fused[0]
+    ps = fr.predictions
+    tp = np.array([p.t_pred_s for p in ps])
+    med = np.array([p.rul_s for p in ps])
+    lo = np.array([max(p.band()[0] - p.t_pred_s, 0.0) for p in ps])
+    hi = np.array([p.band()[1] - p.t_pred_s for p in ps])
+    finite = np.concatenate([v[np.isfinite(v)] for v in (med, lo, hi)])
+    top = 1.15 * float(np.max(finite)) if len(finite) and np.max(finite) > 0 else 1.0
+    fig = Figure(figsize=(8, 3.4))
+    ax = fig.subplots()
+    ax.fill_between(tp, np.minimum(lo, top), np.minimum(hi, top), color="C1", alpha=0.25,
+                    lw=0, label="90 % band")
+    ok = np.isfinite(med)
+    ax.plot(tp, np.where(ok, med, np.nan), "C1-o", ms=3, label="RUL, median")
+    if not ok.all():
+        ax.plot(tp[~ok], np.full((~ok).sum(), top), "v", color="C3", ms=5,
+                label="median: no failure predicted")
+    ax.set_title("predicted remaining useful life" + (
+        "\n(at the top of the frame: no failure predicted)" if not np.isfinite(hi).all()
+        else ""), fontsize=9)
+    ax.set(xlabel="t (s)", ylabel="s of this manoeuvre", ylim=(0, top * 1.04))
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return fig
+
+
 def _fmt(v: float, scale: float = 1.0, digits: int = 3) -> str:
-    return "-" if not math.isfinite(v) else f"{v * scale:.{digits}g}"
+    """`digits` significant digits; negative: -`digits` decimals (Ci: as the CLI prints)."""
+    if not math.isfinite(v):
+        return "-"
+    return f"{v * scale:.{-digits}f}" if digits < 0 else f"{v * scale:.{digits}g}"
 
 
 INDEX_HELP = [
     ("Cp", "position fidelity, int(x_N x) / int(x^2) (eq. 6.5)", "1; > 1 when the nut "
      "moves less than the model (lost motion)"),
     ("|e|", "mean |x_N - x| (eq. 6.4), um", "near 0"),
-    ("Ci", "current fidelity, int(i_N i) / int(i^2) (eq. 6.6)", "1; < 1 when the motor "
-     "needs more current than the model (friction, backlash impacts). Thesis levels: 0.93 "
-     "threshold, 0.80 warning, 0.56 failure"),
-    ("Ci (15 harmonics)", "Ci on the command frequency and its first 15 multiples",
-     "as Ci, but broadband sensor noise does not pull it down"),
+    ("Ci", "current fidelity, int(i_N i) / int(i^2) (eq. 6.6) on the command frequency and "
+     "its first 15 multiples; broadband where the log has no command frequency. The verdict "
+     "reads it", "1; < 1 when the motor needs more current than the model (friction, "
+     "backlash impacts). Thesis levels: 0.93 threshold, 0.80 warning, 0.56 failure"),
+    ("Ci broadband", "eq. 6.6 over the whole spectrum, the thesis' literal reading",
+     "1 without noise; sensor noise up to 500 Hz pulls it down (about 0.9 on a healthy "
+     "actuator with the bench's noise), so the thesis' levels are not read on it"),
     ("peak ratio", "max|i| / max|i_N| (eq. 6.7)", "1; very noise-sensitive"),
     ("lost motion", "encoder travel minus LVDT, forward minus backward, um",
      "near 0; about 1.4 x backlash once preload no longer takes it up"),
@@ -319,84 +379,72 @@ INDEX_HELP = [
 ]
 
 
+def _ci_reading(ix: I.Indexes) -> str:
+    """Which reading `judged_ci` took (the choice is made there only)."""
+    ci = judged_ci(ix.ci, ix.ci_harmonic)
+    if not math.isfinite(ci):
+        return "-"
+    return "15 harmonics" if ci == ix.ci_harmonic else "broadband (no command frequency)"
+
+
+def _index_rows(ix: I.Indexes) -> list[list[str]]:
+    """The whole-log index table of one log: index, value, reading."""
+    rows: list[tuple[str, float, float, int, str]] = [
+        ("Cp", ix.cp, 1.0, 4, "eq. 6.5"), ("|e| (um)", ix.mean_error_m, 1e6, 3, "eq. 6.4"),
+        ("Ci", judged_ci(ix.ci, ix.ci_harmonic), 1.0, -3, "judged: " + _ci_reading(ix)),
+        ("Ci broadband", ix.ci, 1.0, -3, "eq. 6.6, whole spectrum"),
+        ("peak ratio", ix.peak_ratio, 1.0, 3, "eq. 6.7"),
+        ("lost motion (um)", ix.lost_motion_m, 1e6, 3, ""),
+        ("nominal lost motion (um)", ix.nominal_lost_motion_m, 1e6, 2, ""),
+        ("harmonic distortion", ix.harmonic_distortion, 1.0, 3, ""),
+        ("nominal harmonic distortion", ix.nominal_harmonic_distortion, 1.0, 3, ""),
+        ("friction current (A)", ix.friction_current_a, 1.0, 3, ""),
+        ("nominal friction current (A)", ix.nominal_friction_current_a, 1.0, 3, "")]
+    return [[k, _fmt(v, sc, dg), note] for k, v, sc, dg, note in rows]
+
+
+def summary_rows(analyses: list[LogAnalysis]) -> list[dict[str, Any]]:
+    """The summary table's numbers per log (the page shows them, `indexes.json` holds
+    the same): Ci is `judged_ci`, the one the verdict reads."""
+    return [{"log": a.name, "command": _describe(a), "duration_s": len(a.trace) * a.trace.dt,
+             "ci": judged_ci(a.indexes.ci, a.indexes.ci_harmonic), "cp": a.indexes.cp,
+             "lost_motion_um": a.indexes.lost_motion_m * 1e6, "verdict": a.verdict,
+             "rul": _rul_text(a)} for a in analyses]
+
+
 def render(analyses: list[LogAnalysis]) -> str:
-    """The HTML text of the report."""
+    """The HTML text of the report (``hums_report.html.j2`` on the reports' base page)."""
     from bench.hums import rul as R
-    e = html.escape
-    parts = ["<!doctype html><html><head><meta charset='utf-8'>",
-             "<title>EMA ball-screw HUMS report</title><style>",
-             "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}",
-             "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;"
-             "padding:3px 8px;text-align:right}th{background:#eee}td.l{text-align:left}",
-             ".v{display:inline-block;padding:4px 12px;border-radius:4px;color:#fff;"
-             "font-weight:bold}.HEALTHY{background:#2a7}.DEGRADED{background:#c90}"
-             ".WARNING{background:#d60}.FAILURE{background:#c22}.UNKNOWN{background:#777}"
-             "img{max-width:100%}",
-             "</style></head><body>",
-             "<h1>EMA ball-screw health report</h1>",
-             "<p>Each log is compared with the <b>monitoring model</b>: the nominal "
-             "actuator of thesis section 6.1 (same motor, drive and controller, rigid "
-             "screw, nominal friction) driven by the same set-points as the log. The "
-             "indexes measure how far the logged actuator is from that nominal one.</p>"]
-    parts.append("<h2>Summary</h2><table><tr><th>log</th><th>command</th><th>duration (s)"
-                 "</th><th>Ci</th><th>Cp</th><th>lost motion (um)</th><th>verdict</th>"
-                 "<th>RUL (s) [90 % band]</th></tr>")
-    for a in analyses:
-        parts.append(f"<tr><td class='l'>{e(a.name)}</td><td class='l'>{e(_describe(a))}"
-                     f"</td><td>{len(a.trace) * a.trace.dt:.1f}</td>"
-                     f"<td>{_fmt(a.indexes.ci)}</td><td>{_fmt(a.indexes.cp, digits=4)}</td>"
-                     f"<td>{_fmt(a.indexes.lost_motion_m, 1e6)}</td>"
-                     f"<td><span class='v {a.verdict}'>{a.verdict}</span></td>"
-                     f"<td>{e(_rul_text(a))}</td></tr>")
-    parts.append("</table>")
-    parts.append("<h2>How to read the indexes</h2><table><tr><th>index</th><th>what it is"
-                 "</th><th>healthy value</th></tr>")
-    for k, what, ok in INDEX_HELP:
-        parts.append(f"<tr><td class='l'>{e(k)}</td><td class='l'>{e(what)}</td>"
-                     f"<td class='l'>{e(ok)}</td></tr>")
-    parts.append("</table>")
+    from bench.reports import Table, anchor
+    from bench.reports import render as render_page
+    summary = Table(["log", "command", "duration (s)", "Ci", "Cp", "lost motion (um)",
+                     "verdict", "RUL (s) [90 % band]"],
+                    [[r["log"], r["command"], f"{r['duration_s']:.1f}", _fmt(r["ci"], digits=-3),
+                      _fmt(r["cp"], digits=4), _fmt(r["lost_motion_um"]), r["verdict"],
+                      _rul_text(a, short=True)]
+                     for r, a in zip(summary_rows(analyses), analyses, strict=True)],
+                    numeric=[False, False, True, True, True, True, False, False])
+    logs: list[dict[str, Any]] = []
     for a in analyses:
         ix = a.indexes
-        parts.append(f"<h2>{e(a.name)}</h2><p><span class='v {a.verdict}'>{a.verdict}"
-                     f"</span></p><ul>" + "".join(f"<li>{e(r)}</li>" for r in a.reasons)
-                     + "</ul>")
-        if a.missing:
-            parts.append(f"<p>Signals missing from this log: {e(', '.join(a.missing))}; "
-                         "the indexes that need them are left out.</p>")
-        if a.notes:
-            parts.append("<p>The log: " + e("; ".join(a.notes)) + ".</p>")
-        if ix.unavailable:
-            parts.append("<p>Indexes not available:</p><ul>" + "".join(
-                f"<li>{e(k)}: {e(v)}</li>" for k, v in ix.unavailable.items()) + "</ul>")
-        rows = [("Cp", ix.cp, 1.0, 4), ("|e| (um)", ix.mean_error_m, 1e6, 3),
-                ("Ci", ix.ci, 1.0, 3), ("Ci (15 harmonics)", ix.ci_harmonic, 1.0, 3),
-                ("peak ratio", ix.peak_ratio, 1.0, 3),
-                ("lost motion (um)", ix.lost_motion_m, 1e6, 3),
-                ("nominal lost motion (um)", ix.nominal_lost_motion_m, 1e6, 2),
-                ("harmonic distortion", ix.harmonic_distortion, 1.0, 3),
-                ("nominal harmonic distortion", ix.nominal_harmonic_distortion, 1.0, 3),
-                ("friction current (A)", ix.friction_current_a, 1.0, 3),
-                ("nominal friction current (A)", ix.nominal_friction_current_a, 1.0, 3)]
-        parts.append("<table><tr><th>index (whole log)</th><th>value</th></tr>")
-        for k, v, sc, dg in rows:
-            parts.append(f"<tr><td class='l'>{e(k)}</td><td>{_fmt(v, sc, dg)}</td></tr>")
-        parts.append("</table>")
+        lines = None
         if ix.harmonics_a:
-            parts.append("<table><tr><th>current line</th>" + "".join(
-                f"<th>{h + 1} x f0</th>" for h in range(len(ix.harmonics_a)))
-                + "</tr><tr><td class='l'>log (A)</td>" + "".join(
-                f"<td>{_fmt(v)}</td>" for v in ix.harmonics_a) + "</tr><tr><td class='l'>"
-                "nominal (A)</td>" + "".join(f"<td>{_fmt(v)}</td>"
-                                             for v in ix.nominal_harmonics_a) + "</tr></table>")
-        for title, png in _figures(a):
-            parts.append(f"<h3>{e(title)}</h3><img alt='{e(title)}' "
-                         f"src='data:image/png;base64,{png}'>")
-    parts.append(f"<p><small>Levels: Ci threshold {R.THRESHOLD}, warning {R.WARNING}, "
-                 f"failure {R.FAILURE} (thesis section 6.5). The RUL is the fused "
-                 "predictor's (docs/hums.md): exponential growth of the fused backlash "
-                 "estimate to the backlash at which Ci reaches 0.56, band from a bootstrap "
-                 "of the fit.</small></p></body></html>")
-    return "\n".join(parts)
+            lines = Table(["current line"] + [f"{h + 1} x f0" for h in range(len(ix.harmonics_a))],
+                          [["log (A)"] + [_fmt(v) for v in ix.harmonics_a],
+                           ["nominal (A)"] + [_fmt(v) for v in ix.nominal_harmonics_a]])
+        logs.append({"name": a.name, "anchor": "log-" + anchor(a.name), "verdict": a.verdict,
+                     "reasons": a.reasons, "missing": a.missing, "notes": a.notes,
+                     "unavailable": ix.unavailable, "rul": _rul_text(a),
+                     "indexes": Table(["index (whole log)", "value", "reading"],
+                                      _index_rows(ix), numeric=[False, True, False]),
+                     "lines": lines, "figures": _figures(a)})
+    return render_page("hums_report.html.j2", title="EMA ball-screw health report",
+                       nav=[("#summary", "summary"), ("#how-to-read", "how to read")]
+                       + [("#" + str(g["anchor"]), str(g["name"])) for g in logs],
+                       summary=summary,
+                       help=Table(["index", "what it is", "healthy value"],
+                                  [list(h) for h in INDEX_HELP], numeric=[False] * 3),
+                       logs=logs, levels=(R.THRESHOLD, R.WARNING, R.FAILURE))
 
 
 def _describe(a: LogAnalysis) -> str:
@@ -408,18 +456,36 @@ def _describe(a: LogAnalysis) -> str:
     return f"{kind}, non-periodic"
 
 
-def _rul_text(a: LogAnalysis) -> str:
+def _rul_text(a: LogAnalysis, short: bool = False) -> str:
+    """The RUL in words: the last prediction's median and 90 % band (s of the logged
+    manoeuvre's operation), or why there is none (`short`: what comes before the
+    explanation, the part before its first colon)."""
+    text = _rul_words(a)
+    return text.split(":")[0] if short and ":" in text else text
+
+
+def _rul_words(a: LogAnalysis) -> str:
     if a.fused is None:
-        return "n/a (needs a periodic log of >= 6 command periods)"
-    fr = a.fused[0]
+        return a.rul_note or "n/a"
+    fr, cal, _ = a.fused
     if not fr.predictions:
         if math.isfinite(fr.t_warning_s):
-            return "warning, too few points for a fit yet"
-        return "no warning: no RUL predicted"
+            return (f"backlash detected at t = {fr.t_warning_s:.1f} s: too few periods above "
+                    "the fit floor for a fit yet")
+        return "no backlash detected: no RUL predicted"
     p = fr.predictions[-1]
     lo, hi = p.band()
-    return (f"{p.rul_s:.1f} [{max(lo - p.t_pred_s, 0):.1f}, "
-            f"{hi - p.t_pred_s:.1f}] at t = {p.t_pred_s:.1f} s")
+    lo, hi = max(lo - p.t_pred_s, 0.0), hi - p.t_pred_s
+    at = f"at t = {p.t_pred_s:.1f} s"
+    if math.isfinite(p.rul_s):
+        upper = f"{hi:.1f}" if math.isfinite(hi) else "no failure"
+        return f"{p.rul_s:.1f} [{lo:.1f}, {upper}] {at}"
+    b = float(np.nanmedian(fr.b_um[-3:]))
+    low = (f"; 5 % of the bootstrap fits reach it within {lo:.0f} s" if math.isfinite(lo)
+           else "")
+    return (f"no failure predicted {at}: the fused backlash estimate ({b:.1f} um) does not "
+            f"grow measurably over this log, so its trend never reaches the failure "
+            f"backlash {cal.fail_um:.1f} um{low}; a RUL needs a log that spans the wear")
 
 
 def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | None = None,
@@ -439,7 +505,8 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
     js = [{"log": a.name, "verdict": a.verdict, "reasons": a.reasons, "log_notes": a.notes,
            "bridged_samples": a.bridged,
            "fundamental_hz": a.f0_hz if math.isfinite(a.f0_hz) else None,
-           "indexes": json_safe(a.indexes.to_json()), "rul": _rul_text(a)} for a in analyses]
+           "summary": json_safe(row), "indexes": json_safe(index_record(a.indexes)),
+           "rul": row["rul"]} for a, row in zip(analyses, summary_rows(analyses), strict=True)]
     (out / "indexes.json").write_text(json.dumps(js, indent=2))
     return page, analyses
 

@@ -87,10 +87,23 @@ def condition_name(path: str | Path) -> str:
     return Path(path).stem
 
 
+_STAGE = re.compile(r"^([A-Za-z]+)(\d+)(?!\d)")
+"""A condition's stage: the number that ends its leading word (spalling8,
+spalling5_load40_runs1-2 -> 5), not a number further on (the load, the runs)."""
+
+
 def stage_number(condition: str) -> int | None:
-    """The trailing number of a condition name (spalling8 -> 8), None without one."""
-    m = re.search(r"(\d+)$", condition)
-    return int(m.group(1)) if m else None
+    """The stage of a condition name (spalling8 -> 8, spalling5_load40_runs1-2 -> 5), None
+    when the name does not start with a word and its number (normal_runs1-4)."""
+    m = _STAGE.match(condition)
+    return int(m.group(2)) if m else None
+
+
+def condition_family(condition: str) -> str:
+    """The name less its stage number (spalling5_load40_runs1-2 -> spalling#_load40_runs1-2):
+    the stages of one family share it."""
+    m = _STAGE.match(condition)
+    return f"{m.group(1)}#{condition[m.end():]}" if m else condition
 
 
 def read_columns(path: str | Path, text: dict[str, np.ndarray] | None = None

@@ -5,9 +5,7 @@ file is all there is)."""
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import json
 import math
 from pathlib import Path
@@ -17,6 +15,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.jsonsafe import json_safe
+from bench.reports import png_base64
 from bench.rig import fallback as FB
 from bench.rig import hums as H
 from bench.rig.baseline import residuals
@@ -36,14 +35,6 @@ MF_LABELS = [("position_error_mean_mm", "position error, mean (mm)"),
              ("current_rms_a", "current, RMS (A)"), ("current_peak_a", "current, peak |i| (A)")]
 MODEL_LABELS = {"cp": "Cp (eq. 6.5)", "mean_error_m": "|e|, mean position error (mm, eq. 6.4)",
                 "ci": "Ci (eq. 6.6)", "peak_ratio": "peak-current ratio (eq. 6.7)"}
-
-
-def _png(fig: Any, tight: bool = True) -> str:
-    buf = io.BytesIO()
-    if tight:
-        fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=80)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def _fmt(v: Any, digits: int = 4) -> str:
@@ -82,7 +73,7 @@ def signals_figure(a: H.RigAnalysis) -> str:
             axis.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax[2].set_xlabel("t (s)")
     fig.subplots_adjust(left=0.07, right=0.84, bottom=0.08, top=0.95, hspace=0.35)
-    return _png(fig, tight=False)
+    return png_base64(fig, tight=False)
 
 
 def worst_text(b: dict[str, Any]) -> str:
@@ -147,7 +138,7 @@ def baseline_figure(a: H.RigAnalysis) -> str | None:
     ax[1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     # both panels the same width, their legends to the right of the data
     fig.subplots_adjust(left=0.07, right=0.82, bottom=0.09, top=0.94, hspace=0.45)
-    return _png(fig, tight=False)
+    return png_base64(fig, tight=False)
 
 
 def _model_free(a: H.RigAnalysis, e: Any) -> list[str]:
@@ -291,7 +282,7 @@ def gap_figure(g: dict[str, Any]) -> str:
            xlabel="nut position (mm)", ylabel="share of the excess (%)")
     ax.grid(alpha=0.3, axis="y")
     ax.legend(fontsize=8)
-    return _png(fig)
+    return png_base64(fig)
 
 
 def _log(a: H.RigAnalysis, e: Any) -> list[str]:

@@ -1,6 +1,8 @@
-"""The study's figures (matplotlib `Figure` API) and its markdown report:
-the current residual against position with the located effect, the detection rate per
-stage and load beside the plain z-score's, the tables of docs/real-data.md."""
+"""The study's figures (matplotlib `Figure` API) and its report, one `bench.reports`
+Document written as markdown (report.md) and as the styled page (report.html, from the
+reports' base template): the current residual against position with the located effect,
+the detection rate per stage and load beside the plain z-score's, the tables of
+docs/real-data.md."""
 
 from __future__ import annotations
 
@@ -11,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.reports import Block, Document, Heading, Paragraph, Table
+from bench.reports import Figure as PageFigure
 from bench.rig.study import Study, mean_profile
 
 
@@ -160,23 +164,23 @@ def _interval(iv: list[float] | None) -> str:
     return f"{100 * iv[0]:.1f}-{100 * iv[1]:.1f} %"
 
 
-def _cv_lines(sm: dict[str, Any]) -> list[str]:
+def _cv_blocks(sm: dict[str, Any]) -> list[Block]:
     """The healthy cross-validation's table (`population.cross_validate`)."""
     rows = [(load, row["cross_validation"]) for load, row in sm["loads"].items()
             if row.get("cross_validation")]
     if not rows:
         return []
-    out = ["", f"Healthy false alarms, cross-validated: {_choices(rows[0][1])} calibrates "
-           "(as above), the cycles of the other healthy runs are judged; a "
-           "measurement only, no threshold comes from it:", "",
-           "| load | healthy runs | splits | cycles flagged / judged | rate (95 % interval) "
-           "| effects named |", "|---|---|---|---|---|---|"]
+    table = Table(["load", "healthy runs", "splits", "cycles flagged / judged",
+                   "rate (95 % interval)", "effects named"], [],
+                  numeric=[False, False, True, True, True, False])
     for load, cv in rows:
         eff = ", ".join(f"{e} {n}" for e, n in sorted(cv["effects"].items())) or "none"
-        out.append(f"| {load} | {','.join(map(str, cv['runs']))} | {cv['splits']} | "
-                   f"{cv['flagged']} / {cv['judged']} | {_pct(cv['rate'])} "
-                   f"({_interval(cv['rate_95'])}) | {eff} |")
-    return out + [""]
+        table.rows.append([load, ",".join(map(str, cv["runs"])), str(cv["splits"]),
+                           f"{cv['flagged']} / {cv['judged']}",
+                           f"{_pct(cv['rate'])} ({_interval(cv['rate_95'])})", eff])
+    return [Paragraph(f"Healthy false alarms, cross-validated: {_choices(rows[0][1])} "
+                      "calibrates (as above), the cycles of the other healthy runs are judged; "
+                      "a measurement only, no threshold comes from it:"), table]
 
 
 def _choices(cv: dict[str, Any]) -> str:
@@ -197,22 +201,20 @@ def split_range(study: Study, load: str, cond: str) -> dict[str, Any] | None:
     return r if r and math.isfinite(r["min"]) else None
 
 
-def _split_lines(study: Study) -> list[str]:
+def _stage_table(study: Study) -> Table:
+    """An empty table with a column per load, its rows to be one per fault condition."""
+    return Table([study.stage_header] + [f"load {k}" for k in study.summary["loads"]], [],
+                 numeric=[False] * (1 + len(study.summary["loads"])))
+
+
+def _split_blocks(study: Study) -> list[Block]:
     """The detection rate of every stage under every choice of calibration runs."""
     sm = study.summary
     cvs = [row.get("cross_validation") or {} for row in sm["loads"].values()]
     if not any(cv.get("faults") for cv in cvs):
         return []
     cv0 = next(cv for cv in cvs if cv.get("faults"))
-    lines = ["", f"Detection rate under every choice of calibration runs: each of the "
-             f"{cv0['splits']} splits of the cross-validation ({_choices(cv0)}) "
-             "calibrates a baseline and thresholds as above, and every fault cycle at that "
-             "load is judged against them (a measurement only). Per stage and load: the "
-             "rate of this study's calibration runs, then the least, median and largest "
-             "over the splits. The spread is what the choice of healthy runs alone moves "
-             "the rate by:", "",
-             "| stage | " + " | ".join(f"load {k}" for k in sm["loads"]) + " |",
-             "|---|" + "---|" * len(sm["loads"])]
+    table = _stage_table(study)
     for cond in study.fault_conditions:
         cells = []
         for load, row in sm["loads"].items():
@@ -222,38 +224,35 @@ def _split_lines(study: Study) -> list[str]:
                 continue
             cells.append(f"{_pct(d['rate'])}; splits {_pct(r['min'])} / {_pct(r['median'])} "
                          f"/ {_pct(r['max'])}")
-        lines.append(f"| {study.condition_label(cond)} | " + " | ".join(cells) + " |")
-    return lines
+        table.rows.append([study.condition_label(cond)] + cells)
+    return [Paragraph(
+        f"Detection rate under every choice of calibration runs: each of the "
+        f"{cv0['splits']} splits of the cross-validation ({_choices(cv0)}) calibrates a "
+        "baseline and thresholds as above, and every fault cycle at that load is judged "
+        "against them (a measurement only). Per stage and load: the rate of this study's "
+        "calibration runs, then the least, median and largest over the splits. The spread "
+        "is what the choice of healthy runs alone moves the rate by:"), table]
 
 
-def markdown(study: Study, command: str) -> str:
-    """The report: thresholds, false alarms, detection per stage, location, cost."""
-    sm = study.summary
-    lines = [f"Command: `{command}`", "",
-             f"Baseline: {sm['baseline']}. Thresholds from the calibration runs "
-             f"{sm['calibrate_runs']} only (leave-one-run-out); held-out healthy runs "
-             f"{sm['holdout_runs']}.", "",
-             "| load | held-out healthy cycles flagged (95 % interval) | z-score threshold "
-             "(matched) | thresholds |", "|---|---|---|---|"]
+def _holdout_table(sm: dict[str, Any]) -> Table:
+    table = Table(["load", "held-out healthy cycles flagged (95 % interval)",
+                   "z-score threshold (matched)", "thresholds"], [],
+                  numeric=[False, False, True, False])
     for load, row in sm["loads"].items():
         h = row["holdout"]
         thr = ", ".join(f"{k} {v:.3g}" for k, v in row["thresholds"].items())
         skip = f"; {h['not_judged']} incomplete not judged" if h.get("not_judged") else ""
-        lines.append(f"| {load} | {h['flagged']} / {h['cycles']} ({_pct(h['rate'])}; "
-                     f"{_interval(h.get('rate_95'))}){skip} | {row['zscore_threshold']:.3g} "
-                     f"| {thr} |")
-    lines += _cv_lines(sm)
-    lines += [f"Not scored: {u}." for u in sm.get("unscored", [])]
-    if not study.fault_conditions:
-        lines += ["", NO_FAULT]
-        return "\n".join(lines + _cost_lines(sm)) + "\n"
-    lines += ["", "Detection rate per stage (cycles flagged; in brackets the plain z-score "
-              "at the same false-alarm rate) and the effect named:", "",
-              "| stage | " + " | ".join(f"load {k}" for k in sm["loads"]) + " |",
-              "|---|" + "---|" * len(sm["loads"])]
+        table.rows.append([load, f"{h['flagged']} / {h['cycles']} ({_pct(h['rate'])}; "
+                           f"{_interval(h.get('rate_95'))}){skip}",
+                           f"{row['zscore_threshold']:.3g}", thr])
+    return table
+
+
+def _detection_table(study: Study) -> Table:
+    table = _stage_table(study)
     for cond in study.fault_conditions:
         cells = []
-        for row in sm["loads"].values():
+        for row in study.summary["loads"].values():
             d = row["stages"].get(cond)
             if d is None:
                 cells.append("-")
@@ -262,45 +261,86 @@ def markdown(study: Study, command: str) -> str:
                                                           key=lambda kv: -kv[1]))
             skip = f"; {d['not_judged']} incomplete not judged" if d.get("not_judged") else ""
             cells.append(f"{_pct(d['rate'])} ({_pct(d['zscore_rate'])}); {eff or 'none'}{skip}")
-        lines.append(f"| {study.condition_label(cond)} | " + " | ".join(cells) + " |")
-    lines += _split_lines(study)
-    lines += ["", "Where the named effect lies (flagged cycles named periodic or localised, "
-              "and those of them located: the localised scan above its threshold; median "
-              "position and interquartile range of the located ones, mm of measured travel; "
-              "out- and in-stroke alone):", "",
-              "| stage | load | located / periodic or localised | position mm | IQR mm | "
-              "out-stroke mm | in-stroke mm |", "|---|---|---|---|---|---|---|"]
+        table.rows.append([study.condition_label(cond)] + cells)
+    return table
+
+
+def _location_table(study: Study) -> Table:
+    table = Table([study.stage_header, "load", "located / periodic or localised",
+                   "position mm", "IQR mm", "out-stroke mm", "in-stroke mm"], [],
+                  numeric=[False, False, False, True, True, True, True])
     for cond in study.fault_conditions:
-        for load, row in sm["loads"].items():
+        for load, row in study.summary["loads"].items():
             d = row["stages"].get(cond)
             if d is None:
                 continue
             n = sum(v for k, v in d["effects"].items() if k in ("localised", "periodic"))
-            lines.append(f"| {study.condition_label(cond)} | {load} | {d['located']} / {n} | "
-                         f"{_mm(d['position_mm'])} | {_mm(d['position_iqr_mm'])} | "
-                         f"{_mm(d['out_mm'])} | {_mm(d['in_mm'])} |")
-    return "\n".join(lines + _cost_lines(sm)) + "\n"
+            table.rows.append([study.condition_label(cond), load, f"{d['located']} / {n}",
+                               _mm(d["position_mm"]), _mm(d["position_iqr_mm"]),
+                               _mm(d["out_mm"]), _mm(d["in_mm"])])
+    return table
 
 
-def _cost_lines(sm: dict[str, Any]) -> list[str]:
+def document(study: Study, command: str) -> Document:
+    """The report: thresholds, false alarms, detection per stage, location, cost, and the
+    figures (files beside the page)."""
+    sm = study.summary
+    doc = Document().add(
+        f"Command: `{command}`", Heading("Thresholds and false alarms"),
+        f"Baseline: {sm['baseline']}. Thresholds from the calibration runs "
+        f"{sm['calibrate_runs']} only (leave-one-run-out); held-out healthy runs "
+        f"{sm['holdout_runs']}.", _holdout_table(sm), *_cv_blocks(sm),
+        *[f"Not scored: {u}." for u in sm.get("unscored", [])])
+    if not study.fault_conditions:
+        return doc.add(NO_FAULT, *_cost_blocks(sm), *_figure_blocks(study))
+    doc.add(Heading("Detection"), "Detection rate per stage (cycles flagged; in brackets the plain z-score at the "
+            "same false-alarm rate) and the effect named:", _detection_table(study),
+            *_split_blocks(study), Heading("Location"),
+            "Where the named effect lies (flagged cycles named periodic or localised, and "
+            "those of them located: the localised scan above its threshold; median position "
+            "and interquartile range of the located ones, mm of measured travel; out- and "
+            "in-stroke alone):", _location_table(study))
+    return doc.add(*_cost_blocks(sm), *_figure_blocks(study))
+
+
+def _figure_blocks(study: Study) -> list[Block]:
+    return [Heading("Figures"),
+            PageFigure("residual: the mean current residual along the stroke per condition",
+                       src="residual.png"),
+            PageFigure("detection: cycles flagged per stage and load, the plain z-score's as "
+                       "black ticks", src="detection.png"),
+            Paragraph("Is there a place? Each condition's mean residual averaged over one lead "
+                      "of travel (the periodic line removed), less its median; the held-out "
+                      "healthy runs in black:"),
+            PageFigure("location: the mean residual over one lead of travel",
+                       src="location.png")]
+
+
+def markdown(study: Study, command: str) -> str:
+    """The report as markdown (`document`)."""
+    return document(study, command).markdown()
+
+
+def _cost_blocks(sm: dict[str, Any]) -> list[Block]:
     """The cost table of the report."""
     c = sm["cost"]
-    lines = ["", f"Cost: one cycle's features and verdict {1e3 * c['cycle_s_median']:.2f} ms "
-              f"median, {1e3 * c['cycle_s_max']:.0f} ms max (in a worker, {c['cycles']} "
-              "cycles); wall time per condition over `bench.workers.run_all` (the start of "
-              "the two Dask workers, once per study, is in the first condition's):", "",
-              "| condition | cycles | wall s |", "|---|---|---|"]
+    table = Table(["condition", "cycles", "wall s"], [])
     for k, v in c["wall_s"].items():
-        lines.append(f"| {k} | {c['cycles_per_condition'][k]} | {v:.2f} |")
+        table.rows.append([k, str(c["cycles_per_condition"][k]), f"{v:.2f}"])
     if c.get("cross_validation_s"):
-        lines.append(f"| cross-validation over the calibration splits (healthy and fault "
-                     f"cycles) | - | {c['cross_validation_s']:.2f} |")
-    return lines
+        table.rows.append(["cross-validation over the calibration splits (healthy and fault "
+                           "cycles)", "-", f"{c['cross_validation_s']:.2f}"])
+    return [Heading("Cost"), Paragraph(
+        f"Cost: one cycle's features and verdict {1e3 * c['cycle_s_median']:.2f} ms median, "
+        f"{1e3 * c['cycle_s_max']:.0f} ms max (in a worker, {c['cycles']} cycles); wall time "
+        "per condition over `bench.workers.run_all` (the start of the two Dask workers, once "
+        "per study, is in the first condition's):"), table]
 
 
 def write(study: Study, out: Path, command: str) -> dict[str, Path]:
     """baseline.json, study.json, residual.png, detection.png, location.png and
     report.md/.html."""
+    from bench.reports import render
     out.mkdir(parents=True, exist_ok=True)
     paths = {"baseline": study.baseline.save(out / "baseline.json")}
     study.summary["baseline"] = study.baseline.describe()      # now with its file
@@ -309,15 +349,12 @@ def write(study: Study, out: Path, command: str) -> dict[str, Path]:
     paths["residual"] = residual_figure(study, out / "residual.png")
     paths["detection"] = detection_figure(study, out / "detection.png")
     paths["location"] = location_figure(study, out / "location.png")
-    md = markdown(study, command)
-    md += ("\n![residual](residual.png)\n\n![detection](detection.png)\n\n"
-           "Is there a place? Each condition's mean residual averaged over one lead of "
-           "travel (the periodic line removed), less its median; the held-out healthy "
-           "runs in black:\n\n![location](location.png)\n")
+    doc = document(study, command)
     paths["md"] = out / "report.md"
-    paths["md"].write_text("# Rig study\n\n" + md)
+    paths["md"].write_text("# Rig study\n\n" + doc.markdown())
     paths["html"] = out / "report.html"
-    paths["html"].write_text(_html(md))
+    paths["html"].write_text(render("rig_study.html.j2", title="Rig study", doc=doc,
+                                    nav=[("#" + h.anchor, h.text) for h in doc.headings()]))
     return paths
 
 
@@ -329,31 +366,3 @@ def _jsonable(x: Any) -> Any:
     if isinstance(x, float) and not math.isfinite(x):
         return None
     return x
-
-
-def _html(md: str) -> str:
-    """A plain HTML page of the markdown (tables and images; no markdown library)."""
-    import html
-    body, in_table = [], False
-    for line in md.splitlines():
-        if line.startswith("|"):
-            cells = [c.strip() for c in line.strip("|").split("|")]
-            if set("".join(cells)) <= {"-"}:
-                continue
-            if not in_table:
-                body.append("<table border=1 cellpadding=3>")
-                in_table = True
-            body.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
-            continue
-        if in_table:
-            body.append("</table>")
-            in_table = False
-        if line.startswith("!["):
-            src = line[line.index("(") + 1: line.rindex(")")]
-            body.append(f'<p><img src="{html.escape(src)}" style="max-width:100%"></p>')
-        elif line.strip():
-            body.append(f"<p>{html.escape(line)}</p>")
-    if in_table:
-        body.append("</table>")
-    return ("<!doctype html><meta charset=utf-8><title>Rig study</title><h1>Rig study</h1>"
-            + "\n".join(body))

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +19,14 @@ import numpy as np
 from bench import BenchError
 from bench.rig import baseline as B
 from bench.rig import population as P
-from bench.rig.cycles import SUFFIXES, Cycle, condition_name, read_cycles, stage_number
+from bench.rig.cycles import (
+    SUFFIXES,
+    Cycle,
+    condition_family,
+    condition_name,
+    read_cycles,
+    stage_number,
+)
 from bench.rig.features import CycleFeatures, cycle_features
 
 
@@ -58,17 +64,29 @@ class Study:
         names = [c for c in self.results if c != self.healthy_condition]
         return sorted(names, key=condition_key)
 
+    @property
+    def by_stage(self) -> bool:
+        """Every fault table is a numbered stage of one family (spalling1 ... spalling8,
+        or spalling5_load40_runs1-2 alone)."""
+        conds = self.fault_conditions
+        return (len({condition_key(c)[0] for c in conds}) == 1
+                and all(stage_number(c) is not None for c in conds))
+
+    @property
+    def stage_header(self) -> str:
+        """The report's column of fault conditions: "stage" or "condition"."""
+        return "stage" if self.by_stage else "condition"
+
     def condition_label(self, cond: str) -> str:
-        """A stage's number where every fault table is one family's stage (spalling1 ...
-        spalling8), else the table's name (backlash1 beside spalling1)."""
-        one_family = len({condition_key(c)[0] for c in self.fault_conditions}) == 1
+        """A stage's number where every fault table is one family's stage, else the
+        table's name (backlash1_runs1-5 beside spalling1)."""
         n = stage_number(cond)
-        return str(n) if one_family and n is not None else cond
+        return str(n) if self.by_stage and n is not None else cond
 
 
 def condition_key(cond: str) -> tuple[str, int, str]:
     """Fault tables in order: by family (the name less its stage number), then stage."""
-    return (re.sub(r"\d+$", "", cond), stage_number(cond) or 0, cond)
+    return (condition_family(cond), stage_number(cond) or 0, cond)
 
 
 def score_cycle(job: tuple[B.LoadBaseline, Cycle, float | None]) -> CycleResult:

@@ -43,9 +43,14 @@ def test_synth_ingest_status_report_export(fleet, tmp_path, capsys):
     assert main(["fleet", "ingest", str(fleet / "*" / "*.log"), "--db", db]) == 0
     assert "6 files: 6 already stored, 0 runs stored" in capsys.readouterr().out
     assert main(["fleet", "status", "--db", db]) == 0
-    lines = capsys.readouterr().out.splitlines()
+    table, _, note = capsys.readouterr().out.partition("note: ")
+    lines = table.splitlines()
     assert len(lines) == 3 and lines[1].startswith("EMA-0000") and " 3 " in lines[1]
     assert "HEALTHY" in lines[1] and "% of L10" in lines[1]      # usage from the logs
+    # an actuator at WARNING or FAILURE with the ground tests' ~0 % of L10: said why
+    assert bool(note) == any(lv in lines[2] for lv in ("WARNING", "FAILURE"))
+    assert not note or ("time compression" in note and "EMA-0001" in note
+                        and "EMA-0000" not in note)
     rep = tmp_path / "rep"
     assert main(["fleet", "report", "--db", db, "--out", str(rep)]) == 0
     page = (rep / "index.html").read_text()

@@ -115,6 +115,11 @@ def test_study_on_the_sample_writes_the_report(tmp_path, capsys):
                  "location.png", "baseline.json"):
         assert (out / name).stat().st_size > 0
     assert "runs 1,2" in (out / "report.md").read_text()
+    # the page is the reports' styled page, the table named stage 5 (not 2, from "runs1-2")
+    from bench.reports import stylesheet
+    page = (out / "report.html").read_text()
+    assert stylesheet() in page and "<nav>" in page
+    assert "<tr><td>5</td><td>100 % (100 %); periodic" in page
     assert main(["rig", "study", str(SAMPLE), "--calibrate-runs", "1,2", "--holdout-runs",
                  "2,3", "--out", str(out)]) == 2
     assert "overlap" in capsys.readouterr().err

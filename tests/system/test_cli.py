@@ -44,7 +44,7 @@ def test_python_m_plant_rt_help():
 
 def test_bad_parameter_is_one_line_error(tmp_path):
     r = run_bench("reproduce", "--only", "P1-P3", "--set", "screw.nut_mass_kg=-1",
-                  "--out", str(tmp_path / "r.md"), "--figures", "")
+                  "--out", str(tmp_path / "r"), "--figures", "")
     assert r.returncode == 2
     assert r.stderr.strip() == ("error: screw.nut_mass_kg = -1 kg is below its minimum "
                                 "0.001 kg")
@@ -52,7 +52,7 @@ def test_bad_parameter_is_one_line_error(tmp_path):
 
 
 def test_reproduce_end_to_end(tmp_path):
-    out, js, figs = tmp_path / "repro.md", tmp_path / "repro.json", tmp_path / "figs"
+    out, js, figs = tmp_path / "repro", tmp_path / "repro.json", tmp_path / "figs"
     r = run_bench("reproduce", "--only", "P1-P3", "--only", "P8", "--out", str(out),
                   "--json", str(js), "--figures", str(figs), timeout=300)
     assert r.returncode == 0, r.stderr
@@ -62,6 +62,6 @@ def test_reproduce_end_to_end(tmp_path):
     assert ids == {"P1", "P2", "P3", "P8"}
     speed = next(r for r in rows if r["quantity"] == "motor speed at cruise")
     assert speed["thesis"] == 251.0 and abs(speed["project"] - 251.0) < 2.5
-    text = out.read_text()
+    text = (out / "reproduction.md").read_text()
     assert "| P8 | deflection ratio preloaded / unpreloaded |" in text
     assert (figs / "p1_step.png").stat().st_size > 10_000

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import os
+import re
 import subprocess
 import sys
 
@@ -17,6 +18,7 @@ from bench.ecu import run_over_bus
 from bench.hums import monitor as M
 from bench.hums.indexes import period_indexes
 from bench.hums.live import LiveHums
+from bench.hums.verdict import judged_ci
 from bench.profiles import make_profile
 from plant_rt.params import PlantParams
 
@@ -58,12 +60,19 @@ def test_watch_reports_every_period_like_the_log(bus_env, tmp_path):
     nom = M.nominal_for(tr, kp, M.MonitorParams.from_plant(params))
     offline = list(period_indexes(tr, nom, 0.5, kin=None))
     assert len(offline) == len(replay) == 4
-    for key in ("cp", "ci", "peak_ratio"):
+    for key, attr in (("cp", "cp"), ("ci_broadband", "ci"), ("ci_harmonic", "ci_harmonic"),
+                      ("peak_ratio", "peak_ratio")):
         a = np.array([float(r[key]) for r in live])
-        b = np.array([getattr(ix, key) for ix in offline])
+        b = np.array([getattr(ix, attr) for ix in offline])
         np.testing.assert_allclose(a, b, rtol=1e-6, err_msg=key)
-        c = np.array([getattr(r.indexes, key) for r in replay])
+        c = np.array([getattr(r.indexes, attr) for r in replay])
         np.testing.assert_allclose(c, a, rtol=1e-9, err_msg=key)
+    # the judged Ci: the CSV's `ci` and the printed "Ci", the one the level rests on
+    ci = np.array([float(r["ci"]) for r in live])
+    np.testing.assert_allclose(ci, [judged_ci(ix.ci, ix.ci_harmonic) for ix in offline],
+                               rtol=1e-6)
+    printed = [float(v) for v in re.findall(r"Ci +([0-9.]+)", stdout)]
+    np.testing.assert_allclose(printed, ci, atol=5e-4)
 
 
 def test_watch_without_a_bus_is_a_one_line_error(tmp_path):

@@ -60,6 +60,8 @@ def test_wheel_holds_the_four_packages_and_the_bus_description(venv):
     top = {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")}
     assert top == {"bench", "plant_rt", "ema_contract", "indie_plant"}, top
     assert {"ema_contract/dbc/ema.dbc", "ema_contract/dbc/ema.eds"} <= set(names)
+    assert {"bench/reports/style.css", "bench/reports/templates/base.html.j2",
+            "bench/reports/templates/hums_report.html.j2"} <= set(names)   # report pages
     code = ("import bench, ema_contract; "
             "from ema_contract.frames import dbc_path, eds_path, load_od, Frames; "
             "print(bench.__file__); print(ema_contract.__file__); print(dbc_path()); "
@@ -83,3 +85,4 @@ def test_bench_demo_runs_from_the_wheel(venv):
     assert [row[0] for row in rows] == ["healthy.npz", "worn.npz", "end-of-life.npz"], r.stdout
     assert rows[0][1] == "HEALTHY"
     assert (out / "hums" / "report.html").is_file() and (out / "summary.json").is_file()
+    assert "<nav>" in (out / "hums" / "report.html").read_text()     # the templates' page

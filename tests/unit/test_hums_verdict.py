@@ -61,3 +61,55 @@ def test_live_period_is_judged_by_the_report_verdict():
     out = hums._push(rows)
     assert len(out) == 1
     assert LEVELS[out[0].level] == judge(out[0].indexes, MODE_POSITION)[0] == UNKNOWN
+
+
+def test_watcher_prints_and_writes_the_same_ci():
+    """`bench hums watch` prints the judged Ci, and its CSV's ``ci`` is that number; the
+    broadband reading is ``ci_broadband`` (it printed ci_harmonic, and wrote the broadband
+    value as ``ci``)."""
+    from bench.hums.live import format_result
+    r = PeriodResult(1, 3, 1.5, ix(ci=0.7398, ci_harmonic=0.753, cp=1.0), 2)
+    assert "Ci  0.753" in format_result(r)
+    row = r.row()
+    assert (row["ci"], row["ci_broadband"], row["ci_harmonic"]) == (0.753, 0.7398, 0.753)
+
+
+def test_judged_ci_is_the_harmonic_reading_else_broadband():
+    import numpy as np
+
+    from bench.hums.verdict import index_record, judged_ci
+    assert judged_ci(0.897, 1.004) == 1.004
+    assert judged_ci(0.897, math.nan) == 0.897
+    np.testing.assert_array_equal(judged_ci(np.array([0.9, 0.8]), np.array([1.0, np.nan])),
+                                  [1.0, 0.8])
+    rec = index_record(ix(ci=0.897, ci_harmonic=1.004))
+    assert (rec["ci"], rec["ci_broadband"], rec["ci_harmonic"]) == (1.004, 0.897, 1.004)
+
+
+def _fused(b_um: float, detected: bool = True):
+    """A fused result whose last three periods read `b_um`, on a calibration whose sweep
+    Ci falls 0.0046 per um (Ci 0.80 at 43.5 um, 0.56 at b_fail 90 um)."""
+    import numpy as np
+
+    from bench.hums import fusion as F
+    b = [10.0 * k for k in range(11)]
+    cal = F.Calibration(b, {}, [1 - 0.0046 * x for x in b], {}, {}, {}, warn_um=0.98,
+                        floor_um=0.8, fail_um=90.0)
+    est = np.full(6, b_um)
+    fr = F.FusedResult(est, est, 1.5 if detected else math.nan, [])
+    return fr, cal, np.arange(6) * 0.5
+
+
+def test_fused_backlash_is_graded_on_the_ci_levels_scale():
+    """The detection level (0.98 um, the fused predictor's warning) is not a level of wear:
+    backlash above it is DEGRADED; WARNING and FAILURE come at the backlash where the
+    calibration sweep's Ci reaches 0.80 and 0.56."""
+    healthy = ix(ci=0.99, ci_harmonic=0.99)
+    level, reasons = judge(healthy, MODE_POSITION, _fused(5.0))
+    assert level == "DEGRADED", reasons
+    assert "detection level 0.98 um" in reasons[-1] and "warning backlash 43.5 um" in reasons[-1]
+    assert judge(healthy, MODE_POSITION, _fused(50.0))[0] == "WARNING"
+    level, reasons = judge(healthy, MODE_POSITION, _fused(95.0))
+    assert level == "FAILURE" and "failure backlash 90.0 um" in reasons[-1]
+    level, reasons = judge(healthy, MODE_POSITION, _fused(0.1, detected=False))
+    assert level == "HEALTHY" and "below the detection level" in reasons[-1]

@@ -175,3 +175,71 @@ def test_log_decoding_needs_no_physics(mod):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                        cwd=str(ROOT), timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+JUDGED_CI = ("bench/hums/verdict.py", "judged_ci")
+"""The one function that picks the Ci a verdict reads (harmonic, else broadband)."""
+
+
+def _mentions_harmonic_ci(node: ast.AST, tainted: set[str]) -> bool:
+    for n in ast.walk(node):
+        name = (n.id if isinstance(n, ast.Name) else n.attr if isinstance(n, ast.Attribute)
+                else n.value if isinstance(n, ast.Constant) and isinstance(n.value, str)
+                else n.arg if isinstance(n, ast.arg) else None)
+        if name is not None and ("ci_harmonic" in name or name in tainted):
+            return True
+    return False
+
+
+def _calls(node: ast.AST, name: str) -> list[ast.Call]:
+    return [n for n in ast.walk(node) if isinstance(n, ast.Call) and (
+        isinstance(n.func, ast.Name) and n.func.id == name
+        or isinstance(n.func, ast.Attribute) and n.func.attr == name)]
+
+
+def _ci_choices(func: ast.AST) -> list[int]:
+    """Lines of `func` that choose between the harmonic and the broadband Ci: an if, a
+    conditional expression or a `where` whose condition asks whether the harmonic Ci (or
+    a name assigned from it) is finite."""
+    tainted: set[str] = set()
+    for n in ast.walk(func):
+        if (isinstance(n, ast.Assign) and _mentions_harmonic_ci(n.value, tainted)
+                and not _calls(n.value, JUDGED_CI[1])):
+            tainted |= {t.id for t in n.targets if isinstance(t, ast.Name)}
+    tests = [n.test for n in ast.walk(func) if isinstance(n, (ast.If, ast.IfExp))]
+    tests += [c.args[0] for c in _calls(func, "where") if c.args]
+    return [t.lineno for t in tests
+            if any(_mentions_harmonic_ci(c, tainted) for c in _calls(t, "isfinite"))]
+
+
+def test_the_judged_ci_rule_is_written_once():
+    """"Harmonic Ci where finite, else broadband" lives in `bench.hums.verdict.judged_ci`
+    only: no other function of the tree defines it or makes that choice itself (the
+    report, the watcher, the demo and the fleet status call it)."""
+    where, found = [], []
+    for path in MODULES.values():
+        rel = path.relative_to(ROOT).as_posix()
+        tree = ast.parse(path.read_text())
+        for f in ast.walk(tree):
+            if not isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            if (rel, f.name) == JUDGED_CI:
+                found.append(rel)
+                continue
+            if f.name == JUDGED_CI[1]:
+                where.append(f"{rel}:{f.lineno} defines another {f.name}")
+            where += [f"{rel}:{ln} ({f.name}) chooses the Ci itself" for ln in _ci_choices(f)]
+    assert not where, "\n".join(where)
+    assert found, "judged_ci is gone"
+    users = ("bench/hums/report.py", "bench/hums/live.py", "bench/cli/demo.py",
+             "bench/fleet/status.py")
+    assert all("judged_ci" in (ROOT / u).read_text() for u in users)
+
+
+def test_one_base64_png_helper():
+    """A figure becomes a base64 PNG in `bench.reports.png_base64` only (a module that
+    both saves a figure and base64-encodes is writing its own)."""
+    own = [rel for rel, path in ((p.relative_to(ROOT).as_posix(), p) for p in MODULES.values())
+           if rel != "bench/reports/__init__.py"
+           and "b64encode" in (text := path.read_text()) and "savefig" in text]
+    assert not own, own

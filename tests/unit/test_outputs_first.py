@@ -59,13 +59,19 @@ def _paths(tmp_path):
 
 BAD = {
     "reproduce-out-under-a-file": (
-        ["reproduce", "--out", "{afile}/sub/r.md"],
-        "--out: cannot write {afile}/sub/r.md: {afile} is not a directory"),
+        ["reproduce", "--out", "{afile}/sub"],
+        "--out: cannot write into {afile}/sub: {afile} is not a directory"),
     "reproduce-out-read-only": (
-        ["reproduce", "--out", "/proc/bench-x/r.md"],
-        "--out: cannot write /proc/bench-x/r.md: directory /proc is not writable"),
-    "reproduce-out-a-dir": (
-        ["reproduce", "--out", "{tmp}"], "--out: cannot write {tmp}: it is a directory"),
+        ["reproduce", "--out", "/proc/bench-x"],
+        "--out: cannot write into /proc/bench-x: directory /proc is not writable"),
+    "reproduce-out-a-file": (
+        ["reproduce", "--out", "{afile}"], "--out: cannot write into {afile}: it is not a "
+        "directory"),
+    "reproduce-doc-no-dir": (
+        ["reproduce", "--doc", "{missing}/r.md"],
+        "--doc: cannot write {missing}/r.md: directory {missing} does not exist"),
+    "reproduce-doc-not-markdown": (
+        ["reproduce", "--doc", "{tmp}/r.txt"], "--doc: {tmp}/r.txt: unknown suffix '.txt'"),
     "reproduce-json-no-dir": (
         ["reproduce", "--json", "{missing}/r.json"],
         "--json: cannot write {missing}/r.json: directory {missing} does not exist"),
@@ -164,9 +170,10 @@ def test_bad_option_fails_before_the_work_in_one_line(tmp_path, capsys, stub_wor
 
 
 GOOD = {
-    "reproduce-defaults": ["reproduce"],         # docs/reproduction.md, docs/figures made
-    "reproduce-out-new-dirs": ["reproduce", "--out", "{tmp}/new/deeper/r.md",
+    "reproduce-defaults": ["reproduce"],         # out/reproduce and its figures/ made
+    "reproduce-out-new-dirs": ["reproduce", "--out", "{tmp}/new/deeper",
                                "--json", "{tmp}/r.json", "--figures", "{tmp}/new/figs"],
+    "reproduce-doc": ["reproduce", "--doc", "{tmp}/reproduction.md"],
     "fit-json-new-dirs": ["hums", "fit", "--json", "{tmp}/new/deeper/f.json"],
     "sweep-doc-new": ["hums", "sweep", "--doc", "{tmp}/new/hums.md", "--figures",
                       "{tmp}/new/figs", "--json", "{tmp}/s.json"],
