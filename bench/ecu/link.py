@@ -19,6 +19,7 @@ from bench.ecu.errors import BusLost
 from bench.ecu.logwriter import _Log
 from bench.ecu.nodeinfo import NodeInfo
 from bench.ecu.rowtap import RowTap
+from bench.ecu.sdoclient import SDO_ATTEMPTS, SDO_TIMEOUT_S, EcuRemoteNode
 from bench.ecu.signals import StopSignal
 from bench.trace import Trace
 from ema_contract.frames import FrameError, Frames, load_od
@@ -38,7 +39,8 @@ class EcuLink:
 
     def __init__(self, bus: can.BusABC, node_id: int | None = None, ecu_id: int | None = None,
                  log_path: str | Path | None = None, echo: bool = False,
-                 sdo_timeout_s: float = 0.5) -> None:
+                 sdo_timeout_s: float = SDO_TIMEOUT_S, sdo_attempts: int = SDO_ATTEMPTS
+                 ) -> None:
         self.bus = bus
         self.frames = Frames(node_id, ecu_id)
         self.node_id = self.frames.node_id
@@ -46,9 +48,11 @@ class EcuLink:
         self.od = load_od(self.node_id)
         # canopen's sends are logged too (_TeeBus forwards everything else to `bus`)
         self.network = canopen.Network(_TeeBus(bus, self))  # type: ignore[arg-type]
-        self.remote = canopen.RemoteNode(self.node_id, self.od)
+        self.remote = EcuRemoteNode(self.node_id, self.od)
         self.network.add_node(self.remote)
         self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
+        self.sdo_attempts = max(1, int(sdo_attempts))
+        self.sdo_retries = 0       # transfers started again after a missing answer
         self.param_objects = ParamObjects(self.od)
         self.log = _Log(Path(log_path)) if log_path else None
         self.tap: RowTap | None = None     # the run's rows (`RunLoop.run`), fed like the log

@@ -157,7 +157,7 @@ class RunLoop(EcuClaim):
         self.listen()
         try:
             self.nmt(NMTCommand.ENTER_PRE_OPERATIONAL)
-            self.remote.sdo[0x1016][1].raw = 0   # orderly log-out: stop consuming our heartbeat
+            self.sdo_write((0x1016, 1), 0)     # orderly log-out: stop consuming our heartbeat
             meta["plant_counters"] = self.read_status()
         except (BenchError, SdoAbortedError, SdoCommunicationError) as exc:
             meta["plant_counters"] = {"error": str(exc)}
