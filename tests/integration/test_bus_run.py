@@ -4,6 +4,7 @@ RemoteNode) work against the bench."""
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -228,3 +229,13 @@ def test_lockstep_logs_are_stamped_in_bus_time(bus_env, tmp_path):
     with can.LogReader(wall) as reader:
         w = np.array([m.timestamp for m in reader if m.arbitration_id == 0x080])
     assert len(w) == 300 and np.ptp(np.diff(w)) > 1e-6      # the wall clock's own spacing
+
+
+def test_the_runs_bar_shows_rounded_simulated_seconds(bus_env):
+    """The bar showed "9.984000000000002/15.0" (a float sum of steps): now 2 decimals."""
+    r = bench("run", "sine", "--duration", "1.5", "--progress", *bus_env.flags,
+              env=bus_env.env)
+    assert r.returncode == 0, r.stderr
+    bars = [seg for seg in r.stderr.replace("\r", "\n").splitlines() if "sim s" in seg]
+    assert bars and all("/1.50 sim s" in b for b in bars), bars
+    assert not any(re.search(r"\d\.\d{4,}", b) for b in bars), bars

@@ -36,6 +36,7 @@ def test_up_status_run_down(state_env, tmp_path):
               timeout=120)
     assert r.returncode == 0, r.stderr
     assert "hub: pid" in r.stdout and "plant: pid" in r.stdout and "127.0.0.1" in r.stdout
+    assert "waiting for its boot-up" in r.stderr      # what `bench up` waits for
     r = bench("up", env=state_env)
     assert "already up" in r.stdout
     r = bench("status", env=state_env)
