@@ -26,18 +26,22 @@ class LogClock:
     def __init__(self) -> None:
         self.bus_time = False
         self._period_us = 0
-        self._bit_us = 1e6 / NOMINAL_BITRATE
+        self._frame_us = [47.0 + 8.0 * n for n in range(65)]   # at NOMINAL_BITRATE
         self._anchor_us = 0
         self._next_us = 0.0
-        self._last_us = -math.inf
+        self._last_us = 0
+        self._last_wall = -math.inf
 
     def start(self, period_s: float, bitrate: int | None = None) -> None:
         """From now on, bus time: the run's first SYNC at the wall clock's now."""
         self.bus_time = True
         self._period_us = int(round(period_s * 1e6))
-        self._bit_us = 1e6 / (bitrate or NOMINAL_BITRATE)
+        bit_us = 1e6 / (bitrate or NOMINAL_BITRATE)
+        self._frame_us = [(47 + 8 * n) * bit_us for n in range(65)]
         now = int(round(time.time() * 1e6))
-        self._anchor_us = int(max(now, self._last_us + 1))
+        after = math.ceil(self._last_wall * 1e6) + 1 if self._last_wall > 0 else 0
+        self._anchor_us = max(now, after)
+        self._last_us = self._anchor_us - 1
         self._next_us = float(self._anchor_us)
 
     def period(self, k: int) -> None:
@@ -49,9 +53,12 @@ class LogClock:
         """The time stamp (s) of `msg`, recorded now."""
         if not self.bus_time:
             wall = time.time()
-            self._last_us = max(self._last_us, math.ceil(wall * 1e6))
+            if wall > self._last_wall:
+                self._last_wall = wall
             return wall
-        t = int(max(round(self._next_us), self._last_us + 1))
-        self._next_us = t + (47 + 8 * len(msg.data)) * self._bit_us
+        t = int(self._next_us + 0.5)
+        if t <= self._last_us:
+            t = self._last_us + 1
+        self._next_us = t + self._frame_us[len(msg.data)]
         self._last_us = t
         return t / 1e6
