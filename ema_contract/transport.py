@@ -11,8 +11,9 @@ Precedence (the first that names an interface wins):
 4. the loopback hub a bench started (python-can-remote on 127.0.0.1, recorded in the
    state directory), as ``interface=remote, channel=ws://127.0.0.1:PORT/``.
 
-The state directory is ``$BENCH_STATE_DIR``, else ``$XDG_RUNTIME_DIR/ema-bench``, else
-``./.bench``. This module is shared by the plant process and the bench (`bench.bus`).
+The state directory (`state_dir`) is ``$BENCH_STATE_DIR``, else
+``$XDG_RUNTIME_DIR/ema-bench``, else a per-user directory under the temporary directory
+(``ema-bench-UID``, 0700), the same from every working directory. This module is shared by the plant process and the bench (`bench.bus`).
 """
 
 from __future__ import annotations
@@ -21,7 +22,9 @@ import fcntl
 import json
 import os
 import socket
+import stat
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -41,14 +44,57 @@ class BusUnavailable(RuntimeError):
     """No bus is configured or the configured one cannot be opened."""
 
 
+STATE_NAME = "ema-bench"
+
+
 def state_dir() -> Path:
+    """The one state directory of this user's bench, whatever the working directory:
+    ``$BENCH_STATE_DIR``, else ``$XDG_RUNTIME_DIR/ema-bench``, else
+    ``TMPDIR/ema-bench-UID`` (the temporary directory's, created 0700 and used only
+    when it is this user's own directory, not a link, closed to others), else
+    ``~/.cache/ema-bench``. The first three are gone at a reboot, as the processes
+    they name; a record that outlived its process is recognised as stale anyway."""
     env = os.environ.get(STATE_ENV)
     if env:
         return Path(env)
     xdg = os.environ.get("XDG_RUNTIME_DIR")
     if xdg and Path(xdg).is_dir():
-        return Path(xdg) / "ema-bench"
-    return Path.cwd() / ".bench"
+        return Path(xdg) / STATE_NAME
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    tmp = Path(tempfile.gettempdir()) / f"{STATE_NAME}-{uid}"
+    if _own_private_dir(tmp):
+        return tmp
+    return Path.home() / ".cache" / STATE_NAME
+
+
+def _own_private_dir(path: Path) -> bool:
+    """Create `path` (mode 0700) if it is missing; True when it is a directory (not a
+    link) owned by this user and closed to others, as a shared temporary directory
+    requires (anyone may have created the name first)."""
+    try:
+        os.mkdir(path, 0o700)
+    except FileExistsError:
+        pass
+    except OSError:
+        return False
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    uid = os.getuid() if hasattr(os, "getuid") else st.st_uid
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != uid:
+        return False
+    if st.st_mode & 0o077:
+        try:
+            os.chmod(path, 0o700)
+        except OSError:
+            return False
+    return True
+
+
+def _make_state_dir(d: Path) -> None:
+    """The state directory, created (0700: it holds pids and the hub's port)."""
+    d.mkdir(mode=0o700, parents=True, exist_ok=True)
 
 
 # -- state records -------------------------------------------------------------------------
@@ -193,7 +239,7 @@ def write_state(name: str, data: dict[str, Any]) -> Path:
     """Write a state record atomically; a record naming a pid gets that process's
     identity token ("start") unless it has one."""
     d = state_dir()
-    d.mkdir(parents=True, exist_ok=True)
+    _make_state_dir(d)
     path = d / name
     if "pid" in data and "start" not in data:
         token = process_token(data["pid"])
@@ -228,7 +274,7 @@ def state_lock(timeout: float = 120.0, on_wait: Callable[[], None] | None = None
     or a stop. Waits up to `timeout` s (calling `on_wait` once if it has to wait), then
     raises StateLocked. The lock goes with the process: a crashed holder frees it."""
     d = state_dir()
-    d.mkdir(parents=True, exist_ok=True)
+    _make_state_dir(d)
     fd = os.open(d / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o600)   # not inherited
     try:
         end = time.monotonic() + timeout
@@ -270,6 +316,12 @@ def port_open(host: str, port: int, timeout: float = 0.5) -> bool:
             return True
     except OSError:
         return False
+
+
+def hub_label(state: Path | None = None) -> str:
+    """Where a loopback hub recorded in the state directory comes from, for messages:
+    which bench a command talks to."""
+    return f"loopback hub of the bench in {state or state_dir()}"
 
 
 def hub_url() -> str | None:
@@ -321,7 +373,7 @@ def resolve(given: dict[str, Any] | None = None, allow_hub: bool = True
     if allow_hub:
         url = hub_url()
         if url:
-            return {**extra, "interface": "remote", "channel": url}, "loopback hub"
+            return {**extra, "interface": "remote", "channel": url}, hub_label()
     return None
 
 

@@ -456,6 +456,23 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         if msg is not None:
             self.handle(msg)
 
+    def _drain(self, limit: int = 64) -> None:
+        """Serve the frames already received and the timers, without waiting. A node
+        behind its releases (a loaded machine: each step ended after the next release)
+        never waits, so it read no frame and sent no heartbeat until it caught up: the
+        ECU's heartbeat went unseen for 300 ms (a command timeout) and its own for
+        0.35 s, which ended the run ("the plant stopped answering at ... SYNC 250")."""
+        self.timers()
+        for _ in range(limit):
+            try:
+                msg = self.bus.recv(timeout=0.0)
+            except Exception as exc:  # noqa: BLE001 - CanError, OSError, closed websocket
+                raise ConnectionError(f"bus connection lost: {type(exc).__name__}: "
+                                      f"{exc}") from exc
+            if msg is None:
+                return
+            self.handle(msg)
+
     def run(self, duration_s: float | None = None,
             alive: Callable[[], bool] | None = None) -> None:
         """Serve the bus until `stop()`, for `duration_s` of wall time, or until
@@ -476,6 +493,7 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
             if self.pace == Pace.REALTIME and self.state == NMTState.OPERATIONAL:
                 pacer = self._pacer
                 pacer.wait(self._poll)
+                self._drain()
                 if self.state != NMTState.OPERATIONAL or self.pace != Pace.REALTIME:
                     continue     # a frame handled while waiting changed the state
                 self._step()

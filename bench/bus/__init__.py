@@ -44,6 +44,7 @@ from ema_contract.transport import (  # noqa: E402
     describe,
     open_bus,
     resolve,
+    state_dir,
 )
 
 BUS_KEYS = ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing")
@@ -128,7 +129,9 @@ def session(settings: dict[str, Any] | None = None, start_hub: bool = True):
     elif start_hub:
         hub = _start_hub(persistent=False)
         sess = BusSession({**(settings or {}), "interface": "remote",
-                           "channel": hub.info["url"]}, "private loopback hub", [hub])
+                           "channel": hub.info["url"]},
+                          f"private loopback hub for this command: no `bench up` in "
+                          f"{state_dir()}", [hub])
     else:
         raise BenchError("no CAN bus: bench is not up (no loopback hub running), there is "
                          "no vcan0 and no python-can configuration (-i/-c, CAN_INTERFACE, "

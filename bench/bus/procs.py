@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -147,10 +148,10 @@ def prune_run_logs(d: Path, keep: int = KEEP_RUN_LOGS) -> None:
 def _log_file(name: str, persistent: bool) -> Path:
     if persistent:
         d = state_dir()
-        d.mkdir(parents=True, exist_ok=True)
+        d.mkdir(mode=0o700, parents=True, exist_ok=True)
         return d / f"{name}.log"
     d = run_dir()
-    d.mkdir(parents=True, exist_ok=True)
+    d.mkdir(mode=0o700, parents=True, exist_ok=True)
     prune_run_logs(d)
     return d / f"{name}-{os.getpid()}-{next(_RUN_SEQ)}.log"   # one per start: none clobbered
 
@@ -215,8 +216,10 @@ def plant_command(cfg: dict[str, Any], pace: str = "sync", assignments: list[str
 
 def start_plant(cfg: dict[str, Any], pace: str = "sync", assignments: list[str] | None = None,
                 persistent: bool = False, node_id: int | None = None,
-                timeout: float = PLANT_START_TIMEOUT_S, serial: int | None = None) -> Child:
-    """Start the plant node on `cfg` and wait until it has booted."""
+                timeout: float = PLANT_START_TIMEOUT_S, serial: int | None = None,
+                on_wait: Callable[[float], None] | None = None) -> Child:
+    """Start the plant node on `cfg` and wait until it has booted; `on_wait(elapsed_s)`
+    is called while waiting (every 20 ms), for a progress display."""
     log_path = _log_file("plant", persistent)
     ready = log_path.with_suffix(".ready")
     ready.unlink(missing_ok=True)
@@ -225,7 +228,8 @@ def start_plant(cfg: dict[str, Any], pace: str = "sync", assignments: list[str] 
     with log_path.open("w") as err:
         proc = subprocess.Popen(cmd, stdout=err, stderr=subprocess.STDOUT,
                                 stdin=subprocess.DEVNULL, start_new_session=True)
-    end = time.monotonic() + timeout
+    t0 = time.monotonic()
+    end = t0 + timeout
     while time.monotonic() < end:
         if ready.exists():
             ready.unlink(missing_ok=True)
@@ -233,6 +237,8 @@ def start_plant(cfg: dict[str, Any], pace: str = "sync", assignments: list[str] 
                          process_token(proc.pid), ephemeral=not persistent)
         if proc.poll() is not None:
             raise BenchError(f"the plant exited at start: {_last_words(log_path)}")
+        if on_wait is not None:
+            on_wait(time.monotonic() - t0)
         time.sleep(0.02)
     stop_pid(proc.pid, 1.0, proc)
     raise BenchError(f"the plant did not boot within {timeout:.0f} s: {_last_words(log_path)}")

@@ -42,9 +42,19 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         "(flags --name-with-dashes):\n" + "\n".join(lines))
     p.add_argument("profile", choices=list(PROFILES), metavar="PROFILE",
                    help="one of: " + ", ".join(PROFILES))
-    p.add_argument("--pace", choices=["realtime", "sync"], default="realtime",
-                   help="realtime: SYNC on wall-clock deadlines; sync: lockstep, as fast as "
-                        "the bus allows (default: %(default)s)")
+    p.add_argument("--pace", choices=["realtime", "sync"], default=None,
+                   help="realtime: SYNC on wall-clock deadlines (after a 0.2 s calibration "
+                        "that says whether this machine holds them now); sync: lockstep, "
+                        "as fast as the bus allows, exact on any load. Default: the pace of "
+                        "the plant found (`bench up --pace`, read from object 0x2200 sub "
+                        "1), realtime for a plant started for the run or a node without "
+                        "lockstep")
+    p.add_argument("--stamp", choices=["bus", "wall"], default="bus",
+                   help="time stamps of the --log: bus (default) is the bus's own time, "
+                        "in lockstep the SYNC count x the period from the run's start (so "
+                        "that a log of 1000 SYNCs spans 1 s, for canplayer and plots); "
+                        "wall: the wall clock as the ECU sent and read each frame (a "
+                        "real-time run's bus time)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="run length (s); the profile's own by default")
     p.add_argument("--set", dest="assignments", action="append", default=[],
@@ -109,7 +119,8 @@ def run(args: argparse.Namespace) -> int:
                                  progress=progress, settings=bus_settings(args),
                                  start_plant=not args.no_plant, node_id=args.node_id,
                                  announce=say, spin_us=args.spin_us, stop=stop,
-                                 encoder_counts=args.encoder_counts, serial=args.serial)
+                                 encoder_counts=args.encoder_counts, serial=args.serial,
+                                 stamp=args.stamp)
         except BenchError as exc:
             stop.defer = True       # a second signal must not cut the partial trace's save
             msg = _ended(exc, args)
@@ -223,6 +234,10 @@ def summary(trace, save: str | None = None) -> str:
         if seen:
             lines.append("  plant conditions (reported, the run stays valid): "
                          + ", ".join(seen))
+    if ecu.get("sdo_retries"):
+        lines.append(f"  SDO: {ecu['sdo_retries']} transfers started again after an answer "
+                     f"came later than the SDO timeout ({ecu.get('sdo_stray_answers', 0)} "
+                     "late answers dropped)")
     em = m.get("emcy", [])
     if em:
         c = Counter(e["name"] for e in em)

@@ -86,13 +86,14 @@ def _up(args: argparse.Namespace) -> int:
     """Check-and-start, under the state lock."""
     from bench.bus import bus_settings, find_bus
     from bench.bus.procs import start_hub, start_plant
-    from ema_contract.transport import PLANT_FILE, read_state, state_dir, write_state
+    from ema_contract.transport import PLANT_FILE, hub_label, read_state, state_dir, write_state
     from plant_rt.pacing import use_normal_priority, use_realtime_priority
 
     plant = read_state(PLANT_FILE)
     if plant:
-        print(f"already up: plant pid {plant['pid']} on {plant['bus']} "
-              f"(`bench down` first to restart)")
+        print(f"already up: plant pid {plant['pid']} on {plant['bus']}, pace "
+              f"{plant.get('pace', '?')}, state {state_dir()} (`bench down` first to "
+              f"restart)")
         return 0
     found = find_bus(bus_settings(args))
     started = []
@@ -102,12 +103,14 @@ def _up(args: argparse.Namespace) -> int:
         if found is None:
             hub = start_hub(persistent=True)
             started.append(hub)
-            cfg, source = {"interface": "remote", "channel": hub.info["url"]}, "loopback hub"
+            cfg, source = {"interface": "remote", "channel": hub.info["url"]}, hub_label()
             print(f"hub: pid {hub.pid}, {hub.info['url']} (127.0.0.1 only)")
         else:
             cfg, source = found
-        child = start_plant(cfg, pace=args.pace, assignments=args.assignments,
-                            persistent=True, node_id=args.node_id, serial=args.serial)
+        with _boot_wait(args.pace) as on_wait:
+            child = start_plant(cfg, pace=args.pace, assignments=args.assignments,
+                                persistent=True, node_id=args.node_id, serial=args.serial,
+                                on_wait=on_wait)
     except BaseException:
         for c in started:
             c.stop()
@@ -124,6 +127,29 @@ def _up(args: argparse.Namespace) -> int:
     return 0
 
 
+@contextmanager
+def _boot_wait(pace: str):
+    """What `bench up` waits for, said on stderr, with the time waited (a tqdm counter,
+    on a terminal): the plant's boot-up, which at its first start compiles the physics."""
+    print(f"plant: starting (pace {pace}); waiting for its boot-up (the first start "
+          "compiles the physics: up to a minute)", file=sys.stderr, flush=True)
+    from tqdm import tqdm
+    bar = tqdm(desc="waiting for the plant", bar_format="{desc}: {elapsed}", leave=False,
+               disable=None, file=sys.stderr)
+
+    shown = [0.0]
+
+    def on_wait(elapsed_s: float) -> None:
+        if elapsed_s - shown[0] >= 0.5:
+            shown[0] = elapsed_s
+            bar.refresh()
+
+    try:
+        yield on_wait
+    finally:
+        bar.close()
+
+
 def _fmt(v) -> str:
     if isinstance(v, float):
         return "nan" if math.isnan(v) else f"{v:g}"
@@ -134,14 +160,15 @@ def cmd_status(args: argparse.Namespace) -> int:
     from bench.bus import bus_settings, close_bus, connect, find_bus
     from bench.ecu import MISSING, Ecu, status_names
     from ema_contract.states import NMTState, Pace
-    from ema_contract.transport import HUB_FILE, PLANT_FILE, read_state
+    from ema_contract.transport import HUB_FILE, PLANT_FILE, read_state, state_dir
     from plant_rt.params import PlantParams
 
     hub, plant = read_state(HUB_FILE), read_state(PLANT_FILE)
     found = find_bus(bus_settings(args))
     if found is None:
-        raise BenchError("bench is not up: no loopback hub running, no vcan0 and no "
-                         "python-can configuration (run `bench up`)")
+        raise BenchError(f"bench is not up: no loopback hub running (state {state_dir()}), "
+                         "no vcan0 and no python-can configuration (run `bench up`)")
+    print(f"state: {state_dir()}")
     cfg, source = found
     print(f"bus: {cfg.get('interface')}:{cfg.get('channel')} ({source})"
           + (f", hub pid {hub['pid']}" if hub else ""))
@@ -196,7 +223,7 @@ def cmd_down(args: argparse.Namespace) -> int:  # noqa: ARG001
             st = read_state(name)      # None for a stale or corrupt record (reported)
             if st:
                 stop_pid(st["pid"], token=st.get("start"), module=MODULES[label])
-                print(f"stopped {label} (pid {st['pid']})")
+                print(f"stopped {label} (pid {st['pid']}) of the bench in {state_dir()}")
                 did = True
                 remove_state(name, st["pid"])
     if not did:

@@ -15,14 +15,16 @@ import canopen
 from canopen.network import MessageListener
 
 from bench import BenchError
+from bench.ecu.busclock import LogClock
 from bench.ecu.errors import BusLost
 from bench.ecu.logwriter import _Log
 from bench.ecu.nodeinfo import NodeInfo
 from bench.ecu.rowtap import RowTap
+from bench.ecu.sdoclient import SDO_ATTEMPTS, SDO_TIMEOUT_S, EcuRemoteNode
 from bench.ecu.signals import StopSignal
 from bench.trace import Trace
 from ema_contract.frames import FrameError, Frames, load_od
-from ema_contract.states import NMTCommand, NMTState
+from ema_contract.states import NMTCommand, NMTState, Pace
 from plant_rt.paramobjects import ParamObjects
 
 # canopen logs SDO aborts and timeouts it reports anyway as exceptions; keep stderr clean
@@ -38,7 +40,8 @@ class EcuLink:
 
     def __init__(self, bus: can.BusABC, node_id: int | None = None, ecu_id: int | None = None,
                  log_path: str | Path | None = None, echo: bool = False,
-                 sdo_timeout_s: float = 0.5) -> None:
+                 sdo_timeout_s: float = SDO_TIMEOUT_S, sdo_attempts: int = SDO_ATTEMPTS
+                 ) -> None:
         self.bus = bus
         self.frames = Frames(node_id, ecu_id)
         self.node_id = self.frames.node_id
@@ -46,11 +49,14 @@ class EcuLink:
         self.od = load_od(self.node_id)
         # canopen's sends are logged too (_TeeBus forwards everything else to `bus`)
         self.network = canopen.Network(_TeeBus(bus, self))  # type: ignore[arg-type]
-        self.remote = canopen.RemoteNode(self.node_id, self.od)
+        self.remote = EcuRemoteNode(self.node_id, self.od)
         self.network.add_node(self.remote)
         self.remote.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
+        self.sdo_attempts = max(1, int(sdo_attempts))
+        self.sdo_retries = 0       # transfers started again after a missing answer
         self.param_objects = ParamObjects(self.od)
         self.log = _Log(Path(log_path)) if log_path else None
+        self.log_clock = LogClock()        # the log's stamps: wall, or bus time in lockstep
         self.tap: RowTap | None = None     # the run's rows (`RunLoop.run`), fed like the log
         self._record_lock = threading.Lock()   # log and rows see the frames in one order
         self.echo = echo               # the bus returns our own frames (for the log)
@@ -59,6 +65,9 @@ class EcuLink:
         self.plant_state: NMTState | None = None
         self.plant_hb: float | None = None
         self.bootups = 0
+        self.frames_polled = 0     # frames the run loop read (`PeriodSteps.poll`)
+        self.run_pace: Pace | None = None    # the run's pace and why (`Ecu.prepare`)
+        self.pace_source = ""
         self._notifier: can.Notifier | None = None
         self._sync_counter = 0
         self._sync_max = int(self.od[0x1019].default)
@@ -114,7 +123,7 @@ class EcuLink:
         if log is None and tap is None:
             return
         with self._record_lock:
-            msg.timestamp = time.time()
+            msg.timestamp = self.log_clock.stamp(msg)
             if log is not None:
                 log.on_message_received(msg)
             if tap is not None:
@@ -148,7 +157,7 @@ class EcuLink:
                 sig = decoded[1]
                 code = int(sig["EMCY_ErrorCode"])
                 self.emcy.append({
-                    "wall_s": round(msg.timestamp - self._t0_wall, 6) if msg.timestamp else None,
+                    "wall_s": round(time.time() - self._t0_wall, 6),
                     "code": code,
                     "name": self.frames.label("EMA_EMCY", "EMCY_ErrorCode", code),
                     "status_word": int(sig["EMCY_StatusWord"]),

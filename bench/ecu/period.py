@@ -29,6 +29,9 @@ from ema_contract.states import ControlWord, Pace, StatusWord
 from plant_rt.pacing import RealtimePacer
 from plant_rt.params import PlantParams
 
+BAR_FORMAT = "{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.2f} {unit} [{elapsed}<{remaining}]"
+"""The run's bar: simulated seconds as 9.98/15.00, not the float sum 9.984000000000002."""
+
 
 @dataclass
 class EcuStats:
@@ -78,6 +81,7 @@ class PeriodSteps:
         self.reset_k: int | None = None   # the period whose RPDO1 carried the fault reset
         self.emcy_seen = 0
         self.on_period: Callable[[int], None] | None = None
+        self.bus_stamps = False   # the log in bus time (`bench.ecu.busclock`)
 
     def setup(self, progress: bool) -> None:
         """The progress bar, the pacer and the frames' encoders, just before the loop."""
@@ -85,7 +89,7 @@ class PeriodSteps:
         if progress:
             from tqdm import tqdm
             self.bar = tqdm(total=round(self.n * ts, 3), unit="sim s", desc=self.profile.name,
-                            leave=False)
+                            leave=False, bar_format=BAR_FORMAT)
         self.pacer = RealtimePacer(ts, self.spin_us * 1e-6) if self.pace == Pace.REALTIME \
             else None
         # lockstep: the heartbeat on the SYNC grid (the plant counts its consumer time in
@@ -120,6 +124,7 @@ class PeriodSteps:
                 from None
         if msg is None:
             return
+        ecu.frames_polled += 1
         ecu._monitor(msg)
         name = ecu._tpdo_names.get(msg.arbitration_id)
         if name is not None:
@@ -132,6 +137,18 @@ class PeriodSteps:
             if name == "EMA_TPDO1":
                 self.tpdo1_seen += 1
 
+    def drain(self, limit: int = 64) -> None:
+        """Real time: the frames already received, without waiting. An ECU behind its
+        releases (a loaded machine) found its window over at once and read nothing, so
+        frames piled up and the plant's heartbeat went unseen until the run ended with
+        "the plant stopped answering"; the newest values are the ones kept."""
+        ecu = self.ecu
+        for _ in range(limit):
+            before = ecu.frames_polled
+            self.poll(0.0)
+            if ecu.frames_polled == before:
+                return
+
     def sync(self, k: int) -> None:
         """Release period k: SYNC, then its set-points (known at its SYNC: sent while the
         plant answers, ECU TPDO, synchronous)."""
@@ -139,6 +156,7 @@ class PeriodSteps:
         if self.pacer is not None:
             self.pacer.wait(self.poll)
         self.fresh.clear()
+        ecu.log_clock.period(k)
         ecu._send_sync()
         ecu.send(can.Message(arbitration_id=self.cob_sp, is_extended_id=False,
                              data=self.enc_sp.encode({
@@ -161,6 +179,7 @@ class PeriodSteps:
             if left <= 0:
                 break
             self.poll(left)
+        self.drain()
         if len(fresh) < 3:
             self.stats.late_tpdo += 1
             if k % 50 == 0:
@@ -258,5 +277,6 @@ class PeriodSteps:
                 "profile_kwargs": profile.kwargs, "fundamental_hz": profile.fundamental_hz,
                 "params": self.params.to_dict(), "controller": asdict(self.cparams),
                 "complete": m == n, "node_id": ecu.node_id, "ecu": asdict(stats),
-                "emcy": list(ecu.emcy), "bus_rows": self.tap.counts()}
+                "emcy": list(ecu.emcy), "bus_rows": self.tap.counts(),
+                "log_stamps": "bus" if self.bus_stamps else "wall"}
         return Trace(cols, meta)

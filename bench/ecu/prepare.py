@@ -15,11 +15,14 @@ class NodePrepare(NodeSdo):
     """Mixin of `Ecu`: `prepare` a node for a run."""
 
     # -- running a profile ------------------------------------------------------------------
-    def prepare(self, pace: Pace, values: dict[str, Any], spin_us: int | None = None,
+    def prepare(self, pace: Pace | None, values: dict[str, Any], spin_us: int | None = None,
                 origin: dict[str, str] | None = None, encoder_counts: int | None = None,
                 sync_driven: bool = False) -> PlantParams:
-        """Reset the node, set pace (and the plant pacer's spin window) and parameters,
-        restart the plant at t = 0; returns the parameters the plant now has (read back).
+        """Reset the node, set pace (and the plant pacer's spin window, in real time) and
+        parameters, restart the plant at t = 0; returns the parameters the plant now has
+        (read back). `pace` None follows the node: its own pace after the reset (0x2200
+        sub 1: the one it was started with), real time for a node without that object;
+        `run_pace` and `pace_source` say which pace the run has and why.
 
         Only NMT, heartbeat, SDO of CiA 301 objects and the DBC's PDOs are required; the
         optional objects (0x2000-0x2008, 0x2100, 0x2200) are used when the node has them.
@@ -31,8 +34,10 @@ class NodePrepare(NodeSdo):
         self.reset_node()
         info = self.node_info = NodeInfo(notes=[])
         info.identity = self.read_identity()
+        pace = self._choose_pace(pace)
         self._set_pace(pace, sync_driven)
-        if spin_us is not None and self.has_object("node_control.spin_us"):
+        if (pace == Pace.REALTIME and spin_us is not None
+                and self.has_object("node_control.spin_us")):
             self.sdo_write("node_control.spin_us", int(spin_us))
         self.check_settable(values, origin)
         self.set_params(values)
@@ -56,6 +61,29 @@ class NodePrepare(NodeSdo):
                               "skipped")
         info.missing = self.missing
         return params
+
+    def _choose_pace(self, pace: Pace | None) -> Pace:
+        """The run's pace: `pace` when given, else the node's own (after NMT reset node,
+        the pace it was started with), else real time; `run_pace`, `pace_source`."""
+        own = None
+        if self.has_object("node_control.pace"):
+            own = Pace(int(self.sdo_read("node_control.pace")))
+
+        def name(p: Pace) -> str:
+            return p.name.lower()
+
+        if pace is not None:
+            src = "--pace"
+            if own is not None and own != pace:
+                src += f"; the plant runs {name(own)} on its own (0x2200 sub 1)"
+        elif own is not None:
+            pace, src = own, ("the plant's own (0x2200 sub 1, the pace it was started "
+                              "with); --pace overrides it")
+        else:
+            pace, src = Pace.REALTIME, ("the node has no pace object (0x2200 sub 1): real "
+                                        "time, as hardware")
+        self.run_pace, self.pace_source = pace, f"pace {name(pace)}: {src}"
+        return pace
 
     def _set_pace(self, pace: Pace, sync_driven: bool) -> None:
         """Write the lockstep object 0x2200 sub 1, or decide without it."""

@@ -38,13 +38,17 @@ class RunLoop(EcuClaim):
     def run(self, profile: Profile, params: PlantParams, cparams: ControllerParams | None = None,
             pace: Pace = Pace.SYNC, duration_s: float | None = None, progress: bool = False,
             spin_us: int = 200, on_period: Callable[[int], None] | None = None,
-            stop: StopSignal | None = None) -> Trace:
+            stop: StopSignal | None = None, stamp: str = "bus") -> Trace:
         """Run `profile` on the prepared plant; returns the trace (partial on error: the
         error is raised after the trace is stored in `self.partial`, and the node is set
         PRE-OPERATIONAL). The run fails (`PlantFault`) as soon as the plant reports a
         condition that changes its behaviour (FAILING_BITS, any EMCY outside
         REPORTING_EMCY), another ECU shows up (`ForeignEcu`), the log cannot be written
-        (`LogWriteError`) or `stop` records a signal (`Interrupted`)."""
+        (`LogWriteError`) or `stop` records a signal (`Interrupted`). `stamp` "bus"
+        stamps the log's frames in bus time in lockstep (`bench.ecu.busclock`), "wall"
+        on the wall clock (always so in real time, where the bus runs on it)."""
+        if stamp not in ("bus", "wall"):
+            raise BenchError(f"stamp must be 'bus' or 'wall', not {stamp!r}")
         ts = params.sim.sync_period_s
         cparams = cparams or ControllerParams(sample_period_s=ts)
         if not math.isclose(cparams.sample_period_s, ts):
@@ -55,6 +59,7 @@ class RunLoop(EcuClaim):
         steps = PeriodSteps(self, profile, params, cparams, pace,
                             run_periods(dur, ts), spin_us, stop, stats)
         steps.on_period = on_period
+        steps.bus_stamps = stamp == "bus" and pace == Pace.SYNC
         self.partial = None
         self._stop = stop
         steps.setup(progress)
@@ -96,6 +101,7 @@ class RunLoop(EcuClaim):
             trace.meta["ecu"] = asdict(stats)
             self.abort()
             raise error
+        self.log_clock.period(steps.n)     # what follows the run follows its last period
         end = self._finish(stats)
         trace = self.partial = self._trace(steps)
         trace.meta.update(end)
@@ -128,6 +134,8 @@ class RunLoop(EcuClaim):
         steps.emcy_seen = self._emcy_seen = len(self.emcy)
         if steps.pacer is not None:
             steps.pacer.start(5 * steps.ts)
+        if steps.bus_stamps:
+            self.log_clock.start(steps.ts)
 
     def _status_fault(self, word: int, k: int, ts: float) -> PlantFault:
         """The error for a status word with a FAILING_BITS bit set at SYNC k."""
@@ -157,7 +165,7 @@ class RunLoop(EcuClaim):
         self.listen()
         try:
             self.nmt(NMTCommand.ENTER_PRE_OPERATIONAL)
-            self.remote.sdo[0x1016][1].raw = 0   # orderly log-out: stop consuming our heartbeat
+            self.sdo_write((0x1016, 1), 0)     # orderly log-out: stop consuming our heartbeat
             meta["plant_counters"] = self.read_status()
         except (BenchError, SdoAbortedError, SdoCommunicationError) as exc:
             meta["plant_counters"] = {"error": str(exc)}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
@@ -82,6 +83,20 @@ class NodeSdo(EcuLink):
         except KeyError:
             raise BenchError(f"the object dictionary has no object {name!r}") from None
 
+    def sdo_transfer(self, transfer: Callable[[], Any]) -> Any:
+        """`transfer()` (one SDO upload or download), started again from its initiation
+        when an answer does not come within the SDO timeout, up to `sdo_attempts` times
+        (`bench.ecu.sdoclient`); the last SdoCommunicationError when none succeeds.
+        Writes are the same value again, so a repeated transfer is harmless."""
+        for attempt in range(1, self.sdo_attempts + 1):
+            try:
+                return transfer()
+            except SdoCommunicationError:
+                if attempt == self.sdo_attempts:
+                    raise
+                self.sdo_retries += 1
+        raise AssertionError("unreachable")
+
     @staticmethod
     def _label(var) -> str:
         """``0xIIII sub S (group.leaf)`` of an SDO variable, for messages."""
@@ -119,7 +134,7 @@ class NodeSdo(EcuLink):
             return False
         if key not in self._present:
             try:
-                self.remote.sdo.upload(*key)
+                self.sdo_transfer(lambda: self.remote.sdo.upload(*key))
                 self._present[key] = True
             except SdoAbortedError as exc:
                 if exc.code in ABSENT_ABORTS:
@@ -127,7 +142,8 @@ class NodeSdo(EcuLink):
                 else:
                     self._present[key] = True
             except SdoCommunicationError as exc:
-                raise PlantLost(f"no SDO answer reading {self._label(var)}: {exc}") from None
+                raise PlantLost(f"no SDO answer reading {self._label(var)}{self._tries()}: "
+                                f"{exc}") from None
         return self._present.get(key, False)
 
     def read_optional(self, name: str | int | tuple[int, int]) -> Any:
@@ -139,14 +155,15 @@ class NodeSdo(EcuLink):
                 (var.od.index, var.od.subindex)) is False:
             return MISSING
         try:
-            value = var.raw
+            value = self.sdo_transfer(lambda: var.raw)
         except SdoAbortedError as exc:
             if exc.code in ABSENT_ABORTS:
                 self._note_absent(var, exc.code)
                 return MISSING
             raise BenchError(f"the plant refused to read {self._label(var)}: {exc}") from None
         except SdoCommunicationError as exc:
-            raise PlantLost(f"no SDO answer reading {self._label(var)}: {exc}") from None
+            raise PlantLost(f"no SDO answer reading {self._label(var)}{self._tries()}: "
+                            f"{exc}") from None
         self._present[(var.od.index, var.od.subindex)] = True
         return value
 
@@ -161,8 +178,12 @@ class NodeSdo(EcuLink):
     def sdo_write(self, name: str | int | tuple[int, int], raw: Any) -> None:
         self.listen()
         var = self._sdo_var(name)
-        try:
+
+        def write() -> None:
             var.raw = raw
+
+        try:
+            self.sdo_transfer(write)
         except SdoAbortedError as exc:
             if exc.code in ABSENT_ABORTS:
                 self._note_absent(var, exc.code)
@@ -170,7 +191,14 @@ class NodeSdo(EcuLink):
                                  f"{self._label(var)} (writing {raw!r})") from None
             raise BenchError(f"the plant refused {name} = {raw!r}: {exc}") from None
         except SdoCommunicationError as exc:
-            raise PlantLost(f"no SDO answer writing {name}: {exc}") from None
+            raise PlantLost(f"no SDO answer writing {self._label(var)}{self._tries()}: "
+                            f"{exc}") from None
+
+    def _tries(self) -> str:
+        """How long the ECU waited for an SDO answer, for messages."""
+        t = self.remote.sdo.RESPONSE_TIMEOUT
+        n = self.sdo_attempts
+        return f" ({n} attempts of {t:g} s)" if n > 1 else f" (within {t:g} s)"
 
     def set_params(self, values: dict[str, Any]) -> None:
         """Write plant parameters by SDO (checked here first for a clear message)."""

@@ -13,6 +13,7 @@ from bench.control import ControllerParams
 from bench.ecu.errors import PlantLost
 from bench.ecu.master import Ecu
 from bench.ecu.nodeinfo import NodeInfo
+from bench.ecu.rtcheck import RealtimeCheck, realtime_check
 from bench.ecu.runloop import run_periods
 from bench.ecu.signals import StopSignal
 from bench.profiles import Profile
@@ -88,8 +89,9 @@ def _check_run(profile: Profile, vals: dict[str, Any], duration_s: float | None,
         log_format(log_path)
 
 
-def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace, node_id: int | None,
-                say: Callable[[str], None], serial: int | None = None) -> None:
+def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace | None,
+                node_id: int | None, say: Callable[[str], None],
+                serial: int | None = None) -> None:
     """Wait for the node on the session's bus; when none answers on a simulated bus and
     `start_plant`, start a plant process for the run (stopped with the session)."""
     from bench.bus import is_simulated
@@ -104,20 +106,39 @@ def _find_plant(ecu: Ecu, sess: Any, start_plant: bool, pace: Pace, node_id: int
         if not (start_plant and is_simulated(sess.cfg)):
             raise PlantLost(f"no actuator node 0x{ecu.node_id:02X} answering on "
                             f"{sess.description}") from None
-        say("starting a plant for this run")
+        pace = Pace.REALTIME if pace is None else pace
+        say(f"starting a plant for this run (pace {pace.name.lower()})")
         sess.children.append(_start_plant(sess.cfg, pace=pace.name.lower(),
                                           node_id=node_id, serial=serial))
 
 
+def _set_up(ecu: Ecu, pace: Pace | None, vals: dict[str, Any], spin_us: int,
+            origin: dict[str, str], encoder_counts: int | None, sync_driven: bool,
+            say: Callable[[str], None]) -> tuple[PlantParams, Pace, RealtimeCheck | None]:
+    """`Ecu.prepare`, what it found said; in real time the pacer's calibration. Returns
+    the parameters, the run's pace and the calibration (None in lockstep)."""
+    params = ecu.prepare(pace, vals, spin_us, origin=origin, encoder_counts=encoder_counts,
+                         sync_driven=sync_driven)
+    run_pace = ecu.run_pace or Pace.REALTIME
+    say(ecu.pace_source)
+    for note in ecu.node_info.notes:
+        say(note)
+    check = None
+    if run_pace == Pace.REALTIME:
+        check = realtime_check(ecu, params.sim.sync_period_s, spin_us)
+        say(check.message())
+    return params, run_pace, check
+
+
 def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
-                 assignments: list[str] | None = None, pace: Pace | str = Pace.SYNC,
+                 assignments: list[str] | None = None, pace: Pace | str | None = Pace.SYNC,
                  duration_s: float | None = None, log_path: str | Path | None = None,
                  progress: bool = False, settings: dict[str, Any] | None = None,
                  start_plant: bool = True, cparams: ControllerParams | None = None,
                  node_id: int | None = None, announce: Callable[[str], None] | None = None,
                  echo: bool = False, spin_us: int = 200, encoder_counts: int | None = None,
                  sync_driven: bool = False, stop: StopSignal | None = None,
-                 serial: int | None = None) -> Trace:
+                 serial: int | None = None, stamp: str = "bus") -> Trace:
     """Run `profile` against the plant over the bus and return the trace.
 
     The bus is the configured one (flags in `settings`, environment, config file,
@@ -131,8 +152,11 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
     ``meta["params"]`` is then left out, since the ECU does not know the node's
     parameters. `encoder_counts` (counts/rev) stands in for a missing encoder
     resolution object; `sync_driven` vouches that a node without the lockstep object
-    steps one period per SYNC, so that `pace` "sync" may run against it. `serial` is the
-    serial number (0x1018 sub 4) of the plant started for the run, if one is.
+    steps one period per SYNC, so that `pace` "sync" may run against it; `pace` None
+    follows the node (its own pace, `Ecu.prepare`; real time for a plant started here, and
+    a real-time run starts with a short calibration, `bench.ecu.rtcheck`). `serial` is the
+    serial number (0x1018 sub 4) of the plant started for the run, if one is. `stamp`:
+    the log's time stamps, "bus" (lockstep: SYNC count x period) or "wall" (`Ecu.run`).
 
     Before anything starts: the run's length (`run_periods`) and the log path are
     checked. Before any NMT command or SDO write: `Ecu.claim` (no other ECU on the node).
@@ -140,7 +164,10 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
     closed and the node, once claimed, is set PRE-OPERATIONAL (`Ecu.abort`)."""
     from bench.bus import close_bus, connect, session
 
-    pace = Pace[pace.upper()] if isinstance(pace, str) else Pace(pace)
+    want = (None if pace is None else
+            Pace[pace.upper()] if isinstance(pace, str) else Pace(pace))
+    if stamp not in ("bus", "wall"):
+        raise BenchError(f"stamp must be 'bus' or 'wall', not {stamp!r}")
     vals = plant_values(profile, assignments, values)
     origin = setting_origins(profile, assignments, values)
     _check_run(profile, vals, duration_s, log_path, encoder_counts)
@@ -150,23 +177,24 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
         ecu = None
         try:
             ecu = Ecu(bus, node_id=node_id, log_path=log_path, echo=echo)
-            _find_plant(ecu, sess, start_plant, pace, node_id, say, serial)
+            _find_plant(ecu, sess, start_plant, want, node_id, say, serial)
             say(f"bus {sess.description}")
             ecu.claim(say)
             ecu.start_heartbeat()
-            params = ecu.prepare(pace, vals, spin_us if pace == Pace.REALTIME else None,
-                                 origin=origin, encoder_counts=encoder_counts,
-                                 sync_driven=sync_driven)
-            for note in ecu.node_info.notes:
-                say(note)
+            params, run_pace, check = _set_up(ecu, want, vals, spin_us, origin,
+                                              encoder_counts, sync_driven, say)
             ecu.check_foreign(" during set-up")
             ecu.check_receive(" during set-up")
-            trace = ecu.run(profile, params, cparams, pace, duration_s, progress,
-                            spin_us=spin_us, stop=stop)
+            trace = ecu.run(profile, params, cparams, run_pace, duration_s, progress,
+                            spin_us=spin_us, stop=stop, stamp=stamp)
+            if check is not None:
+                trace.meta["realtime_check"] = asdict(check)
             if ecu.log is not None:     # the last frames reach the disk, or the run fails
                 ecu.log.close()
                 ecu.log.raise_error(" at the end of the run")
             _with_node(trace, ecu.node_info)
+            trace.meta["ecu"]["sdo_retries"] = ecu.sdo_retries
+            trace.meta["ecu"]["sdo_stray_answers"] = ecu.remote.sdo.stray
             trace.meta["bus"] = sess.description
             if log_path:
                 trace.meta["log"] = str(log_path)

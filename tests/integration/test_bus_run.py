@@ -4,6 +4,7 @@ RemoteNode) work against the bench."""
 
 from __future__ import annotations
 
+import re
 import signal
 import subprocess
 import sys
@@ -176,3 +177,65 @@ def test_realtime_run_with_real_time_scheduling(bus_env):
     assert ("SCHED_FIFO priority 5" in r.stdout
             or "normal scheduling (SCHED_FIFO 5 refused" in r.stdout), r.stdout
 
+
+
+def test_run_follows_the_plants_pace_and_says_so(bus_env, tmp_path):
+    """`bench up --pace sync` then `bench run`: the run used real time whatever the
+    plant's pace (and aborted at SYNC 250 on a loaded machine). It follows the plant's
+    own pace (0x2200 sub 1 after the reset), says which, and --pace overrides it."""
+    r = bench("run", "sine", "--duration", "0.2", "--no-progress", "--save",
+              str(tmp_path / "t.npz"), *bus_env.flags, env=bus_env.env)
+    assert r.returncode == 0, r.stderr
+    assert "pace sync: the plant's own (0x2200 sub 1" in r.stderr, r.stderr
+    assert "pace sync" in r.stdout and "calibration" not in r.stderr
+    assert Trace.load(tmp_path / "t.npz").meta["pace"] == "sync"
+    r = bench("run", "sine", "--duration", "0.2", "--no-progress", "--pace", "realtime",
+              *bus_env.flags, env=bus_env.env)
+    assert r.returncode == 0, r.stderr
+    assert "pace realtime: --pace; the plant runs sync on its own" in r.stderr, r.stderr
+    # a real-time run starts with the pacer's calibration, and says what it found
+    assert "calibration the ECU's pacer overran" in r.stderr
+    assert "pace realtime" in r.stdout
+
+
+def test_lockstep_logs_are_stamped_in_bus_time(bus_env, tmp_path):
+    """A lockstep log had wall-clock stamps (1,000 SYNCs of 1 ms spanned 0.611 s): now
+    SYNC k is the run's start + k periods, every frame of period k lies between SYNC k
+    and SYNC k+1, stamps never go back, and the decoded bus time is k periods to the us;
+    `stamp="wall"` keeps the wall clock."""
+    import can
+    profile = make_profile("sine", duration_s=0.3)
+    log, wall = tmp_path / "bus.log", tmp_path / "wall.log"
+    tr = run_over_bus(profile, pace="sync", settings=bus_env.cfg, log_path=log)
+    run_over_bus(profile, pace="sync", settings=bus_env.cfg, log_path=wall, stamp="wall")
+    assert tr.meta["log_stamps"] == "bus"
+    with can.LogReader(log) as reader:
+        msgs = list(reader)
+    stamps = np.array([round(m.timestamp * 1e6) for m in msgs])
+    assert np.all(np.diff(stamps) >= 0)
+    syncs = np.flatnonzero([m.arbitration_id == 0x080 for m in msgs])
+    t_sync = stamps[syncs]
+    assert len(syncs) == 300 and np.all(np.diff(t_sync) == 1000)     # 1 ms, to the us
+    inside = stamps[syncs[0]:syncs[-1]]
+    period_of = (inside - t_sync[0]) // 1000
+    sync_of = np.searchsorted(syncs, np.arange(syncs[0], syncs[-1]), side="right") - 1
+    assert np.array_equal(period_of, sync_of)   # each frame within its own period
+    # (stamps of ~1.8e9 s as float64 differ by whole microseconds within 0.24 us)
+    np.testing.assert_allclose(tr["bus_time_s"], np.arange(300) * 1e-3, rtol=0, atol=3e-7)
+    dec = trace_from_log(log)
+    np.testing.assert_allclose(dec["bus_time_s"], np.arange(300) * 1e-3, rtol=0, atol=3e-7)
+    for col in ("position_m", "current_a", "setpoint_position_m"):
+        np.testing.assert_array_equal(dec[col], tr[col])
+    with can.LogReader(wall) as reader:
+        w = np.array([m.timestamp for m in reader if m.arbitration_id == 0x080])
+    assert len(w) == 300 and np.ptp(np.diff(w)) > 1e-6      # the wall clock's own spacing
+
+
+def test_the_runs_bar_shows_rounded_simulated_seconds(bus_env):
+    """The bar showed "9.984000000000002/15.0" (a float sum of steps): now 2 decimals."""
+    r = bench("run", "sine", "--duration", "1.5", "--progress", *bus_env.flags,
+              env=bus_env.env)
+    assert r.returncode == 0, r.stderr
+    bars = [seg for seg in r.stderr.replace("\r", "\n").splitlines() if "sim s" in seg]
+    assert bars and all("/1.50 sim s" in b for b in bars), bars
+    assert not any(re.search(r"\d\.\d{4,}", b) for b in bars), bars

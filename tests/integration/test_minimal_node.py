@@ -39,6 +39,66 @@ QUANT = {"position_m": 1e-8, "current_a": 1e-4, "motor_speed_rad_s": 1e-4,
          "current_demand_a": 1e-4, "load_force_n": 2.0}
 
 
+QUANT_TPDO = {"MotorCurrent": 1e-4, "EncoderAngle": 0.0, "EncoderSpeed": 1e-4,
+              "LvdtPosition": 1e-8}
+
+
+def closed_loop_mismatch(log: Path, profile) -> tuple[float, dict[str, float], int]:
+    """Replay a run of the minimal node (default parameters) from its log.
+
+    (1) Each RPDO1 demand the ECU sent against the controller's answer to the set-points
+    of its period and the newest TPDO2/3 values logged before it: the ECU logs every
+    frame as it sends or reads it, so the log's order is what the ECU knew. (2) Each
+    TPDO set the node sent (the n-th set answers the n-th SYNC: one connection, frames
+    in order) against the node's physics (`plant_rt.model.Plant`) at that SYNC, driven
+    by the demand it had latched, the last RPDO1 before the SYNC. Returns the largest
+    demand mismatch (A), the largest mismatch of each TPDO signal and the RPDOs seen."""
+    from bench.control import Controller, ControllerParams
+    from bench.ecu.period import float32_limit
+    from ema_contract.frames import Frames
+    from plant_rt.model import Plant
+    params = PlantParams()
+    ts = params.sim.sync_period_s
+    n = int(round(profile.duration_s / ts))
+    sp_pos, sp_spd = profile.setpoints(np.arange(n) * ts)
+    ctrl = Controller(ControllerParams(sample_period_s=ts))
+    limit = float32_limit(params.motor.current_max_a)
+    cpr = params.sensors.encoder_counts_per_rev
+    plant, frames = Plant(params), Frames()
+    names = {frames.cob[f]: f for f in ("EMA_TPDO1", "EMA_TPDO2", "EMA_TPDO3")}
+    latest: dict[str, dict] = {}
+    expected: list[dict[str, float]] = []
+    got: dict[str, list[float]] = {k: [] for k in QUANT_TPDO}
+    held, k, demand_err, n_rpdo = (0.0, 0), -1, 0.0, 0
+    with can.LogReader(log) as reader:
+        for msg in reader:
+            cid = msg.arbitration_id
+            if cid == frames.cob["SYNC"]:
+                k += 1
+                m = plant.measure()
+                expected.append({"MotorCurrent": m.current_a, "EncoderSpeed":
+                                 m.motor_speed_rad_s, "LvdtPosition": m.position_m,
+                                 "EncoderAngle": round(m.motor_angle_rad * cpr / 2 / np.pi)})
+                plant.step(held[0] if held[1] & 1 else 0.0)
+            elif cid in names:
+                sig = frames.decode(msg)[1]
+                latest[names[cid]] = sig
+                for key in QUANT_TPDO:
+                    if key in sig:
+                        got[key].append(float(sig[key]))
+            elif cid == frames.cob["EMA_RPDO1"]:
+                sig = frames.decode(msg)[1]
+                want = ctrl.step(sp_pos[k], sp_spd[k], int(profile.mode),
+                                 float(latest["EMA_TPDO3"]["LvdtPosition"]),
+                                 float(latest["EMA_TPDO2"]["EncoderSpeed"]))
+                want = float(np.float32(min(max(want, -limit), limit)))
+                demand_err = max(demand_err, abs(want - float(sig["CurrentDemand"])))
+                held, n_rpdo = (float(sig["CurrentDemand"]), int(sig["ControlWord"])), n_rpdo + 1
+    sensor_err = {key: max(abs(g - e[key]) for g, e in zip(vals, expected, strict=False))
+                  for key, vals in got.items()}
+    return demand_err, sensor_err, n_rpdo
+
+
 def start_minimal_node(cfg: dict, state: Path, *args: str) -> Child:
     """The test double as its own process on `cfg`; waits (bounded) until it is on the bus."""
     ready = state / f"minimal-{time.monotonic_ns()}.ready"
@@ -163,17 +223,21 @@ def test_realtime_run_reports_what_is_missing_and_completes(node_env, tmp_path):
     pos = tr["position_m"]
     missing = tr.meta["bus_rows"]["missing_frames"]["EMA_TPDO3"]
     assert int((~np.isfinite(pos)).sum()) == missing < len(tr)
-    # the loop is closed through the node: the nut follows the 0.5 mm sine (in-process:
-    # median error 0.105 mm, peak 0.48 mm, correlation 0.954; a nut that stays at 0:
-    # median error 0.35 mm, no correlation). Real time on a loaded machine leaves the
-    # ECU on stale TPDOs for bursts of periods (load average 7: 60-75 % late sets, one
-    # run in 8 with a 4 mm excursion, median error 0.12 mm): hence the median and
-    # generous bounds
-    sp = tr["setpoint_position_m"]
+    # the loop is closed through the node, exactly, whatever the load: every demand is the
+    # controller's answer to what the ECU had, every TPDO set is the physics driven by
+    # the demands the node had. How well the nut then follows the set-point is not
+    # something real time guarantees on a shared machine (the ECU goes on stale TPDO sets
+    # for bursts of periods: at load ~2 a run once had a median position error of 3.1
+    # mm, against 0.105 mm in-process); lockstep does, and
+    # test_lockstep_on_a_sync_driven_node_equals_in_process checks it period by period
+    demand_err, sensor_err, n_rpdo = closed_loop_mismatch(log, make_profile("sine",
+                                                                            duration_s=1.0))
+    assert 0 < n_rpdo <= len(tr)
+    assert demand_err == 0.0
+    for name, err in sensor_err.items():
+        assert err <= 1.001 * QUANT_TPDO[name], (name, err)
     ok = np.isfinite(pos)
-    assert np.median(np.abs(pos[ok] - sp[ok])) < 0.2e-3
-    assert np.corrcoef(pos[ok], sp[ok])[0, 1] > 0.5
-    assert 0.35e-3 < np.max(np.abs(pos[ok])) < 5e-3
+    assert np.max(np.abs(pos[ok])) > 0.35e-3      # the nut moved (a 0.5 mm sine)
     # the log is complete: every SYNC, and the node's three TPDOs for each of them
     with can.LogReader(log) as reader:
         ids = Counter(m.arbitration_id for m in reader)

@@ -36,6 +36,7 @@ def test_up_status_run_down(state_env, tmp_path):
               timeout=120)
     assert r.returncode == 0, r.stderr
     assert "hub: pid" in r.stdout and "plant: pid" in r.stdout and "127.0.0.1" in r.stdout
+    assert "waiting for its boot-up" in r.stderr      # what `bench up` waits for
     r = bench("up", env=state_env)
     assert "already up" in r.stdout
     r = bench("status", env=state_env)
@@ -46,7 +47,7 @@ def test_up_status_run_down(state_env, tmp_path):
     r = bench("run", "velocity-step", "--pace", "sync", "--set", "effects.backlash_m=1e-5",
               env=state_env, timeout=120)
     assert r.returncode == 0, r.stderr
-    assert "300 periods" in r.stdout and "(loopback hub)" in r.stdout
+    assert "300 periods" in r.stdout and "(loopback hub of the bench in " in r.stdout
     r = bench("status", "--all", env=state_env)
     assert "effects.backlash_m = 1e-05" in r.stdout and "effects.preload_n = 1500" in r.stdout
     assert f"{len(PARAMS)}" and r.stdout.count(" = ") == len(PARAMS)
@@ -127,3 +128,42 @@ def test_helper_scripts_help(cmd):
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=60, cwd=str(ROOT))
     assert r.returncode == 0, r.stderr
     assert "usage:" in r.stdout
+
+
+def test_one_bench_per_user_whatever_the_working_directory(tmp_path):
+    """Without $BENCH_STATE_DIR and $XDG_RUNTIME_DIR the state was in ./.bench: `bench
+    status` in a subfolder said "bench is not up" while it ran, and `bench run` from
+    another folder silently started a second hub and plant. Now every folder talks to
+    the one bench of the user, and each command says which (its state directory)."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("BENCH_STATE_DIR", "XDG_RUNTIME_DIR", "CAN_INTERFACE", "CAN_CHANNEL",
+                        "CAN_CONFIG")}
+    env.update(TMPDIR=str(tmp), PYTHONPATH=os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    state = tmp / f"ema-bench-{os.getuid()}"
+    here, sub, other = tmp_path / "a", tmp_path / "a" / "sub", tmp_path / "b"
+    for d in (sub, other):
+        d.mkdir(parents=True)
+
+    def run(cwd, *args, timeout=120):
+        return subprocess.run([sys.executable, "-m", "bench", *args], capture_output=True,
+                              text=True, timeout=timeout, env=env, cwd=str(cwd))
+
+    r = run(here, "up", "--pace", "sync", timeout=180)
+    try:
+        assert r.returncode == 0, r.stderr
+        assert f"state: {state}" in r.stdout
+        r = run(sub, "status")
+        assert r.returncode == 0, r.stderr
+        assert f"state: {state}" in r.stdout and "pace sync" in r.stdout
+        r = run(other, "run", "step", "--duration", "0.1", "--no-progress")
+        assert r.returncode == 0, r.stderr
+        assert "starting a plant" not in r.stderr and "private" not in r.stdout
+        assert f"loopback hub of the bench in {state}" in r.stdout
+        assert not (here / ".bench").exists() and not (other / ".bench").exists()
+    finally:
+        r = run(other, "down")
+    assert "stopped plant" in r.stdout and "stopped hub" in r.stdout, r.stdout + r.stderr
+    assert str(state) in r.stdout

@@ -1,13 +1,22 @@
 """The built wheel works on its own: `pip wheel` of the checkout, installed with --no-deps
-into a clean virtual environment (its dependencies from the system site-packages, so
-nothing is downloaded but pip's own build requirements from its configured indexes), then
-`bench demo --in-process` run from it with the working directory outside the checkout and
-no PYTHONPATH, so the checkout's files (the DBC, the EDS) cannot be found by accident."""
+into a clean virtual environment (its dependencies from the running interpreter's
+site-packages, so nothing is downloaded but pip's own build requirements from its
+configured indexes), then `bench demo --in-process` run from it with the working
+directory outside the checkout and no PYTHONPATH, so the checkout's files (the DBC, the
+EDS) cannot be found by accident.
+
+The suite may itself run inside a virtual environment (the README's way on a PEP 668
+system): `python -m venv --system-site-packages` then links the new environment to the
+base interpreter's site-packages, where the dependencies are not, so `import can` failed.
+The dependencies are where the running interpreter finds them: its own site-packages
+are listed in a ``.pth`` file of the new environment (directories only, so their ``.pth``
+files, an editable install of the checkout among them, are not run)."""
 
 from __future__ import annotations
 
 import os
 import shutil
+import site
 import subprocess
 import sys
 import zipfile
@@ -24,6 +33,24 @@ def _run(cmd: list[str], cwd: Path, env: dict[str, str], timeout: float
                        timeout=timeout)
     assert r.returncode == 0, f"{cmd}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
     return r
+
+
+def running_site_packages() -> list[str]:
+    """The site-packages of the running interpreter when it is a virtual environment's
+    (where its dependencies are), else none (`--system-site-packages` has them)."""
+    if sys.prefix == sys.base_prefix:
+        return []
+    return [p for p in site.getsitepackages() if Path(p).is_dir()]
+
+
+def _see_running_site_packages(py: Path, cwd: Path, env: dict[str, str]) -> None:
+    """A ``.pth`` in the new environment `py` listing `running_site_packages`."""
+    dirs = running_site_packages()
+    if not dirs:
+        return
+    purelib = _run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                   cwd, env, 120).stdout.strip()
+    (Path(purelib) / "_running_site_packages.pth").write_text("\n".join(dirs) + "\n")
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +74,7 @@ def venv(tmp_path_factory) -> tuple[Path, dict[str, str], Path]:
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(tmp / "venv")],
                    check=True, timeout=120)
     py = tmp / "venv" / "bin" / "python"
+    _see_running_site_packages(py, tmp, env)
     # --ignore-installed: the system site-packages may hold an editable install of the
     # checkout; the venv's own copy shadows it
     _run([str(py), "-m", "pip", "install", "--no-deps", "--ignore-installed", "--quiet",

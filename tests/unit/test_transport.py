@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import socket
+import tempfile
 import threading
 import time
 
@@ -63,7 +64,7 @@ def test_vcan0_then_hub(clean_env, monkeypatch):
         T.write_state(T.HUB_FILE, {"pid": os.getpid(), "port": port})
         cfg, source = T.resolve({})
         assert cfg == {"interface": "remote", "channel": f"ws://127.0.0.1:{port}/"}
-        assert source == "loopback hub"
+        assert source == f"loopback hub of the bench in {T.state_dir()}"
         monkeypatch.setattr(T, "socketcan_works", lambda channel="vcan0": True)
         assert T.resolve({})[0] == {"interface": "socketcan", "channel": "vcan0"}
     finally:
@@ -125,3 +126,53 @@ def test_hub_periodic_tasks(hub):
     finally:
         a.shutdown()
         b.shutdown()
+
+
+@pytest.fixture
+def no_state_env(monkeypatch, tmp_path):
+    """Neither $BENCH_STATE_DIR nor $XDG_RUNTIME_DIR; the temporary directory (and home)
+    under `tmp_path`, so the test's state directory is its own."""
+    monkeypatch.delenv(T.STATE_ENV, raising=False)
+    monkeypatch.delenv("XDG_RUNTIME_DIR", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    return tmp_path
+
+
+def test_state_dir_is_the_same_from_every_working_directory(no_state_env, monkeypatch):
+    """Without $XDG_RUNTIME_DIR the state directory was ./.bench: `bench up` in one folder
+    and `bench status` in another talked to two benches. Now it is one per user."""
+    seen = set()
+    for sub in ("a", "a/b", "c"):
+        d = no_state_env / sub
+        d.mkdir(parents=True, exist_ok=True)
+        monkeypatch.chdir(d)
+        seen.add(T.state_dir())
+    assert len(seen) == 1, seen
+    d = seen.pop()
+    assert d == no_state_env / "tmp" / f"ema-bench-{os.getuid()}"
+    st = os.lstat(d)
+    assert st.st_mode & 0o777 == 0o700 and st.st_uid == os.getuid()
+    monkeypatch.setenv(T.STATE_ENV, str(no_state_env / "mine"))   # still the override
+    assert T.state_dir() == no_state_env / "mine"
+
+
+def test_state_dir_refuses_a_temporary_directory_it_does_not_own(no_state_env, monkeypatch):
+    """Anyone may create the name in a shared temporary directory first: a link (or a
+    directory of another user) is not used; the state goes to ~/.cache/ema-bench."""
+    target = no_state_env / "elsewhere"
+    target.mkdir()
+    (no_state_env / "tmp" / f"ema-bench-{os.getuid()}").symlink_to(target)
+    assert T.state_dir() == no_state_env / "home" / ".cache" / "ema-bench"
+    T.write_state(T.HUB_FILE, {"pid": os.getpid(), "port": 1234})
+    assert not list(target.iterdir())
+    assert os.lstat(T.state_dir()).st_mode & 0o777 == 0o700
+
+
+def test_a_world_readable_own_state_dir_is_closed(no_state_env):
+    d = no_state_env / "tmp" / f"ema-bench-{os.getuid()}"
+    d.mkdir(mode=0o755)
+    os.chmod(d, 0o755)
+    assert T.state_dir() == d
+    assert os.lstat(d).st_mode & 0o777 == 0o700
