@@ -103,7 +103,7 @@ def _main(argv: list[str] | None) -> int:
         parser.print_help()
         return 2
     try:
-        rc = args.func(args)
+        rc = _run(args)
     except BenchError as exc:
         if args.debug:
             traceback.print_exc()
@@ -121,6 +121,17 @@ def _main(argv: list[str] | None) -> int:
               file=sys.stderr)
         return 1
     return int(rc or 0)
+
+
+def _run(args: argparse.Namespace) -> int | None:
+    """The command, once its outputs are checked against its inputs (none is one of them,
+    `bench.cli.outputs.check_io`) and with its inputs guarded while it runs
+    (`bench.filenames.protect`: a file named from data that would be one is refused)."""
+    from bench.cli.outputs import check_io, inputs
+    from bench.filenames import protect
+    check_io(args)
+    with protect(inputs(args)):
+        return args.func(args)
 
 
 def _reader_gone() -> int:

@@ -25,9 +25,11 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     s = p.add_subparsers(title="fleet commands", dest="fleet_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
 
+    from bench.fleet.store import default_db
+
     def db(q: argparse.ArgumentParser) -> None:
-        q.add_argument("--db", default=None, help="the store (default: $BENCH_FLEET_DB, "
-                       "else fleet.duckdb)")
+        q.add_argument("--db", default=str(default_db()), help="the store (default: "
+                       "$BENCH_FLEET_DB, else fleet.duckdb)")
 
     def pool(q: argparse.ArgumentParser) -> None:
         q.add_argument("--workers", type=int, default=None,

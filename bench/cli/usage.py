@@ -84,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from bench.bus.logs import load_trace
+    from bench.filenames import distinct_labels
     from bench.usage import UsageSettings, accumulate, usage_of_trace
     from bench.usage.accumulator import trace_params
     from bench.usage.table import format_table, notes
@@ -98,9 +99,10 @@ def run(args: argparse.Namespace) -> int:
         if args.load_rating_n is not None:
             params = params.with_dict({"screw.dynamic_load_rating_n": args.load_rating_n})
         runs.append((f, usage_of_trace(tr, settings, params)))
-    print(format_table([(Path(f).name, s) for f, s in runs]))
-    for f, s in runs:
-        for line in notes(Path(f).name, s):
+    labels = distinct_labels([f for f, _ in runs])
+    print(format_table([(lab, s) for lab, (_, s) in zip(labels, runs, strict=True)]))
+    for lab, (_, s) in zip(labels, runs, strict=True):
+        for line in notes(lab, s):
             print(line)
     per_actuator = accumulate([s for _, s in runs])
     if args.by_actuator:
@@ -116,17 +118,23 @@ def run(args: argparse.Namespace) -> int:
         Path(args.json).write_text(json.dumps(doc, indent=1))
         print(f"wrote {args.json}")
     if args.plot:
-        _plots(args.plot, runs, per_actuator)
+        _plots(args.plot, list(zip(labels, runs, strict=True)), per_actuator)
     return 0
 
 
 def _plots(directory: str, runs, per_actuator) -> None:
+    """A figure per run (`runs`: (label, (file, summary))) and per actuator, each named
+    through `bench.filenames.data_file` (inside `directory`, distinct for distinct runs
+    and serial numbers)."""
+    from bench.filenames import data_file
     from bench.usage.figure import save_usage_figure
     out = Path(directory)
+    figures = [(data_file(out, f"{label}_usage", ".png"), s,
+                f"{label}: actuator {s.actuator_serial}") for label, (_, s) in runs]
+    figures += [(data_file(out, f"actuator_{k}_usage", ".png"), s,
+                 f"actuator {k}: {s.runs:g} run(s)") for k, s in per_actuator.items()]
     out.mkdir(parents=True, exist_ok=True)
-    for f, s in runs:
-        save_usage_figure(s, f"{Path(f).name}: actuator {s.actuator_serial}",
-                          out / f"{Path(f).stem}_usage.png")
-    for k, s in per_actuator.items():
-        save_usage_figure(s, f"actuator {k}: {s.runs:g} run(s)", out / f"actuator_{k}_usage.png")
-    print(f"wrote {len(runs) + len(per_actuator)} figure(s) into {out}")
+    for path, s, title in figures:
+        save_usage_figure(s, title, path)
+    written = {p for p, _, _ in figures}
+    print(f"wrote {len(written)} figure(s) into {out}")

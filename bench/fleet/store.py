@@ -116,6 +116,11 @@ class Store:
         paths = []
         for t in TABLES:
             p = out / f"{t}.parquet"
+            if p.exists() and os.path.samefile(p, self.path):
+                raise BenchError(f"--out {out}: {p.name} would be written over the store "
+                                 f"{self.path} itself: export into another folder")
+        for t in TABLES:
+            p = out / f"{t}.parquet"
             self.con.execute(f"COPY (SELECT * FROM {t}) TO '{_quote(p)}' (FORMAT parquet)")
             paths.append(p)
         return paths

@@ -369,8 +369,11 @@ def split_table(table: str | Path, mapping: list[MapEntry], keys: list[str],
 
 
 def _key_text(v: float) -> str:
-    """A split key's value in a file name: 20 -> '20', -40 -> '-40', 2.5 -> '2.5'."""
-    return str(int(v)) if float(v).is_integer() else f"{v:g}"
+    """A split key's value in a file name: 20 -> '20', -40 -> '-40', 2.5 -> '2.5',
+    100.0001 -> '100.0001' (the shortest text that reads back as the same number, so
+    distinct keys keep distinct names)."""
+    v = float(v)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e16 else repr(v)
 
 
 def build_trace(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry], source: str,
