@@ -65,8 +65,9 @@ def data_file(directory: str | Path, text: str, suffix: str = "") -> Path:
 def distinct_labels(paths: Sequence[str | Path]) -> list[str]:
     """A label per path for tables and reports: its file name, or as many of its last
     path parts as make the labels of distinct paths distinct (``a/run.log`` and
-    ``b/run.log``); a path given twice gets `` (2)``, `` (3)``..."""
-    parts = [Path(os.path.abspath(p)).parts for p in paths]
+    ``b/run.log``); a path given twice gets `` (2)``, `` (3)``...; ``-`` (standard
+    input) is ``stdin``."""
+    parts = [("stdin",) if str(p) == "-" else Path(os.path.abspath(p)).parts for p in paths]
     depth = [1] * len(parts)
     while True:
         labels = ["/".join(pp[-d:]) for pp, d in zip(parts, depth, strict=True)]

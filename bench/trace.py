@@ -112,13 +112,8 @@ class Trace:
                                       **self.columns}
             np.savez_compressed(path, **arrays)
         elif suffix == ".csv":
-            names = list(self.columns)
             with path.open("w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(names)
-                data = np.column_stack([self.columns[n] for n in names])
-                for row in data:
-                    w.writerow([repr(float(x)) for x in row])
+                self.write_csv(fh)
         elif suffix == ".parquet":
             import pyarrow as pa
             import pyarrow.parquet as pq
@@ -129,6 +124,16 @@ class Trace:
         else:
             raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
         return path
+
+    def write_csv(self, fh: Any) -> None:
+        """The table as CSV text into the open text file `fh` (a header of the column
+        names, then one row per sample, each number as its exact shortest text)."""
+        names = list(self.columns)
+        w = csv.writer(fh)
+        w.writerow(names)
+        data = np.column_stack([self.columns[n] for n in names])
+        for row in data:
+            w.writerow([repr(float(x)) for x in row])
 
     @classmethod
     def load(cls, path: str | Path) -> Trace:

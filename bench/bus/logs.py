@@ -43,6 +43,7 @@ from bench.bus.logread import (
     MAX_LINE,
     LogIssue,
     LogIssues,
+    is_stdin,
     parse_line,
     read_frames,
     read_log,
@@ -203,7 +204,7 @@ def _counting_order(messages: Iterable[can.Message], dec: RowAssembler
 
 def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float | None = None,
                    counts_per_rev: int | None = None,
-                   issues: Any = None) -> Trace:
+                   issues: Any = None, fmt: str | None = None) -> Trace:
     """The signal table of a log (for the HUMS, the gap diagnosis, `bench decode`): candump
     ``.log`` or any other format of LOG_FORMATS (`bench.bus.logread.read_frames`).
 
@@ -212,17 +213,22 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
     is kept. A log whose frames are out of time order (``meta["out_of_order"]``) is
     decoded again in time-stamp order (``meta["sorted_by_time"]``): every stamp of a log
     is the time its frame was on the bus, taken on one clock, so the stamps keep the bus
-    order that an edited or merged file lost. BenchError when no SYNC period is found."""
+    order that an edited or merged file lost. BenchError when no SYNC period is found.
+    `path` ``-`` is standard input; `fmt` names the format (default: the suffix,
+    candump -L on standard input; `bench.bus.logread.source_format`)."""
     found = LogIssues(100) if issues is None else issues
     first = _Counted(found)
     try:
-        tr = trace_from_messages(read_frames(path, first, raw=True), node_id, period_s,
+        tr = trace_from_messages(read_frames(path, first, raw=True, fmt=fmt), node_id, period_s,
                                  counts_per_rev, found, source=str(path),
                                  stop_on_disorder=True)
     except _OutOfOrder:        # read it all again, in time-stamp order
-        tr = trace_from_messages(read_frames(path, _Counted(found, skip=first.seen)), node_id,
+        tr = trace_from_messages(read_frames(path, _Counted(found, skip=first.seen), fmt=fmt),
+                                 node_id,
                                  period_s, counts_per_rev, found, source=str(path),
                                  sort_by_time=True)
+    if is_stdin(path):
+        path = "standard input"
     if not len(tr):
         n = len(found)
         first_issue = next(iter(found), None)
@@ -253,9 +259,12 @@ class _Counted:
 TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
 
 
-def load_trace(path: str | Path) -> Trace:
-    """A bus log (LOG_FORMATS, decoded through the DBC) or a saved trace table (.npz,
-    .csv, .parquet) as a Trace; BenchError naming the file when it cannot be read."""
+def load_trace(path: str | Path, fmt: str | None = None) -> Trace:
+    """A bus log (LOG_FORMATS, decoded through the DBC; ``-``: standard input, `fmt`: the
+    format where the suffix does not say it) or a saved trace table (.npz, .csv, .parquet)
+    as a Trace; BenchError naming the file when it cannot be read."""
+    if is_stdin(path) or fmt:
+        return trace_from_log(path, fmt=fmt)
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such file: {path}")

@@ -25,8 +25,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         "accumulated per actuator by the serial number the ECU read from object 0x1018 "
         "(docs/usage.md).")
     p.add_argument("files", nargs="+", metavar="LOG_OR_TRACE",
-                   help="candump .log, or a trace saved by bench run --save (.npz, .csv, "
-                        ".parquet)")
+                   help="candump .log ('-': candump -L on standard input), or a trace "
+                        "saved by bench run --save (.npz, .csv, .parquet)")
     p.add_argument("--by-actuator", action="store_true",
                    help="also print the runs accumulated per actuator (serial number)")
     p.add_argument("--json", metavar="OUT.json", help="write every run and every actuator")
@@ -58,8 +58,10 @@ def _check(args: argparse.Namespace) -> None:
         check_output_file(args.json, "--json", (".json",))
     if args.plot:
         check_output_dir(args.plot, "--plot")
+    if args.files.count("-") > 1:
+        raise BenchError("standard input (-) can be given once")
     for f in args.files:
-        if not Path(f).is_file():
+        if f != "-" and not Path(f).is_file():
             raise BenchError(f"no such file: {f}")
 
 
