@@ -87,6 +87,16 @@ def distinct_labels(paths: Sequence[str | Path]) -> list[str]:
     return out
 
 
+def one_line(text: str) -> str:
+    """`text` for one line of a table or a message: a character that does not show (a
+    newline, a tab, any control character) written as its escape (``\\n``), so data
+    cannot forge a line of its own."""
+    text = str(text)
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 def _identity(path: str | Path) -> tuple[int, int] | None:
     try:
         st = os.stat(path)

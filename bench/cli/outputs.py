@@ -232,7 +232,10 @@ def _same(a: str, b: str) -> bool:
 
 def check_io(args: Namespace) -> None:
     """Before the command runs: no output of `args` resolves to one of its inputs, and
-    no two outputs to one path (BenchError naming the options; module docstring)."""
+    no two outputs to one path (BenchError naming the options; module docstring); a
+    ``--workers`` count the machine cannot run (`bench.cluster.check_workers`) and a
+    ``--scheduler`` that is no address are refused too."""
+    _check_pool(args)
     io = IO_TABLE.get(command_name(args))
     if io is None:
         return
@@ -255,6 +258,17 @@ def check_io(args: Namespace) -> None:
             if name2 != name and _same(p, p2):
                 raise BenchError(f"{_flag(name)} and {_flag(name2)} are one file ({p}); "
                                  "give each output its own path")
+
+
+def _check_pool(args: Namespace) -> None:
+    """`--workers` and `--scheduler`, for every command that has them: a scheduler must
+    answer as one (`bench.cluster.probe_scheduler`) before anything is written."""
+    if getattr(args, "workers", None) is not None or getattr(args, "scheduler", None):
+        from bench.cluster import check_workers, probe_scheduler, scheduler_address
+        addr = scheduler_address(getattr(args, "scheduler", None))
+        if addr is not None:
+            probe_scheduler(addr)
+        check_workers(getattr(args, "workers", None), addr)
 
 
 def _arg(name: str) -> str:

@@ -51,7 +51,7 @@ def test_synth_ingest_status_report_export(fleet, tmp_path, capsys):
     page = (rep / "index.html").read_text()
     assert "Inspect this week" in page and "actuators/EMA-0001.html" in page
     assert "x.log" in page                               # the failed log is listed
-    assert (rep / "figures" / "EMA-0000.png").stat().st_size > 5000
+    assert (rep / "actuators" / "EMA-0000.png").stat().st_size > 5000
     assert "fleet overview" in (rep / "actuators" / "EMA-0000.html").read_text()
     assert main(["fleet", "export", "--db", db, "--out", str(tmp_path / "pq")]) == 0
     # plain duckdb, no bench: the Parquet export and the store itself
