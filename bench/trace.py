@@ -155,6 +155,9 @@ class Trace:
         except Exception as exc:  # noqa: BLE001 - zipfile, numpy, json, pyarrow raise many types
             raise BenchError(f"{path}: not a readable {suffix} trace ({type(exc).__name__}: "
                              f"{exc})") from None
+        if not isinstance(meta, dict):
+            raise BenchError(f"{path}: its metadata is not a JSON object but "
+                             f"{type(meta).__name__}; {NOT_A_TRACE}")
         if "t_s" not in cols:
             raise BenchError(f"{path}: no time column t_s (it has: "
                              f"{', '.join(sorted(cols)) or 'none'}); {NOT_A_TRACE}")

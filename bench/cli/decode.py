@@ -73,8 +73,9 @@ def run(args: argparse.Namespace) -> int:
     for line in report_issues(issues):
         print(f"{name}: {line}", file=sys.stderr)
     m = tr.meta
+    src = (m.get("clock") or {}).get("source", "default")
     print(f"{name}: {m['frames']} frames, {len(tr)} SYNC periods of {m['period_s'] * 1e3:g} "
-          f"ms, {m['runs']} run(s), {m['bad_frames']} bad frames, {m['sync_gaps']} lost SYNCs, "
+          f"ms ({'the default' if src == 'default' else src}), {m['runs']} run(s), {m['bad_frames']} bad frames, {m['sync_gaps']} lost SYNCs, "
           f"{len(issues)} bad lines, {m['emcy_count']} EMCY, "
           f"{len(m['params_from_sdo'])} parameters from SDO", file=say)
     found = integrity(m)
