@@ -178,8 +178,9 @@ def trace_from_messages(messages: Iterable[Any], node_id: int | None = None,
         params = PlantParams().with_dict(values)
     except ParameterError:
         params = PlantParams()
+    pace = dec.sdo.values.get((0x2200, 1))
     clock = log_clock(rows, period_s, values.get("sim.sync_period_s"),
-                      dec.sdo.values.get((0x2200, 1)) == bytes([int(Pace.SYNC)]))
+                      pace is not None and int.from_bytes(pace, "little") == int(Pace.SYNC))
     ts = clock["period_s"] or params.sim.sync_period_s
     cpr = counts_per_rev or params.sensors.encoder_counts_per_rev
     cols = trace_columns(rows, ts, cpr)

@@ -50,6 +50,10 @@ def test_another_devices_log_on_the_same_cob_ids_is_refused(tmp_path, capsys):
         assert main(argv) == 2
         err = capsys.readouterr().err.strip()
         assert "not this node's layout" in err and len(err.splitlines()) == 1, err
+    assert main(["fleet", "ingest", str(path), "--db", str(tmp_path / "f.duckdb"),
+                 "--workers", "1"]) == 0
+    out = capsys.readouterr()
+    assert "0 runs stored, 1 failed" in out.out and "not this node's layout" in out.err
 
 
 def test_a_few_damaged_frames_are_counted_emptied_and_said(tmp_path):

@@ -131,3 +131,19 @@ def test_two_outputs_at_one_path_are_refused(tmp_path, capsys):
                "--calibration-out",
                str(tmp_path / "x.json")])
     one_line(capsys, rc, "are one file")
+
+
+def test_every_error_is_one_line(tmp_path, capsys):
+    """argparse's usage errors printed the usage text, then the error; a newline in a
+    path gave an error of two lines; a file name too long for the system was exit 1
+    "OSError"; an npz whose metadata is no JSON object an AttributeError."""
+    import numpy as np
+    with pytest.raises(SystemExit) as ex:
+        main(["decode", "x.log", "--period", "abc"])
+    assert ex.value.code == 2
+    one_line(capsys, 2, "bench decode: argument --period: invalid float value: 'abc'")
+    one_line(capsys, main(["fleet", "status", "--db", "a\nb"]), "a\\nb")
+    one_line(capsys, main(["fleet", "status", "--db", "x" * 300]), "File name too long")
+    np.savez(tmp_path / "t.npz", __meta__="[1, 2]", t_s=np.arange(3.0))
+    one_line(capsys, main(["usage", str(tmp_path / "t.npz")]),
+             "its metadata is not a JSON object but list")
