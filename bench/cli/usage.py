@@ -102,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
             params = params.with_dict({"screw.dynamic_load_rating_n": args.load_rating_n})
         runs.append((f, usage_of_trace(tr, settings, params)))
     labels = distinct_labels([f for f, _ in runs])
+    stems = distinct_labels([Path(f).with_suffix("") for f, _ in runs])     # figure names
     print(format_table([(lab, s) for lab, (_, s) in zip(labels, runs, strict=True)]))
     for lab, (_, s) in zip(labels, runs, strict=True):
         for line in notes(lab, s):
@@ -120,19 +121,19 @@ def run(args: argparse.Namespace) -> int:
         Path(args.json).write_text(json.dumps(doc, indent=1))
         print(f"wrote {args.json}")
     if args.plot:
-        _plots(args.plot, list(zip(labels, runs, strict=True)), per_actuator)
+        _plots(args.plot, list(zip(labels, stems, runs, strict=True)), per_actuator)
     return 0
 
 
 def _plots(directory: str, runs, per_actuator) -> None:
-    """A figure per run (`runs`: (label, (file, summary))) and per actuator, each named
-    through `bench.filenames.data_file` (inside `directory`, distinct for distinct runs
-    and serial numbers)."""
+    """A figure per run (`runs`: (label, stem, (file, summary))) and per actuator, each
+    named through `bench.filenames.data_file` (``STEM_usage.png``, ``actuator_S_usage.png``:
+    inside `directory`, distinct for distinct runs and serial numbers)."""
     from bench.filenames import data_file
     from bench.usage.figure import save_usage_figure
     out = Path(directory)
-    figures = [(data_file(out, f"{label}_usage", ".png"), s,
-                f"{label}: actuator {s.actuator_serial}") for label, (_, s) in runs]
+    figures = [(data_file(out, f"{stem}_usage", ".png"), s,
+                f"{label}: actuator {s.actuator_serial}") for label, stem, (_, s) in runs]
     figures += [(data_file(out, f"actuator_{k}_usage", ".png"), s,
                  f"actuator {k}: {s.runs:g} run(s)") for k, s in per_actuator.items()]
     out.mkdir(parents=True, exist_ok=True)
