@@ -64,9 +64,76 @@ def check_address(address: str) -> None:
                          ) from None
 
 
+PROBE_TIMEOUT_S = 5.0
+"""How long a scheduler has to accept a connection and send its handshake."""
+MAX_HANDSHAKE_BYTES = 1 << 26
+
+
+def probe_scheduler(address: str, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """BenchError in one line, within `timeout`, unless a Dask scheduler answers at the
+    tcp:// `address`: it accepts the connection and sends its handshake at once (a
+    distributed comm's first frame: an 8-byte length). Something else listening there
+    (an HTTP server) sends nothing, and a distributed Client would wait out its whole
+    connect timeout and say only "timed out". Other schemes are left to the Client."""
+    import socket
+
+    from distributed.comm.addressing import get_address_host_port, parse_address
+    check_address(address)
+    scheme, _ = parse_address(address)
+    if scheme != "tcp":
+        return
+    host, port = get_address_host_port(address)
+    what = f"the Dask scheduler {address}"
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except OSError as exc:
+        raise BenchError(f"cannot reach {what}: {exc.strerror or exc} (is it running? "
+                         "`dask scheduler --host 127.0.0.1` starts one)") from None
+    try:
+        sock.settimeout(timeout)
+        head = b""
+        while len(head) < 8:
+            got = sock.recv(8 - len(head))
+            if not got:
+                break
+            head += got
+    except OSError:
+        head = b""
+    finally:
+        sock.close()
+    if len(head) < 8 or not 0 < int.from_bytes(head, "little") < MAX_HANDSHAKE_BYTES:
+        raise BenchError(f"{what} is not a Dask scheduler: something listens there but "
+                         f"sent no Dask handshake within {timeout:g} s (an HTTP server? a "
+                         "dashboard port?); give the scheduler's own port (default 8786)")
+
+
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity, else the machine's count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
 def default_workers() -> int:
     """Two workers, or one on a one-core machine."""
-    return max(1, min(2, os.cpu_count() or 1))
+    return max(1, min(2, cores()))
+
+
+def check_workers(workers: int | None, scheduler: str | None = None) -> None:
+    """BenchError (one line, before any work) for a worker count below 1, or above the
+    cores this process may use when the workers would be local processes (500 workers on
+    2 cores started 500 processes); the commands' default of 2 is not refused on one
+    core (`Engine` starts no more local workers than cores). With a scheduler the
+    workers are the cluster's."""
+    if workers is None:
+        return
+    if workers < 1:
+        raise BenchError(f"--workers must be >= 1, not {workers}")
+    if scheduler_address(scheduler) is None and workers > max(cores(), 2):
+        raise BenchError(f"--workers {workers}: this machine lets the bench use {cores()} "
+                         f"core(s); at most {cores()} local worker processes (or give "
+                         "--scheduler for a cluster's)")
 
 
 class Engine:
@@ -76,8 +143,10 @@ class Engine:
 
     def __init__(self, workers: int, scheduler: str | None = None, wait: bool = True,
                  announce: bool = False, timeout: float | None = None) -> None:
-        self.workers = max(1, int(workers))
         self.scheduler = scheduler_address(scheduler)
+        self.workers = max(1, int(workers))
+        if self.scheduler is None:          # never more local processes than cores
+            self.workers = min(self.workers, cores())
         if self.scheduler is not None:
             check_address(self.scheduler)
         self.announce = announce
@@ -99,6 +168,7 @@ class Engine:
         try:
             from distributed import Client
             if self.scheduler is not None:
+                probe_scheduler(self.scheduler)
                 self._client = Client(self.scheduler, timeout=self.timeout,
                                       set_as_default=False)
             else:
@@ -119,6 +189,9 @@ class Engine:
         process."""
         self._thread.join(1.5 * self.timeout + 10.0)
         if self._thread.is_alive() or self._error is not None or self._client is None:
+            if isinstance(self._error, BenchError):
+                self.close()
+                raise self._error
             why = ("timed out" if self._thread.is_alive() else
                    f"{type(self._error).__name__}: {self._error}")
             self.close()

@@ -112,13 +112,8 @@ class Trace:
                                       **self.columns}
             np.savez_compressed(path, **arrays)
         elif suffix == ".csv":
-            names = list(self.columns)
             with path.open("w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(names)
-                data = np.column_stack([self.columns[n] for n in names])
-                for row in data:
-                    w.writerow([repr(float(x)) for x in row])
+                self.write_csv(fh)
         elif suffix == ".parquet":
             import pyarrow as pa
             import pyarrow.parquet as pq
@@ -129,6 +124,16 @@ class Trace:
         else:
             raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
         return path
+
+    def write_csv(self, fh: Any) -> None:
+        """The table as CSV text into the open text file `fh` (a header of the column
+        names, then one row per sample, each number as its exact shortest text)."""
+        names = list(self.columns)
+        w = csv.writer(fh)
+        w.writerow(names)
+        data = np.column_stack([self.columns[n] for n in names])
+        for row in data:
+            w.writerow([repr(float(x)) for x in row])
 
     @classmethod
     def load(cls, path: str | Path) -> Trace:
@@ -150,6 +155,9 @@ class Trace:
         except Exception as exc:  # noqa: BLE001 - zipfile, numpy, json, pyarrow raise many types
             raise BenchError(f"{path}: not a readable {suffix} trace ({type(exc).__name__}: "
                              f"{exc})") from None
+        if not isinstance(meta, dict):
+            raise BenchError(f"{path}: its metadata is not a JSON object but "
+                             f"{type(meta).__name__}; {NOT_A_TRACE}")
         if "t_s" not in cols:
             raise BenchError(f"{path}: no time column t_s (it has: "
                              f"{', '.join(sorted(cols)) or 'none'}); {NOT_A_TRACE}")
@@ -190,12 +198,51 @@ def _read_columns(path: Path, suffix: str) -> tuple[dict[str, np.ndarray], dict[
             meta = json.loads(str(z["__meta__"])) if "__meta__" in z else {}
             return {k: z[k] for k in z.files if k != "__meta__"}, meta
     if suffix == ".csv":
-        return read_csv_columns(path.read_text(encoding="utf-8"), str(path)), {"source": str(path)}
+        text = path.read_text(encoding="utf-8-sig")       # a byte-order mark is dropped
+        return read_csv_columns(text, str(path)), {"source": str(path)}
     import pyarrow.parquet as pq
-    table = pq.read_table(path)
+
+    table = pq.ParquetFile(path).read()         # (a dataset read fails on duplicates)
     md = table.schema.metadata or {}
     meta = json.loads(md.get(b"bench_meta", b"{}"))
-    return {n: table.column(n).to_numpy().astype(float) for n in table.column_names}, meta
+    _unique(path, table.column_names, "column")
+    cols = {}
+    for n, col in zip(table.column_names, table.columns, strict=True):
+        cols[n], stamp = arrow_floats(col)
+        if stamp and n != "t_s":
+            raise BenchError(f"{path}: column {n!r} holds timestamps (a Parquet timestamp "
+                             "type); only the time t_s may (read as seconds)")
+    return cols, meta
+
+
+def arrow_floats(column: Any) -> tuple[np.ndarray, bool]:
+    """A pyarrow column as float64 and whether it was a timestamp or duration (then in
+    seconds: since the Unix epoch in UTC for a timestamp, whatever its own unit and
+    zone). TypeError/ValueError for a column that is not numbers."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    kind = column.type
+    if pa.types.is_timestamp(kind) or pa.types.is_duration(kind):
+        unit = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[kind.unit]
+        ints = pc.cast(column, pa.int64()).to_numpy(zero_copy_only=False)
+        return np.asarray(ints, dtype=float) * unit, True
+    if pa.types.is_date(kind):
+        raise TypeError("a date column, not a time of day")
+    if not (pa.types.is_integer(kind) or pa.types.is_floating(kind)
+            or pa.types.is_boolean(kind) or pa.types.is_null(kind)
+            or pa.types.is_decimal(kind) or pa.types.is_dictionary(kind)):
+        raise TypeError(f"of type {kind}")
+    return column.to_numpy(zero_copy_only=False).astype(float), False
+
+
+def _unique(path: Path | str, names: list[str], where: str) -> None:
+    """BenchError naming a column name given twice (which one is meant is unknown)."""
+    for n in dict.fromkeys(names):
+        at = [i + 1 for i, h in enumerate(names) if h == n]
+        if len(at) > 1:
+            raise BenchError(f"{path} {where} {n!r} appears {len(at)} times in the header "
+                             f"(columns {', '.join(map(str, at))}): which one is meant is "
+                             "unknown; rename the others")
 
 
 def _check_loaded(path: Path, tr: Trace, suffix: str) -> None:
@@ -283,6 +330,7 @@ def read_csv_columns(text: str, source: str = "CSV") -> dict[str, np.ndarray]:
     if not rows:
         raise BenchError(f"{source}: empty CSV table")
     header = [h.strip() for h in rows[0]]
+    _unique(source, header, "line 1: column")
     data: list[list[float]] = []
     for lineno, row in enumerate(rows[1:], start=2):
         if not row:

@@ -81,7 +81,7 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
             initializer: Callable[..., Any] | None = None, initargs: tuple[Any, ...] = (),
             on_result: Callable[[Any], None] | None = None, leave: bool = False,
             scheduler: str | None = None, retries: int = RETRIES,
-            chunk: int = 1) -> list[Any]:
+            chunk: int = 1, label: Callable[[Any], str] | None = None) -> list[Any]:
     """[fn(job) for job in jobs], in job order, as Dask tasks on `workers` local
     processes (default: 2, or 1 on a one-core machine) or on the cluster of `scheduler`
     (an address, default ``$BENCH_DASK_SCHEDULER``; `workers` is then only the in-process
@@ -89,7 +89,8 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
     With ``workers=1`` or a single job everything runs in this process.
     `initializer(*initargs)` runs once in each worker (once here when in-process);
     `on_result(result)` is called as each job finishes (in completion order); a task that
-    raises is retried `retries` times, then its error is a BenchError naming the job.
+    raises is retried `retries` times, then its error is a BenchError naming the job
+    (`label(job)`, e.g. its file, else "job N").
     `chunk` > 1: on a cluster, each task runs that many consecutive jobs (jobs of ~0.1 s
     would otherwise pay Dask's per-task cost, a few ms of scheduler and transfer each);
     their results still come one by one (bar, `on_result`) as their task finishes, and a
@@ -129,7 +130,7 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
             _on_dask(client, fn, jobs, done, desc, retries,
                      None if initializer is None else (initializer, initargs),
                      own_cluster=engine.cluster is not None and shared is None,
-                     chunk=chunk, bar=bar)
+                     chunk=chunk, bar=bar, label=label)
         finally:
             if shared is None:
                 engine.close()
@@ -142,7 +143,8 @@ def run_all(fn: Callable[[Any], Any], jobs: Iterable[Any], workers: int | None =
 def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
              done: Callable[[int, Any], None], desc: str, retries: int,
              init: tuple[Callable[..., Any], tuple[Any, ...]] | None, own_cluster: bool,
-             chunk: int = 1, bar: Any = None) -> None:
+             chunk: int = 1, bar: Any = None, label: Callable[[Any], str] | None = None
+             ) -> None:
     """The jobs as tasks of `client`'s cluster (`chunk` consecutive jobs per task);
     `done(k, result)` as each one finishes; `bar` (tqdm) drawn by `_DaskBar`."""
     from distributed import as_completed
@@ -168,12 +170,8 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
                     result = f.result()
             except BenchError:
                 raise
-            except _JobFailed as exc:
-                raise BenchError(f"{desc}: job {exc.args[0]} failed in a worker: "
-                                 f"{exc.args[1]}") from exc
             except Exception as exc:  # noqa: BLE001 - a task's error: say which job
-                raise BenchError(f"{desc}: job {starts[i]} failed in a worker: "
-                                 f"{type(exc).__name__}: {exc}") from exc
+                raise _job_error(exc, desc, jobs, label, starts[i], size) from exc
             futs[i] = None                 # the cluster may forget it now
             for j, r in enumerate(result):
                 done(starts[i] + j, r)
@@ -188,6 +186,24 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
                 client.unregister_worker_plugin(plugin)
             except Exception:  # noqa: BLE001 - best effort
                 pass
+
+
+def _job_error(exc: BaseException, desc: str, jobs: list[Any],
+               label: Callable[[Any], str] | None, first: int, size: int) -> BenchError:
+    """The BenchError of a task that failed: the job named by `label` (its file, say),
+    else by its number; a task of `size` jobs from `first` that died as a whole names
+    the first and says how many followed it."""
+    def named(k: int) -> str:
+        if label is not None:
+            try:
+                return str(label(jobs[k]))
+            except Exception:  # noqa: BLE001 - a label that fails: the number
+                pass
+        return f"job {k}"
+    if isinstance(exc, _JobFailed):
+        return BenchError(f"{desc}: {named(exc.args[0])} failed in a worker: {exc.args[1]}")
+    which = named(first) if size == 1 else f"{named(first)} (or one of the {size - 1} after it)"
+    return BenchError(f"{desc}: {which} failed in a worker: {type(exc).__name__}: {exc}")
 
 
 class _DaskBar:

@@ -14,6 +14,9 @@ def integrity(meta: dict[str, Any]) -> list[str]:
     table from `bench import`), as short phrases, empty for an intact source: for
     `bench decode`, `bench import`, the HUMS report and the gap diagnosis."""
     out = []
+    clock = meta.get("clock") or {}
+    if clock.get("warning"):
+        out.append(clock["warning"])
     gaps = int(meta.get("sync_gaps") or 0)
     if gaps:
         rec = int(meta.get("sync_recovered") or 0)
@@ -33,6 +36,11 @@ def integrity(meta: dict[str, Any]) -> list[str]:
     if ooo:
         out.append(f"{_n(ooo, 'frame')} out of time order: decoded in "
                    + ("time-stamp order" if meta.get("sorted_by_time") else "log order"))
+    misfit = {k: v for k, v in (meta.get("misfit_frames") or {}).items() if v}
+    if misfit:
+        out.append(f"{_n(sum(misfit.values()), 'frame')} not fitting the DBC's layout "
+                   "(dropped or out of range): " + ", ".join(f"{k} {v}" for k, v in
+                                                              misfit.items()))
     for b in meta.get("nan_blocks") or []:        # an imported table (bench import)
         out.append(f"NaN block in {b['column']} ({b['signal']}): table rows "
                    f"{b['first_row']}-{b['last_row']}, t = {b['t0_s']:.3f}-{b['t1_s']:.3f} s, "

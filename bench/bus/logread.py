@@ -9,14 +9,22 @@ unlike `CanutilsLogReader` (which stops at the first bad line), reports each tru
 or corrupted line with its number and keeps the rest; bad lines are counted and only the
 first ones kept (`LogIssues`), and a line is read MAX_LINE characters at most, so memory
 stays bounded whatever the file holds.
+
+A log may come on standard input (path ``-``: ``candump -L can0 | bench decode -``):
+read once into a spooled buffer (memory up to STDIN_SPOOL_BYTES, then an unnamed
+temporary file), candump -L unless another format is named (`source_format`). A line of
+candump's default output (``  can0  190   [6]  7E 00 ...``, no ``-L``) is a bad line that
+says to record with ``candump -L``.
 """
 
 from __future__ import annotations
 
 import gc
+import io
 import logging
 import re
 import sys
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -31,6 +39,14 @@ from bench.bus.logwrite import LOG_FORMATS, log_format
 LINE = re.compile(r"^\((?P<ts>\d+(?:\.\d*)?)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})"
                   r"#(?P<fd>#[0-9A-Fa-f])?(?P<data>[0-9A-Fa-f]*|R\d{0,2})(?:\s+(?P<dir>[RT]))?$")
 FD_LENGTHS = {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64}
+
+PLAIN_CANDUMP = re.compile(r"^\s*(\(\d+(\.\d*)?\)\s+)?\S+\s+[0-9A-Fa-f]{3,8}\s+\[\d{1,2}\]")
+"""A line of candump's default output (``candump can0``, optionally with ``-t a``)."""
+NOT_L = "candump's default output, not candump -L: record the log with `candump -L`"
+STDIN = "-"
+"""The path that means standard input."""
+STDIN_SPOOL_BYTES = 64 << 20
+"""Standard input held in memory up to this size, then in an unnamed temporary file."""
 
 MAX_LINE = 4096
 """Characters of a log line read at most: a candump -L line of a 64-byte CAN FD frame
@@ -77,6 +93,8 @@ def _match(s: str) -> re.Match[str]:
     """The candump -L fields of a stripped line (ValueError saying why it is not one)."""
     m = LINE.match(s)
     if m is None:
+        if PLAIN_CANDUMP.match(s):
+            raise ValueError(NOT_L)
         if s.startswith("(") and ")" not in s:
             raise ValueError("truncated timestamp")
         if "#" not in s:
@@ -125,20 +143,13 @@ def parse_line(text: str) -> can.Message:
 
 def read_log(path: str | Path, issues: Any = None, raw: bool = False
              ) -> Iterator[Any]:
-    """The frames of a candump log, streamed; bad lines go to `issues` (anything with
-    ``append``, e.g. a list or a `LogIssues`; line numbers from 1). BenchError when the
-    file does not exist or cannot be read. With `raw`, a well-formed line of a classic
-    data frame with an 11-bit id (nearly every line of a rig's log) comes as the tuple
-    (time stamp, id, payload, is_rx) of `fast_frame`, for
+    """The frames of a candump log (``-``: standard input), streamed; bad lines go to
+    `issues` (anything with ``append``, e.g. a list or a `LogIssues`; line numbers from
+    1). BenchError when the file does not exist or cannot be read. With `raw`, a
+    well-formed line of a classic data frame with an 11-bit id (nearly every line of a
+    rig's log) comes as the tuple (time stamp, id, payload, is_rx) of `fast_frame`, for
     `bench.bus.rows.RowAssembler.feed_frame`; every other line as a can.Message."""
-    path = Path(path)
-    if not path.exists():
-        raise BenchError(f"no such log: {path}")
-    try:
-        fh = path.open("r", errors="replace", newline="")
-    except OSError as exc:
-        raise BenchError(f"cannot read {path}: {exc.strerror or exc}") from None
-    with fh:
+    with _open_text(path) as fh:
         for lineno, line in enumerate(_lines(fh), start=1):
             if line is None:
                 if issues is not None:
@@ -157,6 +168,74 @@ def read_log(path: str | Path, issues: Any = None, raw: bool = False
             except ValueError as exc:
                 if issues is not None:
                     issues.append(LogIssue(lineno, str(exc), line.rstrip("\r\n")))
+
+
+def is_stdin(path: Any) -> bool:
+    return isinstance(path, (str, Path)) and str(path) == STDIN
+
+
+_STDIN: list[tuple[Any, Any]] = []
+"""(the stdin object read, its content as a spooled binary file)."""
+
+
+def stdin_buffer() -> Any:
+    """Standard input read to its end into a spooled binary file (once per stdin
+    object), at its start."""
+    stdin = sys.stdin
+    buf = _STDIN[0][1] if _STDIN and _STDIN[0][0] is stdin else None
+    if buf is None:
+        for _, old in _STDIN:
+            old.close()
+        _STDIN.clear()
+        buf = tempfile.SpooledTemporaryFile(max_size=STDIN_SPOOL_BYTES)
+        src = getattr(stdin, "buffer", None)
+        while True:
+            block = src.read(1 << 20) if src is not None else stdin.read(1 << 20).encode()
+            if not block:
+                break
+            buf.write(block)
+        _STDIN.append((stdin, buf))
+    buf.seek(0)
+    return buf
+
+
+@contextmanager
+def _open_text(path: str | Path) -> Iterator[Any]:
+    """A log as text lines (undecodable bytes replaced): the file, or standard input."""
+    if is_stdin(path):
+        fh = io.TextIOWrapper(stdin_buffer(), errors="replace", newline="")
+        try:
+            yield fh
+        finally:
+            fh.detach()                 # the buffer stays open for another read
+        return
+    path = Path(path)
+    if not path.exists():
+        raise BenchError(f"no such log: {path}")
+    try:
+        f = path.open("r", errors="replace", newline="")
+    except OSError as exc:
+        raise BenchError(f"cannot read {path}: {exc.strerror or exc}") from None
+    with f:
+        yield f
+
+
+def source_format(path: str | Path, fmt: str | None = None) -> str:
+    """The log format (a LOG_FORMATS suffix) of `path`: `fmt` when given (``log``,
+    ``.asc``...), candump -L for standard input, else the file's suffix (BenchError
+    naming the formats and ``--format``)."""
+    if fmt:
+        suffix = "." + fmt.lower().lstrip(".")
+        if suffix not in LOG_FORMATS:
+            raise BenchError(f"--format {fmt}: unknown log format (use one of "
+                             f"{', '.join(s[1:] for s in LOG_FORMATS)})")
+        return suffix
+    if is_stdin(path):
+        return ".log"
+    try:
+        return log_format(path)
+    except BenchError as exc:
+        raise BenchError(f"{exc}; name the format with --format") from None
 
 
 _HEX_IDS: dict[str, int] = {}
@@ -221,27 +300,27 @@ def report_issues(issues: Any, limit: int = 20) -> list[str]:
     return shown
 
 
-def read_frames(path: str | Path, issues: Any = None, raw: bool = False
-                ) -> Iterator[Any]:
-    """The frames of a log in any of LOG_FORMATS, in file order, streamed. A candump
-    ``.log`` goes through the tolerant `read_log` (python-can's reader stops at the first
-    bad line; a rig's log must lose only its bad lines); ``.asc``, ``.blf``, ``.trc`` and
-    ``.mf4`` through `can.LogReader`, whose warnings about records it skipped go to
-    `issues` (numbered by the frame they follow). BenchError in one line for an unknown
-    suffix, a missing file, or a file python-can cannot read on (damaged: the error
-    names the frames read before it). `raw`: a candump log's plain frames as tuples
-    (`read_log`)."""
-    path = Path(path)
-    suffix = log_format(path)
+def read_frames(path: str | Path, issues: Any = None, raw: bool = False,
+                fmt: str | None = None) -> Iterator[Any]:
+    """The frames of a log in any of LOG_FORMATS (``-``: standard input), in file order,
+    streamed; the format from `fmt`, else the suffix (`source_format`). A candump ``.log``
+    goes through the tolerant `read_log` (python-can's reader stops at the first bad
+    line; a rig's log must lose only its bad lines); ``.asc``, ``.blf``, ``.trc`` and
+    ``.mf4`` through python-can's readers, whose warnings about records they skipped go
+    to `issues` (numbered by the frame they follow). BenchError in one line for an
+    unknown format, a missing file, or a file python-can cannot read on (damaged: the
+    error names the frames read before it). `raw`: a candump log's plain frames as
+    tuples (`read_log`)."""
+    suffix = source_format(path, fmt)
     if suffix == ".log":
         yield from read_log(path, issues, raw)
         return
-    if not path.is_file():
+    if not is_stdin(path) and not Path(path).is_file():
         raise BenchError(f"no such log: {path}")
     n = 0
     with _quiet(issues, lambda: n) as failed:
         try:
-            reader = can.LogReader(path)
+            reader = _reader(path, suffix)
             with reader:
                 for msg in reader:
                     n += 1
@@ -253,6 +332,20 @@ def read_frames(path: str | Path, issues: Any = None, raw: bool = False
         if failed:
             raise BenchError(f"{path}: cannot read this {LOG_FORMATS[suffix]} log "
                              f"(python-can) after {n} frames: {failed[0]}")
+
+
+def _reader(path: str | Path, suffix: str) -> Any:
+    """python-can's reader of format `suffix` on the file `path` or standard input."""
+    classes = {".asc": can.ASCReader, ".blf": can.BLFReader, ".trc": can.TRCReader,
+               ".mf4": can.MF4Reader}
+    if not is_stdin(path):
+        if Path(path).suffix.lower() == suffix:
+            return can.LogReader(path)
+        return classes[suffix](str(path))
+    buf = stdin_buffer()
+    if suffix in (".asc", ".trc"):
+        return classes[suffix](io.TextIOWrapper(buf, errors="replace"))
+    return classes[suffix](buf)
 
 
 def _reason(exc: BaseException) -> str:

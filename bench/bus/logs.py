@@ -43,6 +43,7 @@ from bench.bus.logread import (
     MAX_LINE,
     LogIssue,
     LogIssues,
+    is_stdin,
     parse_line,
     read_frames,
     read_log,
@@ -58,11 +59,14 @@ from bench.bus.rows import (
     SIGNAL_COLUMNS,
     RowAssembler,
     _OutOfOrder,
+    blank_out_of_range,
+    out_of_range,
     trace_columns,
 )
 from bench.bus.sdo import SdoTracker, sdo_values, serial_of
 from bench.trace import Trace
 from ema_contract.frames import Frames, load_od
+from ema_contract.states import Pace
 from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams
 
@@ -174,14 +178,24 @@ def trace_from_messages(messages: Iterable[Any], node_id: int | None = None,
         params = PlantParams().with_dict(values)
     except ParameterError:
         params = PlantParams()
-    ts = period_s or params.sim.sync_period_s
+    pace = dec.sdo.values.get((0x2200, 1))
+    clock = log_clock(rows, period_s, values.get("sim.sync_period_s"),
+                      pace is not None and int.from_bytes(pace, "little") == int(Pace.SYNC))
+    ts = clock["period_s"] or params.sim.sync_period_s
     cpr = counts_per_rev or params.sensors.encoder_counts_per_rev
     cols = trace_columns(rows, ts, cpr)
+    misfit = dict(dec.misfit)
+    wrong = out_of_range(frames, cols)
+    blank_out_of_range(cols, wrong)
+    for name, mask in wrong.items():
+        misfit[name] = misfit.get(name, 0) + int(mask.sum())
     kept = list(issues or [])[:100]
     meta: dict[str, Any] = {
         "source": source, "node_id": frames.node_id, "period_s": ts, "counts_per_rev": cpr,
+        "clock": clock,
         **dec.count, "missing_frames": rows.missing(dec.seen), "sorted_by_time": sort_by_time,
         "runs": dec.run, "emcy": dec.emcy, "params_from_sdo": sorted(values),
+        "misfit_frames": misfit,
         "row_frames_seen": sorted(dec.seen),
         "issues": [{"line": i.line, "reason": i.reason} for i in kept],
         "issue_count": len(issues or []),
@@ -190,6 +204,55 @@ def trace_from_messages(messages: Iterable[Any], node_id: int | None = None,
         meta["params"] = params.to_dict()
     meta["actuator_serial"] = serial_of(dec.sdo, od)
     return Trace(cols, meta)
+
+
+CLOCK_TOLERANCE = 0.1
+"""The SYNC time stamps and the period the log's SDO traffic (0x1006) or --period gives
+may differ by this share before the decoder warns."""
+
+
+def log_clock(rows: Any, given: float | None, sdo: float | None, lockstep: bool
+              ) -> dict[str, Any]:
+    """The SYNC period of a log and where it comes from: `given` (--period), else the
+    SDO 0x1006 read or written in the log, else the median interval of the SYNC time
+    stamps (each counter step one period), else None (the default parameters'). A
+    ``warning`` says when the stamps and the chosen period disagree by more than
+    CLOCK_TOLERANCE, unless the log shows a lockstep run (pace object 0x2200 written
+    SYNC: its stamps are the wall clock of a run faster than real time)."""
+    stamps = _stamp_period(rows)
+    chosen, source = ((given, "--period") if given else (sdo, "SDO 0x1006") if sdo
+                      else (stamps, "SYNC time stamps") if stamps else (None, "default"))
+    out: dict[str, Any] = {"period_s": chosen, "source": source, "sync_stamps_s": stamps}
+    if (stamps and chosen and source != "SYNC time stamps" and not lockstep
+            and abs(stamps - chosen) > CLOCK_TOLERANCE * chosen):
+        named = "--period" if source == "--period" else "the log's SDO 0x1006"
+        how = ("--period" if source == "--period" else
+               "the log's SDO 0x1006's (give --period to choose)")
+        out["warning"] = (f"the SYNC time stamps are {stamps * 1e3:.4g} ms apart but "
+                          f"{named} gives a period of {chosen * 1e3:.4g} ms: the table uses "
+                          f"{how}")
+    return out
+
+
+def _stamp_period(rows: Any) -> float | None:
+    """The median SYNC period from the rows' bus times (a lost SYNC's row has none; a
+    counter step of k periods counts k) to the microsecond, None with fewer than 3
+    intervals."""
+    if not len(rows):
+        return None
+    bt = np.frombuffer(rows.bus_time, dtype=float)
+    run = np.frombuffer(rows.run, dtype=float)
+    k = np.flatnonzero(np.isfinite(bt))
+    if len(k) < 4:
+        return None
+    steps = np.diff(k)
+    same = run[k[1:]] == run[k[:-1]]
+    d = np.diff(bt[k])[same] / steps[same]
+    d = d[d > 0]
+    if len(d) < 3:
+        return None
+    med = float(np.median(d))            # to the microsecond: candump's stamps' resolution
+    return round(med * 1e6) / 1e6 if med >= 1e-5 else med
 
 
 def _counting_order(messages: Iterable[can.Message], dec: RowAssembler
@@ -203,7 +266,7 @@ def _counting_order(messages: Iterable[can.Message], dec: RowAssembler
 
 def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float | None = None,
                    counts_per_rev: int | None = None,
-                   issues: Any = None) -> Trace:
+                   issues: Any = None, fmt: str | None = None) -> Trace:
     """The signal table of a log (for the HUMS, the gap diagnosis, `bench decode`): candump
     ``.log`` or any other format of LOG_FORMATS (`bench.bus.logread.read_frames`).
 
@@ -212,28 +275,57 @@ def trace_from_log(path: str | Path, node_id: int | None = None, period_s: float
     is kept. A log whose frames are out of time order (``meta["out_of_order"]``) is
     decoded again in time-stamp order (``meta["sorted_by_time"]``): every stamp of a log
     is the time its frame was on the bus, taken on one clock, so the stamps keep the bus
-    order that an edited or merged file lost. BenchError when no SYNC period is found."""
+    order that an edited or merged file lost. BenchError when no SYNC period is found.
+    `path` ``-`` is standard input; `fmt` names the format (default: the suffix,
+    candump -L on standard input; `bench.bus.logread.source_format`)."""
     found = LogIssues(100) if issues is None else issues
     first = _Counted(found)
     try:
-        tr = trace_from_messages(read_frames(path, first, raw=True), node_id, period_s,
+        tr = trace_from_messages(read_frames(path, first, raw=True, fmt=fmt), node_id, period_s,
                                  counts_per_rev, found, source=str(path),
                                  stop_on_disorder=True)
     except _OutOfOrder:        # read it all again, in time-stamp order
-        tr = trace_from_messages(read_frames(path, _Counted(found, skip=first.seen)), node_id,
+        tr = trace_from_messages(read_frames(path, _Counted(found, skip=first.seen), fmt=fmt),
+                                 node_id,
                                  period_s, counts_per_rev, found, source=str(path),
                                  sort_by_time=True)
+    if is_stdin(path):
+        path = "standard input"
     if not len(tr):
         n = len(found)
         first_issue = next(iter(found), None)
         raise BenchError(f"{path}: nothing to decode: {tr.meta['frames']} frames, no SYNC "
                          f"frame, so no control period"
                          + (f"; {n} bad lines ({first_issue})" if n else ""))
+    _check_layout(tr, path)
     if not set(tr.meta["row_frames_seen"]) - {"ECU_Setpoint"}:
         raise BenchError(f"{path}: {len(tr)} SYNC periods but not one frame of node "
                          f"0x{tr.meta['node_id']:02X} (its TPDOs, the RPDO to it): the node "
                          "was not on the bus, or the log is of another node (--node-id)")
     return tr
+
+
+MISFIT_SHARE = 0.02
+"""The share of the frames on the node's row-frame ids (its PDOs, the ECU's set-point)
+that may not fit the DBC's layout before a log is refused as not this node's: a few
+frames damaged on the bus are counted and said; a log where more do not fit is another
+device's on the same COB-IDs, or another layout."""
+
+
+def _check_layout(tr: Trace, path: Any) -> None:
+    """BenchError when more than MISFIT_SHARE of the frames on the node's row-frame ids
+    do not fit the DBC (a length no layout of the message has, a value outside its
+    signal's range): their numbers would be garbage, summed into usage and graded."""
+    misfit = tr.meta.get("misfit_frames") or {}
+    total = int(tr.meta.get("row_id_frames") or 0)
+    bad = sum(misfit.values())
+    if total and bad > MISFIT_SHARE * total:
+        what = ", ".join(f"{k} {v}" for k, v in sorted(misfit.items()))
+        raise BenchError(f"{path}: not this node's layout: {bad} of the {total} frames on "
+                         f"node 0x{tr.meta['node_id']:02X}'s PDO and set-point ids do not fit "
+                         f"the DBC ({what}; a length or a value it does not allow): another "
+                         "device's log on the same COB-IDs? Decode it with its own DBC "
+                         "($EMA_BENCH_DBC_DIR) or the right --node-id")
 
 
 class _Counted:
@@ -253,9 +345,12 @@ class _Counted:
 TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
 
 
-def load_trace(path: str | Path) -> Trace:
-    """A bus log (LOG_FORMATS, decoded through the DBC) or a saved trace table (.npz,
-    .csv, .parquet) as a Trace; BenchError naming the file when it cannot be read."""
+def load_trace(path: str | Path, fmt: str | None = None) -> Trace:
+    """A bus log (LOG_FORMATS, decoded through the DBC; ``-``: standard input, `fmt`: the
+    format where the suffix does not say it) or a saved trace table (.npz, .csv, .parquet)
+    as a Trace; BenchError naming the file when it cannot be read."""
+    if is_stdin(path) or fmt:
+        return trace_from_log(path, fmt=fmt)
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such file: {path}")

@@ -185,6 +185,50 @@ def trace_columns(rows: Any, period_s: float, counts_per_rev: float,
     return cols
 
 
+def out_of_range(frames: Frames, cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Per row frame: the rows (a mask) whose frame decodes to a value outside its
+    signal's range in the DBC, where that range is narrower than what the signal's bits
+    can hold (the set-point's mode 0-2, the demand's +-1000 A): a frame of another
+    layout. `blank_out_of_range` empties them."""
+    out: dict[str, np.ndarray] = {}
+    for name in ROW_FRAMES:
+        msg = frames.by_name[name]
+        bad = np.zeros(len(cols["t_s"]), bool)
+        for sig, col in SIGNAL_COLUMNS[name]:
+            s = msg.get_signal_by_name(sig)
+            if s.minimum is None or s.maximum is None or col not in cols:
+                continue
+            lo, hi = _bits_range(s)
+            if s.minimum <= lo and s.maximum >= hi:
+                continue
+            v = cols[col]
+            with np.errstate(invalid="ignore"):
+                bad |= (v < s.minimum) | (v > s.maximum)
+        if bad.any():
+            out[name] = bad
+    return out
+
+
+def blank_out_of_range(cols: dict[str, np.ndarray], bad: dict[str, np.ndarray]) -> None:
+    """NaN every column of a row frame in the rows `bad` marks (`out_of_range`): its
+    numbers are not this layout's."""
+    for name, mask in bad.items():
+        for _, col in SIGNAL_COLUMNS[name]:
+            col = "motor_angle_rad" if col == "encoder_counts" else col
+            if col in cols:
+                cols[col][mask] = math.nan
+
+
+def _bits_range(s: Any) -> tuple[float, float]:
+    """The lowest and highest value a DBC signal's bits can hold, scaled."""
+    if s.is_float:
+        return -math.inf, math.inf
+    lo, hi = (-(1 << (s.length - 1)), (1 << (s.length - 1)) - 1) if s.is_signed \
+        else (0, (1 << s.length) - 1)
+    a, b = lo * s.scale + s.offset, hi * s.scale + s.offset
+    return min(a, b), max(a, b)
+
+
 class RowAssembler:
     """Frames in log order -> rows, one per SYNC period, with the log's damage counted
     (see `trace_from_messages`)."""
@@ -211,7 +255,9 @@ class RowAssembler:
         self.emcy: list[dict[str, Any]] = []
         self.count = dict(frames=0, bad_frames=0, short_frames=0, sync_gaps=0,
                           sync_recovered=0, duplicate_frames=0, replaced_frames=0,
-                          out_of_order=0, emcy_count=0)
+                          out_of_order=0, emcy_count=0, row_id_frames=0)
+        self.misfit: dict[str, int] = {}
+        """Per row frame: frames on its id whose length fits no layout of the DBC's."""
         self.check_order = True
         self.stop_on_disorder = False
         self._max_ts = self._max_sync_ts = -math.inf
@@ -375,6 +421,8 @@ class RowAssembler:
             return
         name, length, fits, row = kind
         n = len(data)
+        if row:
+            self.count["row_id_frames"] += 1
         if fits is None:                  # NMT, EMCY, a message without a codec: cantools
             self._decoded(cid, data)
             return
@@ -382,6 +430,8 @@ class RowAssembler:
             # process data of an older, shorter layout: keep the signals it carries
             if not row or n == 0 or n > length or not fits[n]:
                 self.count["bad_frames"] += 1
+                if row:
+                    self.misfit[name] = self.misfit.get(name, 0) + 1
                 return
             self.count["short_frames"] += 1
         if row and self.open is not None:
@@ -393,6 +443,9 @@ class RowAssembler:
             decoded = self.f.decode_payload(cid, data, allow_truncated=cid in self.row_ids)
         except FrameError:
             self.count["bad_frames"] += 1
+            if cid in self.row_ids:
+                name = self.row_ids[cid]
+                self.misfit[name] = self.misfit.get(name, 0) + 1
             return
         if decoded is None:
             return

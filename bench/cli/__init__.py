@@ -15,6 +15,7 @@ import argparse
 import importlib
 import sys
 import traceback
+from typing import NoReturn
 
 from bench import BenchError, __version__, refuse_mf4_import
 
@@ -59,11 +60,21 @@ def selected_command(argv: list[str]) -> str | None:
     return None
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's parser whose usage errors are one line, as every error of the bench
+    (``error: bench decode: argument --period: invalid float value: 'x' (see bench decode
+    --help)``, exit 2), instead of the usage text and then the error."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"error: {self.prog}: {' '.join(message.split())} (see {self.prog} "
+                     "--help)\n")
+
+
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The `bench` parser: the full parser of the command `argv` selects (its module
     imported), a help-only entry for every other command (nothing imported).
     `argv=None` means every module (what `bench --help` lists, fully built: tests)."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="bench",
         description="EMA ball-screw HUMS test bench: plant over CAN, ECU, HUMS, gap diagnosis.",
     )
@@ -102,25 +113,47 @@ def _main(argv: list[str] | None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from bench.filenames import one_line
     try:
-        rc = args.func(args)
+        rc = _run(args)
     except BenchError as exc:
         if args.debug:
             traceback.print_exc()
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return _reader_gone()
+    except OSError as exc:
+        if args.debug:
+            traceback.print_exc()
+        if exc.filename is None:
+            print(f"error: {type(exc).__name__}: {one_line(str(exc))} (run with --debug for "
+                  "a traceback)", file=sys.stderr)
+            return 1
+        # a file the user named that the system refuses (name too long, not a directory)
+        print(f"error: {one_line(str(exc.filename))}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     except Exception as exc:  # noqa: BLE001 - the CLI never shows a bare traceback
         if args.debug:
             traceback.print_exc()
-        print(f"error: {type(exc).__name__}: {exc} (run with --debug for a traceback)",
-              file=sys.stderr)
+        print(f"error: {type(exc).__name__}: {one_line(str(exc))} (run with --debug for a "
+              "traceback)", file=sys.stderr)
         return 1
     return int(rc or 0)
+
+
+def _run(args: argparse.Namespace) -> int | None:
+    """The command, once its outputs are checked against its inputs (none is one of them,
+    `bench.cli.outputs.check_io`) and with its inputs guarded while it runs
+    (`bench.filenames.protect`: a file named from data that would be one is refused)."""
+    from bench.cli.outputs import check_io, inputs
+    from bench.filenames import protect
+    check_io(args)
+    with protect(inputs(args)):
+        return args.func(args)
 
 
 def _reader_gone() -> int:

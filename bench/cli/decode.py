@@ -8,6 +8,8 @@ import sys
 
 from bench import BenchError
 
+LOG_SUFFIXES = (".log", ".asc", ".blf", ".trc", ".mf4")
+
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("decode", help="decode a bus log into a signal table (CSV/Parquet)",
@@ -20,9 +22,16 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                        "frames missing from a period, duplicates and frames out of time order "
                        "are counted and printed. Exit status 2 when nothing can be decoded "
                        "(no SYNC period).")
-    p.add_argument("file", metavar="FILE.log", help="bus log (.log, .asc, .blf, .trc, .mf4)")
+    p.add_argument("file", metavar="FILE.log", help="bus log (.log, .asc, .blf, .trc, .mf4); "
+                   "'-': standard input (candump -L unless --format says otherwise), e.g. "
+                   "`candump -L can0 | bench decode - -o -`")
     p.add_argument("-o", "--output", metavar="OUT",
-                   help="write the table (.csv, .parquet or .npz); default: print a summary")
+                   help="write the table (.csv, .parquet or .npz; '-': CSV on standard "
+                        "output, the summary then on standard error); default: print a "
+                        "summary")
+    p.add_argument("--format", choices=[s[1:] for s in LOG_SUFFIXES], default=None,
+                   help="the log's format where its name does not say it (standard input, "
+                        "a file without a known suffix); default: the suffix")
     p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
                    help="actuator node id (default 0x10)")
     p.add_argument("--period", type=float, default=None, metavar="S",
@@ -44,7 +53,7 @@ def check_arguments(args: argparse.Namespace) -> None:
     if args.counts_per_rev is not None and args.counts_per_rev < 1:
         raise BenchError(f"--counts-per-rev must be >= 1, not {args.counts_per_rev}")
     if args.output:
-        check_output_file(args.output, "-o", (".csv", ".parquet", ".npz"))
+        check_output_file(args.output, "-o", (".csv", ".parquet", ".npz"), stdout_ok=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,23 +64,30 @@ def run(args: argparse.Namespace) -> int:
     from bench.bus.logs import trace_from_log
 
     check_arguments(args)
+    to_stdout = args.output == "-"
+    say = sys.stderr if to_stdout else sys.stdout       # stdout is the table's then
+    name = "<stdin>" if args.file == "-" else args.file
     issues = LogIssues(20)
-    tr = trace_from_log(args.file, args.node_id, args.period, args.counts_per_rev, issues)
+    tr = trace_from_log(args.file, args.node_id, args.period, args.counts_per_rev, issues,
+                        fmt=args.format)
     for line in report_issues(issues):
-        print(f"{args.file}: {line}", file=sys.stderr)
+        print(f"{name}: {line}", file=sys.stderr)
     m = tr.meta
-    print(f"{args.file}: {m['frames']} frames, {len(tr)} SYNC periods of {m['period_s'] * 1e3:g} "
-          f"ms, {m['runs']} run(s), {m['bad_frames']} bad frames, {m['sync_gaps']} lost SYNCs, "
+    src = (m.get("clock") or {}).get("source", "default")
+    print(f"{name}: {m['frames']} frames, {len(tr)} SYNC periods of {m['period_s'] * 1e3:g} "
+          f"ms ({'the default' if src == 'default' else src}), {m['runs']} run(s), {m['bad_frames']} bad frames, {m['sync_gaps']} lost SYNCs, "
           f"{len(issues)} bad lines, {m['emcy_count']} EMCY, "
-          f"{len(m['params_from_sdo'])} parameters from SDO")
+          f"{len(m['params_from_sdo'])} parameters from SDO", file=say)
     found = integrity(m)
-    print(f"{args.file}: " + ("; ".join(found) if found else
-                              "no lost, missing, duplicate or out-of-order frame"))
+    print(f"{name}: " + ("; ".join(found) if found else
+                         "no lost, missing, duplicate or out-of-order frame"), file=say)
     if m.get("short_frames"):
-        print(f"{args.file}: {m['short_frames']} frames shorter than ema_contract/dbc/ema.dbc describes "
-              "(an older frame layout): their signals that fit were decoded, the columns "
-              "of the missing ones are empty")
-    if args.output:
+        print(f"{name}: {m['short_frames']} frames shorter than ema_contract/dbc/ema.dbc "
+              "describes (an older frame layout): their signals that fit were decoded, the "
+              "columns of the missing ones are empty", file=say)
+    if to_stdout:
+        tr.write_csv(sys.stdout)
+    elif args.output:
         tr.save(args.output)
         print(f"wrote {args.output} ({len(tr)} rows, {len(tr.columns)} columns)")
     else:

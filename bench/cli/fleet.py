@@ -25,9 +25,11 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     s = p.add_subparsers(title="fleet commands", dest="fleet_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
 
+    from bench.fleet.store import default_db
+
     def db(q: argparse.ArgumentParser) -> None:
-        q.add_argument("--db", default=None, help="the store (default: $BENCH_FLEET_DB, "
-                       "else fleet.duckdb)")
+        q.add_argument("--db", default=str(default_db()), help="the store (default: "
+                       "$BENCH_FLEET_DB, else fleet.duckdb)")
 
     def pool(q: argparse.ArgumentParser) -> None:
         q.add_argument("--workers", type=int, default=None,
@@ -111,12 +113,17 @@ def _workers(args: argparse.Namespace) -> int | None:
 
 def run_ingest(args: argparse.Namespace) -> int:
     from bench.fleet.ingest import ingest
+    if args.actuator is not None and (not args.actuator.strip()
+                                      or not args.actuator.isprintable()):
+        raise BenchError(f"--actuator {args.actuator!r}: an actuator id is printable text "
+                         "(no newline, tab or control character) and not blank")
     res = ingest(args.paths, _db(args), _workers(args), args.scheduler, args.actuator)
     rate = (res.stored + res.failed) / res.elapsed_s if res.elapsed_s > 0 else 0.0
     print(f"{res.files} files: {res.skipped} already stored, {res.stored} runs stored, "
           f"{res.failed} failed, in {res.elapsed_s:.1f} s ({rate:.2f} logs/s) -> {_db(args)}")
+    from bench.filenames import one_line
     for path, err in res.failures[:20]:
-        print(f"  failed: {path}: {err}", file=sys.stderr)
+        print(f"  failed: {one_line(path)}: {one_line(err)}", file=sys.stderr)
     if len(res.failures) > 20:
         print(f"  ... and {len(res.failures) - 20} more (table `failures`)", file=sys.stderr)
     return 0

@@ -52,6 +52,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     from bench.cli.outputs import check_output_file
+    from bench.filenames import check_not_input
     from bench.gap.importer import import_table, read_map
     if args.source_rate is not None and not (math.isfinite(args.source_rate)
                                              and args.source_rate > 0):
@@ -63,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
         return _split(args)
     out = Path(args.output) if args.output else Path(args.table).with_suffix(".npz")
     check_output_file(out, "-o", (".npz", ".csv", ".parquet"))    # before the import
+    check_not_input(out, "-o")               # the default TABLE.npz too
     mapping = read_map(args.map)
     tr = import_table(args.table, mapping, args.sync_period, args.source_rate)
     tr.save(out)
@@ -93,15 +95,16 @@ def _split(args: argparse.Namespace) -> int:
     check_output_dir(outdir, "-o")                   # before the import
     mapping = read_map(args.map)
     parts = split_table(args.table, mapping, keys, args.sync_period, args.source_rate)
+    paths = _split_paths(outdir, [stem for stem, _ in parts], args.format)
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise BenchError(f"-o {outdir}: cannot create the directory ({exc.strerror})") from None
-    for i, (stem, tr) in enumerate(parts):
+    for i, ((_, tr), path) in enumerate(zip(parts, paths, strict=True)):
         try:
-            path = tr.save(outdir / f"{stem}.{args.format}")
+            tr.save(path)
         except OSError as exc:
-            raise BenchError(f"-o {outdir}: cannot write {stem}.{args.format} "
+            raise BenchError(f"-o {outdir}: cannot write {path.name} "
                              f"({exc.strerror or exc})") from None
         if i < 3:
             _describe(path, tr)
@@ -110,6 +113,22 @@ def _split(args: argparse.Namespace) -> int:
           + ", ".join(f"{d * 1e3:g} ms" for d in dts))
     _availability(parts[0][1])
     return 0
+
+
+def _split_paths(outdir: Path, stems: list[str], fmt: str) -> list[Path]:
+    """The split traces' files in `outdir`, named from their keys through
+    `bench.filenames.data_file` (inside `outdir`, none of them an input), checked all
+    before the first is written; BenchError if two would be one file."""
+    from bench import BenchError
+    from bench.filenames import data_file
+    paths = [data_file(outdir, stem, f".{fmt}") for stem in stems]
+    seen: dict[Path, str] = {}
+    for stem, path in zip(stems, paths, strict=True):
+        if path in seen:
+            raise BenchError(f"--split-by: the runs {seen[path]} and {stem} would both be "
+                             f"written to {path}")
+        seen[path] = stem
+    return paths
 
 
 def _describe(out: Path, tr: Trace) -> None:

@@ -1,5 +1,6 @@
-"""Output paths checked before the work that fills them (issue 9 item 13): a command that
-runs for minutes must not find out at the end that it cannot write its result.
+"""Output paths checked before the work that fills them: a command that runs for minutes
+must not find out at the end that it cannot write its result, and no command writes over
+a file it reads.
 
 `check_output_file` and `check_output_dir` raise a one-line BenchError naming the flag
 when the suffix is unknown, the target is of the wrong kind, or the directory does not
@@ -10,6 +11,15 @@ file with ``make_parents=True``) need not exist: its nearest existing ancestor m
 directory that can take a new file (no component of the path is a file).
 `check_outputs` checks a command's output options by name, `check_doc_section` a markdown
 file whose generated section the command replaces.
+
+`check_io` runs before every command (`bench.cli._main`): from `IO`, the table of every
+command's inputs and outputs by option name, it refuses an output that resolves to one
+of the command's inputs (the same file, also through a link or another name: samefile),
+a fixed-name file an output directory would get that is an input (``fleet export --out``
+into the store's folder when the store is ``runs.parquet``), an output directory that is
+an input file, and two outputs at one path; `inputs` gives the files `bench.filenames.protect`
+then guards while the command runs (files named from data, e.g. ``import --split-by``,
+are checked as they are named).
 """
 
 from __future__ import annotations
@@ -102,6 +112,10 @@ def check_outputs(args: Namespace, files: Iterable[str] = (), dirs: Iterable[str
 
 
 def _flag(name: str) -> str:
+    if name == "output":
+        return "-o"
+    if name == "file":
+        return "FILE"
     return "--" + name.replace("_", "-")
 
 
@@ -117,3 +131,148 @@ def check_doc_section(path: str | Path, name: str, flag: str = "--doc") -> Path:
         except BenchError as exc:
             raise BenchError(f"{flag}: {exc}") from None
     return p
+
+
+# --- inputs and outputs of every command -------------------------------------------------
+
+class IO:
+    """One command's files by option name (the argparse ``dest``): `inputs` read (a
+    path, or a list of paths; directories and globs allowed), `files` written, `dirs`
+    written into, each with the fixed names the command writes there."""
+
+    def __init__(self, inputs: tuple[str, ...] = (), files: tuple[str, ...] = (),
+                 dirs: dict[str, tuple[str, ...]] | None = None) -> None:
+        self.inputs, self.files, self.dirs = inputs, files, dict(dirs or {})
+
+
+_HUMS_REPORT = ("report.html", "indexes.json", "summary.txt")
+_GAP_REPORT = ("gap.json", "index.html", "report.html", "indexes.json", "summary.txt",
+               "residual_regime_band.png", "traces_before_after.png", "path_residuals.png")
+_RIG_STUDY = ("baseline.json", "study.json", "residual.png", "detection.png", "location.png",
+              "report.md", "report.html")
+_BUS = IO()
+
+IO_TABLE: dict[str, IO] = {
+    "demo": IO(dirs={"out": ("summary.json", "healthy.log", "worn.log", "failing.log")}),
+    "reproduce": IO(files=("out", "json"), dirs={"figures": ()}),
+    "plant": IO(inputs=("params",), files=("ready_file",)),
+    "up": _BUS, "status": _BUS, "down": _BUS,
+    "run": IO(files=("log", "save")),
+    "log": IO(files=("file",)),
+    "replay": IO(inputs=("file",)),
+    "decode": IO(inputs=("file",), files=("output",)),
+    "hums fit": IO(files=("json",)),
+    "hums sweep": IO(files=("json", "doc"), dirs={"figures": ()}),
+    "hums rul": IO(files=("json", "doc"), dirs={"figures": ()}),
+    "hums campaign": IO(files=("json", "doc", "trends_out", "calibration_out"),
+                        dirs={"figures": ()}),
+    "hums prognose": IO(inputs=("trends", "calibration"), files=("json",)),
+    "hums report": IO(inputs=("logs", "nominal", "baseline"), dirs={"out": _HUMS_REPORT}),
+    "hums watch": IO(files=("out", "usage")),
+    "usage": IO(inputs=("files",), files=("json",), dirs={"plot": ()}),
+    "gap": IO(inputs=("log", "holdout", "nominal", "baseline"), files=("json",),
+              dirs={"report": _GAP_REPORT}),
+    "gap-bench": IO(files=("json", "markdown")),
+    "calibrate": IO(inputs=("log", "holdout", "nominal", "actuator"), files=("output",)),
+    "import": IO(inputs=("table", "map"), files=("output",)),
+    "fleet ingest": IO(inputs=("paths",), files=("db",)),
+    "fleet status": IO(inputs=("db",)),
+    "fleet report": IO(inputs=("db",), dirs={"out": ("index.html",)}),
+    "fleet export": IO(inputs=("db",), dirs={"out": ("runs.parquet", "failures.parquet",
+                                                     "meta.parquet")}),
+    "fleet synth": IO(dirs={"out": ("fleet-truth.json",)}),
+    "rig baseline": IO(inputs=("tables", "actuator"), files=("out",)),
+    "rig assess": IO(inputs=("tables", "baseline"), files=("json",)),
+    "rig study": IO(inputs=("directory", "actuator"), dirs={"out": _RIG_STUDY}),
+    "rig inject": IO(inputs=("tables", "actuator"),
+                     dirs={"out": ("inject.json", "inject.md", "inject.png")}),
+}
+"""Every command's files (a unit test checks that every command of `bench` is here)."""
+
+
+def command_name(args: Namespace) -> str:
+    """The command `args` runs, e.g. ``fleet export``."""
+    words = [str(getattr(args, "command", "") or "")]
+    for group in ("fleet", "hums", "rig"):
+        sub = getattr(args, f"{group}_command", None)
+        if words[0] == group and sub:
+            words.append(str(sub))
+    return " ".join(w for w in words if w)
+
+
+def _paths(value: object) -> list[str]:
+    """The paths an option's value names (a list for nargs; "-" is stdin/stdout)."""
+    if value is None or value is False or value is True:
+        return []
+    values = value if isinstance(value, (list, tuple)) else [value]
+    return [str(v) for v in values if v is not None and str(v) not in ("", "-")]
+
+
+def inputs(args: Namespace) -> list[str]:
+    """The input files of the command `args` runs (globs expanded; directories as they
+    are: what they hold is read by suffix, and a command writes no such file there)."""
+    import glob
+    io = IO_TABLE.get(command_name(args))
+    out: list[str] = []
+    for name in io.inputs if io else ():
+        for p in _paths(getattr(args, name, None)):
+            out.extend(glob.glob(p, recursive=True) if glob.has_magic(p) else [p])
+    return out
+
+
+def _same(a: str, b: str) -> bool:
+    """`a` and `b` are one file: the same path, or both exist and are the same file."""
+    if os.path.abspath(a) == os.path.abspath(b) or os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
+def check_io(args: Namespace) -> None:
+    """Before the command runs: no output of `args` resolves to one of its inputs, and
+    no two outputs to one path (BenchError naming the options; module docstring); a
+    ``--workers`` count the machine cannot run (`bench.cluster.check_workers`) and a
+    ``--scheduler`` that is no address are refused too."""
+    _check_pool(args)
+    io = IO_TABLE.get(command_name(args))
+    if io is None:
+        return
+    ins = [(name, p) for name in io.inputs for p in _paths(getattr(args, name, None))]
+    outs = [(name, p) for name in io.files for p in _paths(getattr(args, name, None))]
+    for name, fixed in io.dirs.items():
+        for d in _paths(getattr(args, name, None)):
+            for iname, ip in ins:
+                if os.path.isfile(ip) and _same(d, ip):
+                    raise BenchError(f"{_flag(name)} {d}: that is the input {_arg(iname)} "
+                                     f"{ip}, not a directory to write into")
+            outs.extend((name, os.path.join(d, f)) for f in fixed)
+    for name, p in outs:
+        for iname, ip in ins:
+            if _same(p, ip):
+                raise BenchError(f"{_flag(name)} {p}: that is the input {_arg(iname)} {ip}; "
+                                 "writing it would overwrite it: write elsewhere")
+    for k, (name, p) in enumerate(outs):
+        for name2, p2 in outs[k + 1:]:
+            if name2 != name and _same(p, p2):
+                raise BenchError(f"{_flag(name)} and {_flag(name2)} are one file ({p}); "
+                                 "give each output its own path")
+
+
+def _check_pool(args: Namespace) -> None:
+    """`--workers` and `--scheduler`, for every command that has them: a scheduler must
+    answer as one (`bench.cluster.probe_scheduler`) before anything is written."""
+    if getattr(args, "workers", None) is not None or getattr(args, "scheduler", None):
+        from bench.cluster import check_workers, probe_scheduler, scheduler_address
+        addr = scheduler_address(getattr(args, "scheduler", None))
+        if addr is not None:
+            probe_scheduler(addr)
+        check_workers(getattr(args, "workers", None), addr)
+
+
+def _arg(name: str) -> str:
+    """An input's name in messages: an option's flag, a positional's upper-case name."""
+    positional = {"logs": "LOG", "files": "LOG_OR_TRACE", "log": "LOG", "file": "FILE",
+                  "table": "TABLE", "tables": "TABLE", "paths": "PATH", "directory": "DIR"}
+    return positional.get(name, _flag(name))

@@ -25,8 +25,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         "accumulated per actuator by the serial number the ECU read from object 0x1018 "
         "(docs/usage.md).")
     p.add_argument("files", nargs="+", metavar="LOG_OR_TRACE",
-                   help="candump .log, or a trace saved by bench run --save (.npz, .csv, "
-                        ".parquet)")
+                   help="candump .log ('-': candump -L on standard input), or a trace "
+                        "saved by bench run --save (.npz, .csv, .parquet)")
     p.add_argument("--by-actuator", action="store_true",
                    help="also print the runs accumulated per actuator (serial number)")
     p.add_argument("--json", metavar="OUT.json", help="write every run and every actuator")
@@ -58,8 +58,10 @@ def _check(args: argparse.Namespace) -> None:
         check_output_file(args.json, "--json", (".json",))
     if args.plot:
         check_output_dir(args.plot, "--plot")
+    if args.files.count("-") > 1:
+        raise BenchError("standard input (-) can be given once")
     for f in args.files:
-        if not Path(f).is_file():
+        if f != "-" and not Path(f).is_file():
             raise BenchError(f"no such file: {f}")
 
 
@@ -84,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from bench.bus.logs import load_trace
+    from bench.filenames import distinct_labels
     from bench.usage import UsageSettings, accumulate, usage_of_trace
     from bench.usage.accumulator import trace_params
     from bench.usage.table import format_table, notes
@@ -98,9 +101,11 @@ def run(args: argparse.Namespace) -> int:
         if args.load_rating_n is not None:
             params = params.with_dict({"screw.dynamic_load_rating_n": args.load_rating_n})
         runs.append((f, usage_of_trace(tr, settings, params)))
-    print(format_table([(Path(f).name, s) for f, s in runs]))
-    for f, s in runs:
-        for line in notes(Path(f).name, s):
+    labels = distinct_labels([f for f, _ in runs])
+    stems = distinct_labels([Path(f).with_suffix("") for f, _ in runs])     # figure names
+    print(format_table([(lab, s) for lab, (_, s) in zip(labels, runs, strict=True)]))
+    for lab, (_, s) in zip(labels, runs, strict=True):
+        for line in notes(lab, s):
             print(line)
     per_actuator = accumulate([s for _, s in runs])
     if args.by_actuator:
@@ -116,17 +121,23 @@ def run(args: argparse.Namespace) -> int:
         Path(args.json).write_text(json.dumps(doc, indent=1))
         print(f"wrote {args.json}")
     if args.plot:
-        _plots(args.plot, runs, per_actuator)
+        _plots(args.plot, list(zip(labels, stems, runs, strict=True)), per_actuator)
     return 0
 
 
 def _plots(directory: str, runs, per_actuator) -> None:
+    """A figure per run (`runs`: (label, stem, (file, summary))) and per actuator, each
+    named through `bench.filenames.data_file` (``STEM_usage.png``, ``actuator_S_usage.png``:
+    inside `directory`, distinct for distinct runs and serial numbers)."""
+    from bench.filenames import data_file
     from bench.usage.figure import save_usage_figure
     out = Path(directory)
+    figures = [(data_file(out, f"{stem}_usage", ".png"), s,
+                f"{label}: actuator {s.actuator_serial}") for label, stem, (_, s) in runs]
+    figures += [(data_file(out, f"actuator_{k}_usage", ".png"), s,
+                 f"actuator {k}: {s.runs:g} run(s)") for k, s in per_actuator.items()]
     out.mkdir(parents=True, exist_ok=True)
-    for f, s in runs:
-        save_usage_figure(s, f"{Path(f).name}: actuator {s.actuator_serial}",
-                          out / f"{Path(f).stem}_usage.png")
-    for k, s in per_actuator.items():
-        save_usage_figure(s, f"actuator {k}: {s.runs:g} run(s)", out / f"actuator_{k}_usage.png")
-    print(f"wrote {len(runs) + len(per_actuator)} figure(s) into {out}")
+    for path, s, title in figures:
+        save_usage_figure(s, title, path)
+    written = {p for p, _, _ in figures}
+    print(f"wrote {len(written)} figure(s) into {out}")

@@ -1,9 +1,11 @@
 """`bench fleet ingest PATH...`: logs into the fleet store, idempotent and resumable.
 
 PATHs are files, directories (searched recursively for LOG_SUFFIXES) and globs (``**``
-allowed). Each file is keyed by its digest (sha256 of its bytes): digests already in
-the store are skipped before any work, so the same log twice is stored once, under
-whatever name. The rest are analysed on the worker pool (`bench.workers.run_all`):
+allowed); a PATH that is neither a file nor a directory (a FIFO, ``/dev/null``) is
+refused. Each file is keyed by the digest of its content (`digest`: sha256 of its lines
+in a canonical form for the text formats, of its bytes for the others): digests already
+in the store are skipped before any work, so the same log twice is stored once, under
+whatever name, with whatever line ends or blank lines. The rest are analysed on the worker pool (`bench.workers.run_all`):
 decoded (`bench.bus.logs.load_trace`: candump through the DBC, or a trace table) and
 graded by the HUMS report's own analysis (`bench.hums.report.analyse`: the indexes of
 eq. 6.4-6.7 against the monitoring model driven by the log's set-points, and the verdict
@@ -11,16 +13,19 @@ of `bench.hums.verdict.judge`), without the per-log fused RUL (a ground test is 
 short for it; the fleet's RUL is over days, `bench.fleet.status`). Results are written
 by this process in batches of whole runs, one transaction each (`Store.write`): a
 killed ingest loses only its open batch, and the next ingest redoes exactly those logs.
-A log that cannot be read or graded is stored in ``failures`` with its one-line error
-(and skipped next time, by digest) and the ingest goes on.
+A log that cannot be read, dated or graded is stored in ``failures`` with its file name
+and one-line error (and skipped next time, by digest) and the ingest goes on: every
+per-log step (digest, decoding, metadata, run time, grading) runs inside the per-log
+error handling, in this process and in the workers.
 
 The actuator id, in order: the log's own (``actuator_id``, ``actuator_serial`` or
 ``serial_number`` in the decoded trace's metadata: the 0x1018 serial number the ECU
 reads by SDO, which the log decoder reports; "unknown" and the default 0 name no
 actuator), else ``--actuator``, else the name of the file's parent directory.
 The run time: the first time stamp of a candump log (the bus clock, UTC), else a trace
-table's ``run_time``/``start_time`` metadata (epoch seconds or ISO 8601), else the
-file's modification time.
+table's ``run_time``/``start_time`` metadata (epoch seconds or ISO 8601; an ISO time
+without a zone is UTC, as ``fleet status --as-of`` reads it), else the file's
+modification time. A run time outside the years 1970-9999 is the log's failure.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ import glob
 import hashlib
 import math
 import os
+import re
+import stat
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -79,12 +86,14 @@ def usage_columns(trace: Trace) -> dict[str, Any]:
 
 def expand(paths: Iterable[str]) -> list[Path]:
     """The log files named by `paths` (files, directories searched recursively, globs),
-    each once, sorted; BenchError naming a path that matches nothing."""
+    each once, sorted; BenchError naming a path that matches nothing, or that is no
+    regular file or directory (a FIFO, a device: reading one would hang or read
+    nothing)."""
     found: set[Path] = set()
     for p in paths:
         hits = [Path(h) for h in glob.glob(p, recursive=True)] if glob.has_magic(p) \
             else [Path(p)]
-        if not any(h.exists() for h in hits):
+        if not any(os.path.lexists(h) for h in hits):
             raise BenchError(f"no such file or directory: {p}")
         for h in hits:
             if h.is_dir():
@@ -96,15 +105,61 @@ def expand(paths: Iterable[str]) -> list[Path]:
                 found.update(logs)
             elif h.is_file():
                 found.add(h)
+            elif not glob.has_magic(p):
+                raise BenchError(f"{p}: not a log file or a directory ({_kind(h)}); give "
+                                 "log files, directories or globs")
     return sorted(found)
 
 
+def _kind(p: Path) -> str:
+    """What a path that is no regular file or directory is, in words."""
+    try:
+        mode = os.stat(p).st_mode
+    except OSError:
+        return "a broken link"
+    return ("a FIFO" if stat.S_ISFIFO(mode) else "a character device" if stat.S_ISCHR(mode)
+            else "a block device" if stat.S_ISBLK(mode) else "a socket" if stat.S_ISSOCK(mode)
+            else "not a regular file")
+
+
+TEXT_SUFFIXES = (".log", ".csv")
+"""The text formats whose digest is of their lines in a canonical form."""
+_SPACES = re.compile(rb"[ \t\r\f\v]+")
+_LINE_ENDS = re.compile(rb" ?\n[ \n]*")
+
+
+def _canonical(block: bytes, collapse: bool) -> bytes:
+    """Whole lines in a canonical form: blanks around a line and blank lines dropped,
+    every line ended by one LF; with `collapse`, each run of blanks inside a line is one
+    space (candump's fields), else only the blanks at the line ends go (a CSV's text)."""
+    if collapse:
+        text = _SPACES.sub(b" ", block)
+    else:
+        text = re.sub(rb"[ \t\r\f\v]+(?=\n)", b"", block.replace(b"\r\n", b"\n"))
+    text = _LINE_ENDS.sub(b"\n", text).strip(b" \n")
+    return text + b"\n" if text else b""
+
+
 def digest(path: str | Path) -> str:
-    """sha256 of the file's bytes (hex)."""
+    """The run's identity (hex sha256): of a candump log's or a CSV table's lines in a
+    canonical form (`_canonical`: CRLF or LF, blanks at the ends of lines, blank lines
+    and, in a candump log, the spacing between fields do not count), of the file's bytes
+    for the other formats. A file already in the canonical form has the digest of its
+    bytes (the digest of stores written before)."""
     h = hashlib.sha256()
+    suffix = Path(path).suffix.lower()
     with open(path, "rb") as f:
+        if suffix not in TEXT_SUFFIXES:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+            return h.hexdigest()
+        rest = b""
         for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
+            block = rest + block
+            cut = block.rfind(b"\n") + 1
+            rest = block[cut:]
+            h.update(_canonical(block[:cut], suffix == ".log"))
+        h.update(_canonical(rest, suffix == ".log"))
     return h.hexdigest()
 
 
@@ -144,14 +199,36 @@ def run_time(path: Path, trace: Trace | None) -> float:
     elif trace is not None:
         for key in ("run_time", "start_time"):
             v = trace.meta.get(key)
-            if isinstance(v, (int, float)) and math.isfinite(v):
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
                 return float(v)
             if isinstance(v, str):
                 try:
-                    return dt.datetime.fromisoformat(v).timestamp()
+                    return utc_seconds(v)
                 except ValueError:
                     pass
     return path.stat().st_mtime
+
+
+def utc_seconds(text: str) -> float:
+    """An ISO 8601 time as epoch seconds, UTC when it names no zone (the rule of
+    ``fleet status --as-of``); ValueError if it is none."""
+    t = dt.datetime.fromisoformat(text.strip())
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=dt.UTC)
+    return t.timestamp()
+
+
+def run_datetime(seconds: float) -> dt.datetime:
+    """A run time (epoch seconds) as the store's naive UTC TIMESTAMP; ValueError naming
+    the value when it is no date of the years 1970-9999 (a log stamped 1e12 s ahead)."""
+    try:
+        when = dt.datetime.fromtimestamp(seconds, dt.UTC)
+    except (ValueError, OverflowError, OSError):
+        when = None
+    if when is None or when.year < 1970:
+        raise ValueError(f"its run time {seconds:.6g} s is no date of the years 1970-9999 "
+                         "(a first time stamp far off: the bus clock?)")
+    return when.replace(tzinfo=None)
 
 
 def _mode(trace: Trace) -> int | None:
@@ -167,25 +244,43 @@ def _finite(v: float) -> float | None:
 
 
 def ingest_one(job: tuple[str, str, str | None]) -> dict[str, Any]:
-    """Worker: one log (path, digest, --actuator) -> its row, or its failure."""
-    from bench.bus.logs import load_trace
-    from bench.hums.report import analyse
-    from bench.hums.verdict import LEVELS
+    """Worker: one log (path, digest, --actuator) -> its row, or its failure (any error
+    of any step, the file named)."""
     path_s, dig, given = job
     path = Path(path_s)
-    trace = None
+    trace: Trace | None = None
     try:
+        from bench.bus.logs import load_trace
         trace = load_trace(path)
-        a = analyse(trace, path.name, rul=False)
+        return _row(path, dig, given, trace)
     except Exception as exc:  # noqa: BLE001 - any failure is the log's, recorded
-        msg = " ".join(str(exc).split()) or type(exc).__name__
-        return {"digest": dig, "path": str(path), "error": f"{type(exc).__name__}: {msg}"[:500],
-                "actuator_id": actuator_id(trace, path, given)}
+        return failure(path, dig, exc, _safe_id(trace, path, given))
+
+
+def failure(path: Path, dig: str, exc: BaseException, ident: str) -> dict[str, Any]:
+    """The failure row of one log: its file, its actuator and the error in one line."""
+    msg = " ".join(str(exc).split()) or type(exc).__name__
+    kind = "" if isinstance(exc, BenchError) else f"{type(exc).__name__}: "
+    return {"digest": dig, "path": str(path), "error": f"{kind}{msg}"[:500],
+            "actuator_id": ident}
+
+
+def _safe_id(trace: Trace | None, path: Path, given: str | None) -> str:
+    try:
+        return actuator_id(trace, path, given)
+    except Exception:  # noqa: BLE001 - a failure row still gets one
+        return given or "unknown"
+
+
+def _row(path: Path, dig: str, given: str | None, trace: Trace) -> dict[str, Any]:
+    """The stored row of one decoded log: graded by the HUMS report's analysis."""
+    from bench.hums.report import analyse
+    from bench.hums.verdict import LEVELS
+    when = run_datetime(run_time(path, trace))
+    a = analyse(trace, path.name, rul=False)
     tr = a.trace
     row: dict[str, Any] = {
-        "digest": dig, "actuator_id": actuator_id(trace, path, given),
-        "run_time": dt.datetime.fromtimestamp(run_time(path, trace), dt.UTC)
-        .replace(tzinfo=None),
+        "digest": dig, "actuator_id": actuator_id(trace, path, given), "run_time": when,
         "path": str(path.resolve()), "bytes": path.stat().st_size, "rows": len(tr),
         "duration_s": len(tr) * tr.dt if len(tr) > 1 else 0.0, "mode": _mode(tr),
         "f0_hz": _finite(a.f0_hz), "verdict": a.verdict,
@@ -221,18 +316,27 @@ def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
         known = store.known()
         jobs = []
         seen: set[str] = set()
-        for f in files:
-            d = digest(f)
-            if d not in known and d not in seen:
-                seen.add(d)
-                jobs.append((str(f), d, actuator))
         batch = _Batch(store)
         try:
-            run_jobs(ingest_one, jobs, workers, progress, scheduler, batch.add)
+            for f in files:
+                try:
+                    d = digest(f)
+                except OSError as exc:           # unreadable: a failure of its own
+                    d = "unreadable:" + hashlib.sha256(str(f.resolve()).encode()).hexdigest()
+                    if d not in known and d not in seen:
+                        seen.add(d)
+                        batch.add(failure(f, d, BenchError(
+                            f"cannot be read ({exc.strerror or exc})"), actuator or "unknown"))
+                    continue
+                if d not in known and d not in seen:
+                    seen.add(d)
+                    jobs.append((str(f), d, actuator))
+            run_jobs(ingest_one, jobs, workers, progress, scheduler, batch.add,
+                     label=lambda job: str(job[0]))
         finally:
             batch.flush()
     fails = [(r["path"], r["error"]) for r in batch.done if "error" in r]
-    return IngestResult(len(files), len(files) - len(jobs), batch.stored - len(fails),
+    return IngestResult(len(files), len(files) - len(batch.done), batch.stored - len(fails),
                         len(fails), time.perf_counter() - t0, fails)
 
 
@@ -274,10 +378,10 @@ def chunk_size(n_jobs: int, workers: int | None) -> int:
 
 def run_jobs(fn: Any, jobs: list[Any], workers: int | None, progress: bool,
              scheduler: str | None, on_result: Any = None, desc: str = "fleet ingest",
-             unit: str = "log") -> list[Any]:
+             unit: str = "log", label: Any = None) -> list[Any]:
     """`bench.workers.run_all` (Dask: a LocalCluster on 127.0.0.1 of `workers` processes,
     or the cluster at `scheduler`), with `on_result` called as each job finishes; the
-    jobs go to the workers `chunk_size` at a time."""
+    jobs go to the workers `chunk_size` at a time; `label(job)` names a job that fails."""
     from bench.workers import run_all
     return run_all(fn, jobs, workers, progress, desc=desc, unit=unit, on_result=on_result,
-                   scheduler=scheduler, chunk=chunk_size(len(jobs), workers))
+                   scheduler=scheduler, chunk=chunk_size(len(jobs), workers), label=label)

@@ -7,7 +7,9 @@ actuator (``DIR/actuators/<id>.html``): Ci per test against the thesis' levels (
 threshold, 0.80 warning, 0.56 failure), with the RUL's failure-time band when there is
 one; Cp and the lost motion; the usage (docs/usage.md); the
 alerts (tests whose verdict is not HEALTHY) with links to the logs behind them.
-Figures are drawn with matplotlib's Figure API into ``DIR/figures``.
+Figures are drawn with matplotlib's Figure API: the fleet's into ``DIR/figures``, each
+actuator's beside its page. An actuator's files are named by `bench.filenames.data_file`
+(one bounded name per id, distinct ids distinct files).
 """
 
 from __future__ import annotations
@@ -78,6 +80,7 @@ def write_report(store: Any, out_dir: str | Path) -> Path:
         (out / "actuators").mkdir(exist_ok=True)
     except OSError as exc:
         raise BenchError(f"{out}: cannot create the report directory: {exc}") from None
+    from bench.filenames import data_file
     rows = sorted(fleet_status(store), key=urgency)
     if not rows:
         raise BenchError(f"{store.path}: the fleet store has no runs yet")
@@ -88,7 +91,7 @@ def write_report(store: Any, out_dir: str | Path) -> Path:
     for st in rows:
         m = ids == st.ident
         sub = {k: np.asarray(v)[m] for k, v in data.items()}
-        page = out / "actuators" / f"{_slug(st.ident)}.html"
+        page = data_file(out / "actuators", st.ident, ".html")
         page.write_text(_actuator_page(st, sub, out))
     index = out / "index.html"
     index.write_text(_overview(rows, store))
@@ -96,7 +99,16 @@ def write_report(store: Any, out_dir: str | Path) -> Path:
 
 
 def _slug(ident: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in ident)
+    """The actuator's file name stem (`bench.filenames.safe_name`: one name, bounded,
+    distinct ids give distinct names)."""
+    from bench.filenames import safe_name
+    return safe_name(ident)
+
+
+def _href(ident: str) -> str:
+    """The actuator page's file name, quoted for a link."""
+    from urllib.parse import quote
+    return quote(f"{_slug(ident)}.html")
 
 
 def _when(t_s: float) -> str:
@@ -172,7 +184,7 @@ def _footer() -> str:
 
 
 def _id_cell(st: ActuatorStatus) -> str:
-    return (f"<td><a href='actuators/{html.escape(_slug(st.ident))}.html'>"
+    return (f"<td><a href='actuators/{html.escape(_href(st.ident))}'>"
             f"{html.escape(st.ident)}</a></td>")
 
 
@@ -206,8 +218,10 @@ def _usage_table(sub: dict[str, np.ndarray]) -> str:
 
 def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) -> str:
     e = html.escape
-    slug = _slug(st.ident)
-    fig = out / "figures" / f"{slug}.png"
+    from urllib.parse import quote
+
+    from bench.filenames import data_file
+    fig = data_file(out / "actuators", st.ident, ".png")     # beside its page
     _actuator_figure(st, sub, fig)
     p = _head(f"{st.ident}: health")
     p.append(f"<p><a href='../index.html'>fleet overview</a></p><h1>{e(st.ident)} "
@@ -219,7 +233,7 @@ def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) ->
         ("trend", f"{_slope(st)} Ci per day over the last tests"),
         ("RUL (days) [90 % band]", rul_text(st)), ("usage consumed", usage_text(st)),
         ("action", why or "none"))) + "</table>")
-    p.append(f"<h2>Index trends</h2><img alt='trends' src='../figures/{e(slug)}.png'>")
+    p.append(f"<h2>Index trends</h2><img alt='trends' src='{e(quote(fig.name))}'>")
     p.append("<h2>Usage</h2>" + _usage_table(sub))
     lvl = np.array([_level(v) for v in sub["verdict"]])
     alerts = np.flatnonzero(lvl >= 1)[::-1][:MAX_ALERTS]

@@ -13,12 +13,19 @@ Tables (docs/fleet.md has every column with its unit):
   verdict and the usage columns (version 2; NULL until the usage computation lands);
 - ``failures``: logs that could not be ingested, with their one-line error;
 - ``meta``: ``schema_version`` and when the store was created.
+
+A damaged store is one line naming it and what to do (`DAMAGED`): a file DuckDB cannot
+read (cut short, overwritten), a schema version that is no version this bench knows (not
+a number, below 0), or tables that are not those of the version it claims (`check_tables`
+against the tables the migrations make, built in memory).
 """
 
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Callable
+import functools
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -71,18 +78,87 @@ MIGRATIONS: list[Callable[[Any], None]] = [_v1, _v2]
 SCHEMA_VERSION = len(MIGRATIONS)
 
 
+DAMAGED = ("restore the store from a copy, or make a new one from the logs (`bench fleet "
+           "ingest LOGS --db NEW.duckdb`)")
+"""What to do with a damaged store."""
+
+
+@contextmanager
+def damage(path: str | Path) -> Iterator[None]:
+    """DuckDB's errors while the store at `path` is read or written, as one BenchError
+    naming the store and what to do (a file cut short gave `IOException`)."""
+    import duckdb
+    kinds = (duckdb.IOException, duckdb.CatalogException, duckdb.SerializationException,
+             duckdb.InternalException, duckdb.FatalException, duckdb.InvalidInputException)
+    try:
+        yield
+    except kinds as exc:           # not a constraint of a write: that is the caller's
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise BenchError(f"{path}: the fleet store is damaged or unreadable ({first}); "
+                         f"{DAMAGED}") from None
+
+
 def version(con: Any) -> int:
-    """The store's schema version (0 for an empty database)."""
+    """The store's schema version (0 for an empty database); BenchError for one that is
+    no version (not a whole number, or below 0)."""
     has = con.execute("SELECT count(*) FROM information_schema.tables "
                       "WHERE table_name = 'meta'").fetchone()[0]
     if not has:
         return 0
     row = con.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
     try:
-        return int(row[0]) if row else 0
+        v = int(row[0]) if row else 0
     except (TypeError, ValueError):
         raise BenchError(f"not a fleet store: its schema_version is {row[0]!r}, not a "
                          "number") from None
+    if v < 0 or (row and str(row[0]).strip() != str(v)):
+        raise BenchError(f"its schema_version {row[0]!r} is no version a bench writes (0 "
+                         f"to {SCHEMA_VERSION}): the store is damaged or edited; {DAMAGED}")
+    return v
+
+
+@functools.cache
+def expected_tables(target: int) -> dict[str, tuple[str, ...]]:
+    """Table -> its column names, as the migrations up to `target` make them (built in
+    an in-memory DuckDB)."""
+    import duckdb
+    con = duckdb.connect(":memory:")
+    try:
+        for k in range(target):
+            MIGRATIONS[k](con)
+        return _tables(con)
+    finally:
+        con.close()
+
+
+def _tables(con: Any) -> dict[str, tuple[str, ...]]:
+    rows = con.execute("SELECT table_name, column_name FROM information_schema.columns "
+                       "ORDER BY table_name, ordinal_position").fetchall()
+    out: dict[str, list[str]] = {}
+    for t, c in rows:
+        out.setdefault(t, []).append(c)
+    return {t: tuple(c) for t, c in out.items()}
+
+
+def check_tables(con: Any, have: int) -> None:
+    """BenchError when the store's tables are not those of the version `have` it claims
+    (a store claiming version 1 with version 2's columns: its migration failed on
+    "Column with name travel_m already exists")."""
+    if have == 0:
+        return
+    want, got = expected_tables(have), _tables(con)
+    for table, cols in want.items():
+        if got.get(table) != cols:
+            extra = sorted(set(got.get(table, ())) - set(cols))
+            lack = sorted(set(cols) - set(got.get(table, ())))
+            why = "; ".join(x for x in (
+                f"no table {table}" if table not in got else "",
+                f"{table} has {', '.join(extra)} that version {have} has not" if extra
+                and table in got else "",
+                f"{table} lacks {', '.join(lack)}" if lack and table in got else "") if x)
+            raise BenchError(f"it claims schema version {have} but its tables are not that "
+                             f"version's ({why or 'columns in another order'}): the store is "
+                             f"damaged or edited; {DAMAGED}")
 
 
 def _refuse_foreign(con: Any, have: int) -> None:
@@ -106,6 +182,7 @@ def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
         raise BenchError(f"the fleet store has schema version {have}, newer than this "
                          f"bench's {SCHEMA_VERSION}: update the bench")
     _refuse_foreign(con, have)
+    check_tables(con, have)
     for k in range(have, target):
         con.execute("BEGIN TRANSACTION")
         try:
@@ -151,23 +228,32 @@ def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERS
     except duckdb.Error as exc:
         raise BenchError(f"{p}: cannot open the fleet store: "
                          f"{str(exc).splitlines()[0]}") from None
+    try:
+        with damage(p):
+            _ready(con, p, read_only, target)
+    except BaseException:
+        con.close()
+        raise
+    return con
+
+
+def _ready(con: Any, p: Path, read_only: bool, target: int) -> None:
+    """`connect`'s checks (read-only: the current version, its tables) or migration."""
     if read_only:
         try:
             have = version(con)
             _refuse_foreign(con, have)
+            if have <= SCHEMA_VERSION:
+                check_tables(con, have)
         except BenchError as exc:
-            con.close()
             raise BenchError(f"{p}: {exc}") from None
         if have != SCHEMA_VERSION:
-            con.close()
             raise BenchError(f"{p}: fleet store schema version {have}, this bench reads "
                              f"{SCHEMA_VERSION} ("
                              + ("update the bench)" if have > SCHEMA_VERSION else
                                 "run `bench fleet ingest` on it to migrate)"))
-        return con
+        return
     try:
         migrate(con, target)
     except BenchError as exc:
-        con.close()
         raise BenchError(f"{p}: {exc}") from None
-    return con

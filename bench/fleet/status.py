@@ -220,7 +220,8 @@ HEADER = ("actuator", "tests", "last test (UTC)", "level", "Ci", "trend Ci/day",
 
 def format_table(rows: list[ActuatorStatus]) -> str:
     """The status lines, one per actuator, with a header."""
-    body = [(st.ident, str(st.tests),
+    from bench.filenames import one_line
+    body = [(one_line(st.ident), str(st.tests),
              dt.datetime.fromtimestamp(st.last_time_s, dt.UTC).strftime(
                  "%Y-%m-%d %H:%M"), st.verdict,
              "-" if not math.isfinite(st.ci_last) else f"{st.ci_last:.3f}",

@@ -29,8 +29,20 @@ def default_db() -> Path:
     return Path(os.environ.get("BENCH_FLEET_DB") or "fleet.duckdb")
 
 
+def _guarded(method: Any) -> Any:
+    """A Store method whose DuckDB errors are the one-line damaged-store BenchError."""
+    import functools
+
+    @functools.wraps(method)
+    def call(self: Store, *args: Any, **kwargs: Any) -> Any:
+        with S.damage(self.path):
+            return method(self, *args, **kwargs)
+    return call
+
+
 class Store:
-    """A fleet store open for writing (migrated to the current schema) or reading."""
+    """A fleet store open for writing (migrated to the current schema) or reading; a
+    DuckDB error of any read or write is one line naming the store (`schema.damage`)."""
 
     def __init__(self, path: str | Path, read_only: bool = False) -> None:
         self.path = Path(path)
@@ -46,12 +58,14 @@ class Store:
         self.close()
 
     # -- writing ----------------------------------------------------------------------
+    @_guarded
     def known(self) -> set[str]:
         """Digests already stored, as runs or as failures."""
         rows = self.con.execute("SELECT digest FROM runs UNION ALL "
                                 "SELECT digest FROM failures").fetchall()
         return {r[0] for r in rows}
 
+    @_guarded
     def write(self, results: list[dict[str, Any]]) -> int:
         """Store a batch of ingest results (runs and failures) in one transaction;
         returns how many were new."""
@@ -80,16 +94,19 @@ class Store:
             f"INSERT OR IGNORE INTO {table} ({', '.join(columns)}) VALUES ({marks})",
             [[r.get(c) for c in columns] for r in rows])
 
+    @_guarded
     def count(self) -> int:
         """Runs and failures stored."""
         return int(self.con.execute("SELECT (SELECT count(*) FROM runs) + "
                                     "(SELECT count(*) FROM failures)").fetchone()[0])
 
     # -- reading ----------------------------------------------------------------------
+    @_guarded
     def actuators(self) -> list[str]:
         return [r[0] for r in self.con.execute(
             "SELECT DISTINCT actuator_id FROM runs ORDER BY actuator_id").fetchall()]
 
+    @_guarded
     def series(self, columns: tuple[str, ...], actuator: str | None = None
                ) -> dict[str, Any]:
         """Columns of the runs (all actuators, or one), ordered by actuator and time, as
@@ -101,10 +118,12 @@ class Store:
                                "run_time", [actuator] if actuator is not None else [])
         return rel.fetchnumpy()
 
+    @_guarded
     def failures(self) -> list[tuple[str, str, str]]:
         return [tuple(r) for r in self.con.execute(
             "SELECT actuator_id, path, error FROM failures ORDER BY path").fetchall()]
 
+    @_guarded
     def export(self, out_dir: str | Path) -> list[Path]:
         """Every table as Parquet (``runs.parquet``, ``failures.parquet``,
         ``meta.parquet``) in `out_dir`."""
@@ -114,6 +133,11 @@ class Store:
         except OSError as exc:
             raise BenchError(f"{out}: cannot create the export directory: {exc}") from None
         paths = []
+        for t in TABLES:
+            p = out / f"{t}.parquet"
+            if p.exists() and os.path.samefile(p, self.path):
+                raise BenchError(f"--out {out}: {p.name} would be written over the store "
+                                 f"{self.path} itself: export into another folder")
         for t in TABLES:
             p = out / f"{t}.parquet"
             self.con.execute(f"COPY (SELECT * FROM {t}) TO '{_quote(p)}' (FORMAT parquet)")

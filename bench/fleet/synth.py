@@ -227,6 +227,7 @@ def _job(job: tuple[str, dict[str, float], int, float, str]) -> str:
     p = PlantParams().with_dict({**wear, "sensors.noise": True,
                                  "sensors.noise_seed": noise_seed})
     tr = simulate(sine(cycles=GROUND_TEST_CYCLES), p)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     write_candump(tr, path, t0)
     return path
 
@@ -266,30 +267,78 @@ def truth_of(fleet: list[Actuator], n: int, days: int, seed: int, wear: str) -> 
     return truth
 
 
+LOG_BYTES = 532_036
+"""Bytes of one ground test's candump log (2000 SYNC periods x 6 frames), measured;
+`tests/unit/test_fleet_limits.py` checks it against a log written."""
+MEMORY_PER_LOG = 2048
+"""Bytes of this process's memory per log: ~650 measured (tracemalloc: the fleet's
+draws, the jobs and the truth file), x3 for the tasks' copies and the results."""
+
+
+def check_size(n: int, days: int, out_dir: str | Path) -> None:
+    """BenchError, before anything is written, when n x days logs cannot fit: their
+    bytes (LOG_BYTES each) on the disk of `out_dir`, or their bookkeeping
+    (MEMORY_PER_LOG each) in half the memory available now."""
+    import shutil
+
+    from bench.trace import memory_available
+    logs = n * days
+    base = Path(out_dir).absolute()
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    free = shutil.disk_usage(base).free
+    need = logs * LOG_BYTES
+    if need > free:
+        raise BenchError(f"--actuators {n} --days {days}: {logs} logs of ~{LOG_BYTES / 1e3:.0f} "
+                         f"kB need ~{_size(need)}; the disk of {base} has {_size(free)} free "
+                         f"(at most ~{free // LOG_BYTES} logs)")
+    room = memory_available() // 2
+    if logs * MEMORY_PER_LOG > room:
+        raise BenchError(f"--actuators {n} --days {days}: {logs} logs need ~"
+                         f"{_size(logs * MEMORY_PER_LOG)} of memory to plan and track; half "
+                         f"the memory available is {_size(room)} (at most ~"
+                         f"{room // MEMORY_PER_LOG} logs per command)")
+
+
+def _size(b: float) -> str:
+    for unit, k in (("PB", 1e15), ("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if b >= k:
+            return f"{b / k:.3g} {unit}"
+    return f"{b / 1e3:.3g} kB"
+
+
 def synth(n: int, days: int, out_dir: str | Path, seed: int = 0, workers: int | None = None,
           progress: bool = True, scheduler: str | None = None, wear: str = "use"
           ) -> list[Path]:
-    """Write the fleet's logs (n x days) and its truth file; returns the log paths."""
+    """Write the fleet's logs (n x days) and, once they are all written, its truth file;
+    returns the log paths. Refused before anything is written when they cannot fit
+    (`check_size`) or the scheduler does not answer; an actuator's folder is made with
+    its first log."""
     if n < 1 or days < 1:
         raise BenchError("the synthetic fleet needs at least one actuator and one day")
+    check_size(n, days, out_dir)
+    from bench.cluster import probe_scheduler, scheduler_address
+    addr = scheduler_address(scheduler)
+    if addr is not None:
+        probe_scheduler(addr)
     out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise BenchError(f"{out}: cannot create the output directory: {exc}") from None
     fleet = draw_fleet(n, days, seed, wear)
     jobs = []
     for k, act in enumerate(fleet):
-        (out / act.ident).mkdir(exist_ok=True)
         for d in range(days):
             when = EPOCH + dt.timedelta(days=d, seconds=round(act.hour_utc * 3600.0))
             path = out / act.ident / f"{when:%Y-%m-%dT%H-%M-%S}.log"
             jobs.append((str(path), wear_at(act, d), int(seed * 1_000_003 + k * 10_007 + d),
                          when.timestamp(), act.ident))
     truth = truth_of(fleet, n, days, seed, wear)
-    (out / "fleet-truth.json").write_text(json.dumps(truth, indent=1))
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BenchError(f"{out}: cannot create the output directory: {exc}") from None
     from bench.fleet.ingest import run_jobs
-    got = run_jobs(_job, jobs, workers, progress, scheduler, desc="fleet synth", unit="log")
+    got = run_jobs(_job, jobs, workers, progress, scheduler, desc="fleet synth", unit="log",
+                   label=lambda job: str(job[0]))
+    (out / "fleet-truth.json").write_text(json.dumps(truth, indent=1))
     return [Path(p) for p in got]
 
 

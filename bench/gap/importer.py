@@ -39,14 +39,10 @@ BenchErrors naming the file and line (a repeated identical row is merged into on
 
 from __future__ import annotations
 
-import bz2
 import csv
-import gzip
 import io
 import json
-import lzma
 import math
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,7 +50,11 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.gap.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
 from bench.trace import Trace
+
+__all__ = ["COMPRESSED", "FINITE", "MapEntry", "Rows", "build_trace", "import_table",
+           "map_columns", "read_map", "read_rows", "read_table", "split_table"]
 
 QUANTITY = {
     "t_s": "time", "setpoint_position_m": "length", "position_m": "length",
@@ -73,8 +73,6 @@ UNITS: dict[str, dict[str, float]] = {
     "mode": {"-": 1.0, "": 1.0},
 }
 
-COMPRESSED: dict[str, Any] = {".xz": lzma.open, ".gz": gzip.open, ".bz2": bz2.open}
-FINITE = "a value must be a finite number (leave a cell blank where there is no value)"
 
 
 @dataclass(frozen=True)
@@ -130,7 +128,7 @@ def read_map(path: str | Path) -> list[MapEntry]:
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such map file: {path}")
-    text = _text(path, "map")
+    text = read_text(path, "map")
     rows: list[dict[str, Any]]
     if path.suffix.lower() == ".json":
         try:
@@ -164,154 +162,9 @@ def read_map(path: str | Path) -> list[MapEntry]:
     return entries
 
 
-@dataclass(frozen=True)
-class Rows:
-    """Where a table's data rows are in its file, for messages: a text table's line
-    numbers (``word`` "line"), a Parquet table's row numbers from 1 ("row")."""
-    path: Path
-    numbers: np.ndarray
-    word: str = "line"
-
-    def at(self, i: int) -> str:
-        """``PATH line N`` of data row `i`."""
-        return f"{self.path} {self.word} {int(self.numbers[i])}"
-
-    def some(self, idx: np.ndarray, most: int = 5) -> str:
-        """``line 7`` or ``lines 7, 9, 12 and 4 more`` of the data rows `idx`."""
-        nums = [str(int(self.numbers[i])) for i in idx[:most]]
-        more = f" and {len(idx) - most} more" if len(idx) > most else ""
-        return f"{self.word}{'s' if len(idx) > 1 else ''} {', '.join(nums)}{more}"
-
-    def take(self, mask: np.ndarray) -> Rows:
-        return Rows(self.path, self.numbers[mask], self.word)
-
-
 def read_table(path: str | Path, columns: list[str]) -> dict[str, np.ndarray]:
     """The named columns of a CSV or Parquet table as float arrays (blank -> NaN)."""
     return read_rows(path, columns)[0]
-
-
-def read_rows(path: str | Path, columns: list[str]) -> tuple[dict[str, np.ndarray], Rows]:
-    """`read_table`, and where its rows are in the file (`Rows`). An infinite value is
-    refused (a BenchError naming the file, line and column): it is no measurement, and
-    a cell with no value is left blank (NaN)."""
-    path = Path(path)
-    if not path.exists():
-        raise BenchError(f"no such table: {path}")
-    suffix = path.suffix.lower()
-    if suffix in COMPRESSED:
-        suffix = Path(path.stem).suffix.lower()
-    if suffix == ".parquet":
-        return _read_parquet(path, columns)
-    if suffix in (".csv", ".txt", ".tsv"):
-        return _read_delimited(path, columns)
-    raise BenchError(f"{path}: unknown table format {suffix!r} (use .csv or .parquet)")
-
-
-def _read_parquet(path: Path, columns: list[str]) -> tuple[dict[str, np.ndarray], Rows]:
-    """`read_table` of a Parquet file."""
-    import pyarrow.parquet as pq
-    try:
-        table = pq.read_table(path)
-    except Exception as exc:  # noqa: BLE001 - pyarrow raises many types
-        raise BenchError(f"{path}: cannot read Parquet ({exc})") from None
-    have = table.column_names
-    _check_columns(path, columns, have)
-    rows = Rows(path, np.arange(table.num_rows) + 1, "row")
-    out = {}
-    for c in columns:
-        try:
-            out[c] = table.column(c).to_numpy(zero_copy_only=False).astype(float)
-        except (ValueError, TypeError):
-            raise BenchError(f"{path}: column {c!r} is not numeric") from None
-        inf = np.flatnonzero(np.isinf(out[c]))
-        if len(inf):
-            raise BenchError(f"{rows.at(int(inf[0]))}: column {c!r} holds an infinite "
-                             f"value ({out[c][inf[0]]}); {FINITE}")
-    return out, rows
-
-
-def _read_delimited(path: Path, columns: list[str]) -> tuple[dict[str, np.ndarray], Rows]:
-    """`read_table` of a CSV-like text file (the delimiter sniffed: , ; tab or space)."""
-    text = _text(path, "table")
-    sample = text[:4096]
-    try:
-        dialect: type[csv.Dialect] = csv.Sniffer().sniff(sample, delimiters=",;\t ")
-    except csv.Error:
-        dialect = csv.excel
-    rd = csv.reader(io.StringIO(text), dialect)
-    try:
-        header = [h.strip() for h in next(rd)]
-    except StopIteration:
-        raise BenchError(f"{path}: empty table") from None
-    _check_columns(path, columns, header)
-    idx = [header.index(c) for c in columns]
-    data: list[list[float]] = []
-    lines: list[int] = []
-    try:
-        for row in rd:
-            if not row or all(not x.strip() for x in row):
-                continue
-            lines.append(rd.line_num)
-            data.append(_row_values(path, rd.line_num, row, idx, columns))
-    except csv.Error as exc:
-        raise BenchError(f"{path} line {rd.line_num}: not a readable CSV row ({exc})") from None
-    if not data:
-        raise BenchError(f"{path}: the table has a header but no rows")
-    arr = np.array(data, float)
-    return {c: arr[:, j] for j, c in enumerate(columns)}, Rows(path, np.array(lines))
-
-
-def _text(path: Path, what: str) -> str:
-    """A text file's content (a table decompressed when it ends in .xz, .gz or .bz2);
-    a directory, an unreadable, corrupt or non-UTF-8 file is a one-line BenchError."""
-    opener = COMPRESSED.get(path.suffix.lower()) if what == "table" else None
-    try:
-        if opener is None:
-            data = path.read_bytes()
-        else:
-            with opener(path, "rb") as fh:
-                data = fh.read()
-    except IsADirectoryError:
-        raise BenchError(f"{path}: is a directory, not a {what} file") from None
-    except (PermissionError, FileNotFoundError) as exc:
-        raise BenchError(f"{path}: cannot be read ({exc.strerror})") from None
-    except (OSError, EOFError, ValueError, lzma.LZMAError, zlib.error) as exc:
-        if opener is None:
-            raise BenchError(f"{path}: cannot be read ({exc})") from None
-        raise BenchError(f"{path}: cannot decompress ({type(exc).__name__}: {exc}); is it "
-                         f"a complete {path.suffix} file?") from None
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise BenchError(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
-                         f"{exc.start}); a {what} file must be UTF-8 text"
-                         + (" (or Parquet)" if what == "table" else "")) from None
-
-
-def _row_values(path: Path, lineno: int, row: list[str], idx: list[int],
-                columns: list[str]) -> list[float]:
-    """The floats of one text row's wanted cells (blank or missing -> NaN)."""
-    vals = []
-    for i, c in zip(idx, columns, strict=True):
-        x = row[i].strip() if i < len(row) else ""
-        try:
-            v = float(x) if x else math.nan
-        except ValueError:
-            raise BenchError(f"{path} line {lineno}: column {c!r} is not a number: "
-                             f"{x!r}") from None
-        if math.isinf(v):
-            raise BenchError(f"{path} line {lineno}: column {c!r} holds an infinite value "
-                             f"({x!r}); {FINITE}")
-        vals.append(v)
-    return vals
-
-
-def _check_columns(path: Path, wanted: list[str], have: list[str]) -> None:
-    missing = [c for c in wanted if c not in have]
-    if missing:
-        raise BenchError(f"{path}: no column(s) {', '.join(repr(m) for m in missing)} "
-                         f"(the table has: {', '.join(have)})")
 
 
 def import_table(table: str | Path, mapping: list[MapEntry], sync_period_s: float | None = None,
@@ -369,8 +222,11 @@ def split_table(table: str | Path, mapping: list[MapEntry], keys: list[str],
 
 
 def _key_text(v: float) -> str:
-    """A split key's value in a file name: 20 -> '20', -40 -> '-40', 2.5 -> '2.5'."""
-    return str(int(v)) if float(v).is_integer() else f"{v:g}"
+    """A split key's value in a file name: 20 -> '20', -40 -> '-40', 2.5 -> '2.5',
+    100.0001 -> '100.0001' (the shortest text that reads back as the same number, so
+    distinct keys keep distinct names)."""
+    v = float(v)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e16 else repr(v)
 
 
 def build_trace(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry], source: str,
@@ -382,8 +238,9 @@ def build_trace(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry], source:
         raise BenchError("the SYNC period must be between 10 us and 1 s")
     if rows is None:
         rows = Rows(Path(source), np.arange(len(next(iter(raw.values())))) + 2)
+    _check_types(by_sig, rows)
     t = _time_column(raw, by_sig, source_rate_hz, rows)
-    values = {sig: _values(raw, e) for sig, e in by_sig.items() if sig != "t_s"}
+    values = {sig: _values(raw, e, rows) for sig, e in by_sig.items() if sig != "t_s"}
     if not values:
         raise BenchError("the map maps no signal besides time")
     first = _same_time(t, values, by_sig, rows)
@@ -411,10 +268,40 @@ def build_trace(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry], source:
     return Trace(out, meta)
 
 
-def _values(raw: dict[str, np.ndarray], e: MapEntry) -> np.ndarray:
-    """One mapped signal in SI: (column - minus column) x scale x unit factor."""
-    y = raw[e.column] - raw[e.minus] if e.minus else raw[e.column]
-    return y * e.factor
+def _values(raw: dict[str, np.ndarray], e: MapEntry, rows: Rows) -> np.ndarray:
+    """One mapped signal in SI: (column - minus column) x scale x unit factor; a value
+    that is finite in the table but not once scaled (1e308 kgf) is a BenchError naming
+    its column and line."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        y = (raw[e.column] - raw[e.minus] if e.minus else raw[e.column]) * e.factor
+    given = np.isfinite(raw[e.column]) & (np.isfinite(raw[e.minus]) if e.minus else True)
+    bad = np.flatnonzero(given & ~np.isfinite(y))
+    if len(bad):
+        k = int(bad[0])
+        raw_v = f"{raw[e.column][k]:g}" + (f" - {raw[e.minus][k]:g}" if e.minus else "")
+        raise BenchError(f"{rows.at(k)}: column {e.column!r} ({e.signal}): {raw_v} "
+                         f"{e.unit or '-'} x {e.scale:g} is beyond the range of a number in "
+                         f"SI units ({len(bad)} row(s)); {FINITE}")
+    return y
+
+
+def _check_types(by_sig: dict[str, MapEntry], rows: Rows) -> None:
+    """A timestamp or duration column (Parquet; read in seconds, `bench.gap.tables`)
+    maps only to the time t_s, with unit s and scale 1: any other use is a BenchError
+    naming the column."""
+    for sig, e in by_sig.items():
+        for col in (e.column, e.minus):
+            if col not in rows.timestamps:
+                continue
+            if sig != "t_s" or col == e.minus:
+                raise BenchError(f"{rows.path}: column {col!r} holds timestamps (a Parquet "
+                                 f"timestamp or duration), not values of {sig}; map it to "
+                                 "t_s only")
+            if e.unit != "s" or e.scale != 1.0:
+                raise BenchError(f"{rows.path}: column {col!r} holds timestamps (a Parquet "
+                                 "timestamp or duration), read in seconds whatever its own "
+                                 f"unit: map it with unit s and scale 1 (not {e.unit!r} x "
+                                 f"{e.scale:g})")
 
 
 def _native(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry], t: np.ndarray,
@@ -465,7 +352,7 @@ def _time_column(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
     n = len(next(iter(raw.values())))
     if "t_s" in by_sig:
         e = by_sig["t_s"]
-        t = raw[e.column] * e.factor
+        t = _values(raw, e, where)
         idx = np.flatnonzero(~np.isfinite(t))
         if len(idx):
             raise BenchError(f"{where.path}: {len(idx)} row(s) without a time in column "

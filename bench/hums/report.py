@@ -494,10 +494,11 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
     """Analyse every log and write ``report.html`` (and ``indexes.json``) into out_dir."""
     if not paths:
         raise BenchError("give at least one log")
+    from bench.filenames import distinct_labels
     analyses = []
-    for p in paths:
+    for p, label in zip(paths, distinct_labels(paths), strict=True):
         tr = load_log(p)
-        analyses.append(analyse(tr, Path(p).name, params, rul, period_s, progress))
+        analyses.append(analyse(tr, label, params, rul, period_s, progress))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     page = out / "report.html"

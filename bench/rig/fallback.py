@@ -127,6 +127,8 @@ the screw's lead, enables the position-periodic feature."""
         cal["baseline_not_available"] = "the calibration went to stdout (give -o FILE.json)"
         return ["no healthy baseline written: the calibration went to stdout (give -o "
                 "FILE.json to write one beside it)"]
+    from bench.filenames import check_not_input
+    check_not_input(baseline_path(cal_output), "-o")     # beside the calibration
     out = base.save(baseline_path(cal_output))
     cal["baseline"] = {"file": out.name, "sources": base.sources,
                        "loads": {f"{k:g}": {"runs": v.runs, "cycles": v.n,

@@ -56,7 +56,7 @@ def test_synth_ingest_status_report_export(fleet, tmp_path, capsys):
     page = (rep / "index.html").read_text()
     assert "Inspect this week" in page and "actuators/EMA-0001.html" in page
     assert "x.log" in page                               # the failed log is listed
-    assert (rep / "figures" / "EMA-0000.png").stat().st_size > 5000
+    assert (rep / "actuators" / "EMA-0000.png").stat().st_size > 5000
     assert "fleet overview" in (rep / "actuators" / "EMA-0000.html").read_text()
     assert main(["fleet", "export", "--db", db, "--out", str(tmp_path / "pq")]) == 0
     # plain duckdb, no bench: the Parquet export and the store itself
@@ -103,8 +103,10 @@ def test_bad_input_is_one_line(tmp_path, capsys):
 def test_ingest_killed_mid_way_resumes_without_loss_or_duplicates(fleet, tmp_path):
     logs = tmp_path / "logs"
     shutil.copytree(fleet, logs)
-    for p in sorted(logs.rglob("*.log")):       # 12 distinct logs: 6 copies, one byte more
-        p.with_name(p.stem + "-b.log").write_text(p.read_text() + "\n")
+    for p in sorted(logs.rglob("*.log")):       # 12 distinct logs: 6 copies, one frame more
+        text = p.read_text()
+        last = float(text.rstrip().rsplit("\n", 1)[-1].split(")")[0][1:])
+        p.with_name(p.stem + "-b.log").write_text(text + f"({last + 1:.6f}) can0 7FF#00 R\n")
     db = tmp_path / "f.duckdb"
     env = dict(os.environ, PYTHONPATH=str(ROOT), BENCH_FLEET_BATCH="1")
     proc = subprocess.Popen([sys.executable, "-m", "bench", "fleet", "ingest", str(logs),

@@ -86,6 +86,9 @@ def test_chunks_keep_order_report_each_job_and_survive_a_killed_worker(tmp_path,
         with pytest.raises(BenchError, match="job 5 failed in a worker: ValueError: boom"):
             run_all(_fail_on_five, range(12), progress=False, retries=0, scheduler=addr,
                     chunk=4)
+        with pytest.raises(BenchError, match="log5.log failed in a worker: ValueError: boom"):
+            run_all(_fail_on_five, range(12), progress=False, retries=0, scheduler=addr,
+                    chunk=4, label=lambda job: f"log{job}.log")
         victim = sorted(client.run(os.getpid).values())[0]
         killed: list[int] = []
 

@@ -37,3 +37,47 @@ def test_bench_down_does_not_import_mf4_support(tmp_path):
     mods = {line.rsplit("|", 1)[1].strip() for line in out.stderr.splitlines()
             if line.startswith("import time:")}
     assert "can" in mods and "asammdf.blocks" not in mods
+
+
+def _candump(path, n: int = 40) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "unit"))
+    from log_frames import run, write_log
+    write_log(str(path), run(n))
+
+
+def test_candump_on_standard_input_decodes_to_csv_on_standard_output(tmp_path):
+    """`cat log | bench decode -` said "unknown log format '(no suffix)'", and `-o -` was
+    refused: candump -L on stdin, CSV on stdout, the summary on stderr."""
+    log = tmp_path / "run.log"
+    _candump(log)
+    out = subprocess.run([sys.executable, "-m", "bench", "decode", "-", "-o", "-"],
+                         input=log.read_bytes(), capture_output=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.decode().splitlines()
+    assert lines[0].startswith("t_s,") and len(lines) == 41
+    assert b"40 SYNC periods" in out.stderr
+
+
+def test_stdin_and_formats_in_process(tmp_path, monkeypatch, capsys):
+    """`-` with --format, a file without a suffix with --format, plain candump output
+    with a hint to use -L."""
+    import io
+
+    from bench.cli import main
+    log = tmp_path / "run.log"
+    _candump(log)
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(log.read_bytes())))
+    assert main(["decode", "-", "--format", "log", "-o", str(tmp_path / "t.csv")]) == 0
+    assert (tmp_path / "t.csv").read_text().count("\n") == 41
+    noext = tmp_path / "dump"
+    noext.write_bytes(log.read_bytes())
+    capsys.readouterr()
+    assert main(["decode", str(noext)]) == 2
+    assert "name the format with --format" in capsys.readouterr().err
+    assert main(["decode", str(noext), "--format", "log"]) == 0
+    plain = b"  can0  080   [1]  01\n  can0  190   [6]  7E 00 00 00 40 00\n"
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(plain)))
+    capsys.readouterr()
+    assert main(["decode", "-"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "record the log with `candump -L`" in err

@@ -248,3 +248,41 @@ def test_usage_columns_of_a_run_without_motor_angle_are_null():
     assert {k for k, v in u.items() if v is None} == {
         "travel_m", "screw_revs", "reversals", "equivalent_load_n", "life_consumed",
         "i2t_a2s", "time_hot_s"}
+
+
+def _stored(path) -> None:
+    with Store(path) as st:
+        st.write([run_row(k) for k in range(3)])
+
+
+@pytest.mark.parametrize("damage", ["cut", "v1-with-v2-columns", "version -5", "version 1.5"])
+def test_a_damaged_store_is_one_line_naming_it_and_what_to_do(tmp_path, damage):
+    """A store cut in half gave IOException, one claiming schema 1 with schema-2 columns
+    CatalogException, schema version "-5" IndexError."""
+    path = tmp_path / "f.duckdb"
+    _stored(path)
+    if damage == "cut":
+        data = path.read_bytes()
+        path.write_bytes(data[:len(data) // 2])
+    else:
+        value = {"v1-with-v2-columns": "1", "version -5": "-5", "version 1.5": "1.5"}[damage]
+        con = duckdb.connect(str(path))
+        con.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", [value])
+        con.close()
+    for read_only in (True, False):
+        with pytest.raises(BenchError) as err:
+            with Store(path, read_only=read_only) as st:
+                st.known()
+        msg = str(err.value)
+        assert msg.startswith(f"{path}: ") and "\n" not in msg
+        assert "restore the store from a copy" in msg or "not a number" in msg, msg
+
+
+def test_a_job_that_fails_in_a_worker_is_named_by_its_label():
+    from bench.workers import _job_error, _JobFailed
+    jobs = [("a.log",), ("b.log",), ("c.log",)]
+    err = _job_error(_JobFailed(1, "ValueError: boom"), "fleet ingest", jobs,
+                     lambda j: j[0], 0, 3)
+    assert str(err) == "fleet ingest: b.log failed in a worker: ValueError: boom"
+    err = _job_error(RuntimeError("worker died"), "fleet ingest", jobs, None, 2, 1)
+    assert str(err) == "fleet ingest: job 2 failed in a worker: RuntimeError: worker died"

@@ -93,10 +93,12 @@ def test_the_usage_campaign_runs_on_the_given_scheduler(monkeypatch):
     run_all calls started a local cluster): its work now runs inside the command's
     session, as the other campaign does."""
     from bench import BenchError
+    from bench import cluster as C
     from bench import workers as W
     from bench.cli import main
     from bench.hums import prognosis_campaign as PC
     seen = []
+    monkeypatch.setattr(C, "probe_scheduler", lambda *a, **k: None)   # no scheduler here
 
     def fake(*a, **kw):
         seen.append([s.scheduler for s in W._SESSIONS])
