@@ -4,46 +4,47 @@ The index is turned into a degradation level u: 0 at the healthy level h0 (the m
 the healthy tests), 1 at the failure threshold F the user states,
 u = s (y - h0) / (F - h0) with s = +-1 the direction of wear.
 
-**The model** (`CurveModel`, a progpy `PrognosticsModel`): healthy, then from a change
-time t_c a level that grows with an exponential rate (an exponential with a random
-rate; g = 0 is a straight line, g < 0 a rate that settles):
+**The model** (`CurveModel`, a progpy `PrognosticsModel`): the three phases of wear
+(run-in aside): a steady drift from the first test, and from a change time t_c a
+wear-out whose rate grows exponentially (an exponential with a random rate; g = 0 a
+straight line, g < 0 a rate that settles):
 
-    u(t) = a                              t <= t_c
-    u(t) = a + c psi(t),  psi(t) = phi_g(t - t_c) / phi_g(t_now - t_c),
-           phi_g(x) = (exp(g x) - 1) / g  (x for g = 0)
+    u(t) = a + b x(t) + c psi(t),   x = (t - t_0) / (t_now - t_0),
+    psi(t) = phi_g(t - t_c) / phi_g(t_now - t_c)  (0 before t_c),
+    phi_g(x) = (exp(g x) - 1) / g  (x for g = 0)
 
-so that c is the degradation reached at the present test t_now and a the healthy
-level's own offset; du/dt = r, dr/dt = g r in state form. The tests are u(t_i) plus
-Gaussian noise of sd sigma.
+so that b is the drift over the tests so far, c the wear-out reached at the present test
+t_now and a the healthy level's own offset. The tests are u(t_i) plus Gaussian noise of
+an unknown sd sigma.
 
-**Fit** (`fit`): the exact posterior on a grid of the two nonlinear parameters, the
-change time (`N_CHANGE` candidates from the first test to three tests before now) and
-kappa = g (t_now - t_0) (`KAPPA`: how many e-folds the rate grows over the time the
-tests span, from the first t_0 to now
-change; no more than a few e-folds over as long as the whole test has run, so that a
-change seen on the last few tests is not extrapolated as a steep exponential), with a
-flat prior over the grid; given them the model is linear in (a, c),
-with the priors a ~ N(0, sigma^2 / N) (the healthy mean's standard error, N healthy
-tests) and c ~ N(0, 1) truncated to c > 0 (degradation goes toward the threshold,
-reaching somewhere between healthy and a few times the threshold): Gaussian
-posteriors and marginal likelihoods in closed form (Bishop 2006, section 3.3-3.4), the
-truncation's mass P(c > 0) in the weight of each grid point. The data that do not fit
-any model widen the band: when the residuals of the posterior's models scatter more
-than the noise (chi^2 per degree of freedom, `misfit`, above its 99 % point) sigma is
-scaled by its square root (the Birge ratio) and the fit repeated.
+**Fit** (`CurvePosterior.fit`): the exact posterior over a grid of the two nonlinear
+parameters, the change time (every test, thinned to `MAX_CHANGE` candidates, with at
+least `MIN_AFTER` tests after it) and kappa = g (t_now - t_0), the e-folds the rate grows
+over as long as the tests have run (`KAPPA`; so a change seen on the last few tests is
+not extrapolated as a steep exponential). The prior over the grid: flat over the change
+times; over kappa, half its mass on the straight line (kappa = 0: a constant wear rate,
+Archard's law at a steady use, the simplest shape) and half flat over `KAPPA`. Given the
+grid point the model is linear in (a, b, c): the conjugate normal-inverse-gamma
+posterior (Bishop 2006, sections 3.3 and 3.5; Gelman et al., BDA section 14.2) with
+the priors (given sigma) a ~ N(0, sigma^2 / N) (the healthy mean's error, N healthy
+tests), b, c ~ N(0, sigma^2 / sigma0^2) (of the order of the threshold at the healthy
+noise sigma0), c truncated to c > 0 (wear goes toward the threshold), and sigma^2 ~
+scaled inverse chi^2 (N - 1, sigma0^2): the healthy tests' noise, which the residuals
+then override. Its marginal likelihood and Student-t posteriors are in closed form, the
+truncation's mass P(c > 0) in the weight of each grid point; when the tests scatter
+more about every curve than the healthy tests did, sigma's posterior grows and the band
+with it. The statistics are sums over the tests (`CurvePosterior.add`, O(grid) per test).
 
-**RUL** (`samples`): grid points drawn by their posterior weights, (a, c) from their
-truncated Gaussian posterior, the time the curve reaches u = 1 in closed form:
-phi_g(tau) = (1 - a) phi_g(S) / c, tau = ln(1 + g (1 - a) phi_g(S) / c) / g from t_c
-(no crossing, inf, when the rate settles before it). A unit test checks the closed form
-against progpy's `simulate_to_threshold` on `CurveModel`.
+**RUL** (`samples`): grid points drawn by their weights, sigma^2 from its inverse gamma,
+c from its truncated normal, (a, b) given c; the time the curve reaches u = 1 by
+bisection (inf when it does not within `HORIZON` times the time the tests span). A unit
+test checks it against progpy's `simulate_to_threshold` on `CurveModel`.
 
 Why not progpy's state estimators: t_c and g are static parameters, which a particle
 filter learns by jittering particles; tried on synthetic endurance trends (a flat
 healthy period, then an exponential rise), its RUL bands stayed 5-10 times wider than
 the tests warrant 90 tests after the change, set by the jitter rather than the data,
-and it cost ~3 ms per test here against ~1 ms for the exact posterior on the grid,
-which has no random seed to tune either.
+and it cost more per test than this exact posterior, which has no random walk to tune.
 """
 
 from __future__ import annotations
@@ -53,16 +54,18 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.special import chdtri, ndtr, ndtri
+from scipy.special import ndtr, ndtri, stdtr
 
 KAPPA = (-1.0, 6.0)                # prior range of g (t_now - t_0): e-folds of the rate
 KAPPA_MIN = 0.05                   # |kappa| below this: a straight line
+P_LINE = 0.5                       # prior mass of the straight line (a constant wear rate)
 G_POS = np.logspace(-5.0, 1.0, 61)  # |g| dt of the grid (dt: the healthy tests' interval)
 G_NEG = np.logspace(-5.0, 0.0, 26)
 MAX_CHANGE = 64                    # change-time candidates kept (thinned beyond)
 MIN_AFTER = 3                      # tests after a change time for it to be a candidate
 N_SAMPLES = 500
-MISFIT_Q = 0.99
+HORIZON = 50.0                     # RUL beyond HORIZON x (t_now - t_0): never (inf)
+N_SUMS = 4                         # per grid point: sum psi, psi^2, psi z, psi t
 
 
 def phi(g: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -74,35 +77,52 @@ def phi(g: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Fit:
-    """The posterior on the grid at one test: the weights of the (change time, growth)
-    points kept, the (a, c) posterior of each; sigma used and how much it was widened."""
+    """The posterior on the grid at one test: the grid points kept, their weights and
+    the posterior of (a, b, c, sigma^2) at each."""
     t_now: float
+    t0: float
     tc: np.ndarray           # (P,) change time of each grid point
     g: np.ndarray            # (P,) growth rate (per time unit)
     w: np.ndarray            # (P,) posterior weights (sum 1)
-    post: np.ndarray         # (P, 5) posterior of (a, c), untruncated: mean a, mean c,
-                             # var a, cov a c, var c
-    sigma: float
-    widened: float           # factor on sigma (1: the data fitted the noise)
+    mean: np.ndarray         # (P, 3) posterior mean of (a, b, c), untruncated
+    cov: np.ndarray          # (P, 3, 3) its covariance over sigma^2
+    alpha: float             # sigma^2's inverse gamma (the same alpha at every point)
+    beta: np.ndarray         # (P,)
+    sigma: float             # the noise's posterior mean (u units)
+    widened: float           # sigma over the healthy tests' noise
     z_last: float            # last test's residual about the best curve, in sd
+
+
+def _inv3(p: list[np.ndarray]) -> list[np.ndarray]:
+    """Inverse of symmetric 3 x 3 matrices given as (p11, p12, p13, p22, p23, p33), and
+    their determinant, element-wise."""
+    p11, p12, p13, p22, p23, p33 = p
+    c11 = p22 * p33 - p23 * p23
+    c12 = p13 * p23 - p12 * p33
+    c13 = p12 * p23 - p13 * p22
+    c22 = p11 * p33 - p13 * p13
+    c23 = p12 * p13 - p11 * p23
+    c33 = p11 * p22 - p12 * p12
+    det = p11 * c11 + p12 * c12 + p13 * c13
+    return [c11 / det, c12 / det, c13 / det, c22 / det, c23 / det, c33 / det, det]
 
 
 class CurvePosterior:
     """Sufficient statistics of the model (module docstring) for every change time and
     growth rate of the grid, updated test by test in O(grid): for the change time t_c
-    and rate g, the sums over the tests after t_c of phi_g(t - t_c), its square and its
-    product with z. The basis psi is phi over phi_g(t_now - t_c), a scalar of each grid
-    point, so a new test never revisits the old ones. A growth rate whose kappa has left
-    the prior's range for good (g (t_now - t_0) > KAPPA[1]) is dropped; change-time
-    candidates beyond MAX_CHANGE are thinned to every other one."""
+    and rate g, the sums over the tests after t_c of phi_g(t - t_c), its square, its
+    products with z and with t - t_0. The basis psi is phi over phi_g(t_now - t_c), a
+    scalar of each grid point, so a new test never revisits the old ones. A growth rate
+    whose kappa has left the prior's range for good is dropped; change-time candidates
+    beyond MAX_CHANGE are thinned to every other one."""
 
     def __init__(self, dt: float) -> None:
         self.g = np.concatenate([-G_NEG[::-1], [0.0], G_POS]) / dt      # (G,)
         self.on = np.ones(len(self.g), dtype=bool)
         self.tc = np.zeros(0)
-        self.sums = np.zeros((0, 3, len(self.g)))          # phi, phi^2, phi z
+        self.sums = np.zeros((0, N_SUMS, len(self.g)))
         self.n_after = np.zeros(0, dtype=np.int64)
-        self.n, self.sz, self.szz = 0, 0.0, 0.0
+        self.glob = np.zeros(6)          # n, sum t', t'^2, z, t' z, z^2 (t' = t - t_0)
         self.t0 = math.nan
         self.t_now = math.nan
         self.z_now = math.nan
@@ -111,23 +131,23 @@ class CurvePosterior:
 
     def add(self, t: float, z: float) -> None:
         """One more test, time `t`, level `z` (u units)."""
-        if self.n == 0:
+        if self.seen == 0:
             self.t0 = t
         self.t_now, self.z_now = t, z
+        tp = t - self.t0
         if len(self.tc):
             # rates dropped for good are computed as g = 0 (finite, never read)
             v = phi(np.where(self.on, self.g, 0.0)[None, :], (t - self.tc)[:, None])
             self.sums[:, 0] += v
             self.sums[:, 1] += v * v
             self.sums[:, 2] += v * z
+            self.sums[:, 3] += v * tp
             self.n_after += 1
-        self.n += 1
-        self.sz += z
-        self.szz += z * z
-        self.on &= self.g * (t - self.t0) <= KAPPA[1] * 1.0001
+        self.glob += (1.0, tp, tp * tp, z, tp * z, z * z)
+        self.on &= self.g * tp <= KAPPA[1] * 1.0001
         if self.seen % self.step == 0:
             self.tc = np.append(self.tc, t)
-            self.sums = np.concatenate([self.sums, np.zeros((1, 3, len(self.g)))])
+            self.sums = np.concatenate([self.sums, np.zeros((1, N_SUMS, len(self.g)))])
             self.n_after = np.append(self.n_after, 0)
             if len(self.tc) > MAX_CHANGE:
                 keep = np.arange(len(self.tc)) % 2 == 0
@@ -137,127 +157,185 @@ class CurvePosterior:
         self.seen += 1
 
     def _prior(self) -> np.ndarray:
-        """Weight of each growth rate: a flat prior in kappa = g (t_now - t_0) over
-        KAPPA, each grid point standing for its cell; rates with |kappa| below
-        KAPPA_MIN are g = 0's (a straight line over the tests so far)."""
+        """Weight of each growth rate (module docstring): P_LINE on g = 0, the rest flat
+        in kappa over KAPPA, each grid point standing for its cell; rates with |kappa|
+        below KAPPA_MIN are g = 0's (a straight line over the tests so far)."""
         span = max(self.t_now - self.t0, 1e-12)
         k = self.g * span
-        use = self.on & ((np.abs(k) >= KAPPA_MIN) | (self.g == 0.0))
-        use &= (k >= KAPPA[0] - 0.5 * KAPPA_MIN) & (k <= KAPPA[1] * 1.0001)
+        use = self.on & (np.abs(k) >= KAPPA_MIN)
+        use &= (k >= KAPPA[0]) & (k <= KAPPA[1] * 1.0001)
         ku = k[use]
         mid = np.concatenate([[KAPPA[0]], 0.5 * (ku[1:] + ku[:-1]), [KAPPA[1]]])
+        mid[np.searchsorted(ku, 0.0)] = 0.0          # the cells stop at the line
         out = np.zeros(len(k))
-        out[use] = np.maximum(np.minimum(mid[1:], KAPPA[1]) - np.maximum(mid[:-1], KAPPA[0]),
-                              1e-6)
+        out[use] = np.maximum(mid[1:] - mid[:-1], 1e-9)
+        out *= (1.0 - P_LINE) / max(out.sum(), 1e-300)
+        out[self.g == 0.0] = P_LINE
         return out
 
-    def fit(self, sigma: float, a_sd: float) -> Fit:
-        """The posterior now (module docstring): noise `sigma`, prior sd of a `a_sd`
-        (both u units; a_sd is scaled with sigma when the fit widens it)."""
+    def fit(self, sigma0: float, n_healthy: int) -> Fit:
+        """The posterior now (module docstring): `sigma0` the healthy tests' noise (u
+        units) from `n_healthy` tests."""
         prior = self._prior()
         ok = self.n_after >= MIN_AFTER
         if not ok.any():
             ok = self.n_after >= self.n_after.max()
         gi = np.flatnonzero(prior > 0)
-        widened = 1.0
-        for _ in range(2):
-            post = self._posterior(ok, gi, sigma * widened, a_sd * widened, prior)
-            logev, pst, rss, tc, g = post
-            w = np.exp(logev - logev.max())
-            w /= w.sum()
-            dof = max(self.n - 3, 1)
-            chi = float(np.sum(w * rss)) / (sigma * widened) ** 2 / dof
-            if widened > 1.0 or chi <= chdtri(dof, 1.0 - MISFIT_Q) / dof:
-                break
-            widened = math.sqrt(chi)
+        logev, mean, cov, alpha, beta, tc, g = self._posterior(ok, gi, sigma0, n_healthy,
+                                                              prior)
+        w = np.exp(logev - logev.max())
+        w /= w.sum()
         best = int(np.argmax(w))
-        z_last = (self.z_now - pst[best, 0] - pst[best, 1]) / (sigma * widened)
+        sig = np.sqrt(beta / max(alpha - 1.0, 0.5))
+        z_last = (self.z_now - float(mean[best].sum())) / float(sig[best])
         keep = w > 1e-9 * w[best]
         w = w[keep] / w[keep].sum()
-        return Fit(self.t_now, tc[keep], g[keep], w, pst[keep], sigma * widened, widened,
-                   z_last)
+        sigma = float(np.sum(w * sig[keep]))
+        return Fit(self.t_now, self.t0, tc[keep], g[keep], w, mean[keep], cov[keep], alpha,
+                   beta[keep], sigma, sigma / sigma0, z_last)
 
-    def _posterior(self, ok: np.ndarray, gi: np.ndarray, sigma: float, a_sd: float,
-                   prior: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Log evidence, posterior mean and covariance of (a, c), residual sum of squares,
-        change time and growth of every grid point (candidates `ok` x rates `gi`)."""
+    def _posterior(self, ok: np.ndarray, gi: np.ndarray, sigma0: float, n_healthy: int,
+                   prior: np.ndarray) -> tuple[Any, ...]:
+        """Per grid point (candidates `ok` x rates `gi`): log evidence, posterior mean and
+        covariance over sigma^2 of (a, b, c), sigma^2's alpha and beta, t_c and g."""
         tc = self.tc[ok]
         g = self.g[gi]
-        sums = self.sums[ok][:, :, gi]                       # (C, 3, K)
+        n, st, stt, sz, stz, szz = self.glob
+        span = max(self.t_now - self.t0, 1e-12)
+        sums = self.sums[ok][:, :, gi]                             # (C, 4, K)
         norm = phi(g[None, :], np.maximum(self.t_now - tc, 1e-12)[:, None])   # (C, K)
         s1, s2, s3 = sums[:, 0] / norm, sums[:, 1] / norm ** 2, sums[:, 2] / norm
-        s2v = sigma * sigma
-        p11 = self.n / s2v + 1.0 / a_sd ** 2
-        p12 = s1 / s2v
-        p22 = s2 / s2v + 1.0
-        b1 = self.sz / s2v
-        b2 = s3 / s2v
-        det = p11 * p22 - p12 * p12
-        c11, c12, c22 = p22 / det, -p12 / det, p11 / det
-        m1 = c11 * b1 + c12 * b2
-        m2 = c12 * b1 + c22 * b2
-        logev = 0.5 * (m1 * b1 + m2 * b2 - np.log(det)) - math.log(a_sd)
-        logev = logev + np.log(np.maximum(ndtr(m2 / np.sqrt(c22)), 1e-300))
+        sx = sums[:, 3] / norm / span
+        prec = sigma0 * sigma0
+        p = [np.full(s1.shape, float(n_healthy) + n), np.full(s1.shape, st / span), s1,
+             np.full(s1.shape, prec + stt / span ** 2), sx, prec + s2]
+        c11, c12, c13, c22, c23, c33, det = _inv3(p)
+        b1, b2, b3 = sz, stz / span, s3
+        m1 = c11 * b1 + c12 * b2 + c13 * b3
+        m2 = c12 * b1 + c22 * b2 + c23 * b3
+        m3 = c13 * b1 + c23 * b2 + c33 * b3
+        dof0 = max(n_healthy - 1.0, 1.0)
+        alpha = 0.5 * (dof0 + n)
+        beta = 0.5 * (dof0 * prec + np.maximum(szz - m1 * b1 - m2 * b2 - m3 * b3, 0.0))
+        logev = -0.5 * np.log(det) - alpha * np.log(beta)
+        # the truncation c > 0: the mass of c's Student-t marginal above 0
+        logev = logev + np.log(np.maximum(stdtr(2.0 * alpha, m3 / np.sqrt(beta / alpha * c33)),
+                                          1e-300))
         logev = logev + np.log(prior[gi])[None, :]
-        rss = (self.szz - 2.0 * (m1 * self.sz + m2 * s3) + m1 * m1 * self.n
-               + 2.0 * m1 * m2 * s1 + m2 * m2 * s2)
+        mean = np.stack([m1.ravel(), m2.ravel(), m3.ravel()], -1)
+        cov = np.stack([np.stack([c11, c12, c13], -1), np.stack([c12, c22, c23], -1),
+                        np.stack([c13, c23, c33], -1)], -2).reshape(-1, 3, 3)
         shape = m1.shape
-        pst = np.stack([m1.ravel(), m2.ravel(), c11.ravel(), c12.ravel(), c22.ravel()], -1)
-        return (logev.ravel(), pst, np.maximum(rss, 0.0).ravel(),
+        return (logev.ravel(), mean, cov, alpha, beta.ravel(),
                 np.broadcast_to(tc[:, None], shape).ravel(),
                 np.broadcast_to(g[None, :], shape).ravel())
+
+
+def level(f: Fit, a: np.ndarray, b: np.ndarray, c: np.ndarray, tc: np.ndarray,
+          g: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """u of the curves (a, b, c, t_c, g) at times t >= t_now."""
+    span = max(f.t_now - f.t0, 1e-12)
+    s = np.maximum(f.t_now - tc, 1e-12)
+    return a + b * (t - f.t0) / span + c * phi(g, t - tc) / phi(g, s)
 
 
 def samples(f: Fit, rng: np.random.Generator, n: int = N_SAMPLES
             ) -> tuple[np.ndarray, np.ndarray]:
     """n draws of the posterior (module docstring): the times from now until u = 1 (inf
-    where the curve never gets there, 0 where it is past it) and the level now."""
+    where the curve does not get there within HORIZON spans, 0 where it is past it) and
+    the level now."""
     cs = np.cumsum(f.w)
     pick = np.minimum(np.searchsorted(cs, rng.random(n) * cs[-1]), len(cs) - 1)
-    ma, mc, va, cac, vc = f.post[pick].T
-    # c from its truncated (c > 0) marginal, then a given c
-    sd_c = np.sqrt(vc)
-    lo = ndtr(-mc / sd_c)
+    m, cv = f.mean[pick], f.cov[pick] * (f.beta[pick] / rng.gamma(f.alpha, size=n)
+                                         )[:, None, None]
+    # c from its truncated (c > 0) marginal, then (a, b) given c
+    sd_c = np.sqrt(cv[:, 2, 2])
+    lo = ndtr(-m[:, 2] / sd_c)
     q = lo + (1.0 - lo) * rng.random(n)
-    c = np.maximum(mc + sd_c * ndtri(np.clip(q, 1e-16, 1 - 1e-16)), 1e-12)
-    a = (ma + cac / vc * (c - mc)
-         + np.sqrt(np.maximum(va - cac * cac / vc, 0.0)) * rng.standard_normal(n))
-    tc = f.tc[pick]
-    g = f.g[pick]
-    need = (1.0 - a) * phi(g, f.t_now - tc) / c      # phi_g(tau) must reach this
+    c = np.maximum(m[:, 2] + sd_c * ndtri(np.clip(q, 1e-16, 1 - 1e-16)), 1e-12)
+    k = cv[:, :2, 2] / cv[:, 2:3, 2]                         # (n, 2) regression on c
+    mu = m[:, :2] + k * (c - m[:, 2])[:, None]
+    v = cv[:, :2, :2] - k[:, :, None] * cv[:, None, 2, :2]
+    l11 = np.sqrt(np.maximum(v[:, 0, 0], 0.0))
+    l21 = v[:, 1, 0] / np.where(l11 > 0, l11, 1.0)
+    l22 = np.sqrt(np.maximum(v[:, 1, 1] - l21 * l21, 0.0))
+    e1, e2 = rng.standard_normal(n), rng.standard_normal(n)
+    a = mu[:, 0] + l11 * e1
+    b = mu[:, 1] + l21 * e1 + l22 * e2
+    tc, g = f.tc[pick], f.g[pick]
+    now = a + b + c
+    rul = _crossing(f, a, b, c, tc, g)
+    return np.where(now >= 1.0, 0.0, rul), now
+
+
+def _crossing(f: Fit, a: np.ndarray, b: np.ndarray, c: np.ndarray, tc: np.ndarray,
+              g: np.ndarray) -> np.ndarray:
+    """The first time after now each curve reaches u = 1 (inf when none does within
+    HORIZON spans). A straight line's in closed form; a curved one's by Newton's method,
+    which is monotone here: the curve b x + c psi is convex for g > 0 (started at now,
+    or at the horizon when it falls now; one crossing from below at most) and concave
+    for g < 0 (started at now; a slope <= 0 before the crossing means its top is below
+    1: never)."""
+    span = max(f.t_now - f.t0, 1e-12)
+    hor = HORIZON * span
+    s = np.maximum(f.t_now - tc, 1e-12)
+    line = g == 0.0
+    gs = np.where(line, 1.0, g)
+    phis = np.where(line, s, np.expm1(g * s) / gs)
+
+    def curve(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        e = np.exp(np.minimum(g * (s + tau), 700.0))
+        val = a + b * (span + tau) / span + c * np.where(line, s + tau, (e - 1.0) / gs) / phis
+        return val, b / span + c * np.where(line, 1.0, e) / phis
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        arg = 1.0 + g * need
-        tau = np.where(np.abs(g) < 1e-12, need, np.log(np.where(arg > 0, arg, np.nan)) / g)
-    rul = tc + tau - f.t_now
-    rul = np.where(np.isfinite(rul), rul, np.inf)
-    level = a + c
-    return np.where(level >= 1.0, 0.0, np.maximum(rul, 0.0)), level
+        # start: the sooner of the times the wear-out alone (exact for b = 0) and the
+        # drift alone would take
+        need = 1.0 - (a + b + c)
+        arg = 1.0 + need * g * phis / (c * np.exp(np.minimum(g * s, 700.0)))
+        t_c = np.where(line, need * s / c, np.log(np.where(arg > 0, arg, np.nan)) / gs)
+        t_b = np.where(b > 0, need * span / np.where(b > 0, b, 1.0), np.inf)
+        tau = np.clip(np.fmin(np.where(np.isfinite(t_c), t_c, np.inf), t_b), 0.0, hor)
+        never = np.zeros(len(a), dtype=bool)
+        for it in range(60):
+            val, slope = curve(tau)
+            never |= (g < 0) & (slope <= 0) & (val < 1.0)
+            ok = slope > 0
+            tau = np.clip(tau - np.where(ok, (val - 1.0) / np.where(ok, slope, 1.0), 0.0),
+                          0.0, hor)
+            if it % 6 == 5 and np.all(never | (np.abs(val - 1.0) < 1e-9)
+                                      | ((tau >= hor) & (val < 1.0))):
+                break
+        val, _ = curve(tau)
+    hit = (np.abs(val - 1.0) < 1e-6) & ~never
+    return np.where(hit & (tau < hor), tau, np.inf)
 
 
-def make_model(g: float = 0.0) -> Any:
-    """The curve as a progpy `PrognosticsModel`: states u and r (its rate), du/dt = r,
-    dr/dt = g r; event ``failure`` at u >= 1. From u(t_c) = a, r(t_c) = c / phi_g(S) it
-    is the fitted curve (module docstring)."""
+def make_model(g: float = 0.0, b_rate: float = 0.0) -> Any:
+    """The curve as a progpy `PrognosticsModel`: states u and r (the wear-out's rate),
+    du/dt = b_rate + r, dr/dt = g r; event ``failure`` at u >= 1. From u(t_now) = a + b
+    + c, b_rate = b / (t_now - t_0), r(t_now) = c exp(g S) / phi_g(S) it is a fitted
+    curve from now on (module docstring)."""
     import matplotlib
     with matplotlib.rc_context():   # importing progpy rewrites matplotlib's rcParams
         from progpy import PrognosticsModel
 
     class CurveModel(PrognosticsModel):  # type: ignore[misc]
-        """Degradation level u with an exponentially growing rate r."""
+        """Degradation level u: a steady drift and a wear-out of exponential rate."""
         states = ["u", "r"]
         inputs: list[str] = []
         outputs = ["y"]
         events = ["failure"]
-        default_parameters = {"x0": {"u": 0.0, "r": 0.01}, "g": g, "process_noise": 0.0}
+        default_parameters = {"x0": {"u": 0.0, "r": 0.01}, "g": g, "b": b_rate,
+                              "process_noise": 0.0}
 
         def initialize(self, u: Any = None, z: Any = None) -> Any:
             return self.StateContainer(self.parameters["x0"])
 
         def next_state(self, x: Any, u: Any, dt: float) -> Any:
             gg = self.parameters["g"]
-            grow = math.exp(gg * dt)
             step = float(phi(np.array(gg), np.array(dt)))
-            return self.StateContainer({"u": x["u"] + x["r"] * step, "r": x["r"] * grow})
+            return self.StateContainer({"u": x["u"] + self.parameters["b"] * dt
+                                        + x["r"] * step, "r": x["r"] * math.exp(gg * dt)})
 
         def output(self, x: Any) -> Any:
             return self.OutputContainer({"y": x["u"]})

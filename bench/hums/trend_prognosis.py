@@ -43,7 +43,7 @@ from scipy.special import ndtri, stdtr
 
 from bench import BenchError
 from bench.hums.trend_io import Trend
-from bench.hums.trend_model import CurvePosterior, samples
+from bench.hums.trend_model import HORIZON, CurvePosterior, samples
 
 DEFAULT_HEALTHY = 5
 CUSUM_K = 0.5
@@ -51,6 +51,7 @@ CUSUM_H = 5.0
 Z_CLIP = 4.0
 Z_PEER = 3.0
 NOISE_WINDOW = 60
+WIDE = 2.0              # posterior noise over the healthy noise: said
 FIT_Z = 4.5             # a test this many sd from the posterior's curve: out of range
 PCT = (5, 25, 50, 75, 95)
 BIG = 1e300
@@ -70,6 +71,7 @@ class Settings:
     unit: str | None = None
     time_unit: str = "days"
     seed: int = 0
+    keep_samples: int = 0            # RUL samples kept per test (TrendResult.samples)
 
 
 @dataclass
@@ -96,6 +98,7 @@ class TrendResult:
     notes_at: dict[int, list[str]] = field(default_factory=dict)
     events: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    samples: dict[int, np.ndarray] = field(default_factory=dict)
 
     def estimate(self, k: int) -> dict[str, Any]:
         """Test k's estimate (JSON shape: t, warning, rul_p5, rul_p50, rul_p95, ...)."""
@@ -176,12 +179,6 @@ def _noise(y: np.ndarray, k: int, ref: Reference) -> tuple[float, float]:
     if own > ref.sd:
         return own, max(2.0, 0.6 * (len(seg) - 2))
     return ref.sd, float(ref.n - 1)
-
-
-def _t_inflation(dof: float) -> float:
-    """sd of a Student-t of `dof` degrees of freedom over its scale (2 below 3 dof): the
-    noise of a few tests, in a Gaussian fit."""
-    return math.sqrt(dof / (dof - 2.0)) if dof >= 3 else 2.0
 
 
 def _quantiles(x: np.ndarray, pct: tuple[int, ...]) -> np.ndarray:
@@ -318,6 +315,7 @@ class _Run:
         self.last_zero = ref.n - 1
         self.unfit_since = math.nan        # day the trend left the model's range
         self.fit_run = 0                   # tests that fitted since
+        self.texts: dict[str, str] = {}
 
     def run(self) -> None:
         tr, ref = self.tr, self.ref
@@ -337,7 +335,7 @@ class _Run:
             if k >= n_ref:
                 self._detect(k, noise, dof)
             if k >= n_ref - 1:
-                self._estimate(k, noise * _t_inflation(dof))
+                self._estimate(k)
         self._summary()
 
     def _z(self, k: int) -> float:
@@ -362,9 +360,10 @@ class _Run:
             ev["z_alarm_t"] = float(self.tr.t[k])
 
     def _note(self, k: int, text: str) -> None:
+        text = self.texts.setdefault(text, text)        # one object per distinct note
         self.res.notes_at.setdefault(k, []).append(text)
 
-    def _estimate(self, k: int, noise: float) -> None:
+    def _estimate(self, k: int) -> None:
         cols, ev, tr = self.res.cols, self.res.events, self.tr
         t, y = float(tr.t[k]), float(tr.y[k])
         cols["detected"][k] = float("detected_t" in ev)
@@ -383,19 +382,20 @@ class _Run:
             self._note(k, "no change from healthy detected yet: no RUL before one is (the "
                           "tests so far say nothing of when the wear will start)")
             return
-        self._rul(k, t, y, noise)
+        self._rul(k, t, y)
 
-    def _rul(self, k: int, t: float, y: float, noise: float) -> None:
+    def _rul(self, k: int, t: float, y: float) -> None:
         assert self.span is not None and self.curve is not None
         cols, ref, sign = self.res.cols, self.ref, self.sign
-        sig = noise / self.span
-        f = self.curve.fit(sig, sig / math.sqrt(ref.n))
+        f = self.curve.fit(ref.sd / self.span, ref.n)
         rul, u_now = samples(f, self.rng)
         lv = ref.level + sign * self.span * _quantiles(u_now, (5, 50, 95))
         cols["level_p5"][k], cols["level_p50"][k], cols["level_p95"][k] = (
             (lv[0], lv[1], lv[2]) if sign > 0 else (lv[2], lv[1], lv[0]))
+        if self.s.keep_samples:
+            self.res.samples[k] = rul[:self.s.keep_samples].copy()
         q = _quantiles(np.minimum(rul, BIG), PCT)
-        q[q >= BIG] = math.inf             # never reached (not an interpolation of infs)
+        q[q >= 1e-3 * BIG] = math.inf      # never reached (BIG in the interpolation)
         for c, v in zip(PCT, q, strict=True):
             cols[f"rul_p{c}"][k] = v
         cols["toe_p50"][k] = t + q[2]
@@ -406,9 +406,9 @@ class _Run:
                 self.res.events.setdefault("left_range_t", t)
             else:
                 self.fit_run += 1
-        if f.widened > 1.0:
-            self._note(k, f"the tests scatter {f.widened:.2g} times the noise about every "
-                          "model: the band was widened")
+        if f.widened > WIDE:
+            self._note(k, f"the tests scatter {f.widened:.2g} times the healthy tests' noise "
+                          "about the fitted curves: the band is that much wider")
         self._trust(k, t, y, q, rul)
 
     def _warn_level(self, k: int, level: float) -> float:
@@ -426,8 +426,8 @@ class _Run:
         assert fail is not None
         if math.isfinite(self.unfit_since) and self.fit_run < 3:
             self._note(k, f"the trend left the model's range on {tr.date(self.unfit_since)} "
-                          f"(the test {FIT_Z:g} sd or more from every model): the band "
-                          "was widened")
+                          f"(a test {FIT_Z:g} sd or more from the best curve): the band "
+                          "widens as the noise estimate grows, not at once")
         if sign * (y - fail) >= 0:
             self._note(k, f"the test is past the failure threshold ({y:.4g} against "
                           f"{fail:.4g}): the RUL is that of the level the model filters")
@@ -437,10 +437,12 @@ class _Run:
                           "outside the range the model covers (check the unit and the "
                           "direction, --decreasing)")
         if not np.isfinite(q[4]) or float(np.mean(~np.isfinite(rul))) > 0.05:
-            self._note(k, "the band is open above: more than 5 % of the particles never "
-                          "reach the threshold")
+            self._note(k, "the band is open above: more than 5 % of the curves the tests "
+                          f"allow do not reach the threshold within {HORIZON:g} times the "
+                          "time the tests span")
         if q[4] - q[0] < 0.25 * ref.dt:
-            self._note(k, "the band is a single value: every particle is past the threshold"
+            self._note(k, "the band is a single value: every curve the tests allow is past "
+                          "the threshold"
                        if q[4] == 0 else f"the band is narrower than a quarter of a test "
                        f"interval ({q[4] - q[0]:.3g} {self.s.time_unit})")
 
