@@ -24,7 +24,8 @@ from bench.hums.trend_prognosis import Settings, TrendResult, prognose
 
 CHUNK = 2000              # actuators per chunk held in memory at once
 IN_PROCESS_TESTS = 20000  # below this many tests, no worker processes (their start costs more)
-TREND_OPTIONS = ("failure", "warning", "healthy_tests", "unit", "decreasing", "index")
+TREND_OPTIONS = ("failure", "warning", "healthy_tests", "unit", "decreasing", "index", "truth",
+                 "figures")
 
 
 def select(table: Table, index: str | None) -> list[Trend]:
@@ -47,6 +48,8 @@ def choose_path(args: Any, table: Table) -> tuple[str, Any, str | None]:
     docstring). `args`: the CLI's options."""
     from bench.hums.prognosis_trends import default_calibration_path, load_calibration
     given = [o for o in TREND_OPTIONS if getattr(args, o, None) not in (None, False)]
+    if getattr(args, "time_unit", "days") != "days":
+        given.append("time_unit")
     if args.model == "calibration" and given:
         raise BenchError("--model calibration takes none of --"
                          + ", --".join(g.replace("_", "-") for g in given))
