@@ -62,10 +62,14 @@ def add_prognose(s: argparse._SubParsersAction) -> None:
 
 def run_prognose(args: argparse.Namespace) -> int:
 
-    from bench.cli.hums import _check_args
+    from bench.cli.outputs import check_outputs
     from bench.hums.trend_io import read_table
     from bench.hums.trend_run import choose_path
-    _check_args(args)
+    if args.seed < 0:
+        raise BenchError(f"--seed must be >= 0, not {args.seed}")
+    if args.workers is not None and args.workers < 1:
+        raise BenchError("--workers must be >= 1")
+    check_outputs(args, files=("json",), dirs=("figures",))
     refuse_inputs_as_outputs(args, outputs=("json",), inputs=("trends", "calibration"),
                              cache_calibration=args.calibration is None)
     if args.calibration and args.model != "trend":
@@ -91,9 +95,12 @@ def _prognose_calibrated(args: argparse.Namespace, table, cal) -> int:
     if skipped:
         print(f"note: skipped index names the calibration has no curve for: "
               f"{', '.join(skipped)}", file=sys.stderr)
-    from bench.cli.hums import _write_json
+    import json
     print(text(results))
-    _write_json(args.json, to_json(results))
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(to_json(results), indent=2))
+        print(f"wrote {args.json}")
     return 0
 
 

@@ -56,6 +56,8 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr, ndtri, stdtr
 
+from plant_rt.jit import njit
+
 KAPPA = (-1.0, 6.0)                # prior range of g (t_now - t_0): e-folds of the rate
 KAPPA_MIN = 0.05                   # |kappa| below this: a straight line
 P_LINE = 0.5                       # prior mass of the straight line (a constant wear rate)
@@ -222,9 +224,12 @@ class CurvePosterior:
         logev = logev + np.log(np.maximum(stdtr(2.0 * alpha, m3 / np.sqrt(beta / alpha * c33)),
                                           1e-300))
         logev = logev + np.log(prior[gi])[None, :]
-        mean = np.stack([m1.ravel(), m2.ravel(), m3.ravel()], -1)
-        cov = np.stack([np.stack([c11, c12, c13], -1), np.stack([c12, c22, c23], -1),
-                        np.stack([c13, c23, c33], -1)], -2).reshape(-1, 3, 3)
+        mean = np.empty((m1.size, 3))
+        mean[:, 0], mean[:, 1], mean[:, 2] = m1.ravel(), m2.ravel(), m3.ravel()
+        cov = np.empty((m1.size, 3, 3))
+        for (i, j), v in (((0, 0), c11), ((0, 1), c12), ((0, 2), c13), ((1, 1), c22),
+                          ((1, 2), c23), ((2, 2), c33)):
+            cov[:, i, j] = cov[:, j, i] = v.ravel()
         shape = m1.shape
         return (logev.ravel(), mean, cov, alpha, beta.ravel(),
                 np.broadcast_to(tc[:, None], shape).ravel(),
@@ -271,43 +276,70 @@ def samples(f: Fit, rng: np.random.Generator, n: int = N_SAMPLES
 def _crossing(f: Fit, a: np.ndarray, b: np.ndarray, c: np.ndarray, tc: np.ndarray,
               g: np.ndarray) -> np.ndarray:
     """The first time after now each curve reaches u = 1 (inf when none does within
-    HORIZON spans). A straight line's in closed form; a curved one's by Newton's method,
-    which is monotone here: the curve b x + c psi is convex for g > 0 (started at now,
-    or at the horizon when it falls now; one crossing from below at most) and concave
-    for g < 0 (started at now; a slope <= 0 before the crossing means its top is below
-    1: never)."""
+    HORIZON spans; `_crossings`)."""
     span = max(f.t_now - f.t0, 1e-12)
-    hor = HORIZON * span
-    s = np.maximum(f.t_now - tc, 1e-12)
-    line = g == 0.0
-    gs = np.where(line, 1.0, g)
-    phis = np.where(line, s, np.expm1(g * s) / gs)
+    n = len(a)
+    return _crossings(np.ascontiguousarray(a, dtype=np.float64),
+                      np.ascontiguousarray(np.broadcast_to(b, n), dtype=np.float64),
+                      np.ascontiguousarray(np.broadcast_to(c, n), dtype=np.float64),
+                      np.ascontiguousarray(np.broadcast_to(f.t_now - tc, n), dtype=np.float64),
+                      np.ascontiguousarray(np.broadcast_to(g, n), dtype=np.float64),
+                      span, HORIZON * span)
 
-    def curve(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        e = np.exp(np.minimum(g * (s + tau), 700.0))
-        val = a + b * (span + tau) / span + c * np.where(line, s + tau, (e - 1.0) / gs) / phis
-        return val, b / span + c * np.where(line, 1.0, e) / phis
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        # start: the sooner of the times the wear-out alone (exact for b = 0) and the
-        # drift alone would take
-        need = 1.0 - (a + b + c)
-        arg = 1.0 + need * g * phis / (c * np.exp(np.minimum(g * s, 700.0)))
-        t_c = np.where(line, need * s / c, np.log(np.where(arg > 0, arg, np.nan)) / gs)
-        t_b = np.where(b > 0, need * span / np.where(b > 0, b, 1.0), np.inf)
-        tau = np.clip(np.fmin(np.where(np.isfinite(t_c), t_c, np.inf), t_b), 0.0, hor)
-        never = np.zeros(len(a), dtype=bool)
-        for it in range(60):
-            val, slope = curve(tau)
-            never |= (g < 0) & (slope <= 0) & (val < 1.0)
-            ok = slope > 0
-            tau = np.clip(tau - np.where(ok, (val - 1.0) / np.where(ok, slope, 1.0), 0.0),
-                          0.0, hor)
-            if it % 6 == 5 and np.all(never | (np.abs(val - 1.0) < 1e-9)
-                                      | ((tau >= hor) & (val < 1.0))):
+
+@njit(cache=True, error_model="numpy")
+def _crossings(a: np.ndarray, b: np.ndarray, c: np.ndarray, s: np.ndarray, g: np.ndarray,
+               span: float, hor: float) -> np.ndarray:  # pragma: no cover - compiled
+    """Per curve u(tau) = a + b (span + tau) / span + c phi_g(s + tau) / phi_g(s): the
+    first tau >= 0 with u = 1. A straight line's in closed form; a curved one's by
+    Newton's method, which is monotone here: the curve is convex for g > 0 (one
+    crossing from below at most; started at the sooner of the drift's and the wear-out's
+    own crossing) and concave for g < 0 (a slope <= 0 before the crossing means its top
+    is below 1: never). inf when none within `hor`."""
+    # long: one Newton iteration per curve, its start and its two ways out
+    out = np.empty(len(a))
+    for i in range(len(a)):
+        si = max(s[i], 1e-12)
+        gi = g[i]
+        line = gi == 0.0
+        phis = si if line else math.expm1(gi * si) / gi
+        bs, cp = b[i] / span, c[i] / phis
+        base = a[i] + b[i]
+        need = 1.0 - (base + c[i])
+        if need <= 0.0:
+            out[i] = 0.0
+            continue
+        if line:
+            slope = bs + cp
+            out[i] = need / slope if slope > 0 and need / slope < hor else np.inf
+            continue
+        # the start: the sooner of the wear-out alone (exact for b = 0) and the drift alone
+        arg = 1.0 + need * gi * phis / (c[i] * math.exp(min(gi * si, 700.0)))
+        tau = math.log(arg) / gi if arg > 0 else np.inf
+        if b[i] > 0:
+            tau = min(tau, need / bs)
+        tau = min(max(tau, 0.0), hor)
+        found = False
+        jumped = False
+        for _ in range(100):
+            e = math.exp(min(gi * (si + tau), 700.0))
+            val = base + bs * tau + cp * (e - 1.0) / gi
+            slope = bs + cp * e
+            if abs(val - 1.0) < 1e-10:
+                found = True
                 break
-        val, _ = curve(tau)
-    hit = (np.abs(val - 1.0) < 1e-6) & ~never
-    return np.where(hit & (tau < hor), tau, np.inf)
+            if slope <= 0.0:
+                if gi > 0 and not jumped:  # convex, falling now: from the horizon's side
+                    tau, jumped = hor, True
+                    continue
+                break                      # concave past its top below 1
+            nxt = min(max(tau - (val - 1.0) / slope, 0.0), hor)
+            if nxt == tau:
+                found = abs(val - 1.0) < 1e-6
+                break
+            tau = nxt
+        out[i] = tau if found and tau < hor else np.inf
+    return out
 
 
 def make_model(g: float = 0.0, b_rate: float = 0.0) -> Any:

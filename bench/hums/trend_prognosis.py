@@ -174,8 +174,11 @@ def _noise(y: np.ndarray, k: int, ref: Reference) -> tuple[float, float]:
     seg = y[lo:k + 1]
     own = 0.0
     if len(seg) >= 6:
-        d2 = seg[2:] - 2.0 * seg[1:-1] + seg[:-2]
-        own = float(np.median(np.abs(d2))) / 0.6745 / math.sqrt(6.0)
+        d2 = np.abs(seg[2:] - 2.0 * seg[1:-1] + seg[:-2])
+        h = len(d2) // 2
+        part = np.partition(d2, (h - 1, h) if len(d2) % 2 == 0 else h)
+        med = 0.5 * (part[h - 1] + part[h]) if len(d2) % 2 == 0 else part[h]
+        own = float(med) / 0.6745 / math.sqrt(6.0)
     if own > ref.sd:
         return own, max(2.0, 0.6 * (len(seg) - 2))
     return ref.sd, float(ref.n - 1)
