@@ -87,26 +87,12 @@ class Fit:
     g: np.ndarray            # (P,) growth rate (per time unit)
     w: np.ndarray            # (P,) posterior weights (sum 1)
     mean: np.ndarray         # (P, 3) posterior mean of (a, b, c), untruncated
-    cov: np.ndarray          # (P, 3, 3) its covariance over sigma^2
+    cov: np.ndarray          # (P, 6) its covariance over sigma^2, packed 11 12 13 22 23 33
     alpha: float             # sigma^2's inverse gamma (the same alpha at every point)
     beta: np.ndarray         # (P,)
     sigma: float             # the noise's posterior mean (u units)
     widened: float           # sigma over the healthy tests' noise
     z_last: float            # last test's residual about the best curve, in sd
-
-
-def _inv3(p: list[np.ndarray]) -> list[np.ndarray]:
-    """Inverse of symmetric 3 x 3 matrices given as (p11, p12, p13, p22, p23, p33), and
-    their determinant, element-wise."""
-    p11, p12, p13, p22, p23, p33 = p
-    c11 = p22 * p33 - p23 * p23
-    c12 = p13 * p23 - p12 * p33
-    c13 = p12 * p23 - p13 * p22
-    c22 = p11 * p33 - p13 * p13
-    c23 = p12 * p13 - p11 * p23
-    c33 = p11 * p22 - p12 * p12
-    det = p11 * c11 + p12 * c12 + p13 * c13
-    return [c11 / det, c12 / det, c13 / det, c22 / det, c23 / det, c33 / det, det]
 
 
 class CurvePosterior:
@@ -209,31 +195,57 @@ class CurvePosterior:
         s1, s2, s3 = sums[:, 0] / norm, sums[:, 1] / norm ** 2, sums[:, 2] / norm
         sx = sums[:, 3] / norm / span
         prec = sigma0 * sigma0
-        p = [np.full(s1.shape, float(n_healthy) + n), np.full(s1.shape, st / span), s1,
-             np.full(s1.shape, prec + stt / span ** 2), sx, prec + s2]
-        c11, c12, c13, c22, c23, c33, det = _inv3(p)
-        b1, b2, b3 = sz, stz / span, s3
+        dof0 = max(n_healthy - 1.0, 1.0)
+        alpha = 0.5 * (dof0 + n)
+        logdet, mean, cov, beta = _nig(
+            s1.ravel(), s2.ravel(), s3.ravel(), sx.ravel(), float(n_healthy) + n, st / span,
+            prec + stt / span ** 2, sz, stz / span, szz, prec, dof0)
+        logev = -0.5 * logdet - alpha * np.log(beta)
+        # the truncation c > 0: the mass of c's Student-t marginal above 0
+        logev = logev + np.log(np.maximum(stdtr(2.0 * alpha, mean[:, 2] / np.sqrt(
+            beta / alpha * cov[:, 5])), 1e-300))
+        logev = logev + np.log(np.broadcast_to(prior[gi][None, :], s1.shape)).ravel()
+        shape = s1.shape
+        return (logev, mean, cov, alpha, beta,
+                np.broadcast_to(tc[:, None], shape).ravel(),
+                np.broadcast_to(g[None, :], shape).ravel())
+
+
+@njit(cache=True, error_model="numpy")
+def _nig(s1: np.ndarray, s2: np.ndarray, s3: np.ndarray, sx: np.ndarray, p11: float,
+         p12: float, p22: float, b1: float, b2: float, szz: float, prec: float,
+         dof0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                               np.ndarray]:  # pragma: no cover - compiled
+    """The normal-inverse-gamma posterior of (a, b, c) at each grid point: the design's
+    precision P = V0^-1 + X'X (X = [1, x, psi]; P11, P12, P22 are the same at every
+    point, P13 = sum psi, P23 = sum x psi, P33 = prec + sum psi^2), its log determinant,
+    the mean P^-1 X'z, P^-1 packed (11, 12, 13, 22, 23, 33), and beta of sigma^2."""
+    m = len(s1)
+    logdet = np.empty(m)
+    mean = np.empty((m, 3))
+    cov = np.empty((m, 6))
+    beta = np.empty(m)
+    for i in range(m):
+        p13, p23, p33 = s1[i], sx[i], prec + s2[i]
+        c11 = p22 * p33 - p23 * p23
+        c12 = p13 * p23 - p12 * p33
+        c13 = p12 * p23 - p13 * p22
+        c22 = p11 * p33 - p13 * p13
+        c23 = p12 * p13 - p11 * p23
+        c33 = p11 * p22 - p12 * p12
+        det = p11 * c11 + p12 * c12 + p13 * c13
+        c11, c12, c13, c22, c23, c33 = (c11 / det, c12 / det, c13 / det, c22 / det,
+                                        c23 / det, c33 / det)
+        b3 = s3[i]
         m1 = c11 * b1 + c12 * b2 + c13 * b3
         m2 = c12 * b1 + c22 * b2 + c23 * b3
         m3 = c13 * b1 + c23 * b2 + c33 * b3
-        dof0 = max(n_healthy - 1.0, 1.0)
-        alpha = 0.5 * (dof0 + n)
-        beta = 0.5 * (dof0 * prec + np.maximum(szz - m1 * b1 - m2 * b2 - m3 * b3, 0.0))
-        logev = -0.5 * np.log(det) - alpha * np.log(beta)
-        # the truncation c > 0: the mass of c's Student-t marginal above 0
-        logev = logev + np.log(np.maximum(stdtr(2.0 * alpha, m3 / np.sqrt(beta / alpha * c33)),
-                                          1e-300))
-        logev = logev + np.log(prior[gi])[None, :]
-        mean = np.empty((m1.size, 3))
-        mean[:, 0], mean[:, 1], mean[:, 2] = m1.ravel(), m2.ravel(), m3.ravel()
-        cov = np.empty((m1.size, 3, 3))
-        for (i, j), v in (((0, 0), c11), ((0, 1), c12), ((0, 2), c13), ((1, 1), c22),
-                          ((1, 2), c23), ((2, 2), c33)):
-            cov[:, i, j] = cov[:, j, i] = v.ravel()
-        shape = m1.shape
-        return (logev.ravel(), mean, cov, alpha, beta.ravel(),
-                np.broadcast_to(tc[:, None], shape).ravel(),
-                np.broadcast_to(g[None, :], shape).ravel())
+        logdet[i] = math.log(det)
+        mean[i, 0], mean[i, 1], mean[i, 2] = m1, m2, m3
+        cov[i, 0], cov[i, 1], cov[i, 2] = c11, c12, c13
+        cov[i, 3], cov[i, 4], cov[i, 5] = c22, c23, c33
+        beta[i] = 0.5 * (dof0 * prec + max(szz - m1 * b1 - m2 * b2 - m3 * b3, 0.0))
+    return logdet, mean, cov, beta
 
 
 def level(f: Fit, a: np.ndarray, b: np.ndarray, c: np.ndarray, tc: np.ndarray,
@@ -251,26 +263,43 @@ def samples(f: Fit, rng: np.random.Generator, n: int = N_SAMPLES
     the level now."""
     cs = np.cumsum(f.w)
     pick = np.minimum(np.searchsorted(cs, rng.random(n) * cs[-1]), len(cs) - 1)
-    m, cv = f.mean[pick], f.cov[pick] * (f.beta[pick] / rng.gamma(f.alpha, size=n)
-                                         )[:, None, None]
+    m, cv = f.mean[pick], f.cov[pick]
+    s2 = f.beta[pick] / rng.gamma(f.alpha, size=n)           # sigma^2, inverse gamma
     # c from its truncated (c > 0) marginal, then (a, b) given c
-    sd_c = np.sqrt(cv[:, 2, 2])
+    sd_c = np.sqrt(s2 * cv[:, 5])
     lo = ndtr(-m[:, 2] / sd_c)
     q = lo + (1.0 - lo) * rng.random(n)
     c = np.maximum(m[:, 2] + sd_c * ndtri(np.clip(q, 1e-16, 1 - 1e-16)), 1e-12)
-    k = cv[:, :2, 2] / cv[:, 2:3, 2]                         # (n, 2) regression on c
-    mu = m[:, :2] + k * (c - m[:, 2])[:, None]
-    v = cv[:, :2, :2] - k[:, :, None] * cv[:, None, 2, :2]
-    l11 = np.sqrt(np.maximum(v[:, 0, 0], 0.0))
-    l21 = v[:, 1, 0] / np.where(l11 > 0, l11, 1.0)
-    l22 = np.sqrt(np.maximum(v[:, 1, 1] - l21 * l21, 0.0))
-    e1, e2 = rng.standard_normal(n), rng.standard_normal(n)
-    a = mu[:, 0] + l11 * e1
-    b = mu[:, 1] + l21 * e1 + l22 * e2
+    a, b = _given_c(m, cv, s2, c, rng.standard_normal(n), rng.standard_normal(n))
     tc, g = f.tc[pick], f.g[pick]
     now = a + b + c
     rul = _crossing(f, a, b, c, tc, g)
     return np.where(now >= 1.0, 0.0, rul), now
+
+
+@njit(cache=True, error_model="numpy")
+def _given_c(m: np.ndarray, cv: np.ndarray, s2: np.ndarray, c: np.ndarray, e1: np.ndarray,
+             e2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+    """(a, b) drawn given c from the Gaussian of (a, b, c) (mean `m`, covariance `s2` x
+    `cv`, cv packed 11 12 13 22 23 33): the conditional mean and the Cholesky factor of
+    the conditional covariance, times the standard normals e1, e2."""
+    n = len(c)
+    a = np.empty(n)
+    b = np.empty(n)
+    for i in range(n):
+        c11, c12, c13, c22, c23, c33 = cv[i, 0], cv[i, 1], cv[i, 2], cv[i, 3], cv[i, 4], cv[i, 5]
+        scale = math.sqrt(s2[i])
+        k1, k2 = c13 / c33, c23 / c33
+        d = c[i] - m[i, 2]
+        v11 = c11 - k1 * c13
+        v21 = c12 - k1 * c23
+        v22 = c22 - k2 * c23
+        l11 = math.sqrt(max(v11, 0.0))
+        l21 = v21 / l11 if l11 > 0 else 0.0
+        l22 = math.sqrt(max(v22 - l21 * l21, 0.0))
+        a[i] = m[i, 0] + k1 * d + scale * l11 * e1[i]
+        b[i] = m[i, 1] + k2 * d + scale * (l21 * e1[i] + l22 * e2[i])
+    return a, b
 
 
 def _crossing(f: Fit, a: np.ndarray, b: np.ndarray, c: np.ndarray, tc: np.ndarray,
