@@ -42,8 +42,9 @@ def add_prognose(s: argparse._SubParsersAction) -> None:
                    "against the file's when it does)")
     q.add_argument("--time-unit", default="days", metavar="NAME",
                    help="the unit of numeric times, for the output (default days)")
-    q.add_argument("--truth", metavar="DAY|DATE", help="the true failure time, drawn in the "
-                   "figures")
+    q.add_argument("--truth", metavar="[ACTUATOR=]DAY|DATE", action="append",
+                   help="the true failure time, drawn in the figures (of every actuator, or "
+                   "of the one named; repeatable)")
     q.add_argument("--figures", metavar="DIR", help="a figure per actuator (the first "
                    "100): the trend, its thresholds, the RUL band over time")
     q.add_argument("--model", choices=("auto", "trend", "calibration"), default="auto",
@@ -91,7 +92,8 @@ def _prognose_calibrated(args: argparse.Namespace, table, cal) -> int:
 
     from bench.hums.prognosis_trends import prognose_trends, to_json
     from bench.hums.prognosis_trends import table as text
-    results, skipped = prognose_trends(table, cal, args.seed)
+    results, skipped = prognose_trends(table, cal, args.seed, workers=args.workers,
+                                       progress=True)
     if skipped:
         print(f"note: skipped index names the calibration has no curve for: "
               f"{', '.join(skipped)}", file=sys.stderr)
@@ -139,10 +141,23 @@ def _settings(args: argparse.Namespace) -> Any:
                     seed=args.seed)
 
 
-def _truth(text: str | None, trend: Any) -> float | None:
-    """--truth as a time of the trend's own (days since its first test for dates)."""
-    if text is None:
-        return None
+def _truths(given: list[str] | None, trends: list[Any]) -> dict[str, float]:
+    """--truth as times of each trend's own (days since its first test for dates):
+    actuator -> time."""
+    out: dict[str, float] = {}
+    names = {tr.actuator for tr in trends}
+    for text in given or []:
+        who, _, when = text.rpartition("=")
+        if who and who not in names:
+            raise BenchError(f"--truth {text!r}: no actuator {who!r} in the trends")
+        for tr in trends:
+            if not who or tr.actuator == who:
+                out[tr.actuator] = _truth(when, tr, text)
+    return out
+
+
+def _truth(text: str, trend: Any, given: str) -> float:
+    """One --truth value as a time of `trend`'s own."""
     try:
         v = float(text)
         if trend.t0 is None and math.isfinite(v):
@@ -156,7 +171,7 @@ def _truth(text: str | None, trend: Any) -> float | None:
             return (d - trend.t0).total_seconds() / 86400.0
         except (ValueError, TypeError):
             pass
-    raise BenchError(f"--truth {text!r}: a time as the file gives them "
+    raise BenchError(f"--truth {given!r}: a time as the file gives them "
                      + ("(a date)" if trend.t0 is not None else "(a number)"))
 
 
@@ -174,7 +189,7 @@ def _prognose_own(args: argparse.Namespace, table: Any) -> int:
             TP._levels(tr, s, ref, TP._unit(tr, s))
         else:
             TP._unit(tr, s)
-    truth = _truth(args.truth, trends[0])
+    truth = _truths(args.truth, trends)
     lines: list[str] = []
     said: list[str] = []
     figures: list[Path] = []
@@ -185,7 +200,8 @@ def _prognose_own(args: argparse.Namespace, table: Any) -> int:
             if len(lines) <= 3:
                 said.extend(TR.statements(r, args.time_unit))
             if args.figures and len(lines) <= TR.MAX_FIGURES:
-                figures.append(TR.figure(r, args.figures, truth, args.time_unit))
+                figures.append(TR.figure(r, args.figures, truth.get(r.trend.actuator),
+                                         args.time_unit))
         run(trends, s, on_result, args.workers)
     print(TR.table([]))
     print("\n".join(lines))

@@ -64,14 +64,35 @@ def prognose_series(series: dict[float, dict[str, float]], cal: PrognosisCalibra
     return out
 
 
-def prognose_trends(path: str | Path | Table, cal: PrognosisCalibration, seed: int = 0
+def _series_job(job: tuple[dict[float, dict[str, float]], dict[str, Any], int]
+                ) -> list[RulEstimate]:
+    ts, cal_json, seed = job
+    return prognose_series(ts, PrognosisCalibration.from_json(cal_json), seed)
+
+
+def prognose_trends(path: str | Path | Table, cal: PrognosisCalibration, seed: int = 0,
+                    workers: int | None = 1, progress: bool = False
                     ) -> tuple[dict[str, list[RulEstimate]], list[str]]:
     """Every actuator of a trends CSV (or a read table): its estimates, and the index
-    names skipped."""
+    names skipped. `workers`: `bench.workers.run_all`'s (None: in this process below
+    2,000 ground tests, else its default; each actuator's filter has its own seed, so
+    the numbers do not depend on it); `progress`: a tqdm bar in actuators."""
+    from tqdm import tqdm
+
+    from bench.workers import run_all
     data = from_table(path) if isinstance(path, Table) else read_trends(path)
     skipped = sorted({k for ts in data.values() for d in ts.values() for k in d
                       if k not in cal.curves and k != EXPOSURE})
-    return {a: prognose_series(ts, cal, seed) for a, ts in data.items()}, skipped
+    if workers is None and sum(len(ts) for ts in data.values()) < 2000:
+        workers = 1
+    bar = tqdm(total=len(data), unit="actuator", desc="prognosis", disable=not progress,
+               leave=False, delay=1.0)
+    try:
+        got = run_all(_series_job, [(ts, cal.to_json(), seed) for ts in data.values()],
+                      workers, progress=False, on_result=lambda _r: bar.update(1))
+    finally:
+        bar.close()
+    return dict(zip(data, got, strict=True)), skipped
 
 
 def table(results: dict[str, list[RulEstimate]], t0: dict[str, float] | None = None) -> str:

@@ -57,7 +57,7 @@ PCT = (5, 25, 50, 75, 95)
 BIG = 1e300
 COLUMNS = ("t", "value", "level_p5", "level_p50", "level_p95",
            *(f"rul_p{q}" for q in PCT), "toe_p50", "warning", "detected", "z_alarm",
-           "exp_cross_t", "noise")
+           "exp_cross_t", "noise", "rul_open")
 _LEVEL = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(x|X|[^\s\d].*)?\s*$")
 
 
@@ -105,7 +105,7 @@ class TrendResult:
         out: dict[str, Any] = {}
         for c in COLUMNS:
             v = float(self.cols[c][k])
-            if c in ("warning", "detected", "z_alarm"):
+            if c in ("warning", "detected", "z_alarm", "rul_open"):
                 out[c] = bool(v)
             else:
                 out[c] = v if math.isfinite(v) else None
@@ -282,7 +282,7 @@ def prognose(tr: Trend, s: Settings) -> TrendResult:
     n = len(tr.t)
     cols = {c: np.full(n, math.nan) for c in COLUMNS}
     cols["t"], cols["value"] = tr.t.copy(), tr.y.copy()
-    for c in ("warning", "detected", "z_alarm"):
+    for c in ("warning", "detected", "z_alarm", "rul_open"):
         cols[c] = np.zeros(n)
     ref = make_reference(tr, s)
     if ref is None:
@@ -399,9 +399,12 @@ class _Run:
             self.res.samples[k] = rul[:self.s.keep_samples].copy()
         q = _quantiles(np.minimum(rul, BIG), PCT)
         q[q >= 1e-3 * BIG] = math.inf      # never reached (BIG in the interpolation)
-        for c, v in zip(PCT, q, strict=True):
+        # a percentile beyond the horizon is given as the horizon ("at least"), flagged
+        hor = HORIZON * max(t - float(self.tr.t[0]), ref.dt)
+        cols["rul_open"][k] = float(q[4] > hor)
+        for c, v in zip(PCT, np.minimum(q, hor), strict=True):
             cols[f"rul_p{c}"][k] = v
-        cols["toe_p50"][k] = t + q[2]
+        cols["toe_p50"][k] = t + min(q[2], hor)
         cols["warning"][k] = self._warn_level(k, float(lv[1]))
         if k >= ref.n:
             if abs(f.z_last) > FIT_Z:
@@ -442,8 +445,9 @@ class _Run:
         if not np.isfinite(q[4]) or float(np.mean(~np.isfinite(rul))) > 0.05:
             self._note(k, "the band is open above: more than 5 % of the curves the tests "
                           f"allow do not reach the threshold within {HORIZON:g} times the "
-                          "time the tests span")
-        if q[4] - q[0] < 0.25 * ref.dt:
+                          "time the tests span (that horizon is given as the percentiles "
+                          "beyond it, rul_open)")
+        if np.isfinite(q[4]) and q[4] - q[0] < 0.25 * ref.dt:
             self._note(k, "the band is a single value: every curve the tests allow is past "
                           "the threshold"
                        if q[4] == 0 else f"the band is narrower than a quarter of a test "

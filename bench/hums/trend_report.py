@@ -7,11 +7,12 @@ than one actuator's): ``{actuator: [estimate, ...]}``, one estimate per test, as
 calibrated path writes them (``t``, ``warning``, ``rul_p5``, ``rul_p50``, ``rul_p95``)
 plus ``rul_p25``, ``rul_p75``, ``toe_p50`` (the day of the median failure), ``value``,
 ``level_p5/p50/p95`` (the filtered level, in the index's unit), ``detected``,
+``rul_open`` (a percentile beyond the horizon, given as the horizon),
 ``z_alarm`` and ``exp_cross_t`` (the peers), ``noise``, ``date`` (when the file gives
 dates), ``notes`` (what makes this band untrustworthy; empty when nothing does) and,
 with ``healthy_level``, ``healthy_sd``, ``healthy_tests``, ``failure_level``,
 ``warning_level``, ``unit`` and ``index``, what it was made against. RULs are in the
-file's time unit (days for dates); a band open above is null.
+file's time unit (days for dates); none before the detection (null).
 """
 
 from __future__ import annotations
@@ -51,10 +52,11 @@ def table(results: list[TrendResult]) -> str:
         h = f"{r.ref.level:.4g}" if r.ref else "-"
         warned = "yes" if np.any(c["warning"] > 0) else "no"
         cross = c["exp_cross_t"][k]
+        p95 = (">" if c["rul_open"][k] else "") + _num(c["rul_p95"][k])
         lines.append(
             f"{r.trend.actuator[:12]:>12s} {k + 1:5d} {h:>9s} {_num(c['level_p50'][k], '{:.4g}'):>9s} "
             f"{_day(r, 'detected_t'):>10s} {_num(c['rul_p5'][k]):>8s} "
-            f"{_num(c['rul_p50'][k]):>8s} {_num(c['rul_p95'][k]):>8s} {warned:>7s} "
+            f"{_num(c['rul_p50'][k]):>8s} {p95:>8s} {warned:>7s} "
             f"{_day(r, 'z_alarm_t'):>10s} "
             f"{(r.trend.date(cross) if math.isfinite(cross) else _num(cross)):>10s}")
     return "\n".join(lines)
@@ -78,7 +80,8 @@ def statements(r: TrendResult, time_unit: str = "days") -> list[str]:
     if r.failure is not None and math.isfinite(c["rul_p50"][k]):
         out.append(f"  RUL as of {tr.date(c['t'][k])}: median {_num(c['rul_p50'][k])} "
                    f"{time_unit}, 90 % band {_num(c['rul_p5'][k])} to "
-                   f"{_num(c['rul_p95'][k])} {time_unit} (failure about "
+                   f"{'>' if c['rul_open'][k] else ''}{_num(c['rul_p95'][k])} {time_unit} "
+                   "(failure about "
                    f"{tr.date(c['toe_p50'][k])})")
     out += [f"  note: {n}" for n in r.notes_at.get(k, [])]
     if "left_range_t" in ev:
@@ -86,7 +89,9 @@ def statements(r: TrendResult, time_unit: str = "days") -> list[str]:
     out.append(f"  peers on the same tests: z-score (3 sd of the healthy tests) alarm "
                f"{_day(r, 'z_alarm_t')}; exponential extrapolation " + (
                    f"crosses the threshold on {tr.date(c['exp_cross_t'][k])} (as of the "
-                   f"last test), first within a test interval on {_day(r, 'exp_alarm_t')}"
+                   "last test), " + (f"first within a test interval on "
+                                     f"{_day(r, 'exp_alarm_t')}" if "exp_alarm_t" in ev
+                                     else "never within a test interval")
                    if math.isfinite(c["exp_cross_t"][k]) else
                    "does not cross the threshold" if r.failure is not None else
                    "needs a threshold"))

@@ -143,3 +143,30 @@ def write_csv(trends: list[SynthTrend], path: str | Path, dates: bool = True,
                 when = (START + timedelta(days=float(t))).isoformat() if dates else f"{t:g}"
                 w.writerow([when, tr.name, index, f"{y:.5g}", unit])
     return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m bench.hums.trend_synth --shape S --seed N --out F.csv``: synthetic
+    trends as a CSV (one actuator per shape and seed; the truth on stdout)."""
+    import argparse
+    ap = argparse.ArgumentParser(description="synthetic endurance trends (not real data)")
+    ap.add_argument("--shape", nargs="+", default=["exponential"], choices=SHAPES)
+    ap.add_argument("--seed", type=int, nargs="+", default=[7])
+    ap.add_argument("--days", action="store_true", help="days, not dates")
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    trends = [endurance_trend(sh, sd) for sh, sd in zip(a.shape, a.seed, strict=True)]
+    write_csv(trends, a.out, dates=not a.days)
+    for tr in trends:
+        when = (START + timedelta(days=tr.t_failure)).isoformat() if math.isfinite(
+            tr.t_failure) else "never"
+        print(f"{tr.name}: {len(tr.t)} tests, healthy level {tr.healthy_level:.4g} "
+              f"{tr.unit}, failure level {tr.failure_level:.4g} {tr.unit} reached on {when} "
+              f"(day {tr.t_failure:.1f})")
+    print(f"wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+    sys.exit(main())
