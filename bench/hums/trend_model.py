@@ -68,6 +68,8 @@ MIN_AFTER = 3                      # tests after a change time for it to be a ca
 N_SAMPLES = 500
 HORIZON = 50.0                     # RUL beyond HORIZON x (t_now - t_0): never (inf)
 N_SUMS = 4                         # per grid point: sum psi, psi^2, psi z, psi t
+WANDER_TESTS = 60                  # tests whose residuals show a wander
+WANDER_LAG = 5
 
 
 def phi(g: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -93,6 +95,8 @@ class Fit:
     sigma: float             # the noise's posterior mean (u units)
     widened: float           # sigma over the healthy tests' noise
     z_last: float            # last test's residual about the best curve, in sd
+    inflate: float = 1.0     # on the (a, b, c) covariance: correlated residuals
+    wander: float = 0.0      # q, the residuals' random-walk variance (u^2 per time unit)
 
 
 class CurvePosterior:
@@ -116,6 +120,7 @@ class CurvePosterior:
         self.z_now = math.nan
         self.step = 1
         self.seen = 0
+        self.recent: list[tuple[float, float]] = []        # the last WANDER_TESTS tests
 
     def add(self, t: float, z: float) -> None:
         """One more test, time `t`, level `z` (u units)."""
@@ -143,6 +148,9 @@ class CurvePosterior:
                                                     self.n_after[keep])
                 self.step *= 2
         self.seen += 1
+        self.recent.append((t, z))
+        if len(self.recent) > WANDER_TESTS:
+            del self.recent[0]
 
     def _prior(self) -> np.ndarray:
         """Weight of each growth rate (module docstring): P_LINE on g = 0, the rest flat
@@ -179,8 +187,36 @@ class CurvePosterior:
         keep = w > 1e-9 * w[best]
         w = w[keep] / w[keep].sum()
         sigma = float(np.sum(w * sig[keep]))
-        return Fit(self.t_now, self.t0, tc[keep], g[keep], w, mean[keep], cov[keep], alpha,
-                   beta[keep], sigma, sigma / sigma0, z_last)
+        f = Fit(self.t_now, self.t0, tc[keep], g[keep], w, mean[keep], cov[keep], alpha,
+                beta[keep], sigma, sigma / sigma0, z_last)
+        f.inflate, f.wander = self._wander(f, int(np.argmax(w)))
+        return f
+
+    def _wander(self, f: Fit, best: int) -> tuple[float, float]:
+        """What the residuals of the best curve over the last WANDER_TESTS tests say
+        beyond white noise: their lag-1 autocorrelation rho gives the factor
+        (1 + rho) / (1 - rho) on the parameters' covariance (correlated residuals carry
+        less information than as many independent ones), their variogram the variance q
+        per time unit of a random walk on top of the curve (gamma(h) = s^2 + q h / 2,
+        from lags 1 and `WANDER_LAG`)."""
+        if len(self.recent) < 3 * WANDER_LAG:
+            return 1.0, 0.0
+        t, z = np.array(self.recent).T
+        a, b, c = f.mean[best]
+        r = z - level(f, np.array(a), np.array(b), np.array(c), f.tc[best:best + 1],
+                      f.g[best:best + 1], t)
+        r = r - r.mean()
+        v = float(np.mean(r * r))
+        if not v > 0:
+            return 1.0, 0.0
+        rho = float(np.mean(r[1:] * r[:-1])) / v
+        inflate = min((1.0 + rho) / (1.0 - rho), 10.0) if rho > 2.0 / math.sqrt(len(r)) else 1.0
+        g1 = 0.5 * float(np.mean((r[1:] - r[:-1]) ** 2))
+        gm = 0.5 * float(np.mean((r[WANDER_LAG:] - r[:-WANDER_LAG]) ** 2))
+        h1 = float(np.mean(t[1:] - t[:-1]))
+        hm = float(np.mean(t[WANDER_LAG:] - t[:-WANDER_LAG]))
+        q = max(0.0, 2.0 * (gm - g1) / (hm - h1)) if hm > h1 else 0.0
+        return inflate, q
 
     def _posterior(self, ok: np.ndarray, gi: np.ndarray, sigma0: float, n_healthy: int,
                    prior: np.ndarray) -> tuple[Any, ...]:
@@ -264,7 +300,7 @@ def samples(f: Fit, rng: np.random.Generator, n: int = N_SAMPLES
     cs = np.cumsum(f.w)
     pick = np.minimum(np.searchsorted(cs, rng.random(n) * cs[-1]), len(cs) - 1)
     m, cv = f.mean[pick], f.cov[pick]
-    s2 = f.beta[pick] / rng.gamma(f.alpha, size=n)           # sigma^2, inverse gamma
+    s2 = f.inflate * f.beta[pick] / rng.gamma(f.alpha, size=n)   # sigma^2, inverse gamma
     # c from its truncated (c > 0) marginal, then (a, b) given c
     sd_c = np.sqrt(s2 * cv[:, 5])
     lo = ndtr(-m[:, 2] / sd_c)
@@ -274,6 +310,14 @@ def samples(f: Fit, rng: np.random.Generator, n: int = N_SAMPLES
     tc, g = f.tc[pick], f.g[pick]
     now = a + b + c
     rul = _crossing(f, a, b, c, tc, g)
+    if f.wander > 0:
+        # the random walk on top: the first passage of a drift with its variance q over
+        # the distance left, IG(rul, d^2 / q) (exact for a straight line)
+        d = np.maximum(1.0 - now, 0.0)
+        go = np.isfinite(rul) & (rul > 0) & (d > 0)
+        if go.any():
+            rul = rul.copy()
+            rul[go] = rng.wald(rul[go], d[go] ** 2 / f.wander)
     return np.where(now >= 1.0, 0.0, rul), now
 
 
