@@ -55,8 +55,8 @@ def add_prognose(s: argparse._SubParsersAction) -> None:
                    "campaign --usage` wrote to the cache)")
     q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     q.add_argument("--workers", type=int, default=None,
-                   help="worker processes (default: in this process below 20,000 tests, "
-                   "else 2)")
+                   help="Dask worker processes (default: the trend's own prognosis in this "
+                   "process; the calibrated one in this process below 2,000 tests, else 2)")
     q.add_argument("--json", metavar="PATH", help="write every estimate as JSON")
     q.set_defaults(func=run_prognose)
 

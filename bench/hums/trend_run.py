@@ -8,8 +8,9 @@ trend's own path is given; the trend's own otherwise, with a note saying why.
 
 `run` prognoses the actuators in chunks of `CHUNK` (each chunk's results are handed to
 `on_result` and dropped, so memory stays that of one chunk whatever the number of
-tests), in this process or on Dask workers (`bench.workers.run_all`), with one tqdm bar
-in tests.
+tests), in this process (the default: ~1 ms of CPU per test, less than what starting
+Dask workers costs below ~10^5 tests) or on `--workers` Dask workers
+(`bench.workers.run_all`), with one tqdm bar in tests.
 """
 
 from __future__ import annotations
@@ -23,7 +24,6 @@ from bench.hums.trend_io import Table, Trend
 from bench.hums.trend_prognosis import Settings, TrendResult, prognose
 
 CHUNK = 2000              # actuators per chunk held in memory at once
-IN_PROCESS_TESTS = 20000  # below this many tests, no worker processes (their start costs more)
 TREND_OPTIONS = ("failure", "warning", "healthy_tests", "unit", "decreasing", "index", "truth",
                  "figures")
 
@@ -83,7 +83,7 @@ def run(trends: list[Trend], settings: Settings, on_result: Callable[[TrendResul
 
     from bench.workers import run_all, session
     total = sum(len(tr.t) for tr in trends)
-    n = 1 if workers is None and total < IN_PROCESS_TESTS else workers
+    n = 1 if workers is None else workers
     bar = tqdm(total=total, unit="test", desc="prognosis", disable=not progress,
                leave=False, delay=1.0)
 
