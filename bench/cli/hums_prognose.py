@@ -184,11 +184,7 @@ def _prognose_own(args: argparse.Namespace, table: Any) -> int:
     trends = select(table, args.index)
     s = _settings(args)
     for tr in trends:              # every stated level checked before any work
-        ref = TP.make_reference(tr, s)
-        if ref is not None:
-            TP._levels(tr, s, ref, TP._unit(tr, s))
-        else:
-            TP._unit(tr, s)
+        TP.check(tr, s)
     truth = _truths(args.truth, trends)
     lines: list[str] = []
     said: list[str] = []

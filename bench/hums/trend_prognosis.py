@@ -9,18 +9,18 @@ estimate uses only the tests up to its own, as if the command ran on that day):
    differences over the last `NOISE_WINDOW` tests, which a slow trend does not inflate).
 2. **Detection**: a one-sided CUSUM (Page 1954; k = 0.5, h = `CUSUM_H`) of the tests'
    deviations from healthy in noise sd, less twice the healthy mean's standard error (a
-   reference of few tests is itself uncertain). It gives the day of the detection and
-   the day the change began (the CUSUM's last zero).
+   reference of few tests is itself uncertain), each a normal score under the noise's
+   Student-t and capped at `Z_CLIP` (one test alone never detects). It gives the day of
+   the detection and the day the change began (the CUSUM's last zero).
 3. **Threshold**: the failure level the user states (`--failure 4.6`, in the index's
    unit, or `--failure 2x` the healthy level), an optional warning level. Without one
    there is no RUL: the detection only, and a note that a RUL needs a threshold.
-4. **Degradation model**: `bench.hums.trend_model`, a particle filter on a level whose
-   rate grows with the degradation (linear to exponential), fitted to the trend itself;
-   the healthy tests are its first observations; when no particle fits a test the
-   trend "left the model's range" and the band is widened; when the tests run away from
-   the particles' prediction three times in a row in one direction, it is widened too.
-5. **RUL**: percentiles of the particles' times to the threshold, in the file's time
-   unit, with the notes that say when a band cannot be trusted.
+4. **Degradation model**: `bench.hums.trend_model`, a steady drift plus an exponential
+   wear-out from a change time, its exact posterior on a grid, the healthy tests its
+   first observations and their noise its prior; a test far from the best curve is "the
+   trend left the model's range".
+5. **RUL**: percentiles of the posterior's times to the threshold, in the file's time
+   unit, from the detection on, with the notes that say when a band cannot be trusted.
 6. **Peers on the same tests**: a plain z-score (3 sd of the healthy tests) alarm, and
    an exponential fitted to the index (log-linear least squares on every test so far)
    extrapolated to the threshold: the day it crosses, as of each test, and its alarm
@@ -274,6 +274,15 @@ def make_reference(tr: Trend, s: Settings) -> Reference | None:
                          "(give more healthy tests)")
     return Reference(n, how, float(np.mean(y)), sd, float(tr.t[n - 1]),
                      float(np.median(np.diff(tr.t[:n]))))
+
+
+def check(tr: Trend, s: Settings) -> None:
+    """The settings against one trend, before any work: unit, healthy tests, levels
+    (BenchError in one line when they cannot hold)."""
+    unit = _unit(tr, s)
+    ref = make_reference(tr, s)
+    if ref is not None:
+        _levels(tr, s, ref, unit)
 
 
 def prognose(tr: Trend, s: Settings) -> TrendResult:
