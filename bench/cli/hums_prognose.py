@@ -90,7 +90,9 @@ def run_prognose(args: argparse.Namespace) -> int:
 def _prognose_calibrated(args: argparse.Namespace, table, cal) -> int:
     """The campaign's prognosis (bench.hums.prognosis_trends), as before the trend's own."""
 
-    from bench.hums.prognosis_trends import prognose_trends, to_json
+    from bench.hums.prognosis_trends import outside_calibration, prognose_trends, to_json
+    for n in outside_calibration(table, cal):
+        print(f"note: {n}", file=sys.stderr)
     from bench.hums.prognosis_trends import table as text
     results, skipped = prognose_trends(table, cal, args.seed, workers=args.workers,
                                        progress=True)

@@ -19,6 +19,8 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from bench import BenchError
 from bench.hums.prognosis import PrognosisCalibration, RulEstimate, WearPrognoser
 from bench.hums.trend_io import EXPOSURE, Table, read_table
@@ -93,6 +95,25 @@ def prognose_trends(path: str | Path | Table, cal: PrognosisCalibration, seed: i
     finally:
         bar.close()
     return dict(zip(data, got, strict=True)), skipped
+
+
+def outside_calibration(tab: Table, cal: PrognosisCalibration) -> list[str]:
+    """A note per index with values beyond its calibrated curve (by more than 3 noise
+    sd): their wear is read at the curve's end, the band cannot be trusted there."""
+    out = []
+    for name in sorted({tr.index for tr in tab.trends if tr.index in cal.curves}):
+        c = cal.curves[name]
+        lo = min(c) - 3 * cal.sigma.get(name, 0.0)
+        hi = max(c) + 3 * cal.sigma.get(name, 0.0)
+        bad = [(tr.actuator, float(tr.t[k]), float(tr.y[k])) for tr in tab.trends
+               if tr.index == name for k in np.flatnonzero((tr.y < lo) | (tr.y > hi))]
+        if bad:
+            a, t, v = bad[0]
+            out.append(f"{len(bad)} value(s) of {name} outside the calibrated range "
+                       f"{lo:.4g} to {hi:.4g} (first: actuator {a} at {t:g}, {v:.4g}): "
+                       "their wear is read at the curve's end, the band is not to be "
+                       "trusted there")
+    return out
 
 
 def table(results: dict[str, list[RulEstimate]], t0: dict[str, float] | None = None) -> str:

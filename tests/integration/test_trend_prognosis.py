@@ -183,3 +183,16 @@ def test_the_calibrated_path_keeps_its_numbers(tmp_path, capsys):
     assert got["B-2"][3]["rul_p50"] == pytest.approx(GOLDEN_P50["B-2"][3], rel=1e-12)
     assert got["A-1"][-1]["rul_p95"] == pytest.approx(9.552603973149928, rel=1e-12)
     assert got["B-2"][-1]["w_p50"] == pytest.approx(0.27168918697096595, rel=1e-12)
+
+
+def test_the_calibrated_path_says_when_a_value_is_outside_its_curves(tmp_path, capsys):
+    cal = synthetic_calibration()
+    cf = tmp_path / "cal.json"
+    cf.write_text(json.dumps(cal.to_json()))
+    f = tmp_path / "t.csv"
+    f.write_text("time,actuator,index,value\n0,A,ci_harmonic,0.99\n1,A,ci_harmonic,0.98\n"
+                 "2,A,ci_harmonic,0.2\n")
+    assert main(["hums", "prognose", "--trends", str(f), "--calibration", str(cf)]) == 0
+    err = capsys.readouterr().err
+    assert "1 value(s) of ci_harmonic outside the calibrated range" in err
+    assert "actuator A at 2, 0.2" in err

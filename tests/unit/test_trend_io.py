@@ -157,3 +157,41 @@ def test_not_utf8_names_the_offset_of_the_first_bad_byte(tmp_path):
     f.write_bytes(b"time,x\n0,1\n" + b"1,\xff\n")
     with pytest.raises(BenchError, match=r"byte 0xff at offset 13\)"):
         read_table(f)
+
+
+def test_prognose_shows_its_progress_in_tests_and_actuators(tmp_path, capsys, monkeypatch):
+    """Before: `bench hums prognose` on a large trends file printed nothing until the end
+    (10^6 rows: minutes without output). Both paths now draw a tqdm bar (shown after
+    a second): in tests on the trend's own path, in actuators on the calibrated one."""
+    import tqdm as tqdm_module
+    made = []
+    real = tqdm_module.tqdm
+
+    class Recorder(real):  # type: ignore[misc, valid-type]
+        def __init__(self, *a, **k):
+            made.append((k.get("desc"), k.get("unit"), k.get("total")))
+            super().__init__(*a, **k)
+    monkeypatch.setattr(tqdm_module, "tqdm", Recorder)
+    cf = _calibration(tmp_path)
+    f = _write(tmp_path / "t.csv", "time,actuator,index,value\n" + "".join(
+        f"{d},{a},ci_harmonic,{1 - 0.01 * d:.3f}\n" for a in "AB" for d in range(4)))
+    assert main(["hums", "prognose", "--trends", str(f), "--calibration", str(cf)]) == 0
+    assert ("prognosis", "actuator", 2) in made
+    g = _trend_file(tmp_path)
+    assert main(["hums", "prognose", "--trends", str(g), "--failure", "2x"]) == 0
+    assert ("prognosis", "test", 12) in made
+    assert ("reading", "B", g.stat().st_size) in made
+
+
+def test_the_run_hands_each_chunk_over_and_keeps_the_order(monkeypatch):
+    from bench.hums import trend_run
+    from bench.hums.trend_io import Trend
+    from bench.hums.trend_prognosis import Settings
+    monkeypatch.setattr(trend_run, "CHUNK", 2)
+    rng = np.random.default_rng(1)
+    trends = [Trend(f"A{k}", "i", "", np.arange(8.0), 1 + rng.normal(0, 0.01, 8),
+                    np.arange(8)) for k in range(5)]
+    got = []
+    trend_run.run(trends, Settings(healthy="3"), lambda r: got.append(r.trend.actuator),
+                  workers=1, progress=False)
+    assert got == [f"A{k}" for k in range(5)]
