@@ -5,6 +5,7 @@ its workers, with the load average before and after.
 
     python benchmarks/bench_prognosis.py --actuators 1000 --tests 30 --workers 1 2
     python benchmarks/bench_prognosis.py --actuators 33334 --tests 30 --workers 2   # 10^6 rows
+    python benchmarks/bench_prognosis.py --read-rows 1000000        # reading 10^6 rows
     python benchmarks/bench_prognosis.py ... --doc docs/performance.md
 
 `--doc` replaces the section "## Prognosis on a rig's own trend" of docs/performance.md
@@ -65,6 +66,22 @@ def run_cli(trends: Path, workers: int, out: Path) -> dict[str, float]:
     return {"wall_s": wall, "cpu_s": cpu, "rss_mb": after.ru_maxrss / 1024.0}
 
 
+def read_only(trends: Path) -> dict[str, float]:
+    """Reading the trends file alone (`bench.hums.trend_io.read_table`) in a subprocess:
+    wall, CPU, peak RSS (what the command holds for the whole file)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    code = ("import sys; from bench.hums.trend_io import read_table; "
+            "t = read_table(sys.argv[1]); print(sum(len(x.t) for x in t.trends))")
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code, str(trends)], check=True, env=env, cwd=ROOT,
+                   stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return {"wall_s": wall, "cpu_s": cpu, "rss_mb": after.ru_maxrss / 1024.0}
+
+
 def markdown(rows: list[dict[str, float]], machine: str, load: tuple[float, float]) -> str:
     lines = [SECTION, "",
              "`bench hums prognose --trends F --failure 2x --healthy-tests 3 --workers W "
@@ -95,6 +112,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--actuators", type=int, default=1000)
     ap.add_argument("--tests", type=int, default=30)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--read-rows", type=int, default=0, help="also time reading a file of "
+                    "this many rows (30 tests per actuator) on its own")
     ap.add_argument("--dir", default=None, help="keep the trends and JSON here")
     ap.add_argument("--doc", default=None, help="replace the section in this markdown")
     a = ap.parse_args(argv)
@@ -106,13 +125,20 @@ def main(argv: list[str] | None = None) -> int:
     n_rows = make_trends(trends, a.actuators, a.tests)
     load0 = os.getloadavg()[0]
     rows = []
-    for w in a.workers:
+    for w in a.workers if a.actuators else []:
         r = run_cli(trends, w, work / f"prognosis-{w}.json")
         r.update(actuators=a.actuators, tests=a.tests, rows=n_rows, workers=w)
         rows.append(r)
         print(f"{a.actuators} actuators x {a.tests} tests ({n_rows} rows), {w} worker(s): "
               f"{r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, {r['rss_mb']:.0f} MB")
     text = markdown(rows, machine_description(), (load0, os.getloadavg()[0]))
+    if a.read_rows:
+        big = work / "big.csv"
+        n_big = make_trends(big, max(1, a.read_rows // a.tests), a.tests)
+        r = read_only(big)
+        text += (f"\nReading a file of {n_big} rows alone (`bench.hums.trend_io.read_table`, "
+                 f"{big.stat().st_size / 1e6:.0f} MB): {r['wall_s']:.1f} s wall, "
+                 f"{r['cpu_s']:.1f} s CPU, peak RSS {r['rss_mb']:.0f} MB.\n")
     print(text)
     if a.doc:
         from perfdoc import write_section
