@@ -3,7 +3,8 @@
 `read_table(path)` reads a CSV of health-index tests into `Trend`s (one per actuator and
 index), refusing what cannot be a trend with a one-line `BenchError` naming the line:
 
-- **time**: a column named ``time``, ``date``, ``day`` or ``days``: numbers (days, or the
+- **time**: a column named ``time``, ``date``, ``day`` or ``days`` (else the first whose
+  name holds "date" or "time"): numbers (days, or the
   unit the file uses) or ISO 8601 dates and date-times (``2024-03-01``,
   ``2024-03-01T08:00``; time zones all given or all left out). Dates become days since
   the first test (`Trend.t`) and keep their calendar (`Trend.t0`). A time must be finite
@@ -154,11 +155,16 @@ def _header(path: Path, names: list[str]) -> dict[str, int]:
 
 
 def _time_column(path: Path, cols: dict[str, int]) -> int:
+    """The time column: one named as TIME_NAMES, else the first whose name holds "date"
+    or "time" (``timestamp``, ``test date``)."""
     for n in TIME_NAMES:
         if n in cols:
             return cols[n]
+    for n, k in sorted(cols.items(), key=lambda kv: kv[1]):
+        if "date" in n or "time" in n:
+            return k
     raise BenchError(f"{path}: no time column (a header named one of "
-                     f"{', '.join(TIME_NAMES)})")
+                     f"{', '.join(TIME_NAMES)}, or holding 'date' or 'time')")
 
 
 def read_table(path: str | Path, progress: bool = False) -> Table:

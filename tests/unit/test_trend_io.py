@@ -33,6 +33,14 @@ def test_dates_wide_form_and_unit_in_the_header(tmp_path):
     assert any("1 missing value" in n for n in tab.notes)
 
 
+def test_a_time_column_by_another_name(tmp_path):
+    f = _write(tmp_path / "rig.csv", "Test Date,RMS current (A),note\n2024-03-01,2.1,3\n"
+               "2024-03-02,2.2,4\n")
+    tab = read_table(f)
+    assert [(t.index, t.unit) for t in tab.trends] == [("RMS current", "A"), ("note", "")]
+    assert tab.dates
+
+
 def test_long_form_with_units_and_exposure(tmp_path):
     f = _write(tmp_path / "t.csv", "time,actuator,index,value,unit\n0,A,i,1.0,A\n1,A,i,1.1,A\n"
                "1,A,exposure,50,\n0,B,i,2.0,A\n")
