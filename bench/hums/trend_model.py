@@ -35,10 +35,19 @@ truncation's mass P(c > 0) in the weight of each grid point; when the tests scat
 more about every curve than the healthy tests did, sigma's posterior grows and the band
 with it. The statistics are sums over the tests (`CurvePosterior.add`, O(grid) per test).
 
+**Beyond white noise** (`CurvePosterior._wander`): the residuals of the best curve over
+the last `WANDER_TESTS` tests; their lag-1 autocorrelation rho inflates the parameters'
+covariance by (1 + rho) / (1 - rho) (correlated residuals carry less information than
+as many independent ones), their variogram gives the variance q per time unit of a
+random walk on top of the curve.
+
 **RUL** (`samples`): grid points drawn by their weights, sigma^2 from its inverse gamma,
 c from its truncated normal, (a, b) given c; the time the curve reaches u = 1 by
-bisection (inf when it does not within `HORIZON` times the time the tests span). A unit
-test checks it against progpy's `simulate_to_threshold` on `CurveModel`.
+Newton's method (`_crossings`, compiled; inf when it does not within `HORIZON` times the
+time the tests span), spread by the random walk's first passage over the distance left
+(inverse Gaussian IG(tau, d^2 / q), exact for a straight line). Tests check the
+crossing against progpy's `simulate_to_threshold` on `CurveModel` and against a
+brute-force search.
 
 Why not progpy's state estimators: t_c and g are static parameters, which a particle
 filter learns by jittering particles; tried on synthetic endurance trends (a flat

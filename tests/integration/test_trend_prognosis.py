@@ -196,3 +196,25 @@ def test_the_calibrated_path_says_when_a_value_is_outside_its_curves(tmp_path, c
     err = capsys.readouterr().err
     assert "1 value(s) of ci_harmonic outside the calibrated range" in err
     assert "actuator A at 2, 0.2" in err
+
+
+def test_the_crossing_equals_a_brute_force_search():
+    from bench.hums import trend_model as M
+    rng = np.random.default_rng(0)
+    n = 400
+    f = M.Fit(100.0, 0.0, np.zeros(1), np.zeros(1), np.ones(1), np.zeros((1, 3)),
+              np.zeros((1, 6)), 1.0, np.ones(1), 0.0, 1.0, 0.0)
+    a, b = rng.normal(0, 0.05, n), rng.normal(0.1, 0.3, n)
+    c = np.abs(rng.normal(0.2, 0.2, n))
+    keep = a + b + c < 1
+    a, b, c = a[keep], b[keep], c[keep]
+    tc = rng.uniform(0, 97, len(a))
+    g = rng.choice([0.0, 0.01, 0.03, 0.06, 0.2, -0.005, -0.01, -0.03], len(a))
+    got = M._crossing(f, a, b, c, tc, g)
+    tt = np.linspace(0, M.HORIZON * 100, 100001)
+    for i in range(len(a)):
+        u = M.level(f, a[i], b[i], c[i], tc[i], g[i], 100 + tt)
+        k = int(np.argmax(u >= 1.0))
+        ref = tt[k] if u[k] >= 1.0 else np.inf
+        assert (np.isinf(ref) and np.isinf(got[i])) or abs(ref - got[i]) <= 0.06, i
+    assert 0.05 < np.isinf(got).mean() < 0.5          # both kinds are in the sample
