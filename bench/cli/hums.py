@@ -28,7 +28,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     s = p.add_subparsers(title="hums commands", dest="hums_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
     _add_thesis_commands(s)
-    _add_prognose(s)
+    from bench.cli.hums_prognose import add_prognose
+    add_prognose(s)
     _add_report(s)
     _add_watch(s)
 
@@ -115,24 +116,6 @@ def _add_usage_options(q: argparse.ArgumentParser) -> None:
     q.add_argument("--calibration-out", metavar="FILE.json",
                    help="with --usage: where to write the prognosis calibration (default: "
                    "the cache `bench hums prognose` reads)")
-
-
-def _add_prognose(s: argparse._SubParsersAction) -> None:
-    q = s.add_parser("prognose", help="RUL distribution per actuator from health trends",
-                     description="The prognosis of `bench hums campaign --usage` on a CSV of "
-                     "health indexes over time (columns time [days], actuator, index, "
-                     "value; any cadence; optional index 'exposure' rows with the usage's "
-                     "Archard exposure in N rev): a particle filter on the wear state, RUL "
-                     "percentiles per actuator. Trends from another rig work as long as "
-                     "their index names are the calibration's (friction_current_a, "
-                     "lost_motion_um, ci_harmonic).")
-    q.add_argument("--trends", required=True, metavar="FILE.csv", help="the trends CSV")
-    q.add_argument("--calibration", metavar="FILE.json",
-                   help="prognosis calibration (default: the one the last `bench hums "
-                   "campaign --usage` wrote to the cache)")
-    q.add_argument("--seed", type=int, default=0, help="particle filter seed (default 0)")
-    q.add_argument("--json", metavar="PATH", help="write every estimate as JSON")
-    q.set_defaults(func=run_prognose)
 
 
 def _add_report(s: argparse._SubParsersAction) -> None:
@@ -388,20 +371,6 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
         print(f"wrote {p}")
     if args.doc:
         _doc_section(args.doc, "usage-campaign", text, paths)
-    return 0
-
-
-def run_prognose(args: argparse.Namespace) -> int:
-    from bench.hums.prognosis_trends import load_calibration, prognose_trends, table, to_json
-    _check_args(args)
-    cal = load_calibration(args.calibration)
-    results, skipped = prognose_trends(args.trends, cal, args.seed)
-    if skipped:
-        import sys
-        print(f"note: skipped index names the calibration has no curve for: "
-              f"{', '.join(skipped)}", file=sys.stderr)
-    print(table(results))
-    _write_json(args.json, to_json(results))
     return 0
 
 

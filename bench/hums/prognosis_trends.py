@@ -14,50 +14,37 @@ indexes is an error.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from bench import BenchError
 from bench.hums.prognosis import PrognosisCalibration, RulEstimate, WearPrognoser
+from bench.hums.trend_io import EXPOSURE, Table, read_table
 
 COLUMNS = ("time", "actuator", "index", "value")
-EXPOSURE = "exposure"
 
 
 def read_trends(path: str | Path) -> dict[str, dict[float, dict[str, float]]]:
-    """actuator -> time -> {index: value} (repeated index at one time: the mean)."""
-    p = Path(path)
-    if not p.is_file():
-        raise BenchError(f"no trends file {p}")
-    acc: dict[str, dict[float, dict[str, list[float]]]] = defaultdict(
-        lambda: defaultdict(lambda: defaultdict(list)))
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise BenchError(f"{p}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
-                         f"{exc.start}): not a trends CSV") from None
-    with io.StringIO(text, newline="") as fh:
-        rd = csv.DictReader(fh)
-        missing = [c for c in COLUMNS if c not in (rd.fieldnames or [])]
-        if missing:
-            raise BenchError(f"{p}: the trends CSV needs the columns {', '.join(COLUMNS)}; "
-                             f"missing {', '.join(missing)}")
-        for n, row in enumerate(rd, start=2):
-            try:
-                t, v = float(row["time"]), float(row["value"])
-            except (TypeError, ValueError):
-                raise BenchError(f"{p}:{n}: time and value must be numbers") from None
-            if not math.isfinite(t):
-                raise BenchError(f"{p}:{n}: time must be finite")
-            acc[str(row["actuator"])][t][str(row["index"]).strip()].append(v)
-    if not acc:
-        raise BenchError(f"{p}: no rows")
-    return {a: {t: {k: sum(v) / len(v) for k, v in d.items()} for t, d in sorted(ts.items())}
-            for a, ts in acc.items()}
+    """actuator -> time -> {index: value}, read and checked by `bench.hums.trend_io`
+    (one value of an index per time, finite values and times; dates become days since
+    the first test); exposure rows under EXPOSURE."""
+    return from_table(read_table(path))
+
+
+def from_table(table: Table) -> dict[str, dict[float, dict[str, float]]]:
+    """The calibrated path's view of a read trends table."""
+    acc: dict[str, dict[float, dict[str, float]]] = defaultdict(lambda: defaultdict(dict))
+    for tr in table.trends:
+        for t, v in zip(tr.t.tolist(), tr.y.tolist(), strict=True):
+            acc[tr.actuator][t][tr.index] = v
+    for a, (ts, es) in table.exposure.items():
+        for t, v in zip(ts.tolist(), es.tolist(), strict=True):
+            acc[a][t][EXPOSURE] = v
+    return {a: dict(sorted(ts.items())) for a, ts in acc.items()}
 
 
 def prognose_series(series: dict[float, dict[str, float]], cal: PrognosisCalibration,
@@ -79,13 +66,54 @@ def prognose_series(series: dict[float, dict[str, float]], cal: PrognosisCalibra
     return out
 
 
-def prognose_trends(path: str | Path, cal: PrognosisCalibration, seed: int = 0
+def _series_job(job: tuple[dict[float, dict[str, float]], dict[str, Any], int]
+                ) -> list[RulEstimate]:
+    ts, cal_json, seed = job
+    return prognose_series(ts, PrognosisCalibration.from_json(cal_json), seed)
+
+
+def prognose_trends(path: str | Path | Table, cal: PrognosisCalibration, seed: int = 0,
+                    workers: int | None = 1, progress: bool = False
                     ) -> tuple[dict[str, list[RulEstimate]], list[str]]:
-    """Every actuator of a trends CSV: its estimates, and the index names skipped."""
-    data = read_trends(path)
+    """Every actuator of a trends CSV (or a read table): its estimates, and the index
+    names skipped. `workers`: `bench.workers.run_all`'s (None: in this process below
+    2,000 ground tests, else its default; each actuator's filter has its own seed, so
+    the numbers do not depend on it); `progress`: a tqdm bar in actuators."""
+    from tqdm import tqdm
+
+    from bench.workers import run_all
+    data = from_table(path) if isinstance(path, Table) else read_trends(path)
     skipped = sorted({k for ts in data.values() for d in ts.values() for k in d
                       if k not in cal.curves and k != EXPOSURE})
-    return {a: prognose_series(ts, cal, seed) for a, ts in data.items()}, skipped
+    if workers is None and sum(len(ts) for ts in data.values()) < 2000:
+        workers = 1
+    bar = tqdm(total=len(data), unit="actuator", desc="prognosis", disable=not progress,
+               leave=False, delay=1.0)
+    try:
+        got = run_all(_series_job, [(ts, cal.to_json(), seed) for ts in data.values()],
+                      workers, progress=False, on_result=lambda _r: bar.update(1))
+    finally:
+        bar.close()
+    return dict(zip(data, got, strict=True)), skipped
+
+
+def outside_calibration(tab: Table, cal: PrognosisCalibration) -> list[str]:
+    """A note per index with values beyond its calibrated curve (by more than 3 noise
+    sd): their wear is read at the curve's end, the band cannot be trusted there."""
+    out = []
+    for name in sorted({tr.index for tr in tab.trends if tr.index in cal.curves}):
+        c = cal.curves[name]
+        lo = min(c) - 3 * cal.sigma.get(name, 0.0)
+        hi = max(c) + 3 * cal.sigma.get(name, 0.0)
+        bad = [(tr.actuator, float(tr.t[k]), float(tr.y[k])) for tr in tab.trends
+               if tr.index == name for k in np.flatnonzero((tr.y < lo) | (tr.y > hi))]
+        if bad:
+            a, t, v = bad[0]
+            out.append(f"{len(bad)} value(s) of {name} outside the calibrated range "
+                       f"{lo:.4g} to {hi:.4g} (first: actuator {a} at {t:g}, {v:.4g}): "
+                       "their wear is read at the curve's end, the band is not to be "
+                       "trusted there")
+    return out
 
 
 def table(results: dict[str, list[RulEstimate]], t0: dict[str, float] | None = None) -> str:

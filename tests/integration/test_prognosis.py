@@ -134,7 +134,7 @@ def test_trends_csv_errors(tmp_path):
     with pytest.raises(BenchError, match="needs the columns"):
         read_trends(f)
     f.write_text("time,actuator,index,value\nx,a,ci,2\n")
-    with pytest.raises(BenchError, match="must be numbers"):
+    with pytest.raises(BenchError, match="neither a number nor an ISO date"):
         read_trends(f)
     f.write_text("time,actuator,index,value\n1,a,foo,2\n")
     with pytest.raises(BenchError, match="no index the calibration knows"):

@@ -29,6 +29,7 @@ def stub_work(monkeypatch, tmp_path):
     import bench.hums.prognosis_trends
     import bench.hums.rul_run
     import bench.hums.sweep
+    import bench.hums.trend_io
     import bench.reproduce
 
     def started(*a, **k):
@@ -39,6 +40,7 @@ def stub_work(monkeypatch, tmp_path):
                       (bench.hums.prognosis_campaign, "run_usage_campaign"),
                       (bench.hums.prognosis_trends, "load_calibration"),
                       (bench.hums.prognosis_trends, "prognose_trends"),
+                      (bench.hums.trend_io, "read_table"),
                       (bench.fleet.synth, "synth")):
         monkeypatch.setattr(mod, name, started)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))    # the default cal path

@@ -1,0 +1,339 @@
+"""Reading a trends file: one health index per test, over real time, from any rig.
+
+`read_table(path)` reads a CSV of health-index tests into `Trend`s (one per actuator and
+index), refusing what cannot be a trend with a one-line `BenchError` naming the line:
+
+- **time**: a column named ``time``, ``date``, ``day`` or ``days`` (else the first whose
+  name holds "date" or "time"): numbers (days, or the
+  unit the file uses) or ISO 8601 dates and date-times (``2024-03-01``,
+  ``2024-03-01T08:00``; time zones all given or all left out). Dates become days since
+  the first test (`Trend.t`) and keep their calendar (`Trend.t0`). A time must be finite
+  and within +-1e7 days (27,000 years): larger ones are not test days (and overflow the
+  filter's arithmetic);
+- **actuator**: optional (one actuator, named after the file, without it);
+- **index and value** (long form): ``index`` (free text) and ``value`` columns, with an
+  optional ``unit`` column; or the wide form: every other column is an index, its name
+  the header (``rms_current [A]`` gives the unit ``A``);
+- **values**: numbers; an empty cell or ``nan`` is a missing test (skipped, counted in
+  `Table.notes`); ``inf`` is refused (no index is infinite; an overflow upstream);
+- **one test per time**: a second value of an index at the same time for the same
+  actuator is refused (a merge would hide it); rows out of time order are sorted, with a
+  note.
+
+Rows whose index is ``exposure`` (the Archard exposure used since the previous test, N
+rev; `bench hums campaign --usage --trends-out` writes them) are usage, not a health
+index: `Table.exposure`.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from array import array
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from bench import BenchError
+
+TIME_NAMES = ("time", "date", "day", "days")
+EXPOSURE = "exposure"
+MAX_ABS_TIME = 1e7
+_UNIT_IN_NAME = re.compile(r"^(.*?)\s*[\[(]([^\])]*)[\])]\s*$")
+
+
+@dataclass
+class Trend:
+    """One index of one actuator: test times (days since the first test when the file
+    gives dates, else the file's own numbers), values (NaN: a missing test), the file's
+    line of each test, the unit ('' when none is given)."""
+    actuator: str
+    index: str
+    unit: str
+    t: np.ndarray
+    y: np.ndarray
+    lines: np.ndarray
+    t0: datetime | None = None            # calendar of t = 0 when the file gives dates
+
+    def date(self, t: float) -> str:
+        """Time `t` as the file gives it: a date (ISO) or the number."""
+        if self.t0 is None:
+            return f"{t:g}"
+        from datetime import timedelta
+        d = self.t0 + timedelta(days=float(t))
+        if self.t0.tzinfo is not None:
+            return d.isoformat(timespec="minutes")
+        whole = d.hour == d.minute == d.second == 0 and abs(t - round(t)) < 1e-9
+        return d.date().isoformat() if whole else d.isoformat(timespec="minutes")
+
+
+@dataclass
+class Table:
+    """The trends of a file, its usage rows and notes on what was read."""
+    path: Path
+    trends: list[Trend]
+    exposure: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    dates: bool = False
+    notes: list[str] = field(default_factory=list)
+
+    def indexes(self) -> list[str]:
+        return sorted({tr.index for tr in self.trends})
+
+
+class _Times:
+    """Parses the time column: all numbers or all ISO dates (cached per distinct text)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.kind: str | None = None       # "number" or "date"
+        self.aware: bool | None = None
+        self.cache: dict[str, float] = {}
+
+    def __call__(self, text: str, line: int) -> float:
+        got = self.cache.get(text)
+        if got is not None:
+            return got
+        v = self._parse(text.strip(), line)
+        self.cache[text] = v
+        return v
+
+    def _parse(self, s: str, line: int) -> float:
+        where = f"{self.path}:{line}"
+        try:
+            v, kind = float(s), "number"
+        except ValueError:
+            v, kind = self._date(s, where), "date"
+        if self.kind is not None and kind != self.kind:
+            raise BenchError(f"{where}: time {s!r} mixes numbers and dates in one column")
+        self.kind = kind
+        if not math.isfinite(v) or abs(v) > (MAX_ABS_TIME if kind == "number" else 1e9):
+            raise BenchError(f"{where}: time {s!r} is out of range (finite, within "
+                             f"+-{MAX_ABS_TIME:g} days)")
+        return v
+
+    def _date(self, s: str, where: str) -> float:
+        """An ISO date or date-time in days since 1970 (naive ones read as UTC)."""
+        try:
+            d = datetime.fromisoformat(s)
+        except ValueError:
+            d = None
+        if d is None:
+            raise BenchError(f"{where}: time {s!r} is neither a number nor an ISO date "
+                             "(2024-03-01, 2024-03-01T08:00)")
+        aware = d.tzinfo is not None
+        if self.aware is not None and aware != self.aware:
+            raise BenchError(f"{where}: time {s!r} mixes dates with and without a time zone")
+        self.aware = aware
+        return (d if aware else d.replace(tzinfo=UTC)).timestamp() / 86400.0
+
+
+def _value(text: str, where: str) -> float:
+    s = text.strip()
+    if s == "" or s.lower() in ("nan", "na", "n/a"):
+        return math.nan
+    try:
+        v = float(s)
+    except ValueError:
+        raise BenchError(f"{where}: value {s!r} is not a number") from None
+    if math.isinf(v):
+        raise BenchError(f"{where}: value {s!r} is infinite: not a health index")
+    return v
+
+
+def _header(path: Path, names: list[str]) -> dict[str, int]:
+    """Column positions by lower-cased, stripped name (BOM removed); duplicates refused."""
+    cols: dict[str, int] = {}
+    for k, n in enumerate(names):
+        key = n.replace("\ufeff", "").strip().lower()
+        if key in cols:
+            raise BenchError(f"{path}:1: column {n.strip()!r} appears twice in the header")
+        cols[key] = k
+    return cols
+
+
+def _time_column(path: Path, cols: dict[str, int]) -> int:
+    """The time column: one named as TIME_NAMES, else the first whose name holds "date"
+    or "time" (``timestamp``, ``test date``)."""
+    for n in TIME_NAMES:
+        if n in cols:
+            return cols[n]
+    for n, k in sorted(cols.items(), key=lambda kv: kv[1]):
+        if "date" in n or "time" in n:
+            return k
+    raise BenchError(f"{path}: no time column (a header named one of "
+                     f"{', '.join(TIME_NAMES)}, or holding 'date' or 'time')")
+
+
+def read_table(path: str | Path, progress: bool = False) -> Table:
+    """The trends of a CSV (module docstring)."""
+    p = Path(path)
+    if not p.is_file():
+        raise BenchError(f"no trends file {p}")
+    fh = p.open(encoding="utf-8", newline="")
+    try:
+        return _read(p, fh, progress)
+    except UnicodeDecodeError:
+        at, byte = _first_bad_byte(p)
+        raise BenchError(f"{p}: not UTF-8 text (byte 0x{byte:02x} at offset {at}): not a "
+                         "trends CSV") from None
+    finally:
+        fh.close()
+
+
+def _first_bad_byte(p: Path) -> tuple[int, int]:
+    """Offset and value of the first byte of `p` that is not UTF-8."""
+    import codecs
+    dec = codecs.getincrementaldecoder("utf-8")()
+    done = 0
+    with p.open("rb") as fh:
+        while chunk := fh.read(1 << 20):
+            pending = dec.getstate()[0]       # an unfinished character's first bytes
+            try:
+                dec.decode(chunk)
+            except UnicodeDecodeError as exc:
+                data = pending + chunk
+                return done - len(pending) + exc.start, data[exc.start]
+            done += len(chunk)
+    return done, 0
+
+
+@dataclass
+class _Layout:
+    """Where a row's fields are: time, actuator, and the long or the wide form."""
+    n: int
+    time: int
+    actuator: int | None
+    index: int | None = None              # long form: index, value, unit columns
+    value: int | None = None
+    unit: int | None = None
+    wide: list[tuple[int, str, str]] = field(default_factory=list)
+
+    def cells(self, row: list[str]) -> list[tuple[str, str, str]]:
+        """(index name, value text, unit) of each health index in `row`."""
+        if self.index is not None and self.value is not None:
+            return [(row[self.index].strip(), row[self.value],
+                     row[self.unit].strip() if self.unit is not None else "")]
+        return [(name, row[k], unit) for k, name, unit in self.wide]
+
+
+def _layout(p: Path, names: list[str]) -> _Layout:
+    cols = _header(p, names)
+    it = _time_column(p, cols)
+    ia = cols.get("actuator")
+    if "value" in cols:
+        if "index" not in cols:
+            raise BenchError(f"{p}: the long form needs the columns time, actuator, index, "
+                             "value; missing index")
+        return _Layout(len(names), it, ia, cols["index"], cols["value"], cols.get("unit"))
+    used = {it} | ({ia} if ia is not None else set())
+    wide = [(k, *_split_unit(n)) for k, n in enumerate(names) if k not in used]
+    if not wide:
+        raise BenchError(f"{p}: no index column (time plus one column per index, or the "
+                         "long form time, actuator, index, value)")
+    return _Layout(len(names), it, ia, wide=wide)
+
+
+def _read(p: Path, fh, progress: bool) -> Table:  # type: ignore[no-untyped-def]
+    """The rows of the open file `fh` into a `Table`."""
+    names = next(csv.reader([fh.readline()]), [])
+    if not names:
+        raise BenchError(f"{p}: empty file (a header row and one row per test)")
+    lay = _layout(p, names)
+    times = _Times(p)
+    acc: dict[tuple[str, str], tuple[array, array, array]] = {}
+    units: dict[tuple[str, str], tuple[str, int]] = {}
+    missing = 0
+    rd = csv.reader(_lines(fh, progress, p))
+    for row in rd:
+        line = rd.line_num + 1
+        if not row or (len(row) == 1 and not row[0].strip()):
+            continue
+        if len(row) != lay.n:
+            raise BenchError(f"{p}:{line}: {len(row)} fields, the header has {lay.n}")
+        t = times(row[lay.time], line)
+        a = row[lay.actuator].strip() if lay.actuator is not None else p.stem
+        for name, text, unit in lay.cells(row):
+            v = _value(text, f"{p}:{line}")
+            if math.isnan(v):
+                missing += 1
+                continue
+            key = (a, name)
+            if key not in acc:
+                acc[key] = (array("d"), array("d"), array("q"))
+                units[key] = (unit, line)
+            elif units[key][0] != unit:
+                raise BenchError(f"{p}:{line}: index {name!r} of actuator {a!r} in unit "
+                                 f"{unit!r} here, {units[key][0]!r} at line {units[key][1]}")
+            ts, ys, ls = acc[key]
+            ts.append(t)
+            ys.append(v)
+            ls.append(line)
+    if not acc:
+        raise BenchError(f"{p}: no tests (a header row and one row per test)")
+    return _assemble(p, acc, units, times, missing)
+
+
+def _split_unit(name: str) -> tuple[str, str]:
+    m = _UNIT_IN_NAME.match(name.strip())
+    return (m.group(1).strip(), m.group(2).strip()) if m else (name.strip(), "")
+
+
+def _lines(fh, progress: bool, path: Path):   # type: ignore[no-untyped-def]
+    """The file's lines, with a tqdm bar in bytes when `progress`."""
+    if not progress:
+        yield from fh
+        return
+    from tqdm import tqdm
+    with tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc="reading",
+              leave=False, delay=1.0) as bar:
+        for ln in fh:
+            bar.update(len(ln))
+            yield ln
+
+
+def _assemble(p: Path, acc: dict[tuple[str, str], tuple[array, array, array]],
+              units: dict[tuple[str, str], tuple[str, int]], times: _Times,
+              missing: int) -> Table:
+    """Sorted, checked trends from the accumulated rows."""
+    notes = []
+    if missing:
+        notes.append(f"{missing} missing value(s) (empty or nan) skipped")
+    dates = times.kind == "date"
+    t_first = min(min(ts) for ts, _, _ in acc.values()) if dates else 0.0
+    t0 = datetime.fromtimestamp(t_first * 86400.0, tz=UTC) if dates else None
+    if t0 is not None and not times.aware:
+        t0 = t0.replace(tzinfo=None)
+    trends, exposure, unsorted = [], {}, []
+    for (a, name), (ts, ys, ls) in acc.items():
+        t = np.frombuffer(ts, dtype=float) - t_first
+        y = np.frombuffer(ys, dtype=float).copy()
+        lines = np.array(ls, dtype=np.int64)
+        order = np.argsort(t, kind="stable")
+        if np.any(order != np.arange(len(t))):
+            unsorted.append(a)
+            t, y, lines = t[order], y[order], lines[order]
+        dup = np.flatnonzero(np.diff(t) == 0)
+        if len(dup):
+            k = dup[0]
+            raise BenchError(f"{p}:{lines[k + 1]}: a second value of {name!r} for actuator "
+                             f"{a!r} at time {_as_given(times, t[k] + t_first)} (the first "
+                             f"at line {lines[k]}): one test per time")
+        if name == EXPOSURE:
+            exposure[a] = (t, y)
+            continue
+        trends.append(Trend(a, name, units[(a, name)][0], t, y, lines, t0))
+    if unsorted:
+        notes.append("rows out of time order sorted (actuator "
+                     + ", ".join(sorted(set(unsorted))[:3]) + ")")
+    if not trends:
+        raise BenchError(f"{p}: only exposure rows, no health index")
+    return Table(p, trends, exposure, dates, notes)
+
+
+def _as_given(times: _Times, t: float) -> str:
+    if times.kind != "date":
+        return f"{t:g}"
+    return datetime.fromtimestamp(t * 86400.0, tz=UTC).isoformat(timespec="minutes")

@@ -1,0 +1,271 @@
+"""The trend's own prognosis (`bench hums prognose` without a calibration) scored as of
+each test day, beside its peers on the same tests.
+
+1. **Synthetic endurance trends** (`bench.hums.trend_synth`, held-out seeds 1000 +,
+   apart from the development seeds 100-104 and the tests' 2-11): per shape, the share
+   of trends warned at least 14 days before failure, warnings before the onset, the
+   share of test days after the first warning with the truth inside the 90 % band
+   (and of trends where that is at least half), narrow bands without a note; the
+   z-score peer's (3 sd of the healthy tests) and the exponential peer's alarms.
+2. **The bench's own campaign as a foreign file**: the judged actuators of `bench hums
+   campaign --usage` (its `--trends-out`, `--json` and `--calibration-out`), each index
+   renamed, days as dates, no exposure rows and no calibration, failure threshold the
+   index's value at the calibration's w = 1 (the limit a rig's engineer would know from
+   the lab's teardown); progpy's prognostic horizon and alpha-lambda (alpha 0.2,
+   beta 0.5) on 250 samples per day, as the campaign scores its calibrated paths, whose
+   numbers are beside them.
+
+    python benchmarks/eval_trend_prognosis.py --seeds 20 \\
+        --campaign DIR   # DIR holds trends.csv, campaign.json, cal.json
+    python benchmarks/eval_trend_prognosis.py ... --doc docs/hums.md
+
+`--doc` replaces the generated section ``trend-prognosis`` of docs/hums.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import time
+from collections import defaultdict
+from datetime import date, timedelta
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SEED0 = 1000
+CAMPAIGN_INDEXES = {"lost_motion_um": ("backlash_um", "um", False),
+                    "friction_current_a": ("motor_current_rms", "A", False),
+                    "ci_harmonic": ("harmonic_ci", "", True)}
+
+
+def score_synthetic(st: Any, healthy: str = "5") -> dict[str, Any]:
+    """One synthetic trend as of each test day: warning, coverage, notes, peers."""
+    from bench.hums.trend_io import Trend
+    from bench.hums.trend_prognosis import Settings, prognose
+    tr = Trend(st.name, "rms_current", st.unit, st.t, st.y, np.arange(len(st.t)))
+    r = prognose(tr, Settings(healthy=healthy, failure=repr(float(st.failure_level))))
+    c, ev, tf = r.cols, r.events, st.t_failure
+    warn = np.flatnonzero(c["warning"] > 0)
+    tw = float(st.t[warn[0]]) if len(warn) else math.nan
+    after = [k for k in range(len(st.t)) if len(warn) and tw <= st.t[k] < tf]
+    inside = [c["rul_p5"][k] <= tf - st.t[k] <= c["rul_p95"][k] for k in after]
+    narrow = [k for k in np.flatnonzero(np.isfinite(c["rul_p5"]))
+              if c["rul_p95"][k] - c["rul_p5"][k] < 0.25 * r.ref.dt and not r.notes_at.get(k)]
+    return {"shape": st.shape, "life": tf, "lead": tf - tw, "false": bool(len(warn))
+            and tw < st.onset, "cover": float(np.mean(inside)) if inside else math.nan,
+            "days_after": len(after), "narrow_silent": len(narrow),
+            "z_lead": tf - ev.get("z_alarm_t", math.nan),
+            "z_false": ev.get("z_alarm_t", math.inf) < st.onset,
+            "exp_lead": tf - ev.get("exp_alarm_t", math.nan),
+            "exp_false": ev.get("exp_alarm_t", math.inf) < st.onset}
+
+
+def synthetic(seeds: int) -> dict[str, dict[str, float]]:
+    from bench.hums.trend_synth import SHAPES, endurance_trend
+    out = {}
+    for shape in SHAPES:
+        rows = [score_synthetic(endurance_trend(shape, SEED0 + i)) for i in range(seeds)]
+        failing = [r for r in rows if math.isfinite(r["life"])]
+
+        def share(key: str, rs: list[dict[str, Any]] = failing) -> float:
+            return float(np.mean([bool(r[key]) for r in rs])) if rs else math.nan
+
+        def med(key: str, rs: list[dict[str, Any]] = failing) -> float:
+            v = np.array([r[key] for r in rs], dtype=float)
+            return float(np.nanmedian(v)) if np.isfinite(v).any() else math.nan
+        cov = [r["cover"] for r in failing if math.isfinite(r["cover"])]
+        out[shape] = {
+            "trends": float(len(rows)),
+            "warned_14": float(np.mean([r["lead"] >= 14 for r in failing])) if failing
+            else math.nan,
+            "false": float(np.mean([r["false"] for r in rows])),
+            "cover_mean": float(np.mean(cov)) if cov else math.nan,
+            "cover_half": float(np.mean([x >= 0.5 for x in cov])) if cov else math.nan,
+            "narrow_silent": float(sum(r["narrow_silent"] for r in rows)),
+            "lead_median": med("lead"), "z_lead_median": med("z_lead"),
+            "z_14": float(np.mean([r["z_lead"] >= 14 for r in failing])) if failing
+            else math.nan,
+            "z_false": float(np.mean([r["z_false"] for r in rows])),
+            "exp_lead_median": med("exp_lead"),
+            "exp_14": float(np.mean([r["exp_lead"] >= 14 for r in failing])) if failing
+            else math.nan,
+            "exp_false": float(np.mean([r["exp_false"] for r in rows])),
+        }
+    return out
+
+
+def _campaign_rows(d: Path) -> tuple[dict[str, dict[str, list[tuple[float, float]]]],
+                                     dict[str, float], dict[str, Any], dict[str, Any]]:
+    camp = json.loads((d / "campaign.json").read_text())
+    cal = json.loads((d / "cal.json").read_text())
+    truth = {f"A{r['seed']}": r["t_failure"] for r in camp["runs"] if not r.get("censored")}
+    rows: dict[str, dict[str, list[tuple[float, float]]]] = defaultdict(lambda: defaultdict(list))
+    with (d / "trends.csv").open() as fh:
+        for r in csv.DictReader(fh):
+            rows[r["actuator"]][r["index"]].append((float(r["time"]), float(r["value"])))
+    return rows, truth, camp, cal
+
+
+def foreign_file(rows: dict[str, Any], index: str, path: Path) -> Path:
+    """The campaign's trends of one index as a rig would give them: renamed, dates, its
+    unit, no exposure rows."""
+    name, unit, _ = CAMPAIGN_INDEXES[index]
+    start = date(2024, 1, 1)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["date", "actuator", "index", "value", "unit"])
+        for a, d in rows.items():
+            for t, v in d[index]:
+                w.writerow([(start + timedelta(days=t)).isoformat(), f"rig-{a[1:]}", name,
+                            repr(v), unit])
+    return path
+
+
+def score_campaign(d: Path, index: str, healthy: str, work: Path) -> dict[str, Any]:
+    """The foreign file of one index through the CLI (end to end) and scored as of each
+    day with progpy's metrics."""
+    import subprocess
+
+    from bench.hums.metrics import score_run
+    from bench.hums.rul import Prediction
+    from bench.hums.trend_io import read_table
+    from bench.hums.trend_prognosis import Settings, prognose
+    rows, truth, _, cal = _campaign_rows(d)
+    limit = float(np.interp(1.0, cal["w_grid"], cal["curves"][index]))
+    name, unit, falls = CAMPAIGN_INDEXES[index]
+    f = foreign_file(rows, index, work / f"{name}.csv")
+    out = work / f"{name}.json"
+    argv = [sys.executable, "-m", "bench", "hums", "prognose", "--trends", str(f),
+            "--healthy-tests", healthy, "--failure", repr(limit), "--json", str(out)]
+    t0 = time.perf_counter()
+    import os
+    subprocess.run(argv + (["--decreasing"] if falls else []), check=True, cwd=ROOT,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   env={**os.environ, "PYTHONPATH": str(ROOT)})
+    cli_s = time.perf_counter() - t0
+    cli = json.loads(out.read_text())
+    s = Settings(healthy=healthy, failure=repr(limit), decreasing=falls, keep_samples=250)
+    scores = []
+    for tr in read_table(f).trends:
+        tf = truth.get("A" + tr.actuator.split("-", 1)[1])
+        if tf is None:
+            continue
+        r = prognose(tr, s)
+        last = cli[tr.actuator][-1]
+        assert last["rul_p50"] == (None if not math.isfinite(r.cols["rul_p50"][-1])
+                                   else float(r.cols["rul_p50"][-1])), tr.actuator
+        preds = [Prediction(float(tr.t[k]), float(tr.t[k]) + np.minimum(v, 1e6))
+                 for k, v in sorted(r.samples.items()) if tr.t[k] < tf]
+        warn = np.flatnonzero(r.cols["warning"] > 0)
+        sc = score_run(preds, float(tr.t[warn[0]]) if len(warn) else math.nan, tf,
+                       cadence=1.0)
+        scores.append(sc)
+    summ: dict[str, Any] = {"index": name, "limit": limit, "actuators": len(scores),
+                            "cli_s": cli_s,
+                            "ph_before_half_life": float(np.mean(
+                                [x["ph_life_frac"] >= 0.5 for x in scores]))}
+    for lam in ("0.5", "0.7", "0.9"):
+        summ[f"alpha_lambda_{lam}"] = float(np.mean([bool(x[f"alpha_lambda_{lam}"])
+                                                     for x in scores]))
+        ra = np.array([x[f"ra_{lam}"] for x in scores], dtype=float)
+        summ[f"ra_{lam}_median"] = float(np.nanmedian(ra)) if np.isfinite(ra).any() else math.nan
+    summ["warned"] = float(np.mean([math.isfinite(x["t_warning_s"]) for x in scores]))
+    summ["warning_life_frac_median"] = float(np.nanmedian(
+        [x["warning_life_frac"] for x in scores]))
+    return summ
+
+
+def _pct(v: float) -> str:
+    return "-" if not math.isfinite(v) else f"{v:.0%}"
+
+
+def markdown(syn: dict[str, Any], camp: list[dict[str, Any]] | None,
+             calibrated: dict[str, Any] | None, args: Any, machine: str) -> str:
+    # long: two tables and their headers
+    lines = [f"Generated by `python benchmarks/eval_trend_prognosis.py --seeds {args.seeds}"
+             + (" --campaign DIR" if camp else "") + f"` on {machine}. Every estimate uses "
+             "only the tests up to its day (the command as of that day).", "",
+             f"**Synthetic endurance trends** (`bench.hums.trend_synth`, seeds {SEED0}-"
+             f"{SEED0 + args.seeds - 1} of each shape, held out from the development seeds; "
+             "failure at twice the healthy level, stated with `--failure`; "
+             "`--healthy-tests 5`):", "",
+             "| shape | warned >= 14 d before | warnings before the onset | truth in the "
+             "90 % band, days after the warning | trends with it on >= half of them | "
+             "narrow bands without a note | z-score peer: >= 14 d / before the onset | "
+             "exponential peer: >= 14 d / before the onset |",
+             "|---|---|---|---|---|---|---|---|"]
+    for shape, s in syn.items():
+        lines.append(f"| {shape} | {_pct(s['warned_14'])} | {_pct(s['false'])} | "
+                     f"{_pct(s['cover_mean'])} | {_pct(s['cover_half'])} | "
+                     f"{s['narrow_silent']:.0f} | {_pct(s['z_14'])} / {_pct(s['z_false'])} | "
+                     f"{_pct(s['exp_14'])} / {_pct(s['exp_false'])} |")
+    if camp:
+        lines += ["", "**The bench's campaign as a foreign file** (`bench hums campaign "
+                  "--usage` seed 2024, its 50 judged actuators; each index renamed, days "
+                  "as dates, no exposure rows, no calibration; `--failure` the index at the "
+                  "calibration's w = 1, `--healthy-tests 3`; progpy's metrics on 250 "
+                  "samples a day, alpha 0.2, beta 0.5), beside the campaign's calibrated "
+                  "paths on the same actuators:", "",
+                  "| metric | " + " | ".join(f"trend's own: {c['index']}" for c in camp)
+                  + " | calibrated: usage + health | calibrated: health only |",
+                  "|---|" + "---|" * (len(camp) + 2)]
+        rows = [("ph_before_half_life", "correct RUL band before 50 % of life"),
+                ("alpha_lambda_0.5", "alpha-lambda at 50 % of life"),
+                ("alpha_lambda_0.7", "alpha-lambda at 70 % of life"),
+                ("alpha_lambda_0.9", "alpha-lambda at 90 % of life"),
+                ("ra_0.7_median", "relative accuracy at 70 %, median"),
+                ("warning_life_frac_median", "warning time / life, median")]
+        for key, label in rows:
+            fmt = (lambda v: "-" if not math.isfinite(v) else f"{v:.2f}") if "ra_" in key \
+                else _pct
+            cal = [fmt((calibrated or {}).get(m, {}).get(key, math.nan))
+                   for m in ("usage+health", "health")]
+            lines.append(f"| {label} | " + " | ".join(fmt(c.get(key, math.nan)) for c in camp)
+                         + " | " + " | ".join(cal) + " |")
+        lines += ["", "Failure thresholds: " + ", ".join(
+            f"{c['index']} {c['limit']:.4g}" for c in camp) + "; the CLI on each foreign "
+            "file (50 actuators): " + ", ".join(f"{c['cli_s']:.0f} s" for c in camp) + "."]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--campaign", metavar="DIR", help="trends.csv, campaign.json, cal.json "
+                    "of `bench hums campaign --usage`")
+    ap.add_argument("--healthy-campaign", default="3")
+    ap.add_argument("--work", default=None)
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--doc", default=None)
+    a = ap.parse_args(argv)
+    sys.path.insert(0, str(ROOT))
+    import tempfile
+
+    from bench import machine_description
+    syn = synthetic(a.seeds)
+    camp = calibrated = None
+    if a.campaign:
+        work = Path(a.work or tempfile.mkdtemp(prefix="trend-eval-"))
+        work.mkdir(parents=True, exist_ok=True)
+        d = Path(a.campaign)
+        camp = [score_campaign(d, ix, a.healthy_campaign, work) for ix in CAMPAIGN_INDEXES]
+        calibrated = json.loads((d / "campaign.json").read_text())["summary"]
+    text = markdown(syn, camp, calibrated, a, machine_description())
+    print(text)
+    if a.json:
+        Path(a.json).write_text(json.dumps({"synthetic": syn, "campaign": camp}, indent=1))
+    if a.doc:
+        from bench.hums.table import replace_section
+        replace_section(a.doc, "trend-prognosis", text)
+        print(f"updated {a.doc}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
