@@ -75,7 +75,7 @@ import numpy as np
 from bench import BenchError
 from bench.rig import baseline as B
 from bench.rig import population as P
-from bench.rig.cycles import Cycle, condition_name, phases, read_cycles
+from bench.rig.cycles import Cycle, condition_name, read_cycles
 from bench.rig.features import cycle_features, judge, location, stroke_signal
 
 KINDS = ("friction", "backlash", "loaded_play", "localised", "periodic")
@@ -135,7 +135,7 @@ def scales(lb: B.LoadBaseline, at_mm: float | None = None, load_sign: float = 1.
 def moving(cycle: Cycle) -> np.ndarray:
     """True at the samples of the cycle's strokes (the set-point moves)."""
     m = np.zeros(len(cycle), bool)
-    for s in phases(cycle.setpoint_mm):
+    for s in cycle.segments():
         if s.direction != 0:
             m[s.start:s.stop] = True
     return m
@@ -161,7 +161,7 @@ def play(position_mm: np.ndarray, width_mm: float, first_direction: int) -> np.n
 
 def backlash(cycle: Cycle, width_mm: float) -> Cycle:
     """The logged nut position through a play of `width_mm` (current unchanged)."""
-    first = next((s.direction for s in phases(cycle.setpoint_mm) if s.direction), 1)
+    first = next((s.direction for s in cycle.segments() if s.direction), 1)
     return dataclasses.replace(cycle, position_mm=play(cycle.position_mm, width_mm, first))
 
 
