@@ -81,7 +81,8 @@ def _features(**scores: float):
     from bench.rig.features import FEATURES, CycleFeatures
     nan = float("nan")
     full = {k: scores.get(k, 0.0) for k in FEATURES}
-    return CycleFeatures("c", "s", 40.0, 3, 1, full, nan, nan, "-", nan, nan, nan, nan)
+    # the current raised in both strokes: a level above threshold reads as friction
+    return CycleFeatures("c", "s", 40.0, 3, 1, full, nan, nan, "-", nan, nan, 1.0, 1.0)
 
 
 @pytest.mark.parametrize("scores,named", [
