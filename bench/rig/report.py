@@ -243,6 +243,8 @@ def markdown(study: Study, command: str) -> str:
                      f"{_interval(h.get('rate_95'))}){skip} | {row['zscore_threshold']:.3g} "
                      f"| {thr} |")
     lines += _cv_lines(sm)
+    from bench.rig.report_goals import lines as goal_lines
+    lines += goal_lines(study)
     lines += [f"Not scored: {u}." for u in sm.get("unscored", [])]
     if not study.fault_conditions:
         lines += ["", NO_FAULT]
