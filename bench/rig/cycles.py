@@ -65,6 +65,13 @@ class Cycle:
             hit = self._memo[name] = (key, compute())
         return hit[1]
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (to a worker) without the memo: it is keyed by the arrays' identities,
+        which a copy does not keep."""
+        state = dict(self.__dict__)
+        state["_memo"] = {}
+        return state
+
     def segments(self) -> list[Segment]:
         """`phases` of the cycle's set-point, computed once."""
         return self.memo("segments", lambda: phases(self.setpoint_mm))

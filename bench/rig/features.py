@@ -1,66 +1,63 @@
-"""Fault signatures of one cycle against a healthy baseline (issue 11, "Signatures of real
-faults"), all on the standardised residual of `baseline.residuals`:
+"""Fault signatures of one cycle against a healthy baseline, all on the standardised
+residual of `baseline.residuals`.
 
-The stroke features (localised, level, periodic) read the current less the cycle's median
-dwell current (`baseline.standstill_current`; variant B of 2026-11-24: the drive's
-current steps by itself); the dwell and index features read the logged current.
+The stroke features (localised, level, periodic, turn) read the current less the cycle's
+median dwell current (`baseline.standstill_current`: the drive's current steps by itself
+between cycles); the dwell feature reads the logged current, the index feature the phase
+indexes of the current against the standstill. Each stroke is cut in two
+(`travel_start`): its take-up of the reversal (from the reversal to where the healthy
+position error has settled, `takeup_window`, from the baseline alone) and its travel.
 
 - localised (position-locked): a spall on the screw gives a current transient at the
-  same nut position on every pass. Each stroke's current residual, less its constant in
-  amperes (`offset_free`, variant 3: a level shift is not localised), is scanned with
-  windows of `SCALES` samples (the window's sum over sqrt(width): unit variance under
-  the baseline's noise); so is the
-  sum of the out- and in-stroke residuals at the same set-point position (the nut passes
-  the same place in both directions). The score is the largest |scan|; its window gives
-  the position in mm of travel (measured position, not set-point) and the width.
-- level (direction-split): friction raises the current in both directions: the mean of
-  the out- and in-stroke current residuals.
-- reversal (backlash as a hysteresis; variant 3 of 2026-11-24): a play of width b makes
-  the nut trail the motor by b/2 against the motion, so the position error shifts by
-  +b/2 on the out-stroke and -b/2 on the in-stroke, the current unchanged. Each stroke's
-  position-error residual after its acceleration ramp gives its weighted least-squares
-  constant (`constant`); the score is |d_out - d_in| over its standard error. (It was
-  the mean over the first 5 samples after each reversal, which straddles the take-up of
-  the play: docs/real-data.md, injected faults.)
+  same nut position on every pass. Each stroke's travel residual, less its constant in
+  amperes (`zone_free`: a level shift is not localised), is scanned with windows of
+  `SCALES` samples (the window's sum over sqrt(width): unit variance under the
+  baseline's noise); so is the sum of the out- and in-stroke residuals at the same
+  set-point position (the nut passes the same place in both directions). The score is
+  the largest |scan|; its window gives the position in mm of travel (measured position,
+  not set-point) and the width.
+- level: friction raises the current in both directions: the mean of the out- and
+  in-stroke travel residuals (each stroke's own kept for the naming: `naming`).
+- reversal (backlash as a hysteresis): a play of width b makes the nut trail the motor by
+  b/2 against the motion, so the position error shifts by +b/2 on the out-stroke and
+  -b/2 on the in-stroke, the current unchanged. Each stroke's position-error residual
+  after its acceleration ramp gives its weighted least-squares constant (`constant`);
+  the score is |d_out - d_in| over its standard error.
+- takeup (lost motion at a reversal): while a stroke takes up the reversal the motor
+  turns through a play before the nut follows: the position-error residual's constant
+  over the take-up, along the motion, over its standard error, per stroke (the sensor's
+  zero, the dwells' median error, removed); the score is the larger of the two strokes,
+  since a one-sided load shows the play at one reversal only, which one its sign decides.
+- turn: the current residual's constant over each take-up over its standard error (a
+  breakaway friction and a play's free run both move it), the larger of the two.
 - periodic (position-periodic, at the screw's lead): a defect on the screw's raceway
   passes under the nut's balls once per screw revolution, i.e. once per lead of travel.
-  The current residual of each stroke (`offset_free`, then less its mean) is projected
-  on cos/sin of
-  2 pi x / lead at the measured positions x (a least-squares line at the logged samples,
-  no resampling); 2 |sum z e^(-i theta)|^2 / N is chi-square with 2 degrees of freedom
-  under the baseline's noise, and the score is the sum over both strokes. Where: the same
+  The travel residual of each stroke (`zone_free`, then less its mean) is projected on
+  cos/sin of 2 pi x / lead at the measured positions x (no resampling);
+  2 |sum z e^(-i theta)|^2 / N is chi-square with 2 degrees of freedom under the
+  baseline's noise, and the score is the sum over both strokes. Where: the same
   projection over a sliding window of `PERIODIC_WINDOW` samples, out- and in-stroke
-  added at the same position, its largest value. This feature was added after the
-  first study had been run on the spall stages (docs/real-data.md says so).
-- dwell (standstill): the issue asks to diagnose against every signal per phase, and the
-  strokes are not the whole cycle. The current and position-error residuals of each
-  dwell, less their medians, are scanned as the localised feature scans a stroke; the
-  score is the largest |scan|.
-- index: the issue asks for the mean and spread of each index per phase, direction and
-  load, and a diagnosis against them. Each phase index of the cycle
-  (`baseline.phase_indexes`: mean, RMS and peak current, mean and peak position error,
-  the current of the ramps) is standardised by the baseline's spread of that index times
-  sqrt(1 + 1/n); the score is the largest |z|, and the index it came from is kept.
+  added at the same position, its largest value.
+- dwell (standstill): the current and position-error residuals of each dwell, less their
+  medians, scanned as the localised feature scans a stroke; the score is the largest
+  |scan|.
+- index: each phase index of the cycle (`baseline.phase_indexes(referenced=True)`: mean,
+  RMS and peak current against the standstill, mean and peak position error, the current
+  of the ramps) against the baseline's mean and predictive spread of a new run's cycle
+  (`baseline.ref_indexes`, within and between runs); the score is the largest |z|, and
+  the index it came from is kept.
 
 Where (`location`): a spall confined to one spot of the raceway acts over about a nut
-length of travel, so every located effect (periodic or localised) is placed where the
+length of travel, so a located effect (periodic or localised) is placed where the
 localised scan of the strokes is strongest (windows up to 27 samples, about 26 mm at the
-Cranfield stroke speed); the sliding periodic projection's maximum is kept beside it
-(`periodic_mm`) but a line that runs along the whole stroke has no place of its own.
-The dwell, index and the location changes were made on 2026-11-24 (docs/real-data.md,
-"Changes after the goals were missed"), motivated by the issue's text, before their
-effect on the spall stages was measured.
+Cranfield stroke speed), and only when that scan is above its threshold; the sliding
+periodic projection's maximum is kept beside it (`periodic_mm`), but a line that runs
+along the whole stroke has no place of its own.
 
-`judge` names one effect: the position-locked signature (periodic or localised) above
-its threshold unless a direction-split one (level, reversal) is further above its own,
-then the direction-split one, and the catch-alls (dwell, index) only when nothing else
-is above. (The first order, periodic then localised before everything else, was set
-after the first study; it named injected friction localised or index, and was changed
-on 2026-11-24 from injected faults only: docs/real-data.md "What else the bench sees:
-injected faults".) A cycle named by a mean position-error index that moved alike in
-every phase is named `offset` instead (variant 6, session 17: a play held on one flank by
-a one-sided load; a name only). The verdict lists every feature against its threshold and
-names the baseline used.
+`assess` flags a cycle when any feature is above its threshold and names its signature
+and the fault family it points to (`naming.attribute`); `rig_verdict` is the verdict
+(`verdict.RigVerdict`): the signature with its place or its index, every other feature
+above its threshold, the baseline used, and whether it is provisional.
 """
 
 from __future__ import annotations
@@ -84,7 +81,7 @@ from bench.rig.verdict import HEALTHY, UNKNOWN, WARNING, RigVerdict, provisional
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
-STROKE_CURRENT = "current_ref_a"   # the stroke features' current (variant B, 2026-11-24)
+STROKE_CURRENT = "current_ref_a"   # the stroke features' current (against the standstill)
 FEATURES = ("localised", "level", "reversal", "takeup", "turn", "periodic", "dwell",
             "index")
 SPECIFIC = ("periodic", "localised")
@@ -329,7 +326,7 @@ def common_shift(shifts: dict[str, float]) -> bool:
     """True when every phase's mean position error moved the same way by a similar amount
     (the smallest shift at least half the largest): a position offset of the whole cycle.
     A one-sided load (the Cranfield rig's) holds the nut on one flank of a play, so a play
-    shows so, not at the reversals (docs/real-data.md, variants 5 and 6)."""
+    shows so, not at the reversals."""
     v = np.array(list(shifts.values()))
     return bool(len(v) > 1 and (np.all(v > 0) or np.all(v < 0))
                 and np.min(np.abs(v)) >= 0.5 * np.max(np.abs(v)))
@@ -374,10 +371,9 @@ def zone_free(std: np.ndarray, z: np.ndarray) -> np.ndarray:
 
 
 def offset_free(lb: LoadBaseline, phase: str, z: np.ndarray, sig: str) -> np.ndarray:
-    """The residual less its constant in amperes (variant 3 of 2026-11-24): a friction
-    torque is a constant current on a stroke, which divided by the per-sample spread is
-    not a constant in z and would leak into the localised scan and the periodic
-    projection (docs/real-data.md, injected faults)."""
+    """The residual less its constant in amperes: a friction torque is a constant current
+    on a stroke, which divided by the per-sample spread is not a constant in z and would
+    leak into the localised scan and the periodic projection."""
     if not len(z):
         return z
     std = lb.phases[phase].std[sig]
@@ -494,15 +490,15 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
 
 def is_offset(f: CycleFeatures) -> bool:
     """The cycle's largest phase index is a mean position error, and every phase's moved
-    alike (`common_shift`): named `offset` instead of `index` (variant 6, session 17; a
-    name only, the cycle was flagged by the index feature)."""
+    alike (`common_shift`): named `offset` instead of `index` (a name only, the cycle
+    was flagged by the index feature)."""
     return f.index_at.endswith("position_error_mean") and common_shift(f.position_shift_mm)
 
 
 def signed_level(f: CycleFeatures) -> float:
     """The level's sign-keeping value: the mean of the out- and in-stroke residual means
     (the score is its magnitude). Below zero the current is lowered in both directions:
-    less drag, not friction (variant 4 of 2026-11-24)."""
+    less drag, not friction."""
     v = [x for x in (f.level_out, f.level_in) if math.isfinite(x)]
     return float(np.mean(v)) if v else nan_
 
@@ -582,8 +578,7 @@ def location(f: CycleFeatures, effect: str, thresholds: dict[str, float]) -> flo
     periodic or localised effect the strongest window of the localised scan (a spot of
     the raceway acts over about a nut length), but only when that scan stands out, i.e.
     is above its threshold: a periodic line spread along the whole stroke has no place of
-    its own, and the strongest window of a scan within its healthy range wanders
-    (variant 4 of 2026-11-24)."""
+    its own, and the strongest window of a scan within its healthy range wanders."""
     if effect not in SPECIFIC:
         return None
     thr = thresholds.get("localised", nan_)

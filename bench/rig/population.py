@@ -1,23 +1,25 @@
-"""Populations of runs (issue 11): thresholds from the spread of held-out healthy runs, and
-a detection rate and a false-alarm rate per condition instead of a single verdict.
+"""Populations of runs: thresholds from the spread of held-out healthy runs, and a
+detection rate and a false-alarm rate per condition instead of a single verdict.
 
-Thresholds (`calibrate`): with the calibration runs of one load (e.g. runs 1-2), each run
-in turn is held out, a baseline is built from the others, and the held-out run's cycles
-are scored; so every calibration score is that of a cycle its baseline did not see
-(leave-one-run-out; run-to-run differences are in the scores). The threshold of a
-feature is the upper (1 - alpha / n_features) prediction bound of one more healthy score
-(`bound`), alpha the false-alarm rate aimed at (0.05), shared by the features
-(Bonferroni): an F bound for the chi-square-like scores (periodic power; level and
-reversal squared), a Student-t bound of the log-scores for the maxima (the localised and
-dwell scans, the largest phase-index |z|). (The
-first version used the log-normal bound for every feature; it gave thresholds of 20-35
-for chi-square scores near 0, and was replaced after the first study: docs/real-data.md.) The
-thresholds come from healthy calibration runs only, never from a fault's cycles.
+Thresholds (`calibrate_loads`): per load, each calibration run in turn is held out, a
+baseline is built from the others and the held-out run's cycles are scored (`loro`), so
+every calibration score is that of a cycle its baseline did not see, and the run-to-run
+differences are in the scores. The threshold of a feature is the upper (1 - alpha /
+n_features) prediction bound of one cycle of a healthy run that is not among them
+(`thresholds`, `spread.pooled`): the transformed scores (log for the scans and the index
+maximum, cube root for the chi-square-like periodic power, the signed value for level and
+reversal) as runs and cycles, the spreads within and between runs pooled over the loads,
+alpha the false-alarm rate aimed at (0.05) shared by the features (Bonferroni). With
+fewer than 3 calibration runs the between-run spread is not estimated and the thresholds
+are provisional (`Calibration.provisional`). They come from healthy calibration runs
+only, never from a fault's cycles.
 
-The reference detector the issue asks for (`zscore_score`): a plain per-sample z-score
-of the current against the healthy mean at the same aligned sample (all phases), the
-cycle's score its largest |z|; its threshold is set so that it flags the same number of
-held-out healthy cycles as the bench's detector (`matched_threshold`).
+The plain reference (`zscore_score`): a per-sample z-score of the current against the
+healthy mean at the same aligned sample (all phases), the cycle's score its largest |z|;
+its threshold set the plain way from the same held-out scores (`prediction_bound`:
+independent cycles, log-normal, alpha), and also, for a comparison at the same
+false-alarm rate, so that it flags as many held-out healthy cycles as the bench's
+detector (`matched_threshold`).
 """
 
 from __future__ import annotations
