@@ -113,10 +113,18 @@ class LoadBaseline:
     # the same indexes of the referenced signals (`phase_indexes(referenced=True)`):
     # phase -> index -> (mean, predictive sd of a cycle of a new run, `spread`)
     ref_indexes: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
+    _memo: dict[str, Any] = field(default_factory=dict, init=False, repr=False,
+                                  compare=False)
 
     @property
     def n(self) -> int:
         return len(self.cycles)
+
+    def memo(self, name: str, compute: Any) -> Any:
+        """`compute()` once per baseline (what every cycle scored against it reads)."""
+        if name not in self._memo:
+            self._memo[name] = compute()
+        return self._memo[name]
 
     @property
     def provisional(self) -> bool:
@@ -233,6 +241,12 @@ def _runs(runs: list[int]) -> str:
 
 
 def phase_indexes(cycle: Cycle, referenced: bool = False) -> dict[str, dict[str, float]]:
+    """`cycle_indexes`, computed once per cycle (they need no baseline)."""
+    return cycle.memo(f"phase_indexes.{referenced}",  # type: ignore[no-any-return]
+                      lambda: cycle_indexes(cycle, referenced))
+
+
+def cycle_indexes(cycle: Cycle, referenced: bool = False) -> dict[str, dict[str, float]]:
     """Per phase of a cycle: mean, RMS and peak current, mean and peak position error, and
     for a stroke the mean current of its acceleration, constant-speed and deceleration
     parts (NaN for an empty part). `referenced`: of the current less the cycle's

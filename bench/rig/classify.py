@@ -386,28 +386,47 @@ def folds_of(data: Labelled, n_folds: int, seed: int = 0) -> list[np.ndarray]:
     return [test for _, test in cv.split(np.zeros(len(y)), y, groups)]
 
 
+def fold(job: tuple[Any, ...]) -> tuple[list[str], list[str]]:
+    """One validation fold (a worker job): the bench's classifier and the plain forest
+    trained on the fold's training runs, their classes for its test cycles."""
+    import warnings
+    cycles, labels, groups, test, healthy, lead_mm, xp = job
+    y = np.asarray(labels)
+    train = np.setdiff1d(np.arange(len(y)), test)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")     # a fold's convergence notes
+        m = fit([cycles[i] for i in train], list(y[train]), [groups[i] for i in train],
+                healthy, lead_mm)
+        pred = [r["class"] for r in predict(m, [cycles[i] for i in test])]
+        plain = _plain_forest().fit(xp[train], y[train]).predict(xp[test])
+    return pred, [str(p) for p in plain]
+
+
 def validate(data: Labelled, healthy: str, lead_mm: float | None, n_folds: int = 5,
-             seed: int = 0, progress: Any = None) -> dict[str, Any]:
+             seed: int = 0, progress: Any = None, run: Any = None) -> dict[str, Any]:
     """Leave-runs-out validation of the bench's classifier and, on the same folds, of the
     plain reference (a random forest on `plain_summary`): each fold's runs are
-    classified by models trained on the other runs only."""
-    import warnings
+    classified by models trained on the other runs only. `run(fn, jobs)` maps the folds
+    (e.g. over workers; default: here, one after the other)."""
     y = np.asarray(data.labels)
-    pred = np.empty(len(y), dtype=object)
-    plain = np.empty(len(y), dtype=object)
     xp = np.array([plain_summary(c) for c in data.cycles])
     groups = np.asarray(data.groups)
     folds = folds_of(data, n_folds, seed)
-    for test in folds:
-        train = np.setdiff1d(np.arange(len(y)), test)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")     # a fold's convergence notes
-            m = fit([data.cycles[i] for i in train], list(y[train]), list(groups[train]),
-                    healthy, lead_mm)
-            pred[test] = [r["class"] for r in predict(m, [data.cycles[i] for i in test])]
-            plain[test] = _plain_forest().fit(xp[train], y[train]).predict(xp[test])
-        if progress is not None:
-            progress.update(1)
+    jobs = [(data.cycles, data.labels, data.groups, test, healthy, lead_mm, xp)
+            for test in folds]
+    if run is None:
+        done = []
+        for j in jobs:
+            done.append(fold(j))
+            if progress is not None:
+                progress.update(1)
+    else:
+        done = run(fold, jobs)
+    pred = np.empty(len(y), dtype=object)
+    plain = np.empty(len(y), dtype=object)
+    for test, (p, q) in zip(folds, done, strict=True):
+        pred[test] = p
+        plain[test] = q
     loads = np.array([c.load for c in data.cycles], float)
     return {"folds": len(folds), "seed": seed, "runs": len(set(groups)),
             "bench": scores(y, pred, groups, loads),

@@ -214,7 +214,8 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
     """The features of `cycle` against the baseline of its load (periodic only with the
     screw's lead)."""
     sig = stroke_signal(lb)
-    res = residuals(lb, cycle, sig)
+    cache: dict[str, Any] = {}
+    res = _residuals(lb, cycle, sig, cache)
     out, inn = _strokes(res)
     notes: list[str] = []
     nan = float("nan")
@@ -230,7 +231,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
             continue
         z, pos = r
         std = lb.phases[name].std[sig][:len(z)]
-        w = travel_start(lb.phases[name], len(z))
+        w = travel_start(lb, name, len(z))
         levels[name] = float(np.mean(z[w:]))
         zt = zone_free(std[w:], z[w:])
         profiles[name] = (zt, pos[w:])
@@ -255,12 +256,12 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
     pidx = phase_indexes(cycle)                 # read by the shifts
     idx, idx_at = index_score(lb, phase_indexes(cycle, referenced=True) if lb.ref_indexes
                               else pidx)
-    rev = _reversal(lb, cycle)
-    take_mm, take_z = takeup(lb, cycle)
+    rev = _reversal(lb, cycle, cache)
+    take_mm, take_z = takeup(lb, cycle, cache)
     scores = {"localised": loc[0], "level": abs(level), "reversal": abs(rev),
               "takeup": max((abs(v) for v in take_z.values()), default=nan),
               "turn": max((abs(v) for v in turn.values()), default=nan),
-              "periodic": per[0], "dwell": dwell_score(lb, cycle), "index": idx}
+              "periodic": per[0], "dwell": dwell_score(lb, cycle, cache), "index": idx}
     if lead_mm is None:
         notes.append("periodic: not available (the screw's lead was not given)")
     return CycleFeatures(cycle.label, cycle.source, cycle.load, cycle.run, cycle.group,
@@ -277,12 +278,23 @@ def stroke_signal(lb: LoadBaseline) -> str:
     return STROKE_CURRENT if ph is not None and STROKE_CURRENT in ph.mean else "current_a"
 
 
-def dwell_score(lb: LoadBaseline, cycle: Cycle) -> float:
+def _residuals(lb: LoadBaseline, cycle: Cycle, sig: str, cache: dict[str, Any] | None
+               ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """`baseline.residuals`, once per signal within one cycle's features (`cache`)."""
+    if cache is None:
+        return residuals(lb, cycle, sig)
+    if sig not in cache:
+        cache[sig] = residuals(lb, cycle, sig)
+    return cache[sig]  # type: ignore[no-any-return]
+
+
+def dwell_score(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = None
+                ) -> float:
     """The largest |scan| of the dwells' current and position-error residuals (each less
     its median); NaN when neither the cycle nor the baseline has a dwell."""
     best = float("nan")
     for sig in ("current_a", "position_error_mm"):
-        for name, (z, _) in residuals(lb, cycle, sig).items():
+        for name, (z, _) in _residuals(lb, cycle, sig, cache).items():
             if lb.phases[name].direction == 0 and len(z) >= 3:
                 s = scan(z - np.median(z))[0]
                 best = s if not math.isfinite(best) else max(best, s)
@@ -352,10 +364,16 @@ def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, flo
     return float(np.sum(zz * uu) / den), 1.0 / math.sqrt(den)
 
 
-def travel_start(ps: Any, n: int) -> int:
+def travel_start(lb: LoadBaseline, stroke: str, n: int) -> int:
     """The first aligned sample of a stroke's travel: after its take-up of the reversal
-    (`takeup_window`), leaving at least `MIN_TRAVEL` samples."""
-    return max(0, min(takeup_window(ps), n - MIN_TRAVEL))
+    (`takeup_window`), leaving at least `MIN_TRAVEL` of its `n` samples."""
+    return max(0, min(window(lb, stroke), n - MIN_TRAVEL))
+
+
+def window(lb: LoadBaseline, stroke: str) -> int:
+    """`takeup_window` of the baseline's stroke, once per baseline."""
+    ps = lb.phases[stroke]
+    return int(lb.memo(f"takeup.{stroke}", lambda: takeup_window(ps)))
 
 
 MIN_TRAVEL = 27          # samples of travel a stroke keeps at least (the widest scan)
@@ -381,18 +399,21 @@ def offset_free(lb: LoadBaseline, phase: str, z: np.ndarray, sig: str) -> np.nda
     return z - c / std[:len(z)]
 
 
-def _reversal(lb: LoadBaseline, cycle: Cycle) -> float:
+def _reversal(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = None
+              ) -> float:
     """Backlash as a hysteresis: (d_out - d_in) / its standard error, d a stroke's
     position-error constant after its acceleration ramp (module doc); the score is its
     magnitude."""
     sig = "position_error_mm"
-    res = residuals(lb, cycle, sig)
+    res = _residuals(lb, cycle, sig, cache)
     segs = {g.name: g for g in cycle.segments()}
     d: dict[str, tuple[float, float]] = {}
     for n in ("out", "in"):
         if n not in res or n not in segs or not len(res[n][0]):
             return float("nan")
-        start = ramps(cycle.setpoint_mm, segs[n])["accel"].stop - segs[n].start
+        seg = segs[n]
+        start = cycle.memo(f"accel.{n}", lambda seg=seg: ramps(cycle.setpoint_mm, seg)[
+            "accel"].stop) - seg.start
         d[n] = constant(lb.phases[n].std[sig], res[n][0], start)
     return (d["out"][0] - d["in"][0]) / math.hypot(d["out"][1], d["in"][1])
 
@@ -419,7 +440,14 @@ def takeup_window(ps: Any) -> int:
     return int(k + low[0]) if len(low) else len(e)
 
 
-def takeup(lb: LoadBaseline, cycle: Cycle) -> tuple[dict[str, float], dict[str, float]]:
+def _zero(lb: LoadBaseline, sig: str) -> float:
+    """The baseline's median position error in its dwells (its sensor zero)."""
+    dwell = [p.mean[sig] for p in lb.phases.values() if p.direction == 0 and len(p)]
+    return float(np.median(np.concatenate(dwell))) if dwell else 0.0
+
+
+def takeup(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = None
+           ) -> tuple[dict[str, float], dict[str, float]]:
     """Lost motion at each reversal: per stroke, the position-error residual's weighted
     constant over the take-up (`takeup_window`), in mm along the motion (a play the motor
     turns through before the nut follows adds to the lag, so + is more lag), and the
@@ -427,20 +455,18 @@ def takeup(lb: LoadBaseline, cycle: Cycle) -> tuple[dict[str, float], dict[str, 
     and the play shows at one reversal only; which one the load's sign decides, so the
     score is the larger of the two."""
     sig = "position_error_mm"
-    res = residuals(lb, cycle, sig)
+    res = _residuals(lb, cycle, sig, cache)
     mm: dict[str, float] = {}
     zz: dict[str, float] = {}
     # the position sensor's zero as the cycle and as the baseline see it (the dwells'
     # median error): a zero that moves between runs is not a lost motion
-    dwell = [p.mean[sig] for p in lb.phases.values() if p.direction == 0 and len(p)]
-    zero = standstill_error(cycle) - (float(np.median(np.concatenate(dwell))) if dwell
-                                      else 0.0)
+    zero = standstill_error(cycle) - lb.memo("standstill_error", lambda: _zero(lb, sig))
     infl = math.sqrt(1.0 + 1.0 / lb.n)
     for n in ("out", "in"):
         if n not in res or not len(res[n][0]):
             continue
         ps = lb.phases[n]
-        w = min(takeup_window(ps), len(res[n][0]))
+        w = min(window(lb, n), len(res[n][0]))
         if w < 2:
             continue
         std = ps.std[sig][:w] * infl

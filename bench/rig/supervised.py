@@ -55,7 +55,12 @@ def run(todo: Sequence[tuple[str, list[Cycle]]], healthy: str, lead_mm: float | 
         t0 = time.perf_counter()
         try:
             K.check_classes(data, healthy)
-            v = K.validate(data, healthy, lead_mm)
+            from bench.workers import run_all
+
+            def mapped(fn: Any, jobs: list[Any]) -> list[Any]:
+                return run_all(fn, jobs, workers=workers, progress=progress,
+                               desc="classifier folds", unit="fold", scheduler=scheduler)
+            v = K.validate(data, healthy, lead_mm, run=mapped)
         except BenchError as exc:
             out["validation"] = {"skipped": str(exc)}
         else:
