@@ -91,6 +91,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     t.add_argument("--folds", type=int, default=5, help="leave-runs-out folds (default 5)")
     t.add_argument("--seed", type=int, default=0, help="seed of the folds (default 0)")
     t.add_argument("--json", metavar="PATH", help="write the validation here ('-': stdout)")
+    t.add_argument("--no-validate", action="store_true",
+                   help="train only, without the leave-runs-out validation (the model then "
+                        "says it was not validated)")
     _common(t)
     k = sub.add_parser("classify", help="classify every cycle with a model of `bench rig "
                                         "train`")

@@ -166,16 +166,21 @@ def run_train(args: Any, read: Any) -> int:
     inputs_guard([("-o", args.out), ("--json", args.json or "")], args.tables)
     data = K.labelled(args.tables, read)
     K.check_classes(data, args.healthy)
-    folds = K.folds_of(data, args.folds, args.seed)
-    with _bar(len(folds), "leave-runs-out folds", "fold") as bar:
-        val = K.validate(data, args.healthy, args.lead_mm, args.folds, args.seed, bar)
+    val: dict[str, Any] = {"not_validated": "--no-validate"}
+    if not getattr(args, "no_validate", False):
+        folds = K.folds_of(data, args.folds, args.seed)
+        with _bar(len(folds), "leave-runs-out folds", "fold") as bar:
+            val = K.validate(data, args.healthy, args.lead_mm, args.folds, args.seed, bar)
     with _bar(len(data.cycles), "training", "cycle") as bar:
         model = K.fit(data.cycles, data.labels, data.groups, args.healthy, args.lead_mm, bar)
     model.rig = rig_of(data.cycles, args.lead_mm, getattr(args, "actuator", None) or "")
     model.validation = {k: v for k, v in val.items() if k != "predictions"}
     model.validation["tables"] = sorted({condition_name(t) for t in args.tables})
     save(model, args.out)
-    print(validation_text(model.validation))
+    if "bench" in model.validation:
+        print(validation_text(model.validation))
+    else:
+        print("not validated (--no-validate)")
     print(f"written: {args.out} (classes {', '.join(model.classes)}; trained on "
           f"{len(model.trained_on)} runs of {len(data.cycles)} cycles)")
     if args.json:

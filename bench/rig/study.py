@@ -310,6 +310,7 @@ def goals(sm: dict[str, Any]) -> dict[str, Any]:
     the plain z-score's."""
     out: dict[str, Any] = {"false_alarms": {}, "detected": {}, "named": {}}
     det = {"judged": 0, "flagged": 0, "zscore_flagged": 0}
+    fam_det: dict[str, list[int]] = {}
     named: dict[str, list[int]] = {}
     for load, row in sm["loads"].items():
         cv = row.get("cross_validation") or {}
@@ -322,6 +323,9 @@ def goals(sm: dict[str, Any]) -> dict[str, Any]:
             for k in det:
                 det[k] += p.get(k, 0)
             exp = naming.expected_fault(table_label(cond))
+            fd = fam_det.setdefault(exp or table_label(cond), [0, 0])
+            fd[0] += p.get("flagged", 0)
+            fd[1] += p.get("judged", 0)
             if exp:
                 got = named.setdefault(exp, [0, 0])
                 got[0] += p.get("faults", {}).get(exp, 0)
@@ -329,7 +333,11 @@ def goals(sm: dict[str, Any]) -> dict[str, Any]:
     n = det["judged"]
     out["detected"] = {**det, "rate": det["flagged"] / n if n else float("nan"),
                        "rate_95": P.clopper_pearson(det["flagged"], n),
-                       "zscore_rate": det["zscore_flagged"] / n if n else float("nan")}
+                       "zscore_rate": det["zscore_flagged"] / n if n else float("nan"),
+                       "per_family": {k: {"flagged": v[0], "judged": v[1],
+                                          "rate": v[0] / v[1] if v[1] else float("nan"),
+                                          "rate_95": P.clopper_pearson(v[0], v[1])}
+                                      for k, v in sorted(fam_det.items())}}
     right = sum(v[0] for v in named.values())
     flagged = sum(v[1] for v in named.values())
     out["named"] = {"right": right, "flagged": flagged,
