@@ -81,6 +81,14 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    "bump, measured position (default: the middle of the out-stroke)")
     i.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
     _common(i)
+    t, k = _supervised_parsers(sub)
+    for q in (b, a, s, i, t, k):
+        q.set_defaults(func=run)
+    p.set_defaults(func=run, rig_parser=p)
+
+
+def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
+    """The parsers of `bench rig train` and `bench rig classify`."""
     t = sub.add_parser("train", help="learn fault classes from labelled tables (the label "
                                      "is the file name less trailing digits and anything "
                                      "after the first _), validated leaving runs out")
@@ -102,9 +110,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     k.add_argument("--json", metavar="OUT", help="write the classes here ('-': stdout)")
     k.add_argument("--actuator", metavar="DESC", help="the actuator the tables are of "
                    "(checked against the model's)")
-    for q in (b, a, s, i, t, k):
-        q.set_defaults(func=run)
-    p.set_defaults(func=run, rig_parser=p)
+    return t, k
 
 
 def _common(p: argparse.ArgumentParser) -> None:

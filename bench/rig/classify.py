@@ -443,7 +443,7 @@ def scores(y: np.ndarray, pred: np.ndarray, groups: np.ndarray, loads: np.ndarra
     classes = sorted(set(y))
     cols = classes + ([UNKNOWN] if UNKNOWN in set(pred) else [])
     conf = [[int(np.sum((y == a) & (pred == b))) for b in cols] for a in classes]
-    recall = {}
+    recall: dict[str, dict[str, Any]] = {}
     for a in classes:
         n = int(np.sum(y == a))
         k = int(np.sum((y == a) & (pred == a)))
@@ -460,4 +460,5 @@ def scores(y: np.ndarray, pred: np.ndarray, groups: np.ndarray, loads: np.ndarra
     return {"classes": classes, "columns": cols, "confusion": conf, "recall": recall,
             "right": right, "cycles": len(y), "rate": right / len(y) if len(y) else
             float("nan"), "rate_95": clopper_pearson(right, len(y)), "per_load": per_load,
-            "least_recall": min((r["rate"] for r in recall.values()), default=float("nan"))}
+            "least_recall": min((float(r["rate"]) for r in recall.values()),
+                                default=float("nan"))}

@@ -77,6 +77,7 @@ from bench.rig.baseline import (
     standstill_error,
 )
 from bench.rig.cycles import Cycle, ramps
+from bench.rig.offsets import is_offset, position_shifts, shift_text
 from bench.rig.verdict import HEALTHY, UNKNOWN, WARNING, RigVerdict, provisional_note
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
@@ -323,35 +324,6 @@ def index_score(lb: LoadBaseline, indexes: dict[str, dict[str, float]]
     return best, at
 
 
-def position_shifts(lb: LoadBaseline, indexes: dict[str, dict[str, float]]
-                    ) -> dict[str, float]:
-    """Per phase a cycle (its phase `indexes`) and the baseline share: the cycle's mean
-    position error less the baseline's mean of that index, in mm (what the verdict of a
-    position-error index reports beside it)."""
-    key = "position_error_mean"
-    return {phase: vals[key] - lb.indexes[phase][key][0]
-            for phase, vals in indexes.items()
-            if key in lb.indexes.get(phase, {}) and math.isfinite(vals[key])}
-
-
-def common_shift(shifts: dict[str, float]) -> bool:
-    """True when every phase's mean position error moved the same way by a similar amount
-    (the smallest shift at least half the largest): a position offset of the whole cycle.
-    A one-sided load (the Cranfield rig's) holds the nut on one flank of a play, so a play
-    shows so, not at the reversals."""
-    v = np.array(list(shifts.values()))
-    return bool(len(v) > 1 and (np.all(v > 0) or np.all(v < 0))
-                and np.min(np.abs(v)) >= 0.5 * np.max(np.abs(v)))
-
-
-def shift_text(shifts: dict[str, float]) -> str:
-    """The verdict's words on a position-error index: each phase's shift in mm."""
-    if not shifts:
-        return ""
-    return ("; the mean position error of each phase against the healthy mean: "
-            + ", ".join(f"{k} {v:+.3f} mm" for k, v in shifts.items()))
-
-
 def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, float]:
     """A phase residual's weighted least-squares constant in the signal's own unit (over
     the baseline's inflated spread), from aligned sample `start` on: (constant, its
@@ -512,21 +484,6 @@ def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, li
     """(flagged, the signature named, reasons) of `assess`."""
     j = assess(f, thresholds)
     return j.flagged, j.effect, j.reasons
-
-
-def is_offset(f: CycleFeatures) -> bool:
-    """The cycle's largest phase index is a mean position error, and every phase's moved
-    alike (`common_shift`): named `offset` instead of `index` (a name only, the cycle
-    was flagged by the index feature)."""
-    return f.index_at.endswith("position_error_mean") and common_shift(f.position_shift_mm)
-
-
-def signed_level(f: CycleFeatures) -> float:
-    """The level's sign-keeping value: the mean of the out- and in-stroke residual means
-    (the score is its magnitude). Below zero the current is lowered in both directions:
-    less drag, not friction."""
-    v = [x for x in (f.level_out, f.level_in) if math.isfinite(x)]
-    return float(np.mean(v)) if v else nan_
 
 
 FEATURE_OF = {"drag": "level", "offset": "index"}   # effects named by another feature

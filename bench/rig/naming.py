@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any
 
 SPALL, FRICTION, BACKLASH = "spall", "friction", "backlash"
 AMBIGUOUS = "friction or backlash"
@@ -155,15 +154,3 @@ def is_correct(fault: str, expected: str | None) -> bool:
     """A physics name is right when it is the expected family; "friction or backlash"
     is not (it is honest, not right)."""
     return expected is not None and fault == expected
-
-
-def summary(counts: dict[str, int], expected: str | None) -> dict[str, Any]:
-    """Flagged cycles per physics name and the share named right (with its exact 95 %
-    interval), of one condition."""
-    from bench.rig.population import clopper_pearson
-    n = sum(counts.values())
-    k = counts.get(expected, 0) if expected else 0
-    return {"faults": dict(counts), "expected": expected, "flagged": n,
-            "correct": k if expected else None,
-            "rate": (k / n if n else float("nan")) if expected else None,
-            "rate_95": clopper_pearson(k, n) if expected and n else None}

@@ -39,8 +39,8 @@ from bench.rig.features import (
     assess,
     cycle_features,
     location,
-    signed_level,
 )
+from bench.rig.offsets import signed_level
 from bench.rig.spread import MIN_RUNS, Spread, pooled, spread
 
 ALPHA = 0.05
@@ -500,3 +500,14 @@ def _where(vals: list[float], key: str) -> dict[str, float]:
         return {f"{key}_mm": float("nan"), f"{key}_iqr_mm": float("nan")}
     q1, q2, q3 = np.percentile(v, [25, 50, 75])
     return {f"{key}_mm": float(q2), f"{key}_iqr_mm": float(q3 - q1)}
+
+
+def naming_summary(counts: dict[str, int], expected: str | None) -> dict[str, Any]:
+    """Flagged cycles per physics name (`naming.FAULTS`) and the share named the
+    `expected` family, with its exact 95 % interval, of one condition."""
+    n = sum(counts.values())
+    k = counts.get(expected, 0) if expected else 0
+    return {"faults": dict(counts), "expected": expected, "flagged": n,
+            "correct": k if expected else None,
+            "rate": (k / n if n else float("nan")) if expected else None,
+            "rate_95": clopper_pearson(k, n) if expected and n else None}

@@ -11,6 +11,7 @@ from typing import Any
 
 from bench.rig import naming
 from bench.rig.classify import table_label
+from bench.rig.population import clopper_pearson, naming_summary
 
 
 def pct(x: float | None) -> str:
@@ -76,7 +77,6 @@ def detection_lines(sm: dict[str, Any], conds: list[str]) -> list[str]:
             if not p or not p["judged"]:
                 cells.append("-")
                 continue
-            from bench.rig.population import clopper_pearson
             cells.append(f"{pct(p['flagged'] / p['judged'])} ({ci(clopper_pearson(p['flagged'], p['judged']))}); "
                          f"z-score {pct(p['zscore_flagged'] / p['judged'])}")
         out.append(f"| {cond} | " + " | ".join(cells) + " |")
@@ -137,7 +137,7 @@ def naming_lines(sm: dict[str, Any], conds: list[str]) -> list[str]:
             if not p or not p["flagged"]:
                 cells.append("-")
                 continue
-            s = naming.summary(p["faults"], exp)
+            s = naming_summary(p["faults"], exp)
             right = f"{pct(s['rate'])} ({ci(s['rate_95'])}); " if exp else ""
             cells.append(right + _counts(p["faults"]))
         out.append(f"| {cond} | {exp or '-'} | " + " | ".join(cells) + " |")

@@ -88,7 +88,7 @@ class _Anova:
     n0: float
 
 
-def _anova(values: Sequence[float], runs: Sequence[Any]) -> _Anova | None:
+def _anova(values: Any, runs: Any) -> _Anova | None:
     v = np.asarray(values, float)
     r = np.asarray(runs)
     ok = np.isfinite(v)
@@ -128,15 +128,14 @@ def _from_anova(a: _Anova, msb: float, msw: float, dof_b: float, dof_w: float
     return Spread(a.mean, msw, between, big_r, big_n, float(max(dof, 1.0)), False)
 
 
-def spread(values: Sequence[float], runs: Sequence[Any]) -> Spread:
+def spread(values: Sequence[float] | np.ndarray, runs: Sequence[Any] | np.ndarray) -> Spread:
     """The random-effects spread of `values` (one per cycle) grouped by `runs`
     (non-finite values are left out). Unbalanced runs use the usual n0 of the one-way
     model."""
     return pooled({0: values}, {0: runs})[0]
 
 
-def pooled(values: dict[Any, Sequence[float]], runs: dict[Any, Sequence[Any]]
-           ) -> dict[Any, Spread]:
+def pooled(values: dict[Any, Any], runs: dict[Any, Any]) -> dict[Any, Spread]:
     """Per group (a load), the spread of its values with the within- and between-run
     mean squares pooled over every group of at least `MIN_RUNS` runs (each group keeps its
     own mean). The runs of one rig differ by a similar amount at every load (the same

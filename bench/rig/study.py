@@ -260,7 +260,7 @@ def summarise(study: Study) -> dict[str, Any]:
             d = P.rates([r.features for r in rs], thr)
             d["zscore_rate"] = _zrate(rs, zthr)
             d.update(_zcal(rs, cal.zscore_threshold))
-            d["naming"] = naming.summary(d["faults"], naming.expected_fault(
+            d["naming"] = P.naming_summary(d["faults"], naming.expected_fault(
                 table_label(cond)))
             row["stages"][cond] = d
         out["loads"][f"{load:g}"] = row

@@ -58,7 +58,8 @@ def pack(cycles: Sequence[Cycle]) -> list[dict[str, Any]]:
 
 def unpack(data: Sequence[dict[str, Any]]) -> list[Cycle]:
     try:
-        return [Cycle(*(_dec(d[k]) for k in ARRAYS), float(d["load"]), int(d["run"]),
+        return [Cycle(_dec(d["t_s"]), _dec(d["setpoint_mm"]), _dec(d["position_mm"]),
+                      _dec(d["current_a"]), float(d["load"]), int(d["run"]),
                       int(d["group"]), str(d["source"]), load_unit=str(d.get("load_unit", "")))
                 for d in data]
     except (KeyError, TypeError, ValueError, zlib.error) as exc:
