@@ -56,6 +56,12 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     b.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")
     b.add_argument("--runs", metavar="LIST", help="runs to use (e.g. 1,2; default: all)")
     b.add_argument("-o", "--out", required=True, metavar="BASE.json", help="baseline file")
+    b.add_argument("--update", metavar="BASE.json",
+                   help="add the tables' healthy runs to this baseline (each run judged "
+                        "first: drift is added, a step or a slow change since the first "
+                        "baseline is not); the result goes to --out, the old file stays")
+    b.add_argument("--force", action="store_true",
+                   help="with --update: add a run judged a change anyway")
     b.add_argument("--load-unit", choices=("N", "kN", "kgf", "lbf"), metavar="UNIT",
                    help="unit of a rig table's load column (N, kN, kgf, lbf), so that a log "
                         "whose load is logged in N is matched to it; `bench import` traces "
@@ -80,6 +86,11 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "1-4 and 5-10) are one healthy condition (default: normal)")
     s.add_argument("--only", metavar="A,B", help="fault tables to score (default: all)")
     s.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
+    s.add_argument("--model", metavar="MODEL", help="a model of `bench rig train`: its "
+                   "classes on the cycles of runs it was not trained on")
+    s.add_argument("--no-supervised", action="store_true",
+                   help="skip the leave-runs-out validation of the classifiers on the "
+                        "folder's labelled tables")
     s.add_argument("--workers", type=int, default=None, help="worker processes (default 2)")
     from bench.cluster import SCHEDULER_HELP
     s.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
@@ -100,9 +111,36 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    "bump, measured position (default: the middle of the out-stroke)")
     i.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
     _common(i)
-    for q in (b, a, s, i):
+    t, k = _supervised_parsers(sub)
+    for q in (b, a, s, i, t, k):
         q.set_defaults(func=run)
     p.set_defaults(func=run, rig_parser=p)
+
+
+def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
+    """The parsers of `bench rig train` and `bench rig classify`."""
+    t = sub.add_parser("train", help="learn fault classes from labelled tables (the label "
+                                     "is the file name less trailing digits and anything "
+                                     "after the first _), validated leaving runs out")
+    t.add_argument("tables", nargs="+", metavar="TABLE", help="labelled tables or traces")
+    t.add_argument("-o", "--out", required=True, metavar="MODEL", help="model file (skops)")
+    t.add_argument("--healthy", default="normal", metavar="LABEL",
+                   help="the healthy class's label (default: normal)")
+    t.add_argument("--folds", type=int, default=5, help="leave-runs-out folds (default 5)")
+    t.add_argument("--seed", type=int, default=0, help="seed of the folds (default 0)")
+    t.add_argument("--json", metavar="PATH", help="write the validation here ('-': stdout)")
+    t.add_argument("--no-validate", action="store_true",
+                   help="train only, without the leave-runs-out validation (the model then "
+                        "says it was not validated)")
+    _common(t)
+    k = sub.add_parser("classify", help="classify every cycle with a model of `bench rig "
+                                        "train`")
+    k.add_argument("model", metavar="MODEL", help="model file of `bench rig train`")
+    k.add_argument("tables", nargs="+", metavar="TABLE", help="tables or traces")
+    k.add_argument("--json", metavar="OUT", help="write the classes here ('-': stdout)")
+    k.add_argument("--actuator", metavar="DESC", help="the actuator the tables are of "
+                   "(checked against the model's)")
+    return t, k
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -136,7 +174,7 @@ def runs_list(text: str | None, flag: str) -> list[int] | None:
 
 def _check(args: argparse.Namespace) -> None:
     from bench import BenchError
-    if getattr(args, "actuator", None):
+    if getattr(args, "actuator", None) and getattr(args, "rig_command", "") != "classify":
         from bench.actuator import load
         desc = load(args.actuator)
         sign = desc.get("load_sign")      # the side a loaded play sits on (rig inject)
@@ -155,6 +193,8 @@ def _check(args: argparse.Namespace) -> None:
         raise BenchError("--alpha must be in (0, 0.5)")
     if getattr(args, "workers", None) is not None and args.workers < 1:
         raise BenchError("--workers must be >= 1")
+    if getattr(args, "folds", None) is not None and args.folds < 2:
+        raise BenchError("--folds must be >= 2")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -164,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     _check(args)
     return {"baseline": _baseline, "assess": _assess, "study": _study,
-            "inject": _inject}[cmd](args)
+            "inject": _inject, "train": _train, "classify": _classify}[cmd](args)
 
 
 def _read(tables: list[str], runs: list[int] | None) -> list[Any]:
@@ -187,27 +227,41 @@ def _read(tables: list[str], runs: list[int] | None) -> list[Any]:
 
 
 def _baseline(args: argparse.Namespace) -> int:
+    from bench import BenchError
     from bench.cli.outputs import check_output_file
-    from bench.rig import baseline as B
-    from bench.rig import population as P
+    from bench.rig import update as U
     out = Path(args.out)
     check_output_file(out, "--out", (".json",))
+    from bench.rig.model_io import inputs_guard
+    inputs_guard([("--out", args.out)], [*args.tables, *([args.update] if args.update else [])])
     cycles = _read(args.tables, runs_list(args.runs, "--runs"))
-    base = B.build(cycles, [Path(t).name for t in args.tables])
-    base.lead_mm = args.lead_mm
-    base.load_unit = _load_unit(cycles, args.load_unit)
-    for load in sorted(base.loads):
-        mine = [c for c in cycles if c.load == load]
-        if len({c.run for c in mine}) < 2:
-            print(f"load {load:g}: one run only, no thresholds (they need a run held out)")
-            continue
-        base.thresholds[f"{load:g}"] = P.calibrate(mine, args.alpha, args.lead_mm).to_json()
+    if args.update:
+        from bench.rig.baseline import Baseline
+        old = Baseline.load(args.update)
+        if args.load_unit and old.load_unit and args.load_unit != old.load_unit:
+            raise BenchError(f"--load-unit {args.load_unit}, but {args.update} is in "
+                             f"{old.load_unit}")
+        base, decisions = U.update(old, cycles, args.force, [Path(t).name for t in args.tables])
+        for line in U.text(decisions):
+            print(line)
+        if base is old:
+            print(f"nothing added; {out} not written")
+            return 0
+        notes: list[str] = []
+    else:
+        if args.force:
+            raise BenchError("--force goes with --update")
+        base, notes = U.build(cycles, [Path(t).name for t in args.tables], args.lead_mm,
+                              _load_unit(cycles, args.load_unit), args.alpha)
+    for line in notes:
+        print(line)
     base.save(out)
     print(base.describe())
     for key, cal in base.thresholds.items():
         thr = ", ".join(f"{k} {v:.3g}" for k, v in cal["thresholds"].items())
+        prov = "; provisional: fewer than 3 runs" if cal.get("provisional") else ""
         print(f"load {key}: thresholds (leave-one-run-out over runs "
-              f"{','.join(map(str, cal['runs']))}, alpha {cal['alpha']:g}): {thr}")
+              f"{','.join(map(str, cal['runs']))}, alpha {cal['alpha']:g}{prov}): {thr}")
     return 0
 
 
@@ -282,6 +336,9 @@ def _study(args: argparse.Namespace) -> int:
     from bench.rig.report import write
     from bench.rig.study import run_study
     check_output_dir(args.out, "--out")
+    if args.model:
+        from bench.rig.model_io import load
+        load(args.model)                      # a bad model fails before the work
     cal = runs_list(args.calibrate_runs, "--calibrate-runs") or []
     hold = runs_list(args.holdout_runs, "--holdout-runs") or []
     only = [x.strip() for x in args.only.split(",")] if args.only else None
@@ -289,7 +346,8 @@ def _study(args: argparse.Namespace) -> int:
     with session(args.workers, args.scheduler):     # one cluster for every condition
         study = run_study(args.directory, cal, hold, args.healthy, args.workers,
                           args.alpha, progress=sys.stderr.isatty(), conditions=only,
-                          lead_mm=args.lead_mm, scheduler=args.scheduler)
+                          lead_mm=args.lead_mm, scheduler=args.scheduler,
+                          model=args.model, supervised=not args.no_supervised)
     command = "bench rig " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["rig"] \
         else f"bench rig study {args.directory} --calibrate-runs {args.calibrate_runs} " \
              f"--holdout-runs {args.holdout_runs} --out {args.out}"
@@ -309,3 +367,23 @@ def _inject(args: argparse.Namespace) -> int:
         else f"bench rig inject {' '.join(args.tables)} --calibrate-runs " \
              f"{args.calibrate_runs} --holdout-runs {args.holdout_runs} --out {args.out}"
     return run_cli(args, cal, hold, command)
+
+
+def _read_all(path: str) -> list[Any]:
+    """Every readable cycle of one table (what is not read is listed on stderr)."""
+    from bench.rig.cycles import read_cycles
+    lost: list[str] = []
+    cycles = read_cycles(path, skipped=lost)
+    for line in lost:
+        print(line, file=sys.stderr)
+    return cycles
+
+
+def _train(args: argparse.Namespace) -> int:
+    from bench.rig.model_io import run_train
+    return run_train(args, _read_all)
+
+
+def _classify(args: argparse.Namespace) -> int:
+    from bench.rig.model_io import run_classify
+    return run_classify(args, _read_all)

@@ -32,7 +32,8 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.rig.cycles import Cycle, phases, ramps
+from bench.rig.cycles import Cycle, ramps
+from bench.rig.spread import MIN_RUNS, spread
 
 SIGNALS = ("current_a", "position_error_mm", "current_ref_a")
 POOL = 7                    # samples pooled into one sample's spread
@@ -55,9 +56,21 @@ def standstill_current(cycle: Cycle) -> float:
     drive's current steps by itself (healthy Cranfield run 1 at -40 kgf: about 0.1 A in
     every phase, the dwell included, between two cycles, while a stroke less the dwell
     stays within 0.01 A), so the stroke features read the current against it."""
-    dwell = [cycle.current_a[s.start:s.stop] for s in phases(cycle.setpoint_mm)
-             if s.direction == 0 and len(s)]
-    return float(np.median(np.concatenate(dwell))) if dwell else 0.0
+    def median() -> float:
+        dwell = [cycle.current_a[s.start:s.stop] for s in cycle.segments()
+                 if s.direction == 0 and len(s)]
+        return float(np.median(np.concatenate(dwell))) if dwell else 0.0
+    return float(cycle.memo("standstill_current", median))
+
+
+def standstill_error(cycle: Cycle) -> float:
+    """The median position error of the cycle's dwells (0 without a dwell): the position
+    sensor's zero as the cycle sees it."""
+    def median() -> float:
+        dwell = [cycle.position_error_mm[s.start:s.stop] for s in cycle.segments()
+                 if s.direction == 0 and len(s)]
+        return float(np.median(np.concatenate(dwell))) if dwell else 0.0
+    return float(cycle.memo("standstill_error", median))
 
 
 @dataclass
@@ -97,10 +110,26 @@ class LoadBaseline:
     cycles: list[str]
     phases: dict[str, PhaseStats]
     indexes: dict[str, dict[str, tuple[float, float]]]     # phase -> index -> (mean, sd)
+    # the same indexes of the referenced signals (`phase_indexes(referenced=True)`):
+    # phase -> index -> (mean, predictive sd of a cycle of a new run, `spread`)
+    ref_indexes: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
+    _memo: dict[str, Any] = field(default_factory=dict, init=False, repr=False,
+                                  compare=False)
 
     @property
     def n(self) -> int:
         return len(self.cycles)
+
+    def memo(self, name: str, compute: Any) -> Any:
+        """`compute()` once per baseline (what every cycle scored against it reads)."""
+        if name not in self._memo:
+            self._memo[name] = compute()
+        return self._memo[name]
+
+    @property
+    def provisional(self) -> bool:
+        """Fewer than `spread.MIN_RUNS` runs: too few to estimate the spread between runs."""
+        return len(set(self.runs)) < MIN_RUNS
 
 
 @dataclass
@@ -112,6 +141,9 @@ class Baseline:
     lead_mm: float | None = None           # the screw's lead (position-periodic feature)
     thresholds: dict[str, Any] = field(default_factory=dict)   # set by population
     load_unit: str = ""                    # the unit of the loads (e.g. kgf), "" unknown
+    # what `bench rig baseline --update` needs (`update`): the kept cycles, the anchor
+    # (the first runs' thresholds), the history of updates
+    store: dict[str, Any] = field(default_factory=dict)
 
     def for_load(self, load: float) -> LoadBaseline:
         for k, v in self.loads.items():
@@ -142,9 +174,9 @@ class Baseline:
 
     def to_json(self) -> dict[str, Any]:
         return {"format": FORMAT, "sources": self.sources, "thresholds": self.thresholds,
-                "lead_mm": self.lead_mm, "load_unit": self.load_unit,
+                "lead_mm": self.lead_mm, "load_unit": self.load_unit, "store": self.store,
                 "loads": [{"load": lb.load, "runs": lb.runs, "cycles": lb.cycles,
-                           "indexes": lb.indexes,
+                           "indexes": lb.indexes, "ref_indexes": lb.ref_indexes,
                            "phases": [p.to_json() for p in lb.phases.values()]}
                           for lb in self.loads.values()]}
 
@@ -172,6 +204,12 @@ class Baseline:
         except RecursionError:
             raise BenchError(f"{path}: not a baseline JSON (nested too deep to read)"
                              ) from None
+        return cls.from_json(d, str(path))
+
+    @classmethod
+    def from_json(cls, d: Any, path: str = "") -> Baseline:
+        """A baseline from its JSON (`to_json`); BenchError naming `path` when it is not
+        one."""
         if not isinstance(d, dict) or d.get("format") != FORMAT:
             raise BenchError(f"{path}: not a baseline written by `bench rig baseline`")
         loads = {}
@@ -180,15 +218,18 @@ class Baseline:
                 ph = {p["name"]: PhaseStats.from_json(p) for p in e["phases"]}
                 idx = {k: {i: (float(m), float(s)) for i, (m, s) in v.items()}
                        for k, v in e["indexes"].items()}
+                ref = {k: {i: (float(m), float(s)) for i, (m, s) in v.items()}
+                       for k, v in (e.get("ref_indexes") or {}).items()}
                 loads[float(e["load"])] = LoadBaseline(float(e["load"]), list(e["runs"]),
-                                                       list(e["cycles"]), ph, idx)
+                                                       list(e["cycles"]), ph, idx, ref)
         except (KeyError, TypeError, ValueError) as exc:
             raise BenchError(f"{path}: damaged baseline ({type(exc).__name__}: {exc})"
                              ) from None
         lead = d.get("lead_mm")
-        return cls(loads, list(d["sources"]), str(path),
+        store = d.get("store") or {}
+        return cls(loads, list(d.get("sources") or []), str(path),
                    None if lead is None else float(lead), dict(d.get("thresholds") or {}),
-                   str(d.get("load_unit") or ""))
+                   str(d.get("load_unit") or ""), store if isinstance(store, dict) else {})
 
 
 def _r(a: np.ndarray) -> list[float]:
@@ -199,13 +240,26 @@ def _runs(runs: list[int]) -> str:
     return ",".join(str(r) for r in sorted(set(runs)))
 
 
-def phase_indexes(cycle: Cycle) -> dict[str, dict[str, float]]:
+def phase_indexes(cycle: Cycle, referenced: bool = False) -> dict[str, dict[str, float]]:
+    """`cycle_indexes`, computed once per cycle (they need no baseline)."""
+    return cycle.memo(f"phase_indexes.{referenced}",  # type: ignore[no-any-return]
+                      lambda: cycle_indexes(cycle, referenced))
+
+
+def cycle_indexes(cycle: Cycle, referenced: bool = False) -> dict[str, dict[str, float]]:
     """Per phase of a cycle: mean, RMS and peak current, mean and peak position error, and
     for a stroke the mean current of its acceleration, constant-speed and deceleration
-    parts (NaN for an empty part)."""
+    parts (NaN for an empty part). `referenced`: of the current less the cycle's
+    standstill current: a drive's or a current sensor's zero that moves between runs (a
+    Hall sensor's offset with temperature; healthy Cranfield run 1 at -40 kgf: 0.1 A in
+    every phase between two cycles) moves no referenced index, while friction and a load
+    act in motion and move them. (The position error is not referenced: a play held on
+    one flank by a one-sided load moves it in every phase, the dwell too.)"""
     out: dict[str, dict[str, float]] = {}
     i, e = cycle.current_a, cycle.position_error_mm
-    for seg in phases(cycle.setpoint_mm):
+    if referenced:
+        i = i - standstill_current(cycle)
+    for seg in cycle.segments():
         s = slice(seg.start, seg.stop)
         d = {"current_mean": float(np.mean(i[s])),
              "current_rms": float(np.sqrt(np.mean(i[s] ** 2))),
@@ -223,7 +277,7 @@ def phase_indexes(cycle: Cycle) -> dict[str, dict[str, float]]:
 def aligned(cycles: list[Cycle]) -> dict[str, tuple[int, list[np.ndarray]]]:
     """Per phase name: (direction, the cycles' sample index arrays), cut to the shortest
     cycle's phase. Every cycle must have the same phase sequence."""
-    seqs = [phases(c.setpoint_mm) for c in cycles]
+    seqs = [c.segments() for c in cycles]
     names = [s.name for s in seqs[0]]
     for c, s in zip(cycles, seqs, strict=True):
         if [x.name for x in s] != names:
@@ -275,7 +329,25 @@ def build_load(cycles: list[Cycle]) -> LoadBaseline:
             if np.isfinite(vals).all():
                 indexes[name][key] = (float(vals.mean()), float(vals.std(ddof=1)))
     return LoadBaseline(cycles[0].load, sorted({c.run for c in cycles}),
-                        [c.label for c in cycles], ph, indexes)
+                        [c.label for c in cycles], ph, indexes, ref_indexes(cycles, ph))
+
+
+def ref_indexes(cycles: list[Cycle], names: Any) -> dict[str, dict[str, tuple[float, float]]]:
+    """Per phase and referenced index (`phase_indexes(referenced=True)`): the mean and the
+    predictive spread of one cycle of a healthy run not among `cycles`' runs
+    (`spread.spread`: within and between runs; with fewer than `spread.MIN_RUNS` runs the
+    spread of independent cycles, provisional)."""
+    per = [phase_indexes(c, referenced=True) for c in cycles]
+    runs = [c.run for c in cycles]
+    out: dict[str, dict[str, tuple[float, float]]] = {}
+    for name in names:
+        out[name] = {}
+        for key in per[0][name]:
+            vals = np.array([p[name][key] for p in per], float)
+            if np.isfinite(vals).all():
+                sp = spread(vals, runs)
+                out[name][key] = (sp.mean, math.sqrt(sp.predictive))
+    return out
 
 
 REPEAT_STEPS = 2.0
@@ -327,7 +399,7 @@ def incomplete(lb: LoadBaseline, cycle: Cycle) -> str:
     partial cycle judged as a whole would read its missing part as a fault. (On the
     Cranfield development set every one of its 1260 cycles has the baseline's phase
     lengths exactly.)"""
-    have = {s.name: len(s) for s in phases(cycle.setpoint_mm)}
+    have = {s.name: len(s) for s in cycle.segments()}
     missing = [name for name in lb.phases if name not in have]
     if missing:
         return (f"incomplete cycle: no {', '.join(missing)} phase ({len(cycle)} samples; "
@@ -347,7 +419,7 @@ def residuals(lb: LoadBaseline, cycle: Cycle, sig: str = "current_a"
     out = {}
     x = signal(cycle, sig)
     infl = math.sqrt(1.0 + 1.0 / lb.n)
-    for seg in phases(cycle.setpoint_mm):
+    for seg in cycle.segments():
         ps = lb.phases.get(seg.name)
         if ps is None:
             continue

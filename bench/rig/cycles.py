@@ -52,6 +52,29 @@ class Cycle:
     source: str                 # the file's condition name (e.g. spalling8)
     meta: dict[str, Any] = field(default_factory=dict)
     load_unit: str = ""         # the unit of `load` ("" unknown: a rig's own table)
+    _memo: dict[str, Any] = field(default_factory=dict, init=False, repr=False,
+                                  compare=False)
+
+    def memo(self, name: str, compute: Any) -> Any:
+        """`compute()` once per cycle (a cycle is scored against several baselines): its
+        value is kept until one of the cycle's signal arrays is replaced (an array is
+        not changed in place after it is read)."""
+        key = (id(self.setpoint_mm), id(self.position_mm), id(self.current_a))
+        hit = self._memo.get(name)
+        if hit is None or hit[0] != key:
+            hit = self._memo[name] = (key, compute())
+        return hit[1]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (to a worker) without the memo: it is keyed by the arrays' identities,
+        which a copy does not keep."""
+        state = dict(self.__dict__)
+        state["_memo"] = {}
+        return state
+
+    def segments(self) -> list[Segment]:
+        """`phases` of the cycle's set-point, computed once."""
+        return self.memo("segments", lambda: phases(self.setpoint_mm))
 
     @property
     def position_error_mm(self) -> np.ndarray:

@@ -83,15 +83,19 @@ def build_from_logs(paths: Sequence[str | Path], lead_mm: float | None,
     base.lead_mm = lead_mm
     base.load_unit = unit
     notes = [f"not in the baseline: {x}" for x in lost]
+    usable = []
     for load in sorted(base.loads):
-        mine = [c for c in cycles if c.load == load]
-        runs = sorted({c.run for c in mine})
+        runs = sorted({c.run for c in cycles if c.load == load})
         if len(runs) < 2:
             notes.append(f"load {base.load_text(load)}: one healthy run only (run "
                          f"{runs[0]}): no thresholds (they need two or more runs, one held "
                          "out at a time)")
             continue
-        cal = P.calibrate(mine, alpha, lead_mm)
+        usable.append(load)
+    cals = P.calibrate_loads([c for c in cycles if c.load in usable], alpha, lead_mm) \
+        if usable else {}
+    for load, cal in cals.items():
+        runs = cal.runs
         base.thresholds[f"{load:g}"] = cal.to_json()
         notes.append(f"load {base.load_text(load)}: thresholds from calibration runs "
                      f"{','.join(map(str, runs))} only (leave-one-run-out, alpha "

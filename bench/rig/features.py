@@ -1,66 +1,63 @@
-"""Fault signatures of one cycle against a healthy baseline (issue 11, "Signatures of real
-faults"), all on the standardised residual of `baseline.residuals`:
+"""Fault signatures of one cycle against a healthy baseline, all on the standardised
+residual of `baseline.residuals`.
 
-The stroke features (localised, level, periodic) read the current less the cycle's median
-dwell current (`baseline.standstill_current`; variant B of 2026-11-24: the drive's
-current steps by itself); the dwell and index features read the logged current.
+The stroke features (localised, level, periodic, turn) read the current less the cycle's
+median dwell current (`baseline.standstill_current`: the drive's current steps by itself
+between cycles); the dwell feature reads the logged current, the index feature the phase
+indexes of the current against the standstill. Each stroke is cut in two
+(`travel_start`): its take-up of the reversal (from the reversal to where the healthy
+position error has settled, `takeup_window`, from the baseline alone) and its travel.
 
 - localised (position-locked): a spall on the screw gives a current transient at the
-  same nut position on every pass. Each stroke's current residual, less its constant in
-  amperes (`offset_free`, variant 3: a level shift is not localised), is scanned with
-  windows of `SCALES` samples (the window's sum over sqrt(width): unit variance under
-  the baseline's noise); so is the
-  sum of the out- and in-stroke residuals at the same set-point position (the nut passes
-  the same place in both directions). The score is the largest |scan|; its window gives
-  the position in mm of travel (measured position, not set-point) and the width.
-- level (direction-split): friction raises the current in both directions: the mean of
-  the out- and in-stroke current residuals.
-- reversal (backlash as a hysteresis; variant 3 of 2026-11-24): a play of width b makes
-  the nut trail the motor by b/2 against the motion, so the position error shifts by
-  +b/2 on the out-stroke and -b/2 on the in-stroke, the current unchanged. Each stroke's
-  position-error residual after its acceleration ramp gives its weighted least-squares
-  constant (`constant`); the score is |d_out - d_in| over its standard error. (It was
-  the mean over the first 5 samples after each reversal, which straddles the take-up of
-  the play: docs/real-data.md, injected faults.)
+  same nut position on every pass. Each stroke's travel residual, less its constant in
+  amperes (`zone_free`: a level shift is not localised), is scanned with windows of
+  `SCALES` samples (the window's sum over sqrt(width): unit variance under the
+  baseline's noise); so is the sum of the out- and in-stroke residuals at the same
+  set-point position (the nut passes the same place in both directions). The score is
+  the largest |scan|; its window gives the position in mm of travel (measured position,
+  not set-point) and the width.
+- level: friction raises the current in both directions: the mean of the out- and
+  in-stroke travel residuals (each stroke's own kept for the naming: `naming`).
+- reversal (backlash as a hysteresis): a play of width b makes the nut trail the motor by
+  b/2 against the motion, so the position error shifts by +b/2 on the out-stroke and
+  -b/2 on the in-stroke, the current unchanged. Each stroke's position-error residual
+  after its acceleration ramp gives its weighted least-squares constant (`constant`);
+  the score is |d_out - d_in| over its standard error.
+- takeup (lost motion at a reversal): while a stroke takes up the reversal the motor
+  turns through a play before the nut follows: the position-error residual's constant
+  over the take-up, along the motion, over its standard error, per stroke (the sensor's
+  zero, the dwells' median error, removed); the score is the larger of the two strokes,
+  since a one-sided load shows the play at one reversal only, which one its sign decides.
+- turn: the current residual's constant over each take-up over its standard error (a
+  breakaway friction and a play's free run both move it), the larger of the two.
 - periodic (position-periodic, at the screw's lead): a defect on the screw's raceway
   passes under the nut's balls once per screw revolution, i.e. once per lead of travel.
-  The current residual of each stroke (`offset_free`, then less its mean) is projected
-  on cos/sin of
-  2 pi x / lead at the measured positions x (a least-squares line at the logged samples,
-  no resampling); 2 |sum z e^(-i theta)|^2 / N is chi-square with 2 degrees of freedom
-  under the baseline's noise, and the score is the sum over both strokes. Where: the same
+  The travel residual of each stroke (`zone_free`, then less its mean) is projected on
+  cos/sin of 2 pi x / lead at the measured positions x (no resampling);
+  2 |sum z e^(-i theta)|^2 / N is chi-square with 2 degrees of freedom under the
+  baseline's noise, and the score is the sum over both strokes. Where: the same
   projection over a sliding window of `PERIODIC_WINDOW` samples, out- and in-stroke
-  added at the same position, its largest value. This feature was added after the
-  first study had been run on the spall stages (docs/real-data.md says so).
-- dwell (standstill): the issue asks to diagnose against every signal per phase, and the
-  strokes are not the whole cycle. The current and position-error residuals of each
-  dwell, less their medians, are scanned as the localised feature scans a stroke; the
-  score is the largest |scan|.
-- index: the issue asks for the mean and spread of each index per phase, direction and
-  load, and a diagnosis against them. Each phase index of the cycle
-  (`baseline.phase_indexes`: mean, RMS and peak current, mean and peak position error,
-  the current of the ramps) is standardised by the baseline's spread of that index times
-  sqrt(1 + 1/n); the score is the largest |z|, and the index it came from is kept.
+  added at the same position, its largest value.
+- dwell (standstill): the current and position-error residuals of each dwell, less their
+  medians, scanned as the localised feature scans a stroke; the score is the largest
+  |scan|.
+- index: each phase index of the cycle (`baseline.phase_indexes(referenced=True)`: mean,
+  RMS and peak current against the standstill, mean and peak position error, the current
+  of the ramps) against the baseline's mean and predictive spread of a new run's cycle
+  (`baseline.ref_indexes`, within and between runs); the score is the largest |z|, and
+  the index it came from is kept.
 
 Where (`location`): a spall confined to one spot of the raceway acts over about a nut
-length of travel, so every located effect (periodic or localised) is placed where the
+length of travel, so a located effect (periodic or localised) is placed where the
 localised scan of the strokes is strongest (windows up to 27 samples, about 26 mm at the
-Cranfield stroke speed); the sliding periodic projection's maximum is kept beside it
-(`periodic_mm`) but a line that runs along the whole stroke has no place of its own.
-The dwell, index and the location changes were made on 2026-11-24 (docs/real-data.md,
-"Changes after the goals were missed"), motivated by the issue's text, before their
-effect on the spall stages was measured.
+Cranfield stroke speed), and only when that scan is above its threshold; the sliding
+periodic projection's maximum is kept beside it (`periodic_mm`), but a line that runs
+along the whole stroke has no place of its own.
 
-`judge` names one effect: the position-locked signature (periodic or localised) above
-its threshold unless a direction-split one (level, reversal) is further above its own,
-then the direction-split one, and the catch-alls (dwell, index) only when nothing else
-is above. (The first order, periodic then localised before everything else, was set
-after the first study; it named injected friction localised or index, and was changed
-on 2026-11-24 from injected faults only: docs/real-data.md "What else the bench sees:
-injected faults".) A cycle named by a mean position-error index that moved alike in
-every phase is named `offset` instead (variant 6, session 17: a play held on one flank by
-a one-sided load; a name only). The verdict lists every feature against its threshold and
-names the baseline used.
+`assess` flags a cycle when any feature is above its threshold and names its signature
+and the fault family it points to (`naming.attribute`); `rig_verdict` is the verdict
+(`verdict.RigVerdict`): the signature with its place or its index, every other feature
+above its threshold, the baseline used, and whether it is provisional.
 """
 
 from __future__ import annotations
@@ -71,13 +68,23 @@ from typing import Any
 
 import numpy as np
 
-from bench.rig.baseline import Baseline, LoadBaseline, incomplete, phase_indexes, residuals
-from bench.rig.cycles import Cycle, phases, ramps
+from bench.rig.baseline import (
+    Baseline,
+    LoadBaseline,
+    incomplete,
+    phase_indexes,
+    residuals,
+    standstill_error,
+)
+from bench.rig.cycles import Cycle, ramps
+from bench.rig.offsets import is_offset, position_shifts, shift_text
+from bench.rig.verdict import HEALTHY, UNKNOWN, WARNING, RigVerdict, provisional_note
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
-STROKE_CURRENT = "current_ref_a"   # the stroke features' current (variant B, 2026-11-24)
-FEATURES = ("localised", "level", "reversal", "periodic", "dwell", "index")
+STROKE_CURRENT = "current_ref_a"   # the stroke features' current (against the standstill)
+FEATURES = ("localised", "level", "reversal", "takeup", "turn", "periodic", "dwell",
+            "index")
 SPECIFIC = ("periodic", "localised")
 EFFECTS = {
     "dwell": "a transient at standstill (in a dwell)",
@@ -87,6 +94,10 @@ EFFECTS = {
     "level": "friction-like effect (current raised in both directions)",
     "drag": "drag lowered in both directions (less friction, or the preload's drag lost)",
     "reversal": "backlash-like effect (position error at the reversals)",
+    "takeup": "backlash-like effect (lost motion at a reversal: the position error while "
+              "the motion reverses)",
+    "turn": "the current while the motion reverses (a breakaway friction or a play's "
+            "impact: the current alone cannot tell which)",
     "offset": ("position offset in every phase, backlash-like under a one-sided load (a "
                "play held on one flank by the load, a nut softer under the load, or a "
                "moved position-sensor zero)"),
@@ -117,6 +128,12 @@ class CycleFeatures:
     position_shift_mm: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     incomplete: str = ""                  # why the cycle cannot be judged ("" it can)
+    reversal_signed: float = float("nan")  # (d_out - d_in) / se, the reversal score's sign
+    # the position-error change while each stroke takes up the reversal (mm), and its
+    # significance: the side a one-sided load leaves a play on shows, the other does not
+    takeup_mm: dict[str, float] = field(default_factory=dict)
+    takeup_z: dict[str, float] = field(default_factory=dict)
+    turn_z: dict[str, float] = field(default_factory=dict)   # the current in the take-up
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
@@ -197,26 +214,36 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
                    ) -> CycleFeatures:
     """The features of `cycle` against the baseline of its load (periodic only with the
     screw's lead)."""
-    res = residuals(lb, cycle, stroke_signal(lb))
+    sig = stroke_signal(lb)
+    cache: dict[str, Any] = {}
+    res = _residuals(lb, cycle, sig, cache)
     out, inn = _strokes(res)
     notes: list[str] = []
     nan = float("nan")
     loc: tuple[float, float, float, str] = (0.0, nan, nan, "-")   # score, mm, width, where
     side = {"out": nan, "in": nan}
     levels = {"out": nan, "in": nan}
+    turn: dict[str, float] = {}                 # the current while taking up a reversal
     profiles: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    masked: dict[str, np.ndarray] = {}          # the travel's profile, 0 in the take-up
     for name, r in (("out", out), ("in", inn)):
         if r is None:
             notes.append(f"no {name}-stroke in the cycle or the baseline")
             continue
         z, pos = r
-        levels[name] = float(np.mean(z))
-        profiles[name] = (offset_free(lb, name, z, stroke_signal(lb)), pos)
+        std = lb.phases[name].std[sig][:len(z)]
+        w = travel_start(lb, name, len(z))
+        levels[name] = float(np.mean(z[w:]))
+        zt = zone_free(std[w:], z[w:])
+        profiles[name] = (zt, pos[w:])
+        masked[name] = np.r_[np.zeros(w), zt]
+        if w >= 2:
+            c, se = constant(std[:w] * math.sqrt(1.0 + 1.0 / lb.n), z[:w])
+            turn[name] = c / se
     if out is not None and inn is not None:
-        z_in = profiles["in"][0]
-        both = (profiles["out"][0][:len(lb.phases["out"])] + _matched(lb, z_in)
-                [:len(profiles["out"][0])]) / math.sqrt(2.0)
-        profiles["both"] = (both, profiles["out"][1][:len(both)])
+        both = (masked["out"][:len(lb.phases["out"])] + _matched(lb, masked["in"])
+                [:len(masked["out"])]) / math.sqrt(2.0)
+        profiles["both"] = (both, out[1][:len(both)])
     for name, (z, pos) in profiles.items():
         s, k, w = scan(z)
         if name in side:
@@ -226,20 +253,23 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
             loc = (s, float(pos[min(k, len(pos) - 1)]), w * step, name)
     level = (float(np.nanmean([levels["out"], levels["in"]]))
              if np.isfinite([levels["out"], levels["in"]]).any() else nan)
-    per = _periodic({k: (profiles[k][0], res[k][1]) for k in ("out", "in") if k in profiles},
-                    lead_mm)
-    pidx = phase_indexes(cycle)                 # read by the index feature and the shifts
-    idx, idx_at = index_score(lb, pidx)
-    scores = {"localised": loc[0], "level": abs(level),
-              "reversal": _reversal(lb, cycle), "periodic": per[0],
-              "dwell": dwell_score(lb, cycle), "index": idx}
+    per = _periodic({k: profiles[k] for k in ("out", "in") if k in profiles}, lead_mm)
+    pidx = phase_indexes(cycle)                 # read by the shifts
+    idx, idx_at = index_score(lb, phase_indexes(cycle, referenced=True) if lb.ref_indexes
+                              else pidx)
+    rev = _reversal(lb, cycle, cache)
+    take_mm, take_z = takeup(lb, cycle, cache)
+    scores = {"localised": loc[0], "level": abs(level), "reversal": abs(rev),
+              "takeup": max((abs(v) for v in take_z.values()), default=nan),
+              "turn": max((abs(v) for v in turn.values()), default=nan),
+              "periodic": per[0], "dwell": dwell_score(lb, cycle, cache), "index": idx}
     if lead_mm is None:
         notes.append("periodic: not available (the screw's lead was not given)")
     return CycleFeatures(cycle.label, cycle.source, cycle.load, cycle.run, cycle.group,
                          scores, loc[1], loc[2], loc[3],
                          side["out"], side["in"], levels["out"], levels["in"],
                          per[1], per[2], per[3], idx_at, position_shifts(lb, pidx),
-                         notes, incomplete(lb, cycle))
+                         notes, incomplete(lb, cycle), rev, take_mm, take_z, turn)
 
 
 def stroke_signal(lb: LoadBaseline) -> str:
@@ -249,12 +279,23 @@ def stroke_signal(lb: LoadBaseline) -> str:
     return STROKE_CURRENT if ph is not None and STROKE_CURRENT in ph.mean else "current_a"
 
 
-def dwell_score(lb: LoadBaseline, cycle: Cycle) -> float:
+def _residuals(lb: LoadBaseline, cycle: Cycle, sig: str, cache: dict[str, Any] | None
+               ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """`baseline.residuals`, once per signal within one cycle's features (`cache`)."""
+    if cache is None:
+        return residuals(lb, cycle, sig)
+    if sig not in cache:
+        cache[sig] = residuals(lb, cycle, sig)
+    return cache[sig]  # type: ignore[no-any-return]
+
+
+def dwell_score(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = None
+                ) -> float:
     """The largest |scan| of the dwells' current and position-error residuals (each less
     its median); NaN when neither the cycle nor the baseline has a dwell."""
     best = float("nan")
     for sig in ("current_a", "position_error_mm"):
-        for name, (z, _) in residuals(lb, cycle, sig).items():
+        for name, (z, _) in _residuals(lb, cycle, sig, cache).items():
             if lb.phases[name].direction == 0 and len(z) >= 3:
                 s = scan(z - np.median(z))[0]
                 best = s if not math.isfinite(best) else max(best, s)
@@ -263,49 +304,24 @@ def dwell_score(lb: LoadBaseline, cycle: Cycle) -> float:
 
 def index_score(lb: LoadBaseline, indexes: dict[str, dict[str, float]]
                 ) -> tuple[float, str]:
-    """(the largest |z| of a cycle's phase `indexes` (`baseline.phase_indexes`) against
-    the baseline's mean and spread times sqrt(1 + 1/n), "phase index" where it is); NaN
-    without indexes."""
-    infl = math.sqrt(1.0 + 1.0 / lb.n)
+    """(the largest |z| of a cycle's phase `indexes` against the baseline's, "phase index"
+    where it is); NaN without indexes. With the baseline's referenced indexes
+    (`LoadBaseline.ref_indexes`: `indexes` then come from `phase_indexes(referenced=
+    True)`) z is over the predictive spread of a cycle of a new run (within and between
+    runs); an older baseline's raw indexes are over their spread times sqrt(1 + 1/n)."""
+    ref = bool(lb.ref_indexes)
+    table = lb.ref_indexes if ref else lb.indexes
+    infl = 1.0 if ref else math.sqrt(1.0 + 1.0 / lb.n)
     best, at = float("nan"), ""
     for phase, vals in indexes.items():
         for key, v in vals.items():
-            m, sd = lb.indexes.get(phase, {}).get(key, (nan_, nan_))
+            m, sd = table.get(phase, {}).get(key, (nan_, nan_))
             if not (math.isfinite(v) and math.isfinite(m) and sd > 0):
                 continue
             z = abs(v - m) / (sd * infl)
             if not math.isfinite(best) or z > best:
                 best, at = z, f"{phase} {key}"
     return best, at
-
-
-def position_shifts(lb: LoadBaseline, indexes: dict[str, dict[str, float]]
-                    ) -> dict[str, float]:
-    """Per phase a cycle (its phase `indexes`) and the baseline share: the cycle's mean
-    position error less the baseline's mean of that index, in mm (what the verdict of a
-    position-error index reports beside it)."""
-    key = "position_error_mean"
-    return {phase: vals[key] - lb.indexes[phase][key][0]
-            for phase, vals in indexes.items()
-            if key in lb.indexes.get(phase, {}) and math.isfinite(vals[key])}
-
-
-def common_shift(shifts: dict[str, float]) -> bool:
-    """True when every phase's mean position error moved the same way by a similar amount
-    (the smallest shift at least half the largest): a position offset of the whole cycle.
-    A one-sided load (the Cranfield rig's) holds the nut on one flank of a play, so a play
-    shows so, not at the reversals (docs/real-data.md, variants 5 and 6)."""
-    v = np.array(list(shifts.values()))
-    return bool(len(v) > 1 and (np.all(v > 0) or np.all(v < 0))
-                and np.min(np.abs(v)) >= 0.5 * np.max(np.abs(v)))
-
-
-def shift_text(shifts: dict[str, float]) -> str:
-    """The verdict's words on a position-error index: each phase's shift in mm."""
-    if not shifts:
-        return ""
-    return ("; the mean position error of each phase against the healthy mean: "
-            + ", ".join(f"{k} {v:+.3f} mm" for k, v in shifts.items()))
 
 
 def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, float]:
@@ -320,11 +336,34 @@ def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, flo
     return float(np.sum(zz * uu) / den), 1.0 / math.sqrt(den)
 
 
+def travel_start(lb: LoadBaseline, stroke: str, n: int) -> int:
+    """The first aligned sample of a stroke's travel: after its take-up of the reversal
+    (`takeup_window`), leaving at least `MIN_TRAVEL` of its `n` samples."""
+    return max(0, min(window(lb, stroke), n - MIN_TRAVEL))
+
+
+def window(lb: LoadBaseline, stroke: str) -> int:
+    """`takeup_window` of the baseline's stroke, once per baseline."""
+    ps = lb.phases[stroke]
+    return int(lb.memo(f"takeup.{stroke}", lambda: takeup_window(ps)))
+
+
+MIN_TRAVEL = 27          # samples of travel a stroke keeps at least (the widest scan)
+
+
+def zone_free(std: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """A zone's residual less its weighted constant in the signal's unit (`offset_free`
+    of a part of a stroke)."""
+    if not len(z):
+        return z
+    c, _ = constant(std, z)
+    return z - c / std[:len(z)]
+
+
 def offset_free(lb: LoadBaseline, phase: str, z: np.ndarray, sig: str) -> np.ndarray:
-    """The residual less its constant in amperes (variant 3 of 2026-11-24): a friction
-    torque is a constant current on a stroke, which divided by the per-sample spread is
-    not a constant in z and would leak into the localised scan and the periodic
-    projection (docs/real-data.md, injected faults)."""
+    """The residual less its constant in amperes: a friction torque is a constant current
+    on a stroke, which divided by the per-sample spread is not a constant in z and would
+    leak into the localised scan and the periodic projection."""
     if not len(z):
         return z
     std = lb.phases[phase].std[sig]
@@ -332,122 +371,189 @@ def offset_free(lb: LoadBaseline, phase: str, z: np.ndarray, sig: str) -> np.nda
     return z - c / std[:len(z)]
 
 
-def _reversal(lb: LoadBaseline, cycle: Cycle) -> float:
-    """Backlash as a hysteresis: |d_out - d_in| / its standard error, d a stroke's
-    position-error constant after its acceleration ramp (module doc)."""
+def _reversal(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = None
+              ) -> float:
+    """Backlash as a hysteresis: (d_out - d_in) / its standard error, d a stroke's
+    position-error constant after its acceleration ramp (module doc); the score is its
+    magnitude."""
     sig = "position_error_mm"
-    res = residuals(lb, cycle, sig)
-    segs = {g.name: g for g in phases(cycle.setpoint_mm)}
+    res = _residuals(lb, cycle, sig, cache)
+    segs = {g.name: g for g in cycle.segments()}
     d: dict[str, tuple[float, float]] = {}
     for n in ("out", "in"):
         if n not in res or n not in segs or not len(res[n][0]):
             return float("nan")
-        start = ramps(cycle.setpoint_mm, segs[n])["accel"].stop - segs[n].start
+        seg = segs[n]
+        start = cycle.memo(f"accel.{n}", lambda seg=seg: ramps(cycle.setpoint_mm, seg)[
+            "accel"].stop) - seg.start
         d[n] = constant(lb.phases[n].std[sig], res[n][0], start)
-    return abs(d["out"][0] - d["in"][0]) / math.hypot(d["out"][1], d["in"][1])
+    return (d["out"][0] - d["in"][0]) / math.hypot(d["out"][1], d["in"][1])
 
 
-def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, list[str]]:
-    """(flagged, the effect named, reasons); no effect when no feature is above its
-    threshold. Among the features above (by ratio to the threshold, `NAMING`):
+SETTLED = 0.1
+"""A reversal's take-up lasts until the healthy mean position error has fallen below this
+share of its peak after the stroke starts."""
 
-    1. the position-locked signature (periodic or localised, the larger ratio), unless a
-       direction-split one (level or reversal) is further above its threshold: a
-       position-locked defect moves the level by a small fraction of its own excess (a
-       nut length of a 120 mm stroke), while a level shift leaks into the localised scan
-       through the per-sample spread (a constant in A is not a constant in z);
-    2. else the direction-split one with the larger ratio;
-    3. else the catch-alls (dwell, index), the larger ratio: a phase index outside its
-       spread has no physical reading of its own, so it is named only when no signature
-       with one is above its threshold.
 
-    (Variant 1 of 2026-11-24, designed from injected faults: docs/real-data.md "What else
-    the bench sees: injected faults".) A level below the healthy one is named `drag`, not
-    friction (variant 4: a friction growth raises the current). An index that is a mean
-    position error moved alike in every phase is named `offset` (variant 6)."""
+def takeup_window(ps: Any) -> int:
+    """The aligned samples of a stroke's take-up of the reversal, from the healthy
+    baseline alone: from the stroke's start to where the baseline's mean position error
+    has settled on its plateau (the median of the stroke's second half) to `SETTLED` of
+    its largest departure from it; 0 when that departure is within 3 per-sample spreads
+    (no transient to take up)."""
+    e = ps.mean["position_error_mm"]
+    if len(e) < 4:
+        return 0
+    dev = np.abs(e - float(np.median(e[len(e) // 2:])))
+    k = int(np.argmax(dev))
+    if dev[k] <= 3.0 * float(np.median(ps.std["position_error_mm"])):
+        return 0
+    low = np.flatnonzero(dev[k:] < SETTLED * dev[k])
+    return int(k + low[0]) if len(low) else len(e)
+
+
+def _zero(lb: LoadBaseline, sig: str) -> float:
+    """The baseline's median position error in its dwells (its sensor zero)."""
+    dwell = [p.mean[sig] for p in lb.phases.values() if p.direction == 0 and len(p)]
+    return float(np.median(np.concatenate(dwell))) if dwell else 0.0
+
+
+def takeup(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = None
+           ) -> tuple[dict[str, float], dict[str, float]]:
+    """Lost motion at each reversal: per stroke, the position-error residual's weighted
+    constant over the take-up (`takeup_window`), in mm along the motion (a play the motor
+    turns through before the nut follows adds to the lag, so + is more lag), and the
+    same over its standard error. A one-sided load holds the nut on one flank of a play
+    and the play shows at one reversal only; which one the load's sign decides, so the
+    score is the larger of the two."""
+    sig = "position_error_mm"
+    res = _residuals(lb, cycle, sig, cache)
+    mm: dict[str, float] = {}
+    zz: dict[str, float] = {}
+    # the position sensor's zero as the cycle and as the baseline see it (the dwells'
+    # median error): a zero that moves between runs is not a lost motion
+    zero = standstill_error(cycle) - lb.memo("standstill_error", lambda: _zero(lb, sig))
+    infl = math.sqrt(1.0 + 1.0 / lb.n)
+    for n in ("out", "in"):
+        if n not in res or not len(res[n][0]):
+            continue
+        ps = lb.phases[n]
+        w = min(window(lb, n), len(res[n][0]))
+        if w < 2:
+            continue
+        std = ps.std[sig][:w] * infl
+        c, se = constant(std, res[n][0][:w] - zero / std)
+        mm[n] = float(c * ps.direction)
+        zz[n] = float(c / se * ps.direction)
+    return mm, zz
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """A cycle against its thresholds: flagged or not, the signature named (an `EFFECTS`
+    key, "none" when nothing is above), the fault family it points to
+    (`naming.FAULTS`, "" when not flagged) and every feature against its threshold."""
+    flagged: bool
+    effect: str
+    fault: str
+    reasons: list[str]
+    ratios: dict[str, float]
+
+
+def assess(f: CycleFeatures, thresholds: dict[str, float]) -> Judgement:
+    """The cycle judged: flagged when any feature is above its threshold; the fault
+    family and its signature from `naming.attribute` (the family whose strongest
+    signature is furthest above its threshold; friction and backlash both above and
+    neither clearly ahead: indistinguishable). A level below the healthy one in both
+    directions is `drag` (the preload's drag lost: backlash-like), an index that is a
+    mean position error moved alike in every phase `offset`."""
+    from bench.rig import naming
     ratios = {k: f.scores[k] / thresholds[k] for k in FEATURES
               if k in thresholds and math.isfinite(f.scores.get(k, nan_))
               and thresholds[k] > 0}
     above = {k: r for k, r in ratios.items() if r > 1.0}
     reasons = [f"{k} {f.scores[k]:.2f} vs threshold {thresholds[k]:.2f}" for k in ratios]
     if not above:
-        return False, "none", reasons
-    best = {tier: max((k for k in above if k in keys), key=lambda k: above[k], default="")
-            for tier, keys in NAMING.items()}
-    spec, split = best["position-locked"], best["direction-split"]
-    if spec and (not split or above[spec] >= above[split]):
-        return True, spec, reasons
-    if split == "level" and signed_level(f) < 0:
-        return True, "drag", reasons
-    if not split and best["catch-all"] == "index" and is_offset(f):
-        return True, "offset", reasons
-    return True, split or best["catch-all"], reasons
+        return Judgement(False, "none", "", reasons, ratios)
+    fault, effect = naming.attribute(above, naming.level_sign(f.level_out, f.level_in),
+                                     "index" in above and is_offset(f))
+    return Judgement(True, effect, fault, reasons, ratios)
 
 
-def is_offset(f: CycleFeatures) -> bool:
-    """The cycle's largest phase index is a mean position error, and every phase's moved
-    alike (`common_shift`): named `offset` instead of `index` (variant 6, session 17; a
-    name only, the cycle was flagged by the index feature)."""
-    return f.index_at.endswith("position_error_mean") and common_shift(f.position_shift_mm)
+def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, list[str]]:
+    """(flagged, the signature named, reasons) of `assess`."""
+    j = assess(f, thresholds)
+    return j.flagged, j.effect, j.reasons
 
 
-def signed_level(f: CycleFeatures) -> float:
-    """The level's sign-keeping value: the mean of the out- and in-stroke residual means
-    (the score is its magnitude). Below zero the current is lowered in both directions:
-    less drag, not friction (variant 4 of 2026-11-24)."""
-    v = [x for x in (f.level_out, f.level_in) if math.isfinite(x)]
-    return float(np.mean(v)) if v else nan_
-
-
-NAMING = {"position-locked": SPECIFIC, "direction-split": ("level", "reversal"),
-          "catch-all": ("dwell", "index")}
 FEATURE_OF = {"drag": "level", "offset": "index"}   # effects named by another feature
 nan_ = float("nan")
 
 
 def verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]) -> dict[str, Any]:
-    """The verdict of one cycle: flagged or not, the effect, where (for a localised one),
-    the scores against their thresholds, and the baseline used. An incomplete cycle is
-    not judged (`judged` false) and says why."""
+    """The verdict of one cycle (`rig_verdict`) as a dict (`RigVerdict.to_dict`)."""
+    return rig_verdict(base, f, thresholds).to_dict()
+
+
+def rig_verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]
+                ) -> RigVerdict:
+    """The verdict of one cycle: flagged or not, the signature and the fault family,
+    where (for a located one), the scores against their thresholds, and the baseline
+    used (provisional with fewer than 3 healthy runs, and then said in the text). An
+    incomplete cycle is not judged (level UNKNOWN) and says why."""
+    from bench.rig import naming
+    lb = base.for_load(f.load)
+    prov = lb.provisional
     if f.incomplete:
-        return {"cycle": f.label, "flagged": False, "judged": False, "effect": "not judged",
-                "verdict": f"not judged: {f.incomplete}", "reasons": [],
-                "baseline": base.describe(f.load), "location_mm": None}
-    flagged, effect, reasons = judge(f, thresholds)
-    where = location(f, effect, thresholds) if flagged else None
-    if not flagged:
+        return RigVerdict(f.label, UNKNOWN, "not judged", "", f"not judged: {f.incomplete}",
+                          base.describe(f.load), prov)
+    j = assess(f, thresholds)
+    where = location(f, j.effect, thresholds) if j.flagged else None
+    if not j.flagged:
         text = "no significant deviation from the healthy baseline"
-    elif effect == "periodic" and where is None:
-        text = (f"{EFFECTS[effect]}; spread along the stroke, not located (the localised "
+    else:
+        text = f"{naming.TEXT[j.fault]}: {effect_text(f, j.effect, where, thresholds)}"
+        named = FEATURE_OF.get(j.effect, j.effect)
+        others = [k for k in FEATURES if k != named and k in thresholds
+                  and f.scores.get(k, 0.0) > thresholds[k]]
+        if others:
+            text += "; also above threshold: " + ", ".join(others)
+    if prov:
+        text += f"; {provisional_note(len(set(lb.runs)))}"
+    return RigVerdict(f.label, WARNING if j.flagged else HEALTHY, j.effect, j.fault, text,
+                      base.describe(f.load), prov, where, j.reasons)
+
+
+def effect_text(f: CycleFeatures, effect: str, where: float | None,
+                thresholds: dict[str, float]) -> str:
+    """The words on the signature named: where a located one is, which index, which
+    reversal took up a play."""
+    if effect == "periodic" and where is None:
+        return (f"{EFFECTS[effect]}; spread along the stroke, not located (the localised "
                 f"scan {f.scores['localised']:.2f} is below its threshold "
                 f"{thresholds.get('localised', nan_):.2f}; the lead-periodic projection is "
                 f"largest at {f.periodic_mm:.1f} mm)")
-    elif effect == "localised":
+    if effect == "localised":
         agree = (abs(f.out_mm - f.in_mm) if math.isfinite(f.out_mm + f.in_mm) else nan_)
-        text = (f"{EFFECTS[effect]} at {f.location_mm:.1f} mm of travel "
+        return (f"{EFFECTS[effect]} at {f.location_mm:.1f} mm of travel "
                 f"({'both strokes' if f.where == 'both' else f.where + '-stroke'}, "
                 f"about {f.width_mm:.0f} mm wide; out-stroke alone {f.out_mm:.1f} mm, "
                 f"in-stroke alone {f.in_mm:.1f} mm, {agree:.1f} mm apart)")
-    elif effect == "periodic":
-        text = (f"{EFFECTS[effect]}; its strongest position-locked window at "
+    if effect == "periodic":
+        return (f"{EFFECTS[effect]}; its strongest position-locked window at "
                 f"{f.location_mm:.1f} mm of travel (out-stroke alone {f.out_mm:.1f} mm, "
                 f"in-stroke alone {f.in_mm:.1f} mm; the lead-periodic projection is "
                 f"largest at {f.periodic_mm:.1f} mm)")
-    elif effect in ("index", "offset") and f.index_at:
+    if effect == "takeup" and f.takeup_mm:
+        return (f"{EFFECTS[effect]}; extra lag while taking up the reversal: "
+                + ", ".join(f"{k}-stroke {v:+.3f} mm ({f.takeup_z.get(k, nan_):+.1f} sd)"
+                            for k, v in f.takeup_mm.items()))
+    if effect in ("index", "offset") and f.index_at:
         text = f"{EFFECTS[effect]} ({f.index_at})"
         if f.index_at.endswith("position_error_mean"):
             text += shift_text(f.position_shift_mm)
-    else:
-        text = EFFECTS[effect]
-    named = FEATURE_OF.get(effect, effect)
-    others = [k for k in FEATURES if k != named and k in thresholds
-              and f.scores.get(k, 0.0) > thresholds[k]]
-    if flagged and others:
-        text += "; also above threshold: " + ", ".join(others)
-    return {"cycle": f.label, "flagged": flagged, "judged": True, "effect": effect,
-            "verdict": text,
-            "reasons": reasons, "baseline": base.describe(f.load),
-            "location_mm": where}
+        return text
+    return EFFECTS.get(effect, effect)
 
 
 def location(f: CycleFeatures, effect: str, thresholds: dict[str, float]) -> float | None:
@@ -455,8 +561,7 @@ def location(f: CycleFeatures, effect: str, thresholds: dict[str, float]) -> flo
     periodic or localised effect the strongest window of the localised scan (a spot of
     the raceway acts over about a nut length), but only when that scan stands out, i.e.
     is above its threshold: a periodic line spread along the whole stroke has no place of
-    its own, and the strongest window of a scan within its healthy range wanders
-    (variant 4 of 2026-11-24)."""
+    its own, and the strongest window of a scan within its healthy range wanders."""
     if effect not in SPECIFIC:
         return None
     thr = thresholds.get("localised", nan_)

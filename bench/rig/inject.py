@@ -1,13 +1,12 @@
 """What else the bench sees on a real rig: known synthetic faults injected into held-out
-healthy cycles (`bench rig inject`, issue 11, docs/real-data.md "What else the bench sees:
-injected faults").
+healthy cycles (`bench rig inject`, docs/real-data.md "Injected faults").
 
 The baseline and the thresholds come from the healthy calibration runs exactly as
 `bench rig study` makes them (`baseline.build` of the calibration cycles,
-`population.calibrate` per load). Each held-out healthy cycle is then scored unmodified
+`population.calibrate_loads`). Each held-out healthy cycle is then scored unmodified
 (the false-alarm rate beside the results) and once per fault kind and size with a
 synthetic fault written into its logged samples; the features and the verdict are the
-ones every cycle gets (`features.cycle_features`, `features.judge`). Reported per kind,
+ones every cycle gets (`features.cycle_features`, `features.assess`). Reported per kind,
 size and load: the share of cycles flagged, the share named as the kind's own effect,
 the effects named, and the smallest tested size flagged (and named right) in 90 % of the
 cycles.
@@ -31,8 +30,7 @@ The fault models (written down, with their rationale, before any result was look
   the nut against one flank in a stroke). Size: b in units of the baseline's spread of
   the stroke position error, beside it b in mm. Limitation: the logged position's own
   noise passes the operator too (noise smaller than the play is absorbed at standstill).
-- loaded_play (a play under a one-sided load; session 17, docs/real-data.md variants 5
-  and 6): a load of one
+- loaded_play (a play under a one-sided load): a load of one
   sign over the whole cycle, well above the nut's friction (the Cranfield rig's 20, 40
   and -40 kgf), holds the nut on the loaded flank of the play in both strokes and at
   standstill, so the play is never taken up at a reversal: the nut sits b/2 from where
@@ -56,8 +54,9 @@ The fault models (written down, with their rationale, before any result was look
 The spread of the stroke current (sigma_I) is the RMS over the out- and in-stroke's
 aligned samples of the baseline's per-sample spread of the current the stroke features
 read (`features.stroke_signal`: against the standstill); sigma_e is the same for the
-position error. The kind's own effect: friction -> level, backlash -> reversal,
-loaded_play -> offset, localised -> localised, periodic -> periodic.
+position error. Named right: the fault family the verdict names (`naming.attribute`) is
+the kind's own: friction -> friction, backlash and loaded_play -> backlash, localised and
+periodic -> spall.
 """
 
 from __future__ import annotations
@@ -75,12 +74,13 @@ import numpy as np
 from bench import BenchError
 from bench.rig import baseline as B
 from bench.rig import population as P
-from bench.rig.cycles import Cycle, condition_name, phases, read_cycles
-from bench.rig.features import cycle_features, judge, location, stroke_signal
+from bench.rig.cycles import Cycle, condition_name, read_cycles
+from bench.rig.features import assess, cycle_features, location, stroke_signal
 
 KINDS = ("friction", "backlash", "loaded_play", "localised", "periodic")
-EXPECTED = {"friction": "level", "backlash": "reversal", "loaded_play": "offset",
-            "localised": "localised", "periodic": "periodic"}
+# the fault family each kind is named right as (`naming.attribute`)
+EXPECTED = {"friction": "friction", "backlash": "backlash", "loaded_play": "backlash",
+            "localised": "spall", "periodic": "spall"}
 SIZES = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)     # in units of the healthy spread
 NUT_MM = 22.0                                # travel a nut covers (about a nut length)
 RATE_GOAL = 0.9                              # "the size found in 90 % of cycles"
@@ -135,7 +135,7 @@ def scales(lb: B.LoadBaseline, at_mm: float | None = None, load_sign: float = 1.
 def moving(cycle: Cycle) -> np.ndarray:
     """True at the samples of the cycle's strokes (the set-point moves)."""
     m = np.zeros(len(cycle), bool)
-    for s in phases(cycle.setpoint_mm):
+    for s in cycle.segments():
         if s.direction != 0:
             m[s.start:s.stop] = True
     return m
@@ -161,7 +161,7 @@ def play(position_mm: np.ndarray, width_mm: float, first_direction: int) -> np.n
 
 def backlash(cycle: Cycle, width_mm: float) -> Cycle:
     """The logged nut position through a play of `width_mm` (current unchanged)."""
-    first = next((s.direction for s in phases(cycle.setpoint_mm) if s.direction), 1)
+    first = next((s.direction for s in cycle.segments() if s.direction), 1)
     return dataclasses.replace(cycle, position_mm=play(cycle.position_mm, width_mm, first))
 
 
@@ -230,10 +230,10 @@ class Cell:
 
 
 def _judged(lb: B.LoadBaseline, c: Cycle, thr: dict[str, float], lead: float
-            ) -> tuple[bool, str, float | None]:
+            ) -> tuple[bool, str, str, float | None]:
     f = cycle_features(lb, c, lead)
-    hit, effect, _ = judge(f, thr)
-    return hit, effect, (location(f, effect, thr) if hit else None)
+    j = assess(f, thr)
+    return j.flagged, j.effect, j.fault, (location(f, j.effect, thr) if j.flagged else None)
 
 
 def _tables(tables: list[str | Path], calibrate_runs: list[int], holdout_runs: list[int],
@@ -291,13 +291,13 @@ def run_inject(tables: list[str | Path], calibrate_runs: list[int],
     t1 = time.perf_counter()
     for c in hold:
         lb, thr = base.for_load(c.load), cals[c.load].thresholds
-        hit, effect, where = _judged(lb, c, thr, lead_mm)
+        hit, effect, _, where = _judged(lb, c, thr, lead_mm)
         healthy[c.load].add(hit, effect, False, where)
         for kind, s in jobs:
-            hit, effect, where = _judged(lb, inject(c, kind, s, sc[c.load], lead_mm),
-                                         thr, lead_mm)
+            hit, effect, fault, where = _judged(lb, inject(c, kind, s, sc[c.load], lead_mm),
+                                                thr, lead_mm)
             cells.setdefault((kind, s, c.load), Cell()).add(
-                hit, effect, effect == EXPECTED[kind], where)
+                hit, effect, fault == EXPECTED[kind], where)
         if bar is not None:
             bar.update(1 + len(jobs))
     if bar is not None:

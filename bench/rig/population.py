@@ -1,29 +1,31 @@
-"""Populations of runs (issue 11): thresholds from the spread of held-out healthy runs, and
-a detection rate and a false-alarm rate per condition instead of a single verdict.
+"""Populations of runs: thresholds from the spread of held-out healthy runs, and a
+detection rate and a false-alarm rate per condition instead of a single verdict.
 
-Thresholds (`calibrate`): with the calibration runs of one load (e.g. runs 1-2), each run
-in turn is held out, a baseline is built from the others, and the held-out run's cycles
-are scored; so every calibration score is that of a cycle its baseline did not see
-(leave-one-run-out; run-to-run differences are in the scores). The threshold of a
-feature is the upper (1 - alpha / n_features) prediction bound of one more healthy score
-(`bound`), alpha the false-alarm rate aimed at (0.05), shared by the features
-(Bonferroni): an F bound for the chi-square-like scores (periodic power; level and
-reversal squared), a Student-t bound of the log-scores for the maxima (the localised and
-dwell scans, the largest phase-index |z|). (The
-first version used the log-normal bound for every feature; it gave thresholds of 20-35
-for chi-square scores near 0, and was replaced after the first study: docs/real-data.md.) The
-thresholds come from healthy calibration runs only, never from a fault's cycles.
+Thresholds (`calibrate_loads`): per load, each calibration run in turn is held out, a
+baseline is built from the others and the held-out run's cycles are scored (`loro`), so
+every calibration score is that of a cycle its baseline did not see, and the run-to-run
+differences are in the scores. The threshold of a feature is the upper (1 - alpha /
+n_features) prediction bound of one cycle of a healthy run that is not among them
+(`thresholds`, `spread.pooled`): the transformed scores (log for the scans and the index
+maximum, cube root for the chi-square-like periodic power, the signed value for level and
+reversal) as runs and cycles, the spreads within and between runs pooled over the loads,
+alpha the false-alarm rate aimed at (0.05) shared by the features (Bonferroni). With
+fewer than 3 calibration runs the between-run spread is not estimated and the thresholds
+are provisional (`Calibration.provisional`). They come from healthy calibration runs
+only, never from a fault's cycles.
 
-The reference detector the issue asks for (`zscore_score`): a plain per-sample z-score
-of the current against the healthy mean at the same aligned sample (all phases), the
-cycle's score its largest |z|; its threshold is set so that it flags the same number of
-held-out healthy cycles as the bench's detector (`matched_threshold`).
+The plain reference (`zscore_score`): a per-sample z-score of the current against the
+healthy mean at the same aligned sample (all phases), the cycle's score its largest |z|;
+its threshold set the plain way from the same held-out scores (`prediction_bound`:
+independent cycles, log-normal, alpha), and also, for a comparison at the same
+false-alarm rate, so that it flags as many held-out healthy cycles as the bench's
+detector (`matched_threshold`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -31,7 +33,15 @@ import numpy as np
 from bench import BenchError
 from bench.rig.baseline import MIN_CYCLES, LoadBaseline, build_load, residuals
 from bench.rig.cycles import Cycle
-from bench.rig.features import FEATURES, CycleFeatures, cycle_features, judge, location
+from bench.rig.features import (
+    FEATURES,
+    CycleFeatures,
+    assess,
+    cycle_features,
+    location,
+)
+from bench.rig.offsets import signed_level
+from bench.rig.spread import MIN_RUNS, Spread, pooled, spread
 
 ALPHA = 0.05
 
@@ -44,15 +54,34 @@ class Calibration:
     thresholds: dict[str, float]
     scores: dict[str, list[float]]        # leave-one-run-out healthy scores per feature
     alpha: float
+    score_runs: list[int] = field(default_factory=list)    # the run of each score
+    spreads: dict[str, Spread] = field(default_factory=dict)
+    # the plain reference's threshold from the same held-out scores (`zscore_score`; the
+    # plain way: independent cycles, log-normal bound at alpha)
+    zscore_threshold: float = float("nan")
+
+    @property
+    def provisional(self) -> bool:
+        """Fewer than `spread.MIN_RUNS` calibration runs: the between-run spread is not
+        estimated, and every verdict against these thresholds says so."""
+        return len(self.runs) < MIN_RUNS
 
     def to_json(self) -> dict[str, Any]:
         return {"load": self.load, "runs": self.runs, "thresholds": self.thresholds,
-                "loro_scores": self.scores, "alpha": self.alpha,
-                "method": "leave-one-run-out over the calibration runs; upper prediction "
-                          "bound per feature (F for chi-square-like scores, Student-t of "
-                          "the log for the scans and the index maximum), alpha shared by "
-                          f"{len(self.thresholds)} features",
+                "loro_scores": self.scores, "loro_runs": self.score_runs,
+                "alpha": self.alpha, "provisional": self.provisional,
+                "zscore_threshold": self.zscore_threshold,
+                "spreads": {k: v.to_json() for k, v in self.spreads.items()},
+                "method": METHOD.format(n=len(self.thresholds)),
                 "nulls": {k: list(NULLS.get(k, ("log", 0))) for k in self.thresholds}}
+
+
+METHOD = ("leave-one-run-out over the calibration runs; per feature the upper prediction "
+          "bound of one cycle of a healthy run not among them, from the spread within and "
+          "between runs of its transformed held-out scores (Student-t, Welch-Satterthwaite "
+          "degrees of freedom; log for the scans and the index maximum, cube root for the "
+          "chi-square-like periodic power, the signed value for level and reversal); "
+          "alpha shared by {n} features")
 
 
 # how each feature's healthy scores are distributed, for its prediction bound:
@@ -62,7 +91,53 @@ class Calibration:
 # stays well away from 0)
 NULLS: dict[str, tuple[str, int]] = {"periodic": ("chi2", 4), "level": ("abs", 1),
                                      "reversal": ("abs", 1), "localised": ("log", 0),
-                                     "dwell": ("log", 0), "index": ("log", 0)}
+                                     "takeup": ("log", 0), "turn": ("log", 0),
+                                     "dwell": ("log", 0),
+                                     "index": ("log", 0)}
+
+
+def healthy_value(f: CycleFeatures, key: str) -> float:
+    """The value of feature `key` that `spread_bound` models: the signed value for the
+    two-sided scores (level, reversal), else the score."""
+    if key == "level":
+        return signed_level(f)
+    if key == "reversal":
+        return f.reversal_signed if math.isfinite(f.reversal_signed) else f.scores[key]
+    return f.scores[key]
+
+
+def _transform(kind: str, v: np.ndarray) -> np.ndarray:
+    if kind == "chi2":
+        return np.cbrt(np.maximum(v, 0.0))      # Wilson-Hilferty: near normal
+    if kind == "abs":
+        return v
+    return np.log(np.maximum(v, 1e-9))
+
+
+def threshold_of(sp: Spread, alpha: float, null: tuple[str, int]) -> float:
+    """The threshold of one feature from its spread (`spread.Spread`) on the transformed
+    scale: the upper (1 - alpha) prediction bound of one cycle of a new run, back to the
+    score's (two-sided, |value|, for the signed ones)."""
+    kind = null[0]
+    if kind == "abs":
+        from scipy.special import stdtrit
+        q = float(stdtrit(sp.dof, 1.0 - alpha / 2))
+        return abs(sp.mean) + q * math.sqrt(sp.predictive)
+    up = sp.upper(alpha)
+    return max(up, 0.0) ** 3 if kind == "chi2" else math.exp(up)
+
+
+def spread_bound(values: list[float], runs: list[int], alpha: float,
+                 null: tuple[str, int]) -> tuple[float, Spread]:
+    """The threshold of one feature of one load from its held-out healthy values
+    (`healthy_value`) and their runs (`threshold_of`)."""
+    v = np.asarray(values, float)
+    ok = np.isfinite(v)
+    if ok.sum() < 3:
+        raise BenchError(f"a threshold needs at least 3 held-out healthy scores, got "
+                         f"{int(ok.sum())}")
+    sp = spread(_transform(null[0], v[ok]), list(np.asarray(runs)[ok]))
+    return threshold_of(sp, alpha, null), sp
 
 
 def bound(values: list[float], alpha: float, null: tuple[str, int]) -> float:
@@ -96,16 +171,27 @@ def prediction_bound(values: list[float], alpha: float) -> float:
     return float(math.exp(v.mean() + t * v.std(ddof=1) * math.sqrt(1.0 + 1.0 / m)))
 
 
-def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None = None
-              ) -> Calibration:
-    """Thresholds of one load from its healthy calibration cycles (two or more runs); a
-    feature the cycles cannot give (periodic without the lead) gets none."""
+@dataclass
+class Loro:
+    """One load's leave-one-run-out healthy scores: each calibration run's cycles scored
+    against the baseline of the other runs."""
+    load: float
+    runs: list[int]
+    scores: dict[str, list[float]]
+    values: dict[str, list[float]]         # `healthy_value` of each score
+    of_run: list[int]
+    zscores: list[float]
+
+
+def loro(cycles: list[Cycle], lead_mm: float | None = None) -> Loro:
+    """`Loro` of one load's healthy calibration cycles (two or more runs)."""
     runs = sorted({c.run for c in cycles})
     if len(runs) < 2:
         raise BenchError(f"load {cycles[0].load:g}: thresholds need at least two healthy "
                          f"calibration runs (one held out at a time), got run(s) {runs}")
     _check_folds(cycles, runs)
-    scores: dict[str, list[float]] = {k: [] for k in FEATURES}
+    out = Loro(cycles[0].load, runs, {k: [] for k in FEATURES}, {k: [] for k in FEATURES},
+               [], [])
     for r in runs:
         lb = build_load([c for c in cycles if c.run != r])
         for c in cycles:
@@ -113,12 +199,43 @@ def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None =
                 f = cycle_features(lb, c, lead_mm)
                 if f.incomplete:          # a partial cycle gives no healthy score
                     continue
+                out.of_run.append(r)
+                out.zscores.append(zscore_score(lb, c))
                 for k in FEATURES:
-                    scores[k].append(f.scores[k])
-    usable = {k: v for k, v in scores.items() if np.isfinite(v).all()}
-    per = alpha / len(usable)
-    thr = {k: bound(v, per, NULLS.get(k, ("log", 0))) for k, v in usable.items()}
-    return Calibration(cycles[0].load, runs, thr, scores, alpha)
+                    out.scores[k].append(f.scores[k])
+                    out.values[k].append(healthy_value(f, k))
+    return out
+
+
+def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Calibration]:
+    """Per load the thresholds of its features from the loads' leave-one-run-out scores,
+    the spreads within and between runs pooled over the loads (`spread.pooled`); a
+    feature a load's cycles cannot give (periodic without the lead) gets none."""
+    usable = [k for k in FEATURES if all(np.isfinite(lo.scores[k]).all() and lo.scores[k]
+                                         for lo in loros.values())]
+    per = alpha / max(len(usable), 1)
+    thr: dict[float, dict[str, float]] = {ld: {} for ld in loros}
+    spreads: dict[float, dict[str, Spread]] = {ld: {} for ld in loros}
+    for k in usable:
+        null = NULLS.get(k, ("log", 0))
+        sps = pooled({ld: list(_transform(null[0], np.asarray(lo.values[k], float)))
+                      for ld, lo in loros.items()}, {ld: lo.of_run for ld, lo in loros.items()})
+        for ld, sp in sps.items():
+            if sp.cycles < 3:
+                raise BenchError(f"load {ld:g}: a threshold needs at least 3 held-out "
+                                 f"healthy scores, got {sp.cycles}")
+            spreads[ld][k] = sp
+            thr[ld][k] = threshold_of(sp, per, null)
+    return {ld: Calibration(ld, lo.runs, thr[ld], lo.scores, alpha, lo.of_run, spreads[ld],
+                            prediction_bound(lo.zscores, alpha)) for ld, lo in loros.items()}
+
+
+def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None = None
+              ) -> Calibration:
+    """Thresholds of one load from its healthy calibration cycles alone (two or more
+    runs; `calibrate_loads` pools several loads' spreads)."""
+    lo = loro(cycles, lead_mm)
+    return thresholds({lo.load: lo}, alpha)[lo.load]
 
 
 def _check_folds(cycles: list[Cycle], runs: list[int]) -> None:
@@ -154,9 +271,10 @@ def check_runs(cal: list[Cycle], hold: list[Cycle], calibrate_runs: list[int],
 
 def calibrate_loads(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None = None
                     ) -> dict[float, Calibration]:
-    """`calibrate` for each load of the healthy calibration cycles, in load order."""
-    return {load: calibrate([c for c in cycles if c.load == load], alpha, lead_mm)
-            for load in sorted({c.load for c in cycles})}
+    """The thresholds of every load of the healthy calibration cycles, in load order,
+    the spreads between and within runs pooled over the loads (`thresholds`)."""
+    return thresholds({load: loro([c for c in cycles if c.load == load], lead_mm)
+                       for load in sorted({c.load for c in cycles})}, alpha)
 
 
 def cross_validate(cycles: list[Cycle], k: int, alpha: float = ALPHA,
@@ -177,9 +295,15 @@ def cross_validate(cycles: list[Cycle], k: int, alpha: float = ALPHA,
     jobs = split_jobs(cycles, k, alpha, lead_mm, max_splits)
     if not jobs:
         return {}
-    splits = [calibrate_split(j) for j in jobs]
+    load = cycles[0].load
+    splits = [of_load(calibrate_split(j), load) for j in jobs]
     return summarise_splits(cycles, k, splits, {cond: judge_splits((splits, cs))
                                                 for cond, cs in (faults or {}).items()})
+
+
+def of_load(split: dict[str, Any], load: float) -> dict[str, Any]:
+    """One load's part of a `calibrate_split` result, with the split's runs."""
+    return {"calibrate_runs": split["calibrate_runs"], **split["loads"][load]}
 
 
 def splits_of(runs: list[int], k: int, max_splits: int = 20) -> list[tuple[int, ...]]:
@@ -206,15 +330,22 @@ def split_jobs(cycles: list[Cycle], k: int, alpha: float = ALPHA,
 
 
 def calibrate_split(job: tuple[Any, ...]) -> dict[str, Any]:
-    """One split of `cross_validate` (a worker job): the calibration runs' baseline and
-    thresholds, computed once per split and kept for `judge_splits`, and the other
-    healthy runs' cycles judged against them."""
+    """One split of `cross_validate` (a worker job): for every load of the healthy
+    `cycles`, the calibration runs' baseline and thresholds (the spreads pooled over the
+    loads, `calibrate_loads`), computed once per split and kept for `judge_splits`, and
+    the other healthy runs' cycles judged against them (`loads`: load -> that)."""
     cycles, cal_runs, alpha, lead_mm = job
     mine = [c for c in cycles if c.run in cal_runs]
-    out = {"calibrate_runs": list(cal_runs), "baseline": build_load(mine),
-           "thresholds": calibrate(mine, alpha, lead_mm).thresholds, "lead_mm": lead_mm}
-    out.update(_count(out, [c for c in cycles if c.run not in cal_runs]))
-    return out
+    cals = calibrate_loads(mine, alpha, lead_mm)
+    loads: dict[float, dict[str, Any]] = {}
+    for load, cal in cals.items():
+        part = {"baseline": build_load([c for c in mine if c.load == load]),
+                "thresholds": cal.thresholds, "zscore_threshold": cal.zscore_threshold,
+                "lead_mm": lead_mm}
+        part.update(_count(part, [c for c in cycles
+                                  if c.load == load and c.run not in cal_runs]))
+        loads[load] = part
+    return {"calibrate_runs": list(cal_runs), "loads": loads}
 
 
 def judge_splits(job: tuple[list[dict[str, Any]], list[Cycle]]) -> list[dict[str, Any]]:
@@ -224,21 +355,37 @@ def judge_splits(job: tuple[list[dict[str, Any]], list[Cycle]]) -> list[dict[str
     return [{"calibrate_runs": s["calibrate_runs"], **_count(s, cycles)} for s in splits]
 
 
+def pooled_counts(counts: list[dict[str, Any]]) -> dict[str, Any]:
+    """Counts of `_count` added over the splits: judged, flagged, the z-score's flags and
+    the fault families named."""
+    out: dict[str, Any] = {"judged": 0, "flagged": 0, "zscore_flagged": 0, "faults": {}}
+    for c in counts:
+        for k in ("judged", "flagged", "zscore_flagged"):
+            out[k] += c.get(k, 0)
+        for k, v in c.get("faults", {}).items():
+            out["faults"][k] = out["faults"].get(k, 0) + v
+    return out
+
+
 def _count(split: dict[str, Any], cycles: list[Cycle]) -> dict[str, Any]:
     """`cycles` judged against one split's baseline and thresholds: judged, flagged and
     the effects named (incomplete cycles are not judged)."""
-    n = f = 0
+    n = f = z = 0
     effects: dict[str, int] = {}
+    faults: dict[str, int] = {}
     for c in cycles:
         feat = cycle_features(split["baseline"], c, split["lead_mm"])
         if feat.incomplete:
             continue
-        hit, effect, _ = judge(feat, split["thresholds"])
+        j = assess(feat, split["thresholds"])
         n += 1
-        f += int(hit)
-        if hit:
-            effects[effect] = effects.get(effect, 0) + 1
-    return {"judged": n, "flagged": f, "effects": effects}
+        f += int(j.flagged)
+        z += int(zscore_score(split["baseline"], c) > split.get("zscore_threshold", np.inf))
+        if j.flagged:
+            effects[j.effect] = effects.get(j.effect, 0) + 1
+            faults[j.fault] = faults.get(j.fault, 0) + 1
+    return {"judged": n, "flagged": f, "effects": effects, "faults": faults,
+            "zscore_flagged": z}
 
 
 def summarise_splits(cycles: list[Cycle], k: int, splits: list[dict[str, Any]],
@@ -254,11 +401,14 @@ def summarise_splits(cycles: list[Cycle], k: int, splits: list[dict[str, Any]],
             effects[e] = effects.get(e, 0) + n
     per_split = [{"calibrate_runs": r["calibrate_runs"], "judged": r["judged"],
                   "flagged": r["flagged"]} for r in splits]
+    zf = sum(r.get("zscore_flagged", 0) for r in splits)
     out: dict[str, Any] = {
         "k": k, "runs": sorted({c.run for c in cycles}), "splits": len(splits),
         "judged": judged, "flagged": flagged,
         "rate": flagged / judged if judged else float("nan"), "effects": effects,
-        "per_split": per_split, "rate_95": clopper_pearson(flagged, judged)}
+        "per_split": per_split, "rate_95": clopper_pearson(flagged, judged),
+        "zscore_flagged": zf, "zscore_rate": zf / judged if judged else float("nan"),
+        "zscore_rate_95": clopper_pearson(zf, judged)}
     if faults:
         out["faults"] = {cond: split_rates(counts) for cond, counts in faults.items()}
     return out
@@ -271,6 +421,7 @@ def split_rates(splits: list[dict[str, Any]]) -> dict[str, Any]:
     nan = float("nan")
     return {"per_split": [{"calibrate_runs": c["calibrate_runs"], "judged": c["judged"],
                            "flagged": c["flagged"]} for c in splits],
+            "pooled": pooled_counts(splits),
             "min": min(rates) if rates else nan,
             "median": float(np.median(rates)) if rates else nan,
             "max": max(rates) if rates else nan}
@@ -319,12 +470,15 @@ def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[s
     locs: list[float] = []
     outs: list[float] = []
     ins: list[float] = []
+    faults: dict[str, int] = {}
     for f in features:
-        hit, effect, _ = judge(f, thresholds)
-        if not hit:
+        j = assess(f, thresholds)
+        if not j.flagged:
             continue
+        effect = j.effect
         flagged += 1
         effects[effect] = effects.get(effect, 0) + 1
+        faults[j.fault] = faults.get(j.fault, 0) + 1
         where = location(f, effect, thresholds)
         if where is not None:
             locs.append(where)
@@ -332,6 +486,7 @@ def rates(features: list[CycleFeatures], thresholds: dict[str, float]) -> dict[s
             ins.append(f.in_mm)
     out: dict[str, Any] = {"cycles": n, "flagged": flagged,
                            "rate": flagged / n if n else float("nan"), "effects": effects,
+                           "faults": faults, "rate_95": clopper_pearson(flagged, n),
                            "located": len(locs), "not_judged": len(skipped)}
     out.update(_where(locs, "position"))
     out.update(_where(outs, "out"))
@@ -345,3 +500,14 @@ def _where(vals: list[float], key: str) -> dict[str, float]:
         return {f"{key}_mm": float("nan"), f"{key}_iqr_mm": float("nan")}
     q1, q2, q3 = np.percentile(v, [25, 50, 75])
     return {f"{key}_mm": float(q2), f"{key}_iqr_mm": float(q3 - q1)}
+
+
+def naming_summary(counts: dict[str, int], expected: str | None) -> dict[str, Any]:
+    """Flagged cycles per physics name (`naming.FAULTS`) and the share named the
+    `expected` family, with its exact 95 % interval, of one condition."""
+    n = sum(counts.values())
+    k = counts.get(expected, 0) if expected else 0
+    return {"faults": dict(counts), "expected": expected, "flagged": n,
+            "correct": k if expected else None,
+            "rate": (k / n if n else float("nan")) if expected else None,
+            "rate_95": clopper_pearson(k, n) if expected and n else None}

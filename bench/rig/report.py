@@ -16,6 +16,7 @@ import numpy as np
 from bench.reports import Block, Document, Heading, Paragraph, Table
 from bench.reports import Figure as PageFigure
 from bench.rig.study import Study, mean_profile
+from bench.rig.report_goals import goal_blocks
 
 
 def residual_figure(study: Study, path: Path) -> Path:
@@ -290,7 +291,7 @@ def document(study: Study, command: str) -> Document:
         f"Baseline: {sm['baseline']}. Thresholds from the calibration runs "
         f"{sm['calibrate_runs']} only (leave-one-run-out); held-out healthy runs "
         f"{sm['holdout_runs']}.", _holdout_table(sm), *_cv_blocks(sm),
-        *[f"Not scored: {u}." for u in sm.get("unscored", [])])
+        *goal_blocks(study), *[f"Not scored: {u}." for u in sm.get("unscored", [])])
     if not study.fault_conditions:
         return doc.add(NO_FAULT, *_cost_blocks(sm), *_figure_blocks(study))
     doc.add(Heading("Detection"), "Detection rate per stage (cycles flagged; in brackets the plain z-score at the "

@@ -18,7 +18,9 @@ import numpy as np
 
 from bench import BenchError
 from bench.rig import baseline as B
+from bench.rig import naming
 from bench.rig import population as P
+from bench.rig.classify import table_label
 from bench.rig.cycles import (
     SUFFIXES,
     Cycle,
@@ -54,6 +56,7 @@ class Study:
     unscored: list[str] = field(default_factory=list)     # cycles no threshold could judge
     cross_validation: dict[float, dict[str, Any]] = field(default_factory=dict)
     cross_validation_s: float = 0.0
+    supervised: dict[str, Any] = field(default_factory=dict)   # `supervised.run`
 
     @property
     def loads(self) -> list[float]:
@@ -141,7 +144,8 @@ def healthy_cycles(paths: list[Path], lost: list[str] | None = None
 def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: list[int],
               healthy: str = "normal*", workers: int | None = None, alpha: float = P.ALPHA,
               progress: bool = True, conditions: list[str] | None = None,
-              lead_mm: float | None = None, scheduler: str | None = None) -> Study:
+              lead_mm: float | None = None, scheduler: str | None = None,
+              model: str | None = None, supervised: bool = True) -> Study:
     """Baseline and thresholds from the healthy table's `calibrate_runs`, then the
     held-out healthy runs and every fault table scored (per condition a `run_all`)."""
     if set(calibrate_runs) & set(holdout_runs):
@@ -183,6 +187,12 @@ def run_study(directory: str | Path, calibrate_runs: list[int], holdout_runs: li
     _cross_validate(study, [c for c in hcycles if c.run in healthy_runs],
                     [(n, cs) for n, cs in todo if n != hname], len(calibrate_runs), alpha,
                     lead_mm, workers, progress, scheduler)
+    if supervised or model:
+        from bench.rig.supervised import run as run_supervised
+        todo_all = [(hname, [c for c in hcycles if c.run in healthy_runs]),
+                    *[(n, cs) for n, cs in todo if n != hname]]
+        study.supervised = run_supervised(todo_all, healthy.rstrip("*"), lead_mm, model,
+                                          workers, progress, scheduler, supervised)
     study.summary = summarise(study)
     return study
 
@@ -223,14 +233,12 @@ def _cross_validate(study: Study, healthy: list[Cycle], faults: list[tuple[str, 
     from bench.workers import run_all
     t0 = time.perf_counter()
     mine = {load: [c for c in healthy if c.load == load] for load in study.loads}
-    jobs = {load: P.split_jobs(cs, k, alpha, lead_mm) for load, cs in mine.items()}
-    flat = [j for js in jobs.values() for j in js]
-    done = run_all(P.calibrate_split, flat, workers=workers, progress=progress,
+    jobs = P.split_jobs([c for c in healthy if c.load in mine], k, alpha, lead_mm)
+    done = run_all(P.calibrate_split, jobs, workers=workers, progress=progress,
                    desc="cross-validation", unit="split", scheduler=scheduler
-                   ) if flat else []
-    splits: dict[float, list[dict[str, Any]]] = {}
-    for load, js in jobs.items():
-        splits[load], done = done[:len(js)], done[len(js):]
+                   ) if jobs else []
+    splits = {load: [P.of_load(d, load) for d in done if load in d["loads"]]
+              for load in study.loads}
     keys = [(load, name, [c for c in cs if c.load == load]) for load in study.loads
             if splits[load] for name, cs in faults]
     keys = [(load, name, cs) for load, name, cs in keys if cs]
@@ -251,13 +259,16 @@ def summarise(study: Study) -> dict[str, Any]:
                            "calibrate_runs": study.calibrations[study.loads[0]].runs,
                            "holdout_runs": study.holdout_runs, "loads": {}}
     for load in study.loads:
-        thr = study.calibrations[load].thresholds
+        cal = study.calibrations[load]
+        thr = cal.thresholds
         hold = study.results[study.healthy_condition].get(load, [])
         fa = P.rates([r.features for r in hold], thr)
         zthr = P.matched_threshold([r.zscore for r in hold], fa["flagged"])
         fa["zscore_rate"] = _zrate(hold, zthr)
-        fa["rate_95"] = P.clopper_pearson(fa["flagged"], fa["cycles"])
+        fa.update(_zcal(hold, cal.zscore_threshold))
         row: dict[str, Any] = {"thresholds": thr, "zscore_threshold": zthr,
+                               "zscore_calibrated_threshold": cal.zscore_threshold,
+                               "provisional": cal.provisional,
                                "holdout": fa, "stages": {},
                                "cross_validation": study.cross_validation.get(load, {})}
         for cond in study.fault_conditions:
@@ -266,8 +277,13 @@ def summarise(study: Study) -> dict[str, Any]:
                 continue
             d = P.rates([r.features for r in rs], thr)
             d["zscore_rate"] = _zrate(rs, zthr)
+            d.update(_zcal(rs, cal.zscore_threshold))
+            d["naming"] = P.naming_summary(d["faults"], naming.expected_fault(
+                table_label(cond)))
             row["stages"][cond] = d
         out["loads"][f"{load:g}"] = row
+    out["supervised"] = study.supervised
+    out["goals"] = goals(out)
     out["unscored"] = list(study.unscored)
     out["fault_tables_scored"] = list(study.fault_conditions)    # [] : healthy runs only
     secs = [r.seconds for c in study.results.values() for v in c.values() for r in v]
@@ -277,6 +293,15 @@ def summarise(study: Study) -> dict[str, Any]:
                    "cycles_per_condition": {k: sum(len(v) for v in c.values())
                                             for k, c in study.results.items()}}
     return out
+
+
+def _zcal(rs: list[CycleResult], thr: float) -> dict[str, Any]:
+    """The plain z-score with its own threshold from the calibration runs: cycles flagged
+    and the rate with its interval."""
+    ok = [r for r in rs if not r.features.incomplete]
+    k = sum(r.zscore > thr for r in ok) if math.isfinite(thr) else 0
+    return {"zscore_cal_flagged": k, "zscore_cal_rate": k / len(ok) if ok else float("nan"),
+            "zscore_cal_rate_95": P.clopper_pearson(k, len(ok))}
 
 
 def _zrate(rs: list[CycleResult], thr: float) -> float:
@@ -293,3 +318,51 @@ def mean_profile(rs: list[CycleResult], stroke: str) -> tuple[np.ndarray, np.nda
     if not m:
         return np.zeros(0), np.zeros(0)
     return (np.mean([z[:m] for z in zs], axis=0), np.mean([p[:m] for p in ps], axis=0))
+
+
+def goals(sm: dict[str, Any]) -> dict[str, Any]:
+    """The study's rates against the goals, every one on runs no threshold or rule used:
+    per load the healthy false-alarm rate cross-validated over the choices of
+    calibration runs; the fault cycles detected and the physics name right, pooled over
+    the splits (every fault table at every load, judged under every split); beside them
+    the plain z-score's."""
+    out: dict[str, Any] = {"false_alarms": {}, "detected": {}, "named": {}}
+    det = {"judged": 0, "flagged": 0, "zscore_flagged": 0}
+    fam_det: dict[str, list[int]] = {}
+    named: dict[str, list[int]] = {}
+    for load, row in sm["loads"].items():
+        cv = row.get("cross_validation") or {}
+        if cv:
+            out["false_alarms"][load] = {k: cv[k] for k in (
+                "flagged", "judged", "rate", "rate_95", "zscore_flagged", "zscore_rate",
+                "zscore_rate_95") if k in cv}
+        for cond, r in (cv.get("faults") or {}).items():
+            p = r.get("pooled") or {}
+            for k in det:
+                det[k] += p.get(k, 0)
+            exp = naming.expected_fault(table_label(cond))
+            fd = fam_det.setdefault(exp or table_label(cond), [0, 0])
+            fd[0] += p.get("flagged", 0)
+            fd[1] += p.get("judged", 0)
+            if exp:
+                got = named.setdefault(exp, [0, 0])
+                got[0] += p.get("faults", {}).get(exp, 0)
+                got[1] += p.get("flagged", 0)
+    n = det["judged"]
+    out["detected"] = {**det, "rate": det["flagged"] / n if n else float("nan"),
+                       "rate_95": P.clopper_pearson(det["flagged"], n),
+                       "zscore_rate": det["zscore_flagged"] / n if n else float("nan"),
+                       "per_family": {k: {"flagged": v[0], "judged": v[1],
+                                          "rate": v[0] / v[1] if v[1] else float("nan"),
+                                          "rate_95": P.clopper_pearson(v[0], v[1])}
+                                      for k, v in sorted(fam_det.items())}}
+    right = sum(v[0] for v in named.values())
+    flagged = sum(v[1] for v in named.values())
+    out["named"] = {"right": right, "flagged": flagged,
+                    "rate": right / flagged if flagged else float("nan"),
+                    "rate_95": P.clopper_pearson(right, flagged),
+                    "per_family": {k: {"right": v[0], "flagged": v[1],
+                                       "rate": v[0] / v[1] if v[1] else float("nan"),
+                                       "rate_95": P.clopper_pearson(v[0], v[1])}
+                                   for k, v in sorted(named.items())}}
+    return out

@@ -120,3 +120,24 @@ def test_gap_report_against_the_calibrated_model(data, tmp_path, capsys):
     assert page.count("data:image/png;base64,") == 2          # signals, gap by position
     js = json.loads((out / "indexes.json").read_text())[0]
     assert js["gap"]["verdict"] == verdict and js["model"] is not None
+
+
+def test_one_verdict_for_one_cycle_wherever_it_is_read(data):
+    """`bench gap` / `bench hums report` (fallback.assess) and `bench rig assess` / the
+    study (features.rig_verdict) give one cycle the same verdict: level, signature, fault
+    family, text, provisional."""
+    from bench.rig.baseline import Baseline
+    from bench.rig.cycles import cycles_from_trace
+    from bench.rig.fallback import assess
+    from bench.rig.features import cycle_features, rig_verdict
+    base = Baseline.load(data / "base.json")
+    path = data / "s" / "load=40_run=1_group=51.parquet"
+    tr = Trace.load(path)
+    gap = assess(base, tr, path.name)["verdicts"][0]
+    c = cycles_from_trace(tr, path.name)[0]
+    thr = base.thresholds["40"]["thresholds"]
+    own = rig_verdict(base, cycle_features(base.for_load(40.0), c, base.lead_mm), thr)
+    assert own.flagged
+    for k in ("level", "effect", "fault", "verdict", "provisional", "flagged"):
+        assert gap[k] == own.to_dict()[k], k
+    assert own.provisional and "with a provisional baseline" in own.text   # runs 1-2

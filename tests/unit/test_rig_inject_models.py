@@ -30,14 +30,14 @@ def test_play_operator_stays_until_the_play_is_taken_then_trails_by_half():
 
 
 def test_a_play_under_a_one_sided_load_shifts_every_sample_towards_the_load():
-    """The nut stays on the loaded flank (session 17): half the play in every sample,
-    towards the side the load pushes it, the current unchanged."""
+    """The nut stays on the loaded flank: half the play in every sample, towards the side
+    the load pushes it, the current unchanged; named right as backlash."""
     c = cycle()
     shifted = I.loaded_play(c, 0.4, push=-1.0)
     np.testing.assert_allclose(shifted.position_error_mm, c.position_error_mm + 0.2)
     np.testing.assert_array_equal(shifted.current_a, c.current_a)
     assert I.Scales(40.0, 0.05, 0.3, 0.5, 80.0, -1.0).physical("loaded_play", 2.0) == 0.6
-    assert I.EXPECTED["loaded_play"] == "offset"
+    assert I.EXPECTED["loaded_play"] == "backlash"
 
 
 def test_backlash_changes_the_position_error_only():
@@ -81,7 +81,8 @@ def _features(**scores: float):
     from bench.rig.features import FEATURES, CycleFeatures
     nan = float("nan")
     full = {k: scores.get(k, 0.0) for k in FEATURES}
-    return CycleFeatures("c", "s", 40.0, 3, 1, full, nan, nan, "-", nan, nan, nan, nan)
+    # the current raised in both strokes: a level above threshold reads as friction
+    return CycleFeatures("c", "s", 40.0, 3, 1, full, nan, nan, "-", nan, nan, 1.0, 1.0)
 
 
 @pytest.mark.parametrize("scores,named", [
