@@ -137,6 +137,17 @@ class Effect:
         calls it."""
         return self
 
+    def loop_delays(self, theta: Mapping[str, float], dt: float) -> tuple[int, int]:
+        """Whole SYNC periods by which the LVDT and the encoder are read later in the
+        loop, each alone (`bench.gap.delays`; default: none)."""
+        return (0, 0)
+
+    def available(self, base: PlantParams) -> bool:
+        """Whether the effect has a place in the model `base` (default: yes); one that
+        has not is not tried (e.g. a drive-side current offset where the model's logged
+        current is a channel of its own: its log-side twin is the candidate there)."""
+        return True
+
     def in_log(self, base: PlantParams) -> bool:
         """Whether `post` applies for the nominal model `base` (default: ``where``). An
         effect whose place depends on the model (an LVDT lag in or after the loop) says

@@ -216,6 +216,36 @@ stribeck, thermal_drift (no thermal model here), log_skew (a logger's fault, not
 actuator's)."""
 
 
+TRUTH_KIND = {"friction_scale": "factor", "backlash_m": "axial_clearance_m",
+              "sensor_delay_periods": "delay_s", "lvdt_delay_periods": "delay_s",
+              "lvdt_extra_lag_s": "lvdt_lag_s", "current_offset_a": "current_offset_a",
+              "lvdt_offset_m": "lvdt_offset_m", "lvdt_gain": "lvdt_gain",
+              "encoder_gain": "encoder_gain", "lead_m": "lead_m",
+              "resistance_ohm": "resistance_ohm", "kt_nm_per_a": "kt_nm_per_a",
+              "preload_n": "preload_n"}
+"""The independent actuator's effect parameters whose value states the size of the
+family the diagnosis names, in `bench.gap.finding.size_of`'s terms (its backlash is an
+axial clearance, its delays whole periods). Not stated: a viscous or a stiffness change
+(the family's size is another quantity) and the inertia (its 2.5e-3 is everything
+reflected to the motor; the model's rotor is a part of that)."""
+
+
+def truth_size(t: Truth) -> tuple[str, float, float] | None:
+    """(kind, value, no-effect value) of an injected effect (`TRUTH_KIND`), None where
+    its value states no size of the family named."""
+    for k, v in t.plant.items():
+        kind = TRUTH_KIND.get(k)
+        if kind is None:
+            continue
+        if kind == "delay_s":
+            return kind, float(v) * NOMINAL.sync_period_s, 0.0
+        nominal = float(getattr(NOMINAL, k))
+        if kind in ("factor", "lvdt_gain", "encoder_gain"):
+            nominal = 1.0
+        return kind, float(v), nominal
+    return None
+
+
 def draw(name: str, rng: np.random.Generator) -> Truth:
     """One effect at a random magnitude: its indie parameter overrides."""
     return Truth(name, plant=_draws(rng)[name]())
@@ -363,7 +393,7 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
     snr_each = {t.name: floor_snr(Case(case.index, case.kind, [t], case.noise_seed),
                                   duration_s, ref, controller, act) for t in case.truths}
     snr_all = floor_snr(case, duration_s, ref, controller, act) if case.truths else {}
-    rec = score(case, res.json(), snr_each, snr_all, elapsed)
+    rec = score(case, res.json(), snr_each, snr_all, elapsed, sizes=truth_size)
     rec["truth_values"] = {t.name: t.plant for t in case.truths}
     return rec
 

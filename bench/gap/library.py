@@ -151,6 +151,28 @@ def nominal_viscous_motor_side(base: PlantParams) -> float:
     return float(p[K.P_CVISC] * base.effects.viscous_scale * p[K.P_TAU] / p[K.P_ETA])
 
 
+class FrictionLevels(_NutShare):
+    name = "friction_levels"
+    doc = ("every friction level scaled together: static/Coulomb torques and forces and the "
+           "viscous coefficients by one factor of the model's (a lubricant lost or "
+           "contaminated raises them all)")
+    params = (Param("friction_levels_scale", "-", 0.2, 8.0,
+                    "factor on the model's friction levels (1 = the model's)", log=True),)
+    target = "effects.friction_scale"
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        out = {"friction_levels_scale": 1.0}
+        return {**out, NUT_SHARE.name: 1.0} if self._shares() else out
+
+    def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
+        s = theta["friction_levels_scale"]
+        e = base.effects
+        out: dict[str, Any] = {"effects.friction_scale": e.friction_scale * s,
+                               "effects.viscous_scale": min(e.viscous_scale * s, 1e6)}
+        share = theta.get(NUT_SHARE.name, 1.0)
+        return {**out, **nut_split(share, base)} if share != 1.0 else out
+
+
 class Viscous(Effect):
     name = "viscous"
     doc = ("viscous friction growth, as a motor-side coefficient (N m s/rad) added to the "
@@ -292,9 +314,14 @@ class EncoderGain(_Single):
 
 class CurrentOffset(_Single):
     name = "current_offset"
-    doc = "current-sensor offset (the drive regulates the sensed current)"
+    doc = ("offset of the drive's current sensor, in the loop (the drive regulates the "
+           "sensed current, so the true current is off by it); where the model's logged "
+           "current is a channel of its own, its offset is `current_offset_log`")
     params = (Param("current_offset_a", "A", -2.0, 2.0, "offset"),)
     target = "sensors.current_offset_a"
+
+    def available(self, base: PlantParams) -> bool:
+        return bool(base.sensors.current_in_loop)
 
 
 class Resistance(_Single):
@@ -343,6 +370,6 @@ class Lead(_Single):
 # The built-in candidates in the diagnosis' order (`bench.gap.effects.EFFECTS` is built
 # from this tuple, keyed by each class's `name`).
 BUILTIN: tuple[type[Effect], ...] = (
-    Backlash, Friction, Viscous, Stribeck, Stiffness, Preload, SensorDelay, LvdtLag, LogSkew,
-    LvdtGain, LvdtOffset, EncoderGain, CurrentOffset, Resistance, ThermalDrift,
-    TorqueConstant, Inertia, Lead)
+    Backlash, Friction, FrictionLevels, Viscous, Stribeck, Stiffness, Preload, SensorDelay,
+    LvdtLag, LogSkew, LvdtGain, LvdtOffset, EncoderGain, CurrentOffset, Resistance,
+    ThermalDrift, TorqueConstant, Inertia, Lead)

@@ -58,6 +58,10 @@ def test_demo_in_process_agrees_with_the_bus_run_and_names_the_wear(tmp_path):
     gap = summary["gap"]
     assert gap is not None
     assert "backlash" in gap["verdict"]
-    assert "backlash" in gap["ranking"][0]["effect"]
-    fitted = gap["ranking"][0]["params"]["backlash_m"]["value"]
+    chosen = next(c for c in gap["ranking"] if c["chosen"])
+    assert "backlash" in chosen["effect"]
+    fitted = chosen["params"]["backlash_m"]["value"]
     assert fitted == pytest.approx(50e-6, rel=0.1)
+    if "friction_scale" in chosen["params"]:        # the worn actuator's x2.5 inside
+        lo, hi = chosen["params"]["friction_scale"]["ci95"]
+        assert lo <= 2.5 <= hi
