@@ -87,6 +87,8 @@ class IndieParams:
     encoder_gain: float = P(1.0, "-", 0.5, 2.0, "speed gain error")
     current_offset_a: float = P(0.0, "A", -5, 5, "current sensor offset")
     sensor_delay_periods: float = P(0.0, "periods", 0, 10, "LVDT and encoder delay")
+    lvdt_delay_periods: float = P(0.0, "periods", 0, 10, "LVDT transport delay alone (its "
+                                  "conditioner or bus), on top of sensor_delay_periods")
     lvdt_extra_lag_s: float = P(0.0, "s", 0.0, 0.1, "extra LVDT lag (a failing demodulator)")
     # -- integration ---------------------------------------------------------------------
     sync_period_s: float = P(1e-3, "s", 1e-4, 0.1, "SYNC period")

@@ -42,6 +42,7 @@ _LGAIN, _LOFF = IDX["lvdt_gain"], IDX["lvdt_offset_m"]
 _FNOISE, _FSTEP = IDX["load_noise_n"], IDX["load_step_n"]
 _DELAY, _T, _NSUB, _NOISE = (IDX[n] for n in ("sensor_delay_periods", "sync_period_s",
                                               "substeps", "noise"))
+_LDELAY = IDX["lvdt_delay_periods"]
 # controller vector and state (indie_plant.controller.Cascade; the law is compiled here,
 # with the physics, so numba's on-disk cache never pairs stale code across files)
 (C_SRC, C_KPP, C_KIP, C_KPS, C_KIS, C_WLIM, C_ILIM, C_EVERY, C_T, C_TRAVEL) = range(10)
@@ -154,7 +155,8 @@ def sense(x: np.ndarray, p: np.ndarray, hist: np.ndarray, k: int, rnd: np.ndarra
           out: np.ndarray) -> None:
     """Sensors at SYNC k (I13-I14) into out = [current A, angle rad, speed rad/s, LVDT m,
     load N]: current ADC, encoder counts (delayed), speed from the counts over a window,
-    LVDT ADC after its lag (delayed), load cell = mean force of the last period."""
+    LVDT ADC after its lag (delayed, and by its own transport delay on top), load cell =
+    mean force of the last period."""
     nz = p[_NOISE]
     istep = 2.0 * p[_IRANGE] / 2.0 ** p[_IBITS]
     out[0] = quantise(x[CUR] + p[_IOFF] + nz * p[_INOISE] * rnd[0], istep, p[_IRANGE])
@@ -168,8 +170,9 @@ def sense(x: np.ndarray, p: np.ndarray, hist: np.ndarray, k: int, rnd: np.ndarra
     win = int(p[_WIN])
     kd = max(k - d, 0)
     kw = max(kd - win, 0)
+    kl = max(kd - int(p[_LDELAY]), 0)
     out[1] = hist[kd % HIST, 0]
-    out[3] = hist[kd % HIST, 1]
+    out[3] = hist[kl % HIST, 1]
     span = max(kd - kw, 1)
     out[2] = p[_EGAIN] * (hist[kd % HIST, 0] - hist[kw % HIST, 0]) / (span * p[_T])
     out[4] = quantise(x[FLAST] + nz * p[_FNOISE] * rnd[2], p[_FSTEP], 1e9)

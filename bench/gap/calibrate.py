@@ -32,7 +32,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap import resim as R
-from bench.gap.candidate import follow_model
+from bench.gap.candidate import bound_scale
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect, Param
 from bench.gap.fit import fit
@@ -52,9 +52,10 @@ class Uncertain:
     tol: float
     relative: bool = True
     follows_model: bool = False
-    """lo and hi are a range around the thesis' actuator's value, moved to the start
-    model's value when that lies outside it (`bench.gap.candidate.follow_model`), so
-    another actuator's lead or rotor is not clipped into the thesis' range."""
+    """lo and hi are a range around the thesis' actuator's value, scaled to the start
+    model's value (`bench.gap.candidate.bound_scale`), so another actuator's lead or rotor
+    lies where the thesis' lies in it: neither clipped into the thesis' range nor on one of
+    its edges (a 4 mm lead on the 4-6 mm range could only grow)."""
 
 
 UNCERTAIN: dict[str, Uncertain] = {
@@ -120,7 +121,7 @@ class PlantSet(Effect):
         for n in names:
             u = UNCERTAIN[n]
             prm = Param(n, resolve(n).unit, u.lo, u.hi, resolve(n).doc, log=u.log)
-            ps.append(follow_model(prm, base, n) if u.follows_model and base is not None
+            ps.append(prm.scaled(bound_scale(base, n)) if u.follows_model and base is not None
                       else prm)
         self.params = tuple(ps)   # type: ignore[misc]
 
@@ -174,6 +175,14 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
            "addition)" if loaded else " on a log without force measurement")
     notes = [f"{a} and {b} act {how} {what}{why}: the log fixes the {what}; the prior "
              "tolerances split it" for a, b, what in ALIASES if a in names and b in names]
+    distance = prior_distance(params, nom)
+    edge = f.bounded()
+    notes += [f"{k} = {params[k]:.4g} is {z:+.1f} prior sd from the description's "
+              f"{nom[k]:.4g}: the healthy log asks for more than its tolerance (a wrong "
+              "description, or a difference of form this parameter absorbs; a later fault "
+              "may then need it moved back)" for k, z in distance.items() if abs(z) > FAR_SD]
+    notes += [f"{k} ended on its bound: the log asks for more than the range allows"
+              for k in edge]
     return {
         "model": model,
         "fidelity": "fast mode (averaged PWM, massless balls)",
@@ -184,6 +193,8 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
         "nominal": {k: float(v) for k, v in nom.items()},
         "prior_sd": {n: (UNCERTAIN[n].tol if not UNCERTAIN[n].relative
                          else f"{UNCERTAIN[n].tol:.0%}") for n in names},
+        "prior_distance_sd": distance,
+        "at_bound": edge,
         "gap_before": {"fit_part": _norm(before_fit), "heldout_part": _norm(before_ho)},
         "gap_after": {"fit_part": _norm(after_fit), "heldout_part": _norm(after_ho)},
         **({"profiled": profiles} if profiles else {}),
@@ -191,6 +202,27 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
         "samples": p.n, "fit_samples": p.n_fit,
         "notes": notes,
     }
+
+
+FAR_SD = 2.0
+"""A calibrated value further than this many prior standard deviations from the
+description's is reported (`notes`): the healthy log moved it beyond its tolerance."""
+
+
+def prior_distance(params: Mapping[str, float], nom: Mapping[str, float]) -> dict[str, float]:
+    """Each calibrated value's distance from the description's value in prior standard
+    deviations (its tolerance, `UNCERTAIN`; in ln for a relative one)."""
+    out = {}
+    for k, v in params.items():
+        u, v0 = UNCERTAIN.get(k), nom.get(k)
+        if u is None or v0 is None:
+            continue
+        if u.relative and v > 0 and v0 > 0:
+            out[k] = math.log(v / v0) / u.tol
+        else:
+            sd = u.tol * abs(v0) if u.relative else u.tol
+            out[k] = (v - v0) / sd if sd > 0 else 0.0
+    return out
 
 
 def _prior(eff: PlantSet, nom: Mapping[str, float]) -> dict[str, tuple[float, float]]:

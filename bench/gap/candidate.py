@@ -84,24 +84,12 @@ def bound_scale(base: PlantParams, name: str) -> float:
     `name`: base's value / the thesis' value (exactly 1 at the thesis' value; 1 when
     either is not a positive number). Bounds written as a range around the thesis'
     actuator (a 5 mm lead, a 4e-3 kg m^2 rotor) are scaled by it, so that another
-    actuator's value lies where the thesis' lies in them: always for the library's effects
-    (`_Single.for_model`), only when the value lies outside them for the calibration
-    (`follow_model`; docs/gap.md, "Bounds that follow the actuator's own nominal")."""
+    actuator's value lies where the thesis' lies in them (the library's effects,
+    `_Single.for_model`, and the calibration, `bench.gap.calibrate.PlantSet`)."""
     v, ref = float(base.get(name)), _thesis_value(name)
     if not (math.isfinite(v) and math.isfinite(ref) and v > 0 and ref > 0):
         return 1.0
     return v / ref
-
-
-def follow_model(prm: Param, base: PlantParams, name: str) -> Param:
-    """`prm`, a range around the thesis' actuator's value of plant parameter `name`, as
-    used on the model `base`: the same when base's value lies inside it, else moved to
-    that value (scaled by `bound_scale`). The calibration's rule
-    (`bench.gap.calibrate.PlantSet`); the library's effects always scale (session 16,
-    docs/gap.md, "A lead change moves the helix")."""
-    if prm.lo <= float(base.get(name)) <= prm.hi:
-        return prm
-    return prm.scaled(bound_scale(base, name))
 
 
 class Effect:

@@ -194,6 +194,7 @@ def _draws(rng: np.random.Generator) -> dict[str, Callable[[], dict[str, float]]
         "stiffness": lambda: {"hertz_n_per_m15": n.hertz_n_per_m15 * _lu(rng, 3e-3, 0.1)},
         "preload": lambda: {"preload_n": n.preload_n * rng.uniform(0.0, 0.5)},
         "sensor_delay": lambda: {"sensor_delay_periods": float(rng.integers(1, 6))},
+        "lvdt_delay": lambda: {"lvdt_delay_periods": float(rng.integers(1, 6))},
         "lvdt_lag": lambda: {"lvdt_extra_lag_s": rng.uniform(1e-3, 10e-3)},
         "lvdt_gain": lambda: {"lvdt_gain": 1.0 + _pm(rng, 0.005, 0.05)},
         "lvdt_offset": lambda: {"lvdt_offset_m": _pm(rng, 5e-6, 200e-6)},
@@ -209,8 +210,8 @@ def _draws(rng: np.random.Generator) -> dict[str, Callable[[], dict[str, float]]
 
 
 POOL = ("backlash", "friction", "viscous", "stiffness", "preload", "sensor_delay",
-        "lvdt_lag", "lvdt_gain", "lvdt_offset", "encoder_gain", "current_offset",
-        "resistance", "kt", "inertia", "lead")
+        "lvdt_delay", "lvdt_lag", "lvdt_gain", "lvdt_offset", "encoder_gain",
+        "current_offset", "resistance", "kt", "inertia", "lead")
 """Effects injected (the library's names, in the independent physics). Not injected:
 stribeck, thermal_drift (no thermal model here), log_skew (a logger's fault, not the
 actuator's)."""

@@ -42,7 +42,7 @@ class _Single(Effect):
     """Bounds written around the thesis' actuator's value: scaled to the start model's
     value (`bound_scale`), so that the candidate moves both ways from any actuator's
     nominal (a value on an edge could move one way only; docs/gap.md, "A lead change
-    moves the helix"). The calibration keeps `follow_model`."""
+    moves the helix"). The calibration scales its ranges the same way."""
 
     def for_model(self, base: PlantParams) -> Effect:
         k = bound_scale(base, self.target) if self.scales_with_model else 1.0
