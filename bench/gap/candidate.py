@@ -45,6 +45,9 @@ class Param:
     doc: str
     log: bool = False
     integer_step: float = 0.0
+    physical_bounds: bool = False
+    """The bounds are the quantity's own limits (a share from 0 to 1), not the family's:
+    a fit on one of them is no sign of an effect beyond the family (`fit.at_bounds`)."""
 
     def to_unit(self, v: float) -> float:
         """Value -> [0, 1] fitting coordinate."""

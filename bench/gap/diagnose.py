@@ -376,7 +376,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
         bar = tqdm(total=len(names) + len({F.family(n) for n in names}) - 1, unit="fit",
                    desc="gap", leave=False)
     say(f"fitting {len(names)} candidate effects")
-    singles, pairs, best, L = _select(names, p, h, pool, bar, say)
+    singles, pairs, best, L = _select(names, p, h, pool, bar, say, o.reference)
     if bar is not None:
         bar.close()
     healthy = (o.reference or {}).get("energy")
@@ -443,11 +443,17 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     (`flag`) does not replace the single: a second effect of implausible size is more
     likely the first one's misfit absorbed."""
     chosen = best
-    n_ho = h.n if h is not None else p.n - p.n_fit
-    thr_ho = calibrated_thresholds(thresholds(h if h is not None else p, n_ho), reference)
-    remaining = any(best.heldout_smooth.get(s, 0.0) > thr_ho[s] for s in R.SIGNALS)
-    better = [c for c in pairs
-              if c.heldout_excess < (1.0 - PAIR_GAIN) * best.heldout_excess]
+    remaining = leaves_gap(best, p, h, reference)
+
+    def above(c: Any) -> float:
+        """The held-out excess of `c` the calibration's healthy model does not leave
+        (`excess`; the whole excess without a healthy energy): what an effect can explain,
+        the quantity the verdict's shrink counts."""
+        if (reference or {}).get("energy") and getattr(c, "heldout", None):
+            return excess(c.heldout, reference)
+        return float(c.heldout_excess)
+
+    better = [c for c in pairs if above(c) < (1.0 - PAIR_GAIN) * above(best)]
     plausible = [c for c in better if not getattr(c, "suspect", None)]
     if remaining and plausible:
         bp = min(plausible, key=lambda c: c.bic)
@@ -460,11 +466,13 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     verdict = chosen.fit.name if shrink >= MIN_SHRINK_PCT and sig else (
         "unexplained" if sig else "none")
     ranking = sorted(singles + pairs, key=lambda c: (c.bic, c is not chosen))
-    ref = ho_ex if chosen is best else best.heldout_excess
-    gain = ref - chosen.heldout_excess
+    before = (excess(ho_en, reference) if ho_en is not None and (reference or {}).get("energy")
+              else ho_ex)
+    ref = before if chosen is best else above(best)
+    gain = ref - above(chosen)
     tied = [c.fit.name for c in ranking if c is not chosen
             and len(c.fit.effects) == len(chosen.fit.effects)
-            and gain > 0 and ref - c.heldout_excess >= TIE * gain]
+            and gain > 0 and ref - above(c) >= TIE * gain]
     ties = F.ties_across(chosen.fit.name, tied)
     selection = {"corr_length_samples": L, "best_single": best.fit.name,
                  "best_single_leaves_significant_heldout_gap": remaining,
@@ -517,10 +525,21 @@ def not_representable(p: Problem, names: Sequence[str], n: int = 1000) -> list[s
     return out
 
 
+def leaves_gap(best: Any, p: Any, h: Any, reference: dict[str, Any] | None) -> bool:
+    """Whether candidate `best` leaves a significant held-out gap: the significance test
+    of the log on its held-out residual (raised to a calibration's held-out healthy level
+    x margin, `reference`)."""
+    n_ho = h.n if h is not None else p.n - p.n_fit
+    thr_ho = calibrated_thresholds(thresholds(h if h is not None else p, n_ho), reference)
+    return any(best.heldout_smooth.get(s, 0.0) > thr_ho[s] for s in R.SIGNALS)
+
+
 def _select(names: Sequence[str], p: Problem, h: Problem | None, pool: Any, bar: Any,
-            say: Callable[[str], None]
+            say: Callable[[str], None], reference: dict[str, Any] | None = None
             ) -> tuple[list[Candidate], list[Candidate], Candidate, float]:
-    """Singles ranked by BIC, then the pairs of the best single (forward selection)."""
+    """Singles ranked by BIC, then the pairs of the best single (forward selection), unless
+    the best single leaves no significant held-out gap (no pair could then replace it:
+    the pair rule of `_choose`)."""
     singles = _run([((n,), None) for n in names], p, h, pool, bar)
     ref = min(singles, key=lambda c: c.fit.rss)
     L = max(ref.fit.corr_len, 1.0)
@@ -539,6 +558,9 @@ def _select(names: Sequence[str], p: Problem, h: Problem | None, pool: Any, bar:
         if math.isfinite(c.fit.rss) and fam != mine and fam not in seen:
             seen.add(fam)
             others.append(c)
+    if others and not leaves_gap(best, p, h, reference):
+        say(f"{best.fit.name} leaves no significant held-out gap: no pairs")
+        others = []
     if others:
         say(f"forward selection: {best.fit.name} + the best of each of {len(others)} other "
             "families")

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from typing import Any
 
 FAMILY_OF: dict[str, str] = {
-    "friction": "friction", "friction_levels": "friction", "viscous": "friction",
-    "stribeck": "friction",
+    "friction": "friction", "friction_levels": "friction", "friction_apart": "friction",
+    "viscous": "friction", "stribeck": "friction",
     "backlash": "backlash", "stiffness": "stiffness", "preload": "preload",
     "sensor_delay": "delay", "lvdt_delay": "delay", "encoder_delay": "delay",
     "log_skew": "delay", "lvdt_delay_log": "delay", "encoder_delay_log": "delay",
@@ -51,7 +51,8 @@ LABEL: dict[str, str] = {
 
 SUBFORM: dict[str, str] = {
     "friction": "Coulomb and static levels",
-    "friction_levels": "every level together (Coulomb, static, viscous)",
+    "friction_levels": "every level together (Coulomb, static, load-dependent, viscous)",
+    "friction_apart": "Coulomb, load-dependent and viscous levels apart",
     "viscous": "viscous", "stribeck": "Stribeck peak (static over Coulomb)",
     "sensor_delay": "LVDT and encoder, in the loop", "lvdt_delay": "LVDT, in the loop",
     "encoder_delay": "encoder, in the loop", "log_skew": "every logged measurement",
@@ -98,6 +99,9 @@ PLAUSIBLE: dict[str, Plausible] = {
     # lower is already more than a temperature change of the grease gives
     "friction_scale": Plausible(below=0.7, why_below="lower than any wear makes it"),
     "friction_levels_scale": Plausible(below=0.7, why_below="lower than any wear makes it"),
+    "coulomb_scale": Plausible(below=0.7, why_below="lower than any wear makes it"),
+    "rolling_scale": Plausible(below=0.7, why_below="lower than any wear makes it"),
+    "viscous_factor": Plausible(below=0.7, why_below="lower than any wear makes it"),
     # raceway and ball wear only lower a preload (catalogue: lost with running-in and wear)
     "preload_n": Plausible(above=1.3, why_above="above the built preload: wear only lowers "
                            "a preload"),

@@ -88,14 +88,23 @@ def describe(p: Problem, f: Fit, suspect: list[str], edge: list[str]) -> dict[st
         else:
             entry["size"] = size_of(p, eff, own)
             text = _values_text(own)
-            if eff.name == "backlash" and entry["size"]["value"] is not None:
-                text += f", axial clearance {entry['size']['value'] * 1e6:.3g} um"
+            if eff.name == "backlash" and entry["size"]["kind"] == "preload_n":
+                fam = entry["family"] = "preload"
+                entry["form"] = "a wear clearance the interference preload took up"
+                s = entry["size"]
+                lo, hi = s["ci95"]
+                ci = f" [{lo:.4g}, {hi:.4g}]" if lo is not None and hi is not None else ""
+                text = (f"{s['value']:.4g} N{ci} left of {s['nominal']:.4g} N (clearance "
+                        f"{s['backlash_m'] * 1e6:.3g} um, no free play)")
+            elif eff.name == "backlash" and entry["size"]["value"] is not None:
+                text += f", axial lost motion {entry['size']['value'] * 1e6:.3g} um"
         entry["line"] = f"{F.LABEL.get(fam, fam)} {text}".rstrip()
         if entry["form"] != eff.name or fam != eff.name:
             entry["line"] += f" ({entry['form']})"
         effects.append(entry)
         parts.append(entry["line"])
-    out: dict[str, Any] = {"families": F.family_name(f.name), "effects": effects,
+    fams = "+".join(sorted({e["family"] for e in effects}))
+    out: dict[str, Any] = {"families": fams, "effects": effects,
                            "suspect": suspect, "at_bound": edge,
                            "line": " + ".join(parts)}
     if edge:
@@ -123,7 +132,7 @@ KIND = {"sensor_delay_s": "delay_s", "lvdt_delay_s": "delay_s", "encoder_delay_s
         "current_offset_a": "current_offset_a", "current_offset_log_a": "current_offset_a"}
 """Parameters whose sizes compare across the members of their family (a delay in
 seconds wherever the sensor is late; a current offset in A on either sensor)."""
-ABSOLUTE = ("axial_clearance_m", "delay_s", "current_offset_a", "lvdt_offset_m",
+ABSOLUTE = ("lost_motion_m", "delay_s", "current_offset_a", "lvdt_offset_m",
             "lvdt_lag_s")
 """Size kinds compared as values (their no-effect value is 0); the others as the ratio
 to the model's value."""
@@ -139,12 +148,44 @@ def size_of(p: Problem, eff: Any, own: dict[str, dict[str, Any]]) -> dict[str, A
     lo, hi = d.get("ci95") or [None, None]
     nominal = eff.nominal(p.base).get(name)
     if eff.name == "backlash":
-        from plant_rt.contacts import normal_to_axis
-        g = normal_to_axis(p.base)
-        return {"kind": "axial_clearance_m", "value": None if v is None else v / g,
-                "ci95": [None if lo is None else lo / g, None if hi is None else hi / g],
-                "nominal": 0.0, "normal_m": v}
+        def lm(b: float | None) -> float | None:
+            return None if b is None else lost_motion(p.base, b)
+        free = lm(v)
+        fpr = p.base.effects.preload_n
+        if free is not None and free <= 0.0 and p.base.screw.preload_by_interference \
+                and fpr > 0.0 and v is not None and v > 0.0:
+            def left(b: float | None) -> float | None:
+                return None if b is None else preload_left(p.base, b)
+            a, b = left(hi), left(lo)               # the preload falls as b grows
+            return {"kind": "preload_n", "value": left(v), "ci95": [a, b], "nominal": fpr,
+                    "backlash_m": v}
+        return {"kind": "lost_motion_m", "value": free, "ci95": [lm(lo), lm(hi)],
+                "nominal": 0.0, "backlash_m": v}
     return {"kind": KIND.get(name, name), "value": v, "ci95": [lo, hi], "nominal": nominal}
+
+
+def preload_left(base: Any, backlash_m: float) -> float:
+    """The preload (N) an interference-preloaded nut keeps with a wear clearance
+    `backlash_m` (`plant_rt.contacts.worn_nut`)."""
+    from plant_rt.contacts import contact_geometry, hertz_reference, worn_nut
+    kstar, mslope, z, g = contact_geometry(base)
+    return float(worn_nut(base.effects.preload_n, backlash_m, kstar, mslope, z, g,
+                          hertz_reference(base))[0])
+
+
+def lost_motion(base: Any, backlash_m: float) -> float:
+    """The axial lost motion (m) a backlash `backlash_m` (along the contact normal, as
+    `effects.backlash_m`) gives the model `base`: b / g, g = cos(alpha) sin(beta) (eq.
+    5.26); on a double nut preloaded by an interference (`screw.preload_by_interference`)
+    what the clearance leaves after eating the interference (`plant_rt.contacts.worn_nut`,
+    thesis section 2.3). What the log shows of a backlash: the free play."""
+    from plant_rt.contacts import contact_geometry, hertz_reference, worn_nut
+    kstar, mslope, z, g = contact_geometry(base)
+    b = backlash_m
+    if base.screw.preload_by_interference:
+        b = worn_nut(base.effects.preload_n, backlash_m, kstar, mslope, z, g,
+                     hertz_reference(base))[1]
+    return float(b / g)
 
 
 def relative_error(size: dict[str, Any], truth_kind: str, truth: float,

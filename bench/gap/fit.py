@@ -312,6 +312,8 @@ def at_bounds(effs: Sequence[E.Effect], nom: list[dict[str, float]], obj: Object
     pos = {(i, prm.name): float(ui) for (i, prm), ui in zip(obj.free, u, strict=True)}
     for i, e in enumerate(effs):
         for prm in e.params:
+            if prm.physical_bounds:
+                continue
             if prm.name in fixed[i]:                       # a grid: its end points
                 v = fixed[i][prm.name]
                 ui = prm.to_unit(v) if prm.hi > prm.lo else 0.5

@@ -217,7 +217,7 @@ stribeck, thermal_drift (no thermal model here), log_skew (a logger's fault, not
 actuator's)."""
 
 
-TRUTH_KIND = {"friction_scale": "factor", "backlash_m": "axial_clearance_m",
+TRUTH_KIND = {"friction_scale": "factor", "backlash_m": "lost_motion_m",
               "sensor_delay_periods": "delay_s", "lvdt_delay_periods": "delay_s",
               "lvdt_extra_lag_s": "lvdt_lag_s", "current_offset_a": "current_offset_a",
               "lvdt_offset_m": "lvdt_offset_m", "lvdt_gain": "lvdt_gain",
@@ -225,21 +225,27 @@ TRUTH_KIND = {"friction_scale": "factor", "backlash_m": "axial_clearance_m",
               "resistance_ohm": "resistance_ohm", "kt_nm_per_a": "kt_nm_per_a",
               "preload_n": "preload_n"}
 """The independent actuator's effect parameters whose value states the size of the
-family the diagnosis names, in `bench.gap.finding.size_of`'s terms (its backlash is an
-axial clearance, its delays whole periods). Not stated: a viscous or a stiffness change
+family the diagnosis names, in `bench.gap.finding.size_of`'s terms (its backlash is the
+wear clearance of the two nut halves, of which the free play is what the preload's
+deflection does not take up: BL - 2 d0, I8; its delays whole periods). Not stated: a
+viscous or a stiffness change
 (the family's size is another quantity) and the inertia (its 2.5e-3 is everything
 reflected to the motor; the model's rotor is a part of that)."""
 
 
-def truth_size(t: Truth) -> tuple[str, float, float] | None:
-    """(kind, value, no-effect value) of an injected effect (`TRUTH_KIND`), None where
-    its value states no size of the family named."""
+def truth_size(t: Truth, actuator: IndieParams = NOMINAL) -> tuple[str, float, float] | None:
+    """(kind, value, no-effect value) of an effect injected into `actuator`
+    (`TRUTH_KIND`), None where its value states no size of the family named."""
+    from indie_plant.physics import preload_deflection
     for k, v in t.plant.items():
         kind = TRUTH_KIND.get(k)
         if kind is None:
             continue
         if kind == "delay_s":
-            return kind, float(v) * NOMINAL.sync_period_s, 0.0
+            return kind, float(v) * actuator.sync_period_s, 0.0
+        if kind == "lost_motion_m":
+            d0 = preload_deflection(actuator.preload_n, actuator.hertz_n_per_m15)
+            return kind, max(float(v) - 2.0 * d0, 0.0), 0.0
         nominal = float(getattr(NOMINAL, k))
         if kind in ("factor", "lvdt_gain", "encoder_gain"):
             nominal = 1.0

@@ -56,7 +56,7 @@ class _Single(Effect):
 NUT_SHARE = Param("nut_friction_share", "-", 0.0, 1.0,
                   "share of the model's nut Coulomb friction F_s (eq. 5.31) that acts at the "
                   "nut; the rest acts at the screw (C_fs of eq. 5.14), the same torque at the "
-                  "motor (F_s p / 2 pi)")
+                  "motor (F_s p / 2 pi)", physical_bounds=True)
 """Where the Coulomb friction acts, at the nut (loading the balls) or at the screw (on
 the motor's side of the contacts). A stiff preloaded nut hides the split: both give the
 same motor torque and a deflection below the encoder's resolution. A compliant or loose
@@ -153,24 +153,53 @@ def nominal_viscous_motor_side(base: PlantParams) -> float:
 
 class FrictionLevels(_NutShare):
     name = "friction_levels"
-    doc = ("every friction level scaled together: static/Coulomb torques and forces and the "
-           "viscous coefficients by one factor of the model's (a lubricant lost or "
-           "contaminated raises them all)")
-    params = (Param("friction_levels_scale", "-", 0.2, 8.0,
-                    "factor on the model's friction levels (1 = the model's)", log=True),)
+    doc = ("every friction level scaled together by one factor of the model's: the static "
+           "and Coulomb torques and forces, the load-dependent rolling friction and the "
+           "viscous coefficients (a lubricant lost or contaminated raises them all)")
+    params: ClassVar[tuple[Param, ...]] = (
+        Param("friction_levels_scale", "-", 0.2, 8.0,
+              "factor on the model's friction levels (1 = the model's)", log=True),)
     target = "effects.friction_scale"
+    factors: ClassVar[tuple[str, ...]] = ("friction_levels_scale",) * 3
+    """The parameter that scales each of: Coulomb (CS, FS), the load-dependent rolling
+    friction (f_v, eq. 5.13 and 5.31) and the viscous coefficients."""
 
     def nominal(self, base: PlantParams) -> dict[str, float]:
-        out = {"friction_levels_scale": 1.0}
+        out = {q.name: 1.0 for q in self.params if q.name != NUT_SHARE.name}
         return {**out, NUT_SHARE.name: 1.0} if self._shares() else out
 
     def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
-        s = theta["friction_levels_scale"]
+        a, b, c = (theta[k] for k in self.factors)
         e = base.effects
-        out: dict[str, Any] = {"effects.friction_scale": e.friction_scale * s,
-                               "effects.viscous_scale": min(e.viscous_scale * s, 1e6)}
+        out: dict[str, Any] = {"effects.friction_scale": e.friction_scale * a,
+                               "screw.rolling_friction": min(base.screw.rolling_friction * b,
+                                                             0.1),
+                               "effects.viscous_scale": min(e.viscous_scale * c, 1e6)}
         share = theta.get(NUT_SHARE.name, 1.0)
         return {**out, **nut_split(share, base)} if share != 1.0 else out
+
+    def start_points(self, base: PlantParams) -> list[dict[str, float]]:
+        if len(self.params) - self._shares() == 1:
+            return super().start_points(base)
+        pts = [{q.name: 1.0 for q in self.params}]   # the model's, then 3 spread points
+        for frac in (0.15, 0.5, 0.85):
+            pts.append({q.name: q.from_unit(frac) for q in self.params})
+        return [{k: (1.0 if k == NUT_SHARE.name and k in pt else v) for k, v in pt.items()}
+                for pt in pts]
+
+
+class FrictionApart(FrictionLevels):
+    name = "friction_apart"
+    doc = ("the friction levels scaled apart: the static and Coulomb torques and forces, the "
+           "load-dependent rolling friction and the viscous coefficients, each by its own "
+           "factor of the model's")
+    params = (Param("coulomb_scale", "-", 0.2, 8.0, "factor on the model's static and "
+                    "Coulomb levels", log=True),
+              Param("rolling_scale", "-", 0.2, 8.0, "factor on the model's load-dependent "
+                    "rolling friction f_v", log=True),
+              Param("viscous_factor", "-", 0.2, 8.0, "factor on the model's viscous "
+                    "coefficients", log=True))
+    factors = ("coulomb_scale", "rolling_scale", "viscous_factor")
 
 
 class Viscous(Effect):
@@ -370,6 +399,7 @@ class Lead(_Single):
 # The built-in candidates in the diagnosis' order (`bench.gap.effects.EFFECTS` is built
 # from this tuple, keyed by each class's `name`).
 BUILTIN: tuple[type[Effect], ...] = (
-    Backlash, Friction, FrictionLevels, Viscous, Stribeck, Stiffness, Preload, SensorDelay,
+    Backlash, Friction, FrictionLevels, FrictionApart, Viscous, Stribeck, Stiffness, Preload,
+    SensorDelay,
     LvdtLag, LogSkew, LvdtGain, LvdtOffset, EncoderGain, CurrentOffset, Resistance,
     ThermalDrift, TorqueConstant, Inertia, Lead)

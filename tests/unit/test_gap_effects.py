@@ -130,8 +130,12 @@ def test_calibration_bounds_contain_another_actuators_nominal():
     assert prior["screw.lead_m"][0] == 10e-3 and prior["motor.kt_nm_per_a"][0] == 0.1
     same = PlantSet(["screw.lead_m"], PlantParams()).params[0]
     assert (same.lo, same.hi) == (4e-3, 6e-3)
-    inside = PlantSet(["screw.lead_m"], PlantParams().with_dict({"screw.lead_m": 4e-3}))
-    assert (inside.params[0].lo, inside.params[0].hi) == (4e-3, 6e-3)   # a value inside
+    # a value on the edge of the thesis' range: scaled too, so it can move both ways (the
+    # independent actuator's 4 mm lead sat on the 4-6 mm range's lower bound and could
+    # only grow: its calibration's interval read [4.000, 4.016] mm)
+    edge = PlantSet(["screw.lead_m"], PlantParams().with_dict({"screw.lead_m": 4e-3}))
+    lo, hi = edge.params[0].lo, edge.params[0].hi
+    assert lo == pytest.approx(3.2e-3) and hi == pytest.approx(4.8e-3)
 
 
 def test_preload_loss_gets_start_points_below_the_nominal():

@@ -86,3 +86,27 @@ def test_a_fit_beyond_its_bound_is_flagged(tmp_path):
     assert d["at_bound"] == "upper" and d["ci95"][1] is None
     assert d["value"] == pytest.approx(300e-6, rel=1e-3)
     assert np.isfinite(d["ci95"][0]) and d["ci95"][0] < 300e-6
+
+
+def test_the_pair_rule_counts_the_excess_above_the_calibrations_healthy_energy():
+    """Against a calibration whose model leaves some misfit on a healthy log, a pair that
+    removes most of what the single leaves above that healthy energy replaces it, though
+    it removes less than half of the whole excess (the healthy misfit stays in both).
+    Before, the rule counted the whole excess and kept the single: backlash 40 um and
+    friction x2 on the independent actuator read as backlash alone, BIC 517 against the
+    pair's 130."""
+    from bench.gap import diagnose as D
+    healthy = {"current_a": 2.0, "motor_speed_rad_s": 20.0, "position_m": 6.0,
+               "encoder_position_m": 2.0}
+    ref = {"energy": healthy, "level": None, "margin": None}
+    single = _cand("backlash", 517.0, 0.0, {**SIG, "encoder_position_m": 9.0})
+    single.heldout = {**healthy, "encoder_position_m": 23.0}        # 21 above healthy
+    pair = _cand("backlash+friction", 130.0, 0.0, SIG)
+    pair.heldout = {**healthy, "encoder_position_m": 11.5}          # 9.5 above healthy
+    single.heldout_excess = sum(v - 1 for v in single.heldout.values())
+    pair.heldout_excess = sum(v - 1 for v in pair.heldout.values())
+    assert pair.heldout_excess > 0.5 * single.heldout_excess          # the whole excess
+    p = NS(n=10000, n_fit=5000, info={})
+    before = {**healthy, "encoder_position_m": 2400.0}
+    chosen = D._choose([single], [pair], single, p, None, 2400.0, True, {}, ref, before)[0]
+    assert chosen is pair
