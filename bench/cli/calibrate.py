@@ -130,8 +130,7 @@ def run(args: argparse.Namespace) -> int:
     z = cal.get("prior_distance_sd", {})
     for k, v in cal["params"].items():
         lo, hi = cal["ci95"].get(k, [None, None])
-        ci = f"95 % CI {lo:.6g} .. {hi:.6g}; " if lo is not None and hi is not None else \
-            "profiled; "
+        ci = f"95 % CI {lo:.6g} .. {hi:.6g}; " if lo is not None and hi is not None else ""
         dist = f", {z[k]:+.1f} prior sd" if k in z else ""
         print(f"{k:32s} {v:.6g}  ({ci}description {cal['nominal'][k]:.6g}{dist})")
     for note in cal.get("notes", []):

@@ -64,6 +64,7 @@ the log's smoothed energy exceeds max(default threshold, m_s x margin_s), margin
 effective samples of a squared residual), sqrt(2) for two independent draws (the held-out
 log and the judged one), at the default test's own tail bound Z (set on nominal logs of
 the bench's generator, not on any benchmark), L and n from the held-out log."""
+PAIR_MEMBERS = 2        # members of each other family tried as a pair's second effect
 TIE = 0.95              # candidates of the verdict's size explaining >= TIE of what it
                         # explains on held-out data (over the nominal for a single, over
                         # the best single for a pair) are reported as "also explains"
@@ -373,7 +374,8 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     bar = None
     if o.progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(names) + len({F.family(n) for n in names}) - 1, unit="fit",
+        bar = tqdm(total=len(names) + PAIR_MEMBERS * len({F.family(n) for n in names}),
+                   unit="fit",
                    desc="gap", leave=False)
     say(f"fitting {len(names)} candidate effects")
     singles, pairs, best, L = _select(names, p, h, pool, bar, say, o.reference)
@@ -547,23 +549,25 @@ def _select(names: Sequence[str], p: Problem, h: Problem | None, pool: Any, bar:
         c.bic, c.aic = c.fit.bic(L), c.fit.aic(L)
     singles.sort(key=lambda c: c.bic)
     best = singles[0]
-    # -- forward selection: pairs, the best single with the best member of each other
-    # family (a second member of the best single's own family is another form of the
-    # same mechanism, not a second effect)
+    # -- forward selection: pairs, the best single with the best PAIR_MEMBERS members of
+    # each other family (a second member of the best single's own family is another form
+    # of the same mechanism, not a second effect; the member that fits best alone need not
+    # be the one that completes a pair: a delay in the loop beside a log-side one)
     pairs: list[Candidate] = []
-    mine, seen = F.family(best.fit.effects[0]), set()
+    mine = F.family(best.fit.effects[0])
+    seen: dict[str, int] = {}
     others = []
     for c in singles[1:]:
         fam = F.family(c.fit.effects[0])
-        if math.isfinite(c.fit.rss) and fam != mine and fam not in seen:
-            seen.add(fam)
+        if math.isfinite(c.fit.rss) and fam != mine and seen.get(fam, 0) < PAIR_MEMBERS:
+            seen[fam] = seen.get(fam, 0) + 1
             others.append(c)
     if others and not leaves_gap(best, p, h, reference):
         say(f"{best.fit.name} leaves no significant held-out gap: no pairs")
         others = []
     if others:
-        say(f"forward selection: {best.fit.name} + the best of each of {len(others)} other "
-            "families")
+        say(f"forward selection: {best.fit.name} + the best {PAIR_MEMBERS} of each other "
+            f"family ({len(others)} pairs)")
         tasks = [((best.fit.effects[0], c.fit.effects[0]), [best.fit.theta[0], c.fit.theta[0]])
                  for c in others]
         pairs = _run(tasks, p, h, pool, bar)

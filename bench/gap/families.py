@@ -108,9 +108,11 @@ PLAUSIBLE: dict[str, Plausible] = {
     # wear and a lost preload soften a nut; a stiffer one than built is no wear
     "contact_stiffness_n_per_m": Plausible(above=1.3, why_above="stiffer than built: wear "
                                            "only softens a nut"),
-    # a winding's resistance rises (temperature, a damaged strand); 20 % below its cold
-    # value is beyond a copper tolerance
-    "resistance_ohm": Plausible(below=0.8, why_below="below the winding's own resistance"),
+    # a winding's resistance rises (temperature, a damaged strand or joint); 20 % below its
+    # cold value is beyond a copper tolerance, 5 x above it beyond heating and a bad joint
+    "resistance_ohm": Plausible(below=0.8, above=5.0, why_below="below the winding's own "
+                                "resistance", why_above="beyond a winding's heating and a "
+                                "damaged joint"),
     # ISO 3408 lead deviation of the coarsest transport screws is ~0.2 mm over 300 mm;
     # 3 % of the lead is ten times that
     "lead_m": Plausible(below=0.97, above=1.03, why_below="beyond any screw's lead "

@@ -325,6 +325,7 @@ class LvdtGain(_Single):
     doc = "LVDT scale error (in the loop)"
     params = (Param("lvdt_gain", "-", 0.8, 1.25, "LVDT gain (1 = exact)"),)
     target = "sensors.lvdt_gain"
+    scales_with_model = True
 
 
 class LvdtOffset(_Single):
@@ -339,6 +340,7 @@ class EncoderGain(_Single):
     doc = "encoder speed scale error (in the loop)"
     params = (Param("encoder_gain", "-", 0.8, 1.25, "speed gain (1 = exact)"),)
     target = "sensors.encoder_gain"
+    scales_with_model = True
 
 
 class CurrentOffset(_Single):

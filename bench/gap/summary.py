@@ -25,7 +25,13 @@ def fmt_value(v: float | None, unit: str) -> str:
     if v is None or not math.isfinite(v):
         return "n/a"
     k, u = _scale(unit, v)
-    return f"{v * k:.4g} {u}".rstrip()
+    return f"{v * k:.{_digits(unit)}g} {u}".rstrip()
+
+
+def _digits(unit: str) -> int:
+    """Significant digits: 5 for a dimensionless value (a gain of 1.0061, a scale), 4
+    otherwise."""
+    return 5 if unit in DIMENSIONLESS else 4
 
 
 def fmt_interval(d: dict[str, Any]) -> str:
@@ -38,8 +44,9 @@ def fmt_interval(d: dict[str, Any]) -> str:
         return ""
     if lo == hi and side is None and lo is not None:
         return ""                                   # grid-searched: exact on its grid
-    a = "bound" if side == "lower" or lo is None else f"{lo * k:.4g}"
-    b = "bound" if side == "upper" or hi is None else f"{hi * k:.4g}"
+    n = _digits(d["unit"])
+    a = "bound" if side == "lower" or lo is None else f"{lo * k:.{n}g}"
+    b = "bound" if side == "upper" or hi is None else f"{hi * k:.{n}g}"
     return f" [{a}, {b}]"
 
 
