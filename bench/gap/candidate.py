@@ -27,7 +27,7 @@ from plant_rt.params import PlantParams
 
 WEAR_FRACTIONS = (0.5, 0.1)
 """Start points of an effect whose parameters fall with wear (``wear_direction = "down"``),
-as fractions of the nominal (docs/gap.md, "Preload loss start points")."""
+as fractions of the nominal (docs/gap.md, "Candidate effects and their families")."""
 
 
 @dataclass(frozen=True)

@@ -241,8 +241,7 @@ def excess(energies: dict[str, float], reference: dict[str, Any] | None = None) 
     model leaves on a held-out healthy log (`reference["energy"]`, session 13), the sum
     of what each signal has above that healthy energy (and above the floor): the part of
     the gap the calibrated model does not leave on a healthy log, which is what an effect
-    can explain (docs/gap.md, "A current logged apart from the drive, and the gap above
-    the healthy level")."""
+    can explain (docs/gap.md, "Calibration")."""
     ref = (reference or {}).get("energy")
     if not ref:
         return float(sum(e - 1.0 for e in energies.values()))
@@ -443,7 +442,14 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     single leaves is significant by the same rule as the log's (raised to a calibration's
     held-out healthy level x margin, `reference`). A pair whose added effect is suspect
     (`flag`) does not replace the single: a second effect of implausible size is more
-    likely the first one's misfit absorbed."""
+    likely the first one's misfit absorbed. A suspect best single gives way to a
+    plausible one whose BIC is within PAIR_BIC of it (an alias: an LVDT gain of 1.03 read
+    as a lead 3 % long, ahead by 2 of BIC)."""
+    if getattr(best, "suspect", None):     # a plausible single as good takes its place
+        plausible_single = [c for c in singles if not getattr(c, "suspect", None)
+                            and math.isfinite(c.bic) and c.bic <= best.bic + PAIR_BIC]
+        if plausible_single:
+            best = min(plausible_single, key=lambda c: c.bic)
     chosen = best
     remaining = leaves_gap(best, p, h, reference)
 

@@ -1,4 +1,4 @@
-"""Effect families: what a verdict names (docs/gap.md, "Families").
+"""Effect families: what a verdict names (docs/gap.md, "Candidate effects and their families").
 
 A candidate is one parameterisation of a mechanism; a family is the mechanism. Friction
 growth is one family whatever its law (the Coulomb and static levels, every level
@@ -113,8 +113,9 @@ PLAUSIBLE: dict[str, Plausible] = {
     "resistance_ohm": Plausible(below=0.8, above=5.0, why_below="below the winding's own "
                                 "resistance", why_above="beyond a winding's heating and a "
                                 "damaged joint"),
-    # ISO 3408 lead deviation of the coarsest transport screws is ~0.2 mm over 300 mm;
-    # 3 % of the lead is ten times that
+    # no screw's lead changes in service, and its tolerance is hundredths of a per cent
+    # (ISO 3408's coarsest transport class: ~0.07 %): a lead 3 % off is a wrong datasheet
+    # or, on a log, an LVDT gain (the product is what the kinematics fix)
     "lead_m": Plausible(below=0.97, above=1.03, why_below="beyond any screw's lead "
                         "tolerance", why_above="beyond any screw's lead tolerance"),
     # a torque constant within +-30 % of its datasheet (demagnetisation lowers it some %)

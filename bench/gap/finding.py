@@ -1,5 +1,5 @@
 """What a verdict says in words: each effect's family, size and form, and its trouble
-(docs/gap.md, "Families" and "Fits that report their own trouble").
+(docs/gap.md, "Candidate effects and their families" and "Fits that report their own trouble").
 
     friction x2.41 [2.22, 2.60] (Coulomb and static levels)
     backlash 50.0 um [49.9, 50.1]
@@ -80,6 +80,7 @@ def describe(p: Problem, f: Fit, suspect: list[str], edge: list[str]) -> dict[st
         entry: dict[str, Any] = {"effect": eff.name, "family": fam,
                                  "form": F.SUBFORM.get(eff.name, eff.name)}
         own = {q.name: pd[q.name] for q in eff.params if q.name in pd}
+        shown = {k: v for k, v in own.items() if k != "nut_friction_share"}
         if fam == "friction":
             fs = friction_size(p, f, i)
             entry["size"] = {"kind": "factor", "value": fs["factor"], "ci95": fs["ci95"],
@@ -87,7 +88,7 @@ def describe(p: Problem, f: Fit, suspect: list[str], edge: list[str]) -> dict[st
             text = _factor_text(fs)
         else:
             entry["size"] = size_of(p, eff, own)
-            text = _values_text(own)
+            text = _values_text(shown)
             if eff.name == "backlash" and entry["size"]["kind"] == "preload_n":
                 fam = entry["family"] = "preload"
                 entry["form"] = "a wear clearance the interference preload took up"
@@ -98,6 +99,9 @@ def describe(p: Problem, f: Fit, suspect: list[str], edge: list[str]) -> dict[st
                         f"{s['backlash_m'] * 1e6:.3g} um, no free play)")
             elif eff.name == "backlash" and entry["size"]["value"] is not None:
                 text += f", axial lost motion {entry['size']['value'] * 1e6:.3g} um"
+        share = own.get("nut_friction_share")
+        if share is not None and share.get("value") is not None:
+            entry["nut_friction_share"] = share["value"]     # where the friction acts
         entry["line"] = f"{F.LABEL.get(fam, fam)} {text}".rstrip()
         if entry["form"] != eff.name or fam != eff.name:
             entry["line"] += f" ({entry['form']})"

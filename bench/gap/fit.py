@@ -306,8 +306,7 @@ def at_bounds(effs: Sequence[E.Effect], nom: list[dict[str, float]], obj: Object
               u: np.ndarray, fixed: list[dict[str, float]]) -> list[dict[str, str]]:
     """Per effect, its parameters that ended on a bound which is not their no-effect
     value (`nom`): "lower" or "upper". A fit on such a bound says only that the effect
-    is at least that large, or of another form than the family's (docs/gap.md, "Fits
-    that report their own trouble")."""
+    is at least that large, or of another form than the family's (docs/gap.md, "Selection")."""
     out: list[dict[str, str]] = [{} for _ in effs]
     pos = {(i, prm.name): float(ui) for (i, prm), ui in zip(obj.free, u, strict=True)}
     for i, e in enumerate(effs):

@@ -84,8 +84,7 @@ def rolling_friction_for_drag(params: PlantParams, drag_nm: float) -> float:
 
 
 PRELOAD_LAWS = ("none", "hertz", "hertz-fv", "hertz-drag")
-"""How the datasheet model declares its preloaded double nut (docs/gap.md, "Preload and
-the in-loop LVDT lag"): none (before indie6); hertz (the default): the Hertzian preload
+"""How the datasheet model declares its preloaded double nut (docs/gap.md, "Decisions"): none (before indie6); hertz (the default): the Hertzian preload
 law at the datasheet preload, the drag left to the thesis' rolling terms; hertz-fv and
 hertz-drag add the catalogue's preload drag through the rolling friction f_v or as a
 screw torque per N of preload (both rejected on the healthy logs under the bench's ECU)."""
@@ -155,7 +154,7 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
 FRICTION_SPLIT = "unknown"
 """The datasheet model's friction split (`bench.gap.library.FRICTION_SPLITS`): a datasheet
 gives a total friction, not where it acts (at the nut or at the screw), so the diagnoses
-fit it where it shows (docs/gap.md, "Where the friction acts")."""
+fit it where it shows (docs/gap.md, "Inputs")."""
 
 
 def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:

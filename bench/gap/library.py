@@ -41,15 +41,21 @@ class _Single(Effect):
     scales_with_model: ClassVar[bool] = False
     """Bounds written around the thesis' actuator's value: scaled to the start model's
     value (`bound_scale`), so that the candidate moves both ways from any actuator's
-    nominal (a value on an edge could move one way only; docs/gap.md, "A lead change
-    moves the helix"). The calibration scales its ranges the same way."""
+    nominal (a value on an edge could move one way only; docs/gap.md, "Calibration"). The calibration scales its ranges the same way."""
 
     def for_model(self, base: PlantParams) -> Effect:
+        """The effect with its first parameter's class bounds (the range around the
+        thesis' actuator) scaled to `base`: the same whether `self` is the registered
+        effect or a copy already fitted on a model (a refit of a fitted candidate scaled
+        the lead's range twice, 2.56-3.84 mm for a 4 mm model, and pinned the refit on its
+        bound)."""
         k = bound_scale(base, self.target) if self.scales_with_model else 1.0
-        if k == 1.0:
+        own = type(self).params[0]
+        if k == 1.0 and self.params[0] == own:
             return self
         eff = copy.copy(self)
-        eff.params = (self.params[0].scaled(k), *self.params[1:])   # type: ignore[misc]
+        eff.params = (own.scaled(k) if k != 1.0 else own,   # type: ignore[misc]
+                      *self.params[1:])
         return eff
 
 
@@ -65,7 +71,7 @@ the screw crosses a clearance), and so does a grown friction (a larger F_s / k).
 log cannot calibrate it. When the diagnosis is told that the model's split is unknown
 (`Problem.friction_split`, `bench gap --friction-split unknown`), the effects that show it
 (stiffness, preload, backlash, friction) fit it as a second parameter (`with_nut_share`);
-otherwise they keep the model's split (docs/gap.md, "Where the friction acts")."""
+otherwise they keep the model's split (docs/gap.md, "Inputs")."""
 
 FRICTION_SPLITS = ("model", "unknown")
 """How a diagnosis treats where the model's Coulomb friction acts: "model" (the model's

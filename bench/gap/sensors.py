@@ -1,5 +1,5 @@
 """Candidate effects of the sensors' timing and of the logging channel, each sensor apart
-(docs/gap.md, "Candidate effects"): a transport delay of the LVDT or of the encoder alone
+(docs/gap.md, "Candidate effects and their families"): a transport delay of the LVDT or of the encoder alone
 in the loop (the controller reads an older sample of that sensor: `bench.gap.delays`), the
 same delays in the log alone (the logger's channel is late, the controller is not), and
 the logged current's own delay, offset and gain (a current channel the drive does not

@@ -1,7 +1,6 @@
 """Where the logged current is measured (`sensors.current_in_loop`, session 13), and the
 held-out gap counted above the calibration's healthy energy (`bench.gap.diagnose.excess`;
-docs/gap.md, "A current logged apart from the drive, and the gap above the healthy
-level")."""
+docs/gap.md, "Calibration")."""
 
 import numpy as np
 

@@ -110,3 +110,17 @@ def test_the_pair_rule_counts_the_excess_above_the_calibrations_healthy_energy()
     before = {**healthy, "encoder_position_m": 2400.0}
     chosen = D._choose([single], [pair], single, p, None, 2400.0, True, {}, ref, before)[0]
     assert chosen is pair
+
+
+def test_a_suspect_single_gives_way_to_a_plausible_one_as_good():
+    from bench.gap import diagnose as D
+    lead = _cand("lead", -93.9, 0.1, SIG, suspect=["lead_m x1.05 of the model's: beyond "
+                                                   "any screw's lead tolerance"])
+    gain = _cand("lvdt_gain", -92.0, 0.1, SIG)
+    p = NS(n=10000, n_fit=5000, info={})
+    chosen, verdict, ranking, _, _ = D._choose([lead, gain], [], lead, p, None, 100.0, True,
+                                               {})
+    assert chosen is gain and verdict == "lvdt_gain"
+    assert ranking[0] is lead                      # the table stays in BIC order
+    far = _cand("lvdt_gain", -60.0, 0.1, SIG)     # 34 worse: the suspect one stays
+    assert D._choose([lead, far], [], lead, p, None, 100.0, True, {})[0] is lead

@@ -1,6 +1,6 @@
 """A fit's model has the continuous encoder (`sensors.encoder_quantised` false,
 `bench.gap.problem.continuous`): whole counts that close a loop make the cost a step
-function of every parameter (docs/gap.md, "A fit that reaches its minimum")."""
+function of every parameter (docs/gap.md, "Fitting")."""
 
 import math
 
