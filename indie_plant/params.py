@@ -87,7 +87,17 @@ class IndieParams:
     encoder_gain: float = P(1.0, "-", 0.5, 2.0, "speed gain error")
     current_offset_a: float = P(0.0, "A", -5, 5, "current sensor offset")
     sensor_delay_periods: float = P(0.0, "periods", 0, 10, "LVDT and encoder delay")
+    lvdt_delay_periods: float = P(0.0, "periods", 0, 10, "LVDT transport delay alone (its "
+                                  "conditioner or bus), on top of sensor_delay_periods")
     lvdt_extra_lag_s: float = P(0.0, "s", 0.0, 0.1, "extra LVDT lag (a failing demodulator)")
+    # -- physics switched on only for the final check (docs/gap-results.md, "The final
+    # check"): off (0) by default and in every development run ----------------------------
+    friction_ripple: float = P(0.0, "-", 0.0, 0.9, "Coulomb friction ripple per screw turn "
+                               "(ball recirculation): amplitude as a fraction of the level")
+    seal_friction_n: float = P(0.0, "N", 0.0, 2000, "rod seal's Coulomb force on the nut "
+                               "(friction at the nut, not at the motor)")
+    current_filter_s: float = P(0.0, "s", 0.0, 0.01, "first-order anti-alias filter of the "
+                                "logged current sensor")
     # -- integration ---------------------------------------------------------------------
     sync_period_s: float = P(1e-3, "s", 1e-4, 0.1, "SYNC period")
     substeps: float = P(100.0, "-", 10, 2000, "mechanical sub-steps per period (10 us: "

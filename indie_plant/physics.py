@@ -4,7 +4,9 @@ gives every equation with its number, I1-I14, cited below).
 
 State (`x`): motor angle and speed, nut position and speed, LuGre bristle deflection,
 phase current, current-PI integrator, LVDT demodulator and extra-lag filters, the mean
-external force of the last period, and the drive's held voltage.
+external force of the last period, the drive's held voltage and the logged current
+sensor's filter. I15-I17 are physics switched on only for the final check of the gap
+diagnosis (docs/gap-results.md): off in every development run.
 """
 
 from __future__ import annotations
@@ -16,8 +18,8 @@ from numba import njit
 
 from indie_plant.params import IDX
 
-TH, OM, XN, VN, ZB, CUR, CINT, LV1, LV2, FLAST, VOLT = range(11)
-NX = 11
+TH, OM, XN, VN, ZB, CUR, CINT, LV1, LV2, FLAST, VOLT, CFIL = range(12)
+NX = 12
 
 _KT, _KE, _R, _L, _J = (IDX[n] for n in ("kt_nm_per_a", "ke_v_s_per_rad", "resistance_ohm",
                                           "inductance_h", "inertia_kg_m2"))
@@ -42,6 +44,9 @@ _LGAIN, _LOFF = IDX["lvdt_gain"], IDX["lvdt_offset_m"]
 _FNOISE, _FSTEP = IDX["load_noise_n"], IDX["load_step_n"]
 _DELAY, _T, _NSUB, _NOISE = (IDX[n] for n in ("sensor_delay_periods", "sync_period_s",
                                               "substeps", "noise"))
+_LDELAY = IDX["lvdt_delay_periods"]
+_RIPF, _SEAL, _CFILT = IDX["friction_ripple"], IDX["seal_friction_n"], IDX["current_filter_s"]
+SEAL_V = 1e-4               # m/s: the seal's Coulomb force is F tanh(v / SEAL_V)
 # controller vector and state (indie_plant.controller.Cascade; the law is compiled here,
 # with the physics, so numba's on-disk cache never pairs stale code across files)
 (C_SRC, C_KPP, C_KIP, C_KPS, C_KIS, C_WLIM, C_ILIM, C_EVERY, C_T, C_TRAVEL) = range(10)
@@ -127,6 +132,8 @@ def advance(x: np.ndarray, p: np.ndarray, demand_a: float, fext_n: float) -> Non
         fb = contact_force(d0 - delta - half_gap, -ddot, p[_KH], p[_HC])
         fnet = fa - fb                                 # I7: axial force on the nut
         tcoul = p[_FS] * (p[_TC] + p[_MU] * (fa + fb) * tr)                # I11
+        if p[_RIPF] > 0.0:     # I15: friction ripple per screw turn (final check only)
+            tcoul *= 1.0 + p[_RIPF] * math.sin(x[TH] * p[_RATIO])
         g = max(stribeck(w, tcoul, p[_SR], p[_WS]), 1e-9)
         zn = lugre_update(x[ZB], w, g, s0, h)
         tf = s0 * zn + s1 * (zn - x[ZB]) / h + s2 * w  # I9: LuGre torque
@@ -134,7 +141,12 @@ def advance(x: np.ndarray, p: np.ndarray, demand_a: float, fext_n: float) -> Non
         tm = motor_torque(x[CUR], x[TH], p)
         x[OM] = w + h * (tm - tf - tr * fnet) / p[_J]  # I4
         x[TH] += h * x[OM]
-        x[VN] += h * (fnet - fext_n - p[_CN] * x[VN]) / p[_MN]              # I12
+        fseal = p[_SEAL] * math.tanh(x[VN] / SEAL_V)   # I16: rod seal (final check only)
+        x[VN] += h * (fnet - fext_n - p[_CN] * x[VN] - fseal) / p[_MN]      # I12
+        if p[_CFILT] > 0.0:    # I17: the current sensor's anti-alias filter (final check)
+            x[CFIL] += h * (x[CUR] - x[CFIL]) / p[_CFILT]
+        else:
+            x[CFIL] = x[CUR]
         x[XN] += h * x[VN]
         x[LV1] += h * (x[XN] - x[LV1]) / p[_LTAU]      # I14: LVDT demodulator
         x[LV2] = x[LV1] if p[_LTAU2] <= 0.0 else x[LV2] + h * (x[LV1] - x[LV2]) / p[_LTAU2]
@@ -154,10 +166,11 @@ def sense(x: np.ndarray, p: np.ndarray, hist: np.ndarray, k: int, rnd: np.ndarra
           out: np.ndarray) -> None:
     """Sensors at SYNC k (I13-I14) into out = [current A, angle rad, speed rad/s, LVDT m,
     load N]: current ADC, encoder counts (delayed), speed from the counts over a window,
-    LVDT ADC after its lag (delayed), load cell = mean force of the last period."""
+    LVDT ADC after its lag (delayed, and by its own transport delay on top), load cell =
+    mean force of the last period."""
     nz = p[_NOISE]
     istep = 2.0 * p[_IRANGE] / 2.0 ** p[_IBITS]
-    out[0] = quantise(x[CUR] + p[_IOFF] + nz * p[_INOISE] * rnd[0], istep, p[_IRANGE])
+    out[0] = quantise(x[CFIL] + p[_IOFF] + nz * p[_INOISE] * rnd[0], istep, p[_IRANGE])
     cpr = p[_ENC]
     ang = math.floor(x[TH] * cpr / (2.0 * math.pi)) * 2.0 * math.pi / cpr
     lstep = 2.0 * p[_LRANGE] / 2.0 ** p[_LBITS]
@@ -168,8 +181,9 @@ def sense(x: np.ndarray, p: np.ndarray, hist: np.ndarray, k: int, rnd: np.ndarra
     win = int(p[_WIN])
     kd = max(k - d, 0)
     kw = max(kd - win, 0)
+    kl = max(kd - int(p[_LDELAY]), 0)
     out[1] = hist[kd % HIST, 0]
-    out[3] = hist[kd % HIST, 1]
+    out[3] = hist[kl % HIST, 1]
     span = max(kd - kw, 1)
     out[2] = p[_EGAIN] * (hist[kd % HIST, 0] - hist[kw % HIST, 0]) / (span * p[_T])
     out[4] = quantise(x[FLAST] + nz * p[_FNOISE] * rnd[2], p[_FSTEP], 1e9)
@@ -177,7 +191,7 @@ def sense(x: np.ndarray, p: np.ndarray, hist: np.ndarray, k: int, rnd: np.ndarra
 
 def initial_state() -> np.ndarray:
     """At rest, the nut at 0 and seated on its preload."""
-    return np.zeros(NX)
+    return np.zeros(NX)     # CFIL follows CUR from the first sub-step
 
 
 def initial_history(x: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -173,7 +173,7 @@ class ScrewParams(_Validated):
         "backlash; true: an interference (a spacer between the halves) that "
         "effects.backlash_m, a wear clearance, eats first: the preload falls to what the "
         "rest holds (eq. 5.21 or the Hertzian law), only the clearance beyond it is lost "
-        "motion (plant_rt.contacts.worn_nut; docs/gap.md, 'Backlash on a preloaded nut')",
+        "motion (plant_rt.contacts.worn_nut; docs/gap.md, 'The verdict in words')",
         "thesis section 2.1 (fig. 2.4(b): a double nut with a thickness between the nuts; "
         "the preload reduces the axial play), eq. 2.19 (preload loss = nut stiffness x "
         "the deformation wear removes) and section 2.3 (backlash appears when the preload "
@@ -183,7 +183,7 @@ class ScrewParams(_Validated):
         "> 0: the lead at which helix_angle_deg holds, at another lead the helix follows "
         "it, tan alpha ~ p at the same r_m, and so does the torque per axial force "
         "(plant_rt.contacts.helix_rad)", "0: thesis (table 5.4's 3.04 deg is atan(p / 2 pi "
-        "r_m) at its 5 mm); > 0: a screw's geometry (docs/gap.md, 'A lead change moves the helix')")
+        "r_m) at its 5 mm); > 0: a screw's geometry (docs/gap.md, 'Calibration')")
 
     @property
     def lever_m(self) -> float:

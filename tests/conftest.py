@@ -30,6 +30,8 @@ SLOW: tuple[str, ...] = (
     "tests/integration/test_calibrate_other_lead.py",
     "tests/integration/test_rig_classify.py",
     "tests/integration/test_rig_update.py",
+    "tests/integration/test_calibrate_no_alias.py",
+    "tests/integration/test_gap_cli_status.py",
     "tests/integration/test_bus_faults.py::test_ecu_killed_mid_run_lockstep_plant_holds_still",
     "tests/integration/test_bus_faults.py::test_plant_killed_mid_run_ecu_stops_with_a_clear_error_and_a_complete_log",
     "tests/integration/test_bus_run.py::test_bench_decode_writes_csv_and_parquet",

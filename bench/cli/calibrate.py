@@ -48,20 +48,23 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "controller; bench gap --nominal re-simulates under it")
     p.add_argument("--model", default="plant", metavar="NAME",
                    help="nominal model to calibrate (plant)")
-    p.add_argument("--params", metavar="A,B,...", default=",".join(DEFAULT),
-                   help=f"parameters to calibrate (default: {','.join(DEFAULT)})")
+    p.add_argument("--params", metavar="A,B,...",
+                   help=f"parameters to calibrate (default: {','.join(DEFAULT)}, the viscous "
+                        "friction and, when the log's load cell reads a load, the nut's "
+                        "contact stiffness)")
     p.add_argument("--nominal", metavar="JSON",
                    help="start from these parameters (default: thesis values); the "
                         "calibration stores the values that differ from the thesis' "
                         "(base_params), and bench gap --nominal starts from them")
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference (see bench gap --help)")
-    p.add_argument("--friction-split", choices=FRICTION_SPLITS, default="model",
+    p.add_argument("--friction-split", choices=FRICTION_SPLITS,
                    help="the thesis plant: where the model's Coulomb friction acts, at the "
-                        "nut or at the screw, is the model's (default) or unknown (a model "
-                        "from a datasheet, which gives a total friction). A healthy log "
-                        "cannot tell, so the calibration only stores it; bench gap "
-                        "--nominal then fits it where it shows (see bench gap --help)")
+                        "nut or at the screw: unknown (default: a calibrated actuator is "
+                        "another one than the thesis', and a datasheet gives a total "
+                        "friction) or the model's. A healthy log cannot tell, so the "
+                        "calibration only stores it; bench gap --nominal then fits it where "
+                        "it shows (see bench gap --help)")
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", default="calibration.json",
                    help="where to write the calibration (default calibration.json; '-': stdout)")
     p.set_defaults(func=run)
@@ -98,18 +101,19 @@ def run(args: argparse.Namespace) -> int:
     args.controller = controller_of(args)
     distinct_logs(args.log, args.holdout)                   # before the fit
     if args.actuator:
-        if args.friction_split != "model":
+        if args.friction_split not in (None, "model"):
             raise BenchError("--friction-split is for the thesis plant's model; with "
                              "--actuator the generic model has its own friction law")
         return _actuator(args)
     if len(args.log) > 1:
         raise BenchError("several healthy logs need --actuator DESC (the thesis actuator "
                          "is calibrated from one log; give others with --holdout)")
-    from bench.gap.calibrate import calibrate, heldout_significance
-    names = [n.strip() for n in args.params.split(",") if n.strip()]
+    from bench.gap.calibrate import calibrate, default_names, heldout_significance
+    log, held = _thesis_logs(args)
+    names = (list(default_names(log)) if args.params is None
+             else [n.strip() for n in args.params.split(",") if n.strip()])
     if not names:
         raise BenchError("--params lists no parameter")
-    log, held = _thesis_logs(args)
     base = load_nominal(args.nominal)
     cal = calibrate(log, base, names, args.model, args.encoder, controller=args.controller)
     cal["log"] = str(args.log[0])
@@ -117,14 +121,20 @@ def run(args: argparse.Namespace) -> int:
         cal["base_params"] = base_params(base)
     cal["heldout_significance"] = heldout_significance(cal, base, held, list(args.holdout),
                                                        args.encoder, args.model)
-    cal["friction_split"] = args.friction_split     # the model's declaration (bench gap)
+    # the model's declaration (bench gap): unknown unless told (a calibrated actuator is
+    # another one than the thesis', and a healthy log cannot tell where its friction acts)
+    cal["friction_split"] = args.friction_split or "unknown"
     if _write(args.output, cal):
         return 0
     g0, g1 = cal["gap_before"]["heldout_part"]["total"], cal["gap_after"]["heldout_part"]["total"]
+    z = cal.get("prior_distance_sd", {})
     for k, v in cal["params"].items():
-        lo, hi = cal["ci95"][k]
-        print(f"{k:28s} {v:.6g}  (95 % CI {lo:.6g} .. {hi:.6g}; nominal "
-              f"{cal['nominal'][k]:.6g})")
+        lo, hi = cal["ci95"].get(k, [None, None])
+        ci = f"95 % CI {lo:.6g} .. {hi:.6g}; " if lo is not None and hi is not None else ""
+        dist = f", {z[k]:+.1f} prior sd" if k in z else ""
+        print(f"{k:32s} {v:.6g}  ({ci}description {cal['nominal'][k]:.6g}{dist})")
+    for note in cal.get("notes", []):
+        print(f"note: {note}")
     print(f"held-out gap (RMS, x noise floor): {g0:.3g} -> {g1:.3g}")
     print(f"controller: {controller_text(cal['controller'])}")
     print(f"friction split: {cal['friction_split']} (bench gap --nominal uses it)")

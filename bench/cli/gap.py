@@ -129,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     ctrl_line = _attach_controller(args, doc, log, hold)
     if args.fundamental is not None:
         log.meta["fundamental_hz"] = args.fundamental
-    say = (lambda s: None) if args.quiet else (lambda s: print(f"gap: {s}", file=sys.stderr))
+    say = status_printer(args.quiet)
     t0 = time.perf_counter()
     res = diagnose(log, hold, nominal, Options(
         model=args.model, effects=names, holdout_frac=args.holdout_frac,
@@ -158,6 +158,15 @@ def run(args: argparse.Namespace) -> int:
         idx = write_report(res, js, Path(args.report))
         print(f"report: {idx}", file=sys.stderr if args.json == "-" else sys.stdout)
     return 0
+
+
+def status_printer(quiet: bool) -> Any:
+    """The diagnosis' status lines on stderr, through `tqdm.write` so that they land above
+    the fits' progress bar instead of breaking it (nothing with --quiet)."""
+    if quiet:
+        return lambda s: None
+    from tqdm import tqdm
+    return lambda s: tqdm.write(f"gap: {s}", file=sys.stderr)
 
 
 def _calibration_reference(args: argparse.Namespace, data: dict[str, Any] | None

@@ -27,10 +27,14 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    help="length of each generated log (10 s)")
     p.add_argument("--fidelity", choices=("full", "fast"), default="full",
                    help="plant mode of the generated logs (full; bench generator only)")
-    p.add_argument("--generator", choices=("bench", "independent"), default="bench",
-                   help="who writes the logs: the bench's own plant (bench, default) or the "
+    p.add_argument("--generator", choices=("bench", "independent", "final-check"),
+                   default="bench",
+                   help="who writes the logs: the bench's own plant (bench, default), the "
                         "independent actuator of indie_plant (other physics and parameters; "
-                        "the bench calibrates its model on healthy logs first)")
+                        "the bench calibrates its model on healthy logs first), or the final "
+                        "check: three randomised builds of it with physics no development run "
+                        "switched on, fixed cases (docs/gap-results.md; --cases and --seed "
+                        "do not apply)")
     p.add_argument("--controller", choices=("ecu", "own"), default="ecu",
                    help="independent generator: the bench's ECU closes the loops, as over "
                         "the bus (ecu, default), or the actuator's own PI+PI cascade (own)")
@@ -57,7 +61,28 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
 def markdown(out: dict) -> str:
     if out.get("generator") == "independent":
         return independent_markdown(out)
+    if out.get("generator") == "final-check":
+        return final_markdown(out)
     return _table(out)
+
+
+def final_markdown(out: dict) -> str:
+    """The final check: every case of every actuator, then the goal table."""
+    lines = [f"Final check: {len(out['actuators'])} randomised builds (seeds "
+             f"{', '.join(map(str, out['build_seeds']))}), physics "
+             + ", ".join(f"{k} = {v:g}" for k, v in out["physics"].items())
+             + f", {out['cases']} cases, wall {out['wall_s']:.0f} s.", "",
+             "| actuator | withheld | above floor | verdict | right family | size error |",
+             "|---|---|---|---|---|---|"]
+    for r in out["results"]:
+        ok = r.get("top1", r.get("pair_verdict", r["verdict"] == "none"))
+        err = ", ".join(f"{100 * e:.0f} %" for e in r["param_rel_err"].values()) or "-"
+        lines.append(f"| {r['actuator']} | {r['case_name']} | "
+                     f"{'yes' if r['above_floor'] else 'no'} | "
+                     f"{(r.get('finding') or r['verdict']).replace('|', '/')} | "
+                     f"{'yes' if ok else 'NO'} | {err} |")
+    lines.append("")
+    return "\n".join(lines) + "\n" + _table(out)
 
 
 def independent_markdown(out: dict) -> str:
@@ -151,6 +176,28 @@ def _table(out: dict, top1_goal: float = 0.9, nominal_goal: float = 0.95) -> str
         f"| >= {100 * nominal_goal:.0f} % | {goal(s['nominal_no_gap'], nominal_goal)} |",
         f"| median parameter error, correctly attributed (rel. to the deviation) | "
         f"{err_s} (n = {s['param_rel_err_n']}) | | |",
+        f"| top-1 by family, the goal's effects (friction, backlash, preload, delay, gain, "
+        f"current offset, lead) above the floor | {rate(s.get('goal_single_top1_above_floor'))}"
+        f" | >= {100 * top1_goal:.0f} % | "
+        f"{goal(s.get('goal_single_top1_above_floor'), top1_goal)} |",
+        f"| top-1 by the very candidate, single effects above the floor | "
+        f"{rate(s.get('single_top1_exact_above_floor'))} | (info) | |",
+        f"| size of a correct top-1 within 25 % of the truth | "
+        f"{rate(s.get('size_within_25pct_of_correct_top1'))} | 100 % | "
+        f"{goal(s.get('size_within_25pct_of_correct_top1'), 1.0)} |",
+        f"| the truth inside the interval, correct top-1 | "
+        f"{rate(s.get('truth_in_interval_correct_top1'))} | (info) | |",
+        f"| friction growth named friction | {rate(s.get('friction_named_friction'))} | "
+        f"100 % | {goal(s.get('friction_named_friction'), 1.0)} |",
+        f"| friction growth: the truth inside its interval | "
+        f"{rate(s.get('friction_truth_in_interval'))} | 100 % | "
+        f"{goal(s.get('friction_truth_in_interval'), 1.0)} |",
+        f"| a delay named a delay | {rate(s.get('delay_named_delay'))} | 100 % | "
+        f"{goal(s.get('delay_named_delay'), 1.0)} |",
+        f"| a delay named a gain | {rate(s.get('delay_named_gain'))} | 0 % | "
+        f"{'met' if (s.get('delay_named_gain') or {}).get('hits', 0) == 0 else 'NOT met'} |",
+        f"| true pair in the top two by the very candidates (the measure before families) | "
+        f"{rate(s.get('pair_in_top2_exact'))} | (info) | |",
         f"| single effects below the floor reported 'none' | "
         f"{rate(s['single_below_floor_none'])} | (info) | |",
         f"| out-of-library effects not attributed ('unexplained' or 'none') | "
@@ -187,6 +234,9 @@ def check_arguments(args: argparse.Namespace) -> list | None:
     for flag, given in (("--only", args.only), ("--indie-set", args.indie_set)):
         if given and args.generator != "independent":
             raise BenchError(f"{flag} is for --generator independent")
+    if args.generator == "final-check" and (args.effects or args.controller != "ecu"):
+        raise BenchError("the final check runs its fixed cases with the whole library under "
+                         "the bench's ECU: --effects and --controller do not apply")
     for flag, path in (("--json", args.json), ("--markdown", args.markdown)):
         if path:
             check_output_file(path, flag)
@@ -197,7 +247,11 @@ def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     from bench.gap.blind import run as bench_run
     lib = check_arguments(args)
-    if args.generator == "independent":
+    if args.generator == "final-check":
+        from bench.gap.finalcheck import run as final_run
+        out = final_run(args.workers, args.log_s, progress=sys.stderr.isatty(),
+                        scheduler=args.scheduler)
+    elif args.generator == "independent":
         from bench.gap.indiebench import NOMINAL, POOL
         if args.only and args.only not in POOL:
             raise BenchError(f"--only: unknown effect {args.only!r}; injected: {', '.join(POOL)}")

@@ -30,3 +30,15 @@ def corr_length(r: np.ndarray, max_lag: int = 400) -> float:
             break
         s += ac[k]
     return float(max(1.0, 1.0 + 2.0 * s))
+
+
+def long_run_cov(g: np.ndarray, lag: int) -> np.ndarray:
+    """Long-run covariance of the score series `g` (n, k): sum over lags |l| <= `lag` of
+    the Bartlett-weighted (1 - |l| / (lag + 1)) lagged products (Newey and West 1987):
+    the variance of sum_t g_t when the g_t are correlated over a few `lag` samples."""
+    g = np.asarray(g, float)
+    out = g.T @ g
+    for k in range(1, min(lag, len(g) - 1) + 1):
+        c = g[k:].T @ g[:-k]
+        out += (1.0 - k / (lag + 1.0)) * (c + c.T)
+    return out

@@ -342,43 +342,101 @@ def run_case(case: Case, fidelity: str = "full", duration_s: float = LOG_S,
     return score(case, js, snr_each, snr_all, elapsed)
 
 
+ABSOLUTE_TRUTH = {"backlash": "lost_motion_m", "sensor_delay": "delay_s",
+                  "log_skew": "delay_s", "lvdt_lag": "lvdt_lag_s",
+                  "current_offset": "current_offset_a", "lvdt_offset": "lvdt_offset_m"}
+
+
+def truth_size(t: Truth) -> tuple[str, float, float] | None:
+    """(kind, value, no-effect value) of an injected effect of this generator, in the terms
+    of `bench.gap.finding.size_of` (a friction's factor, a backlash's axial lost motion b / g
+    on the thesis' nut, which has no preload,
+    a delay in seconds, the others by their library parameter); None where the family's
+    size is another quantity (a viscous or Stribeck change: the friction family's size is
+    the friction's work, which the truth does not state)."""
+    from plant_rt.contacts import normal_to_axis
+    if t.name == "friction":
+        return "factor", t.expect["friction_scale"], 1.0
+    if not t.expect or t.name in ("viscous", "stribeck"):
+        return None
+    k, v = next(iter(t.expect.items()))
+    if t.name == "backlash":
+        return "lost_motion_m", v / normal_to_axis(NOMINAL), 0.0
+    kind = ABSOLUTE_TRUTH.get(t.name, k)
+    return kind, v, t.nominal.get(k, 0.0)
+
+
 def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
-          snr_all: dict[str, float], elapsed: float) -> dict[str, Any]:
+          snr_all: dict[str, float], elapsed: float,
+          sizes: Callable[[Any], tuple[str, float, float] | None] | None = None
+          ) -> dict[str, Any]:
+    """One case's record: the verdict against the truth by family (top-1: the verdict's
+    families are the truth's; `top1_exact`: the very candidates), the truth pair in the
+    verdict or the runner-up by BIC, and, for a correct verdict, each effect's size
+    against the truth (`sizes`: the generator's truth sizes, `truth_size` by default)."""
+    from bench.gap import families as F
+    from bench.gap.finding import covers, relative_error
+    sizes = sizes or truth_size
     verdict = js["verdict"]
     ranking = js["ranking"]
-    names = [r["effect"] for r in ranking]
+    chosen = next((r for r in ranking if r.get("chosen")), None)
+    others = [r["effect"] for r in ranking if r is not chosen]
+    top2 = ([chosen["effect"]] if chosen else []) + others[:2 - (1 if chosen else 0)]
     truth_set = sorted(t.name for t in case.truths)
+    truth_fam = F.families("+".join(truth_set))
     above_each = {k: max(v.values()) >= 1.0 for k, v in snr_each.items()}
+    finding = js.get("finding") or {}
     rec: dict[str, Any] = {
         "index": case.index, "kind": case.kind, "truth": case.label,
+        "truth_families": "+".join(truth_fam),
         "truth_values": {t.name: (t.expect or {k: v for k, v in {**t.plant, **t.log}.items()})
                          for t in case.truths},
-        "verdict": verdict, "top2": names[:2], "elapsed_s": elapsed,
+        "verdict": verdict,
+        "verdict_families": (finding.get("families") or F.family_name(verdict))
+        if verdict not in ("none", "unexplained") else verdict,
+        "finding": finding.get("line"), "suspect": finding.get("suspect") or [],
+        "at_bound": finding.get("at_bound") or [],
+        "top2": top2, "elapsed_s": elapsed,
         "snr": {k: max(v.values()) for k, v in snr_each.items()},
         "snr_all": max(snr_all.values()) if snr_all else 0.0,
         "above_floor": all(above_each.values()) if above_each else False,
         "ties": js["localisation"].get("selection", {}).get("indistinguishable_from_chosen", []),
-        "shrink_pct": ranking[0]["heldout_shrink_pct"] if ranking else None,
+        "shrink_pct": chosen["heldout_shrink_pct"] if chosen else None,
     }
+    fam_ok = rec["verdict_families"] == "+".join(truth_fam)
     if case.kind == "single":
-        rec["top1"] = verdict == truth_set[0]
-        rec["top1_or_tie"] = rec["top1"] or (truth_set[0] in rec["ties"])
+        rec["top1"] = fam_ok
+        rec["top1_exact"] = verdict == truth_set[0]
+        rec["top1_or_tie"] = rec["top1"] or any(F.families(t) == truth_fam
+                                                for t in rec["ties"])
     if case.kind == "pair":
-        rec["pair_top2"] = any(sorted(n.split("+")) == truth_set for n in names[:2])
-        rec["pair_verdict"] = sorted(verdict.split("+")) == truth_set
+        rec["pair_top2"] = any(F.families(n) == truth_fam for n in top2)
+        rec["pair_top2_exact"] = any(sorted(n.split("+")) == truth_set for n in top2)
+        rec["pair_verdict"] = fam_ok
         rec["both_in_top_singles"] = set(truth_set) <= set(
-            [n for n in names if "+" not in n][:2])
-    # parameter recovery for correctly attributed effects
-    errs = {}
-    if ranking and case.truths:
-        got = ranking[0]["params"]
+            [n for n in [r["effect"] for r in ranking] if "+" not in n][:2])
+    # sizes of correctly attributed effects
+    errs, cover = {}, {}
+    if chosen and case.truths:
+        got = chosen["params"]
+        found = {e["family"]: e["size"] for e in finding.get("effects") or []}
         for t in case.truths:
-            if t.name in verdict.split("+"):
+            ts = sizes(t)
+            fam = F.family(t.name)
+            if ts is not None and fam in found:
+                e = relative_error(found[fam], *ts)
+                if e is not None:
+                    errs[t.name] = e
+                c = covers(found[fam], *ts)
+                if c is not None:
+                    cover[t.name] = c
+            elif t.name in verdict.split("+"):          # the old measure, by parameter
                 for k, v in t.expect.items():
                     if k in got and got[k]["value"] is not None:
                         dev = abs(v - t.nominal.get(k, 0.0)) or abs(v) or 1.0
                         errs[k] = abs(got[k]["value"] - v) / dev
     rec["param_rel_err"] = errs
+    rec["truth_in_interval"] = cover
     lc = js["localisation"].get("limit_cycle")
     if lc:                  # a note, not scored (bench.gap.limitcycle)
         rec["limit_cycle"] = {"freq_hz": lc["freq_hz"], "reproduced_by": lc["reproduced_by"]}
@@ -449,4 +507,46 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
         "mean_diagnosis_s": float(np.mean([r["elapsed_s"] for r in results])) if results
         else None,
         "per_effect_single": per_effect,
+        **goals(single_above, pair),
+    }
+
+
+GOAL_EFFECTS = ("friction", "backlash", "preload", "sensor_delay", "lvdt_delay", "lvdt_gain",
+                "encoder_gain", "current_offset", "current_offset_log", "lead")
+"""The single effects the diagnosis' goals name (friction growth, backlash, preload loss,
+a sensor delay, a sensor gain, a current offset, a lead error), by the generators'
+names."""
+GAIN_FAMILIES = ("lvdt_gain", "encoder_gain", "current_gain", "kt")
+
+
+def goals(single_above: list[dict[str, Any]], pair: list[dict[str, Any]]) -> dict[str, Any]:
+    """The goal measures over single effects above the floor: top-1 by family on the
+    goal's effects, top-1 by the very candidate, sizes of a correct top-1 within 25 % of
+    the truth, the truth inside the interval, a friction growth named friction with the
+    truth inside, a delay named a delay and never a gain; pairs in the top two by the very
+    candidates (the measure before families)."""
+    from bench.gap import families as F
+    goal = [r for r in single_above if r["truth"] in GOAL_EFFECTS]
+    right = [r for r in single_above if r["top1"]]
+    errs = [e for r in right for e in r["param_rel_err"].values()]
+    cover = [c for r in right for c in r["truth_in_interval"].values()]
+    fric = [r for r in single_above if F.family(r["truth"]) == "friction"]
+    fric_scale = [r for r in fric if "friction" in r["truth_in_interval"]]
+    delay = [r for r in single_above if F.family(r["truth"]) == "delay"]
+    return {
+        "goal_single_top1_above_floor": _rate([r["top1"] for r in goal]),
+        "single_top1_exact_above_floor": _rate([r["top1_exact"] for r in single_above]),
+        "size_within_25pct_of_correct_top1": _rate([e <= 0.25 for e in errs]),
+        "size_rel_err_median_correct_top1": float(np.median(errs)) if errs else None,
+        "truth_in_interval_correct_top1": _rate(cover),
+        "friction_named_friction": _rate([r["top1"] for r in fric]),
+        "friction_truth_in_interval": _rate([r["truth_in_interval"]["friction"]
+                                             for r in fric_scale]),
+        "delay_named_delay": _rate([r["top1"] for r in delay]),
+        "delay_named_gain": _rate([any(f in GAIN_FAMILIES
+                                       for f in r["verdict_families"].split("+"))
+                                   for r in delay]),
+        "pair_in_top2_exact": _rate([r["pair_top2_exact"] for r in pair]),
+        "suspect_verdicts": sum(bool(r.get("suspect")) for r in single_above),
+        "at_bound_verdicts": sum(bool(r.get("at_bound")) for r in single_above),
     }

@@ -9,7 +9,14 @@ The fit is the diagnosis' closed-loop least squares with all uncertain parameter
 once and a Gaussian prior on each (its tolerance, below) that keeps aliased parameters
 well posed: on a log without a force measurement, torque constant and inertia act
 through their ratio, and screw lead and LVDT gain through their product, so the data fix
-the ratio/product and the prior shares it out. The output states this.
+the ratio/product and the prior shares it out. The output states this. Every parameter
+is in the one least squares, the viscous coefficient and the contact stiffness too (they
+were once set by a grid profile, because the model's encoder counts hid their gradient;
+the fits' encoder is continuous now, `bench.gap.problem.continuous`): fitted one after the
+other, the least squares took the lead x LVDT-gain alias for a softer nut (the controller
+holds the LVDT reading, so the encoder reads set-point + gain x deflection) and moved the
+independent actuator's 4 mm lead to 3.34 mm with an LVDT gain of 1.197, 18 and 9 prior sd
+off; together, the stiffness takes the compliance and the lead stays within 0.1 sd.
 
 The controller (`controller`, CONTROLLERS): by default the log is re-simulated under
 the bench's ECU (`bench-ecu`: the log was run under it, as over the bus). For a log run
@@ -32,7 +39,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap import resim as R
-from bench.gap.candidate import follow_model
+from bench.gap.candidate import bound_scale
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect, Param
 from bench.gap.fit import fit
@@ -52,9 +59,10 @@ class Uncertain:
     tol: float
     relative: bool = True
     follows_model: bool = False
-    """lo and hi are a range around the thesis' actuator's value, moved to the start
-    model's value when that lies outside it (`bench.gap.candidate.follow_model`), so
-    another actuator's lead or rotor is not clipped into the thesis' range."""
+    """lo and hi are a range around the thesis' actuator's value, scaled to the start
+    model's value (`bench.gap.candidate.bound_scale`), so another actuator's lead or rotor
+    lies where the thesis' lies in it: neither clipped into the thesis' range nor on one of
+    its edges (a 4 mm lead on the 4-6 mm range could only grow)."""
 
 
 UNCERTAIN: dict[str, Uncertain] = {
@@ -76,36 +84,40 @@ UNCERTAIN["screw.contact_stiffness_n_per_m"] = Uncertain(
 # a catalogue motor's; absolute 1 sd 1e-3 N m s/rad
 UNCERTAIN["motor.viscous_friction_nm_s"] = Uncertain(
     "motor.viscous_friction_nm_s", 0.0, 0.01, False, 1e-3, relative=False)
-PROFILED: dict[str, tuple[float, ...]] = {
-    "motor.viscous_friction_nm_s": (0.0, 2.5e-5, 5e-5, 1e-4, 2e-4, 4e-4, 8e-4, 1.6e-3,
-                                    3.2e-3, 6.4e-3),
-    "screw.contact_stiffness_n_per_m": tuple(float(v) for v in np.geomspace(0.25, 4.0, 13)),
-}
-"""Parameters calibrated by a profile instead of the joint least squares, with their grid
-(absolute values for an absolute tolerance, factors of the nominal for a relative one):
-the cost on the grid, then at the vertex of the parabola through the best point and its
-neighbours, the others held at their fit; then the others refitted. The contact stiffness
-acts mainly on the encoder's travel (the deflection F / k between screw and nut), which
-the model quantises to whole counts, and the viscous coefficient's nominal sits on its
-lower bound (0): a finite-difference Jacobian sees no gradient in either."""
+# the screw's reaction lever r of C_V (eq. 5.10): the torque an axial force needs, per N,
+# is its lever times tan(alpha) / g. The thesis' r_m - r_b cos(beta) gives 0.91 of the
+# work-consistent p / 2 pi; another actuator's screw need not share it, and the current
+# that holds the logged load shows it. Identified under a logged load only
+# (`default_names`); 1 sd 15 %.
+UNCERTAIN["screw.reaction_lever_m"] = Uncertain("screw.reaction_lever_m", 1e-3, 0.1, True,
+                                                0.15, follows_model=True)
 LOADED_N = 100.0
 """A log whose load cell reads more than this (N) carries a load that identifies the
 contact stiffness (the encoder-LVDT deflection follows it); see `default_names`."""
 
 
 def default_names(trace: Trace) -> tuple[str, ...]:
-    """The parameters a healthy `trace` identifies: DEFAULT, the viscous friction (the
-    torque that grows with speed, beside the Coulomb level of friction_scale) and the
-    contact stiffness when its load cell shows a load (|F| > LOADED_N): then the
-    deflection between the encoder's travel and the LVDT follows the logged force (without
-    it, the contact force is the nut's friction of nearly constant magnitude and the
-    stiffness aliases with backlash). `bench calibrate`'s default stays DEFAULT."""
+    """The parameters a healthy `trace` identifies (`bench calibrate`'s default): DEFAULT,
+    the viscous friction (the torque that grows with speed, beside the Coulomb level of
+    friction_scale) and, when its load cell shows a load (|F| > LOADED_N), the contact
+    stiffness (the deflection between the encoder's travel and the LVDT follows the logged
+    force; without it the contact force is the nut's friction of nearly constant
+    magnitude and the stiffness aliases with backlash) and the screw's reaction lever (the
+    current that holds the logged force)."""
     out = DEFAULT + ("motor.viscous_friction_nm_s",)
     if "load_force_n" in trace.columns:
         f = np.asarray(trace["load_force_n"], float)
         if np.isfinite(f).any() and float(np.nanmax(np.abs(f))) > LOADED_N:
-            out += ("screw.contact_stiffness_n_per_m",)
+            out += ("screw.contact_stiffness_n_per_m", "screw.reaction_lever_m")
     return out
+
+
+def value_of(base: PlantParams, name: str) -> float:
+    """The model's value of calibrated parameter `name` (the reaction lever's NaN default
+    resolved to the lever it stands for, `ScrewParams.lever_m`)."""
+    if name == "screw.reaction_lever_m":
+        return float(base.screw.lever_m)
+    return float(base.get(name))
 ALIASES = [("motor.kt_nm_per_a", "motor.inertia_kg_m2", "ratio kt / J"),
            ("screw.lead_m", "sensors.lvdt_gain", "product lead x LVDT gain")]
 
@@ -120,12 +132,14 @@ class PlantSet(Effect):
         for n in names:
             u = UNCERTAIN[n]
             prm = Param(n, resolve(n).unit, u.lo, u.hi, resolve(n).doc, log=u.log)
-            ps.append(follow_model(prm, base, n) if u.follows_model and base is not None
-                      else prm)
+            k = (value_of(base, n) / value_of(PlantParams(), n)
+                 if n == "screw.reaction_lever_m" else bound_scale(base, n)) \
+                if u.follows_model and base is not None else 1.0
+            ps.append(prm.scaled(k) if k != 1.0 else prm)
         self.params = tuple(ps)   # type: ignore[misc]
 
     def nominal(self, base: PlantParams) -> dict[str, float]:
-        return {p.name: float(base.get(p.name)) for p in self.params}
+        return {p.name: value_of(base, p.name) for p in self.params}
 
     def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
         return dict(theta)
@@ -155,18 +169,16 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
                              f"{', '.join(UNCERTAIN)})")
     p = build(trace.measured(), base, holdout_frac=0.3, encoder=encoder,
               purpose="calibration", resim=RESIM[controller], cascade=cascade)
-    eff = PlantSet([n for n in names if n not in PROFILED], p.base)
+    eff = PlantSet(names, p.base)
     nom = eff.nominal(p.base)
     nominal_sim = p.info["nominal"]
-    f, profiles = _fit(p, eff, nom, [n for n in names if n in PROFILED])
+    f = fit(p, [eff], [nom], max_nfev=80, prior=_prior(eff, nom))
     after = p.simulate([eff], f.theta)
     before_fit = p.energies(nominal_sim, 0, p.n_fit)
     after_fit = p.energies(after, 0, p.n_fit)
     before_ho = p.energies(nominal_sim, p.n_fit, p.n)
     after_ho = p.energies(after, p.n_fit, p.n)
     params = {k: float(v) for k, v in f.theta[0].items()}
-    params.update({n: pr["value"] for n, pr in profiles.items()})
-    nom.update({n: pr["nominal"] for n, pr in profiles.items()})
     ci = {k: [float(a), float(b)] for k, (a, b) in f.ci95[0].items()}
     loaded = p.drive.load_n is not None and float(np.nanmax(np.abs(p.drive.load_n))) > 100.0
     how = ("mostly through their" if loaded else "only through their")
@@ -174,6 +186,14 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
            "addition)" if loaded else " on a log without force measurement")
     notes = [f"{a} and {b} act {how} {what}{why}: the log fixes the {what}; the prior "
              "tolerances split it" for a, b, what in ALIASES if a in names and b in names]
+    distance = prior_distance(params, nom)
+    edge = f.bounded()
+    notes += [f"{k} = {params[k]:.4g} is {z:+.1f} prior sd from the description's "
+              f"{nom[k]:.4g}: the healthy log asks for more than its tolerance (a wrong "
+              "description, or a difference of form this parameter absorbs; a later fault "
+              "may then need it moved back)" for k, z in distance.items() if abs(z) > FAR_SD]
+    notes += [f"{k} ended on its bound: the log asks for more than the range allows"
+              for k in edge]
     return {
         "model": model,
         "fidelity": "fast mode (averaged PWM, massless balls)",
@@ -184,13 +204,35 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
         "nominal": {k: float(v) for k, v in nom.items()},
         "prior_sd": {n: (UNCERTAIN[n].tol if not UNCERTAIN[n].relative
                          else f"{UNCERTAIN[n].tol:.0%}") for n in names},
+        "prior_distance_sd": distance,
+        "at_bound": edge,
         "gap_before": {"fit_part": _norm(before_fit), "heldout_part": _norm(before_ho)},
         "gap_after": {"fit_part": _norm(after_fit), "heldout_part": _norm(after_ho)},
-        **({"profiled": profiles} if profiles else {}),
         "noise_sigma": p.noise_sigma,
         "samples": p.n, "fit_samples": p.n_fit,
         "notes": notes,
     }
+
+
+FAR_SD = 2.0
+"""A calibrated value further than this many prior standard deviations from the
+description's is reported (`notes`): the healthy log moved it beyond its tolerance."""
+
+
+def prior_distance(params: Mapping[str, float], nom: Mapping[str, float]) -> dict[str, float]:
+    """Each calibrated value's distance from the description's value in prior standard
+    deviations (its tolerance, `UNCERTAIN`; in ln for a relative one)."""
+    out = {}
+    for k, v in params.items():
+        u, v0 = UNCERTAIN.get(k), nom.get(k)
+        if u is None or v0 is None:
+            continue
+        if u.relative and v > 0 and v0 > 0:
+            out[k] = math.log(v / v0) / u.tol
+        else:
+            sd = u.tol * abs(v0) if u.relative else u.tol
+            out[k] = (v - v0) / sd if sd > 0 else 0.0
+    return out
 
 
 def _prior(eff: PlantSet, nom: Mapping[str, float]) -> dict[str, tuple[float, float]]:
@@ -204,58 +246,6 @@ def _prior(eff: PlantSet, nom: Mapping[str, float]) -> dict[str, tuple[float, fl
         sd_u = sd_val / max(prm.dvalue_du(prm.to_unit(min(max(v, prm.lo), prm.hi))), 1e-300)
         prior[prm.name] = (min(max(v, prm.lo), prm.hi), max(sd_u, 1e-6))
     return prior
-
-
-def _fit(p: Problem, eff: PlantSet, nom: dict[str, float], profiled: Sequence[str]
-         ) -> tuple[Any, dict[str, dict[str, Any]]]:
-    """The joint least squares of `eff`'s parameters with their prior; each `profiled`
-    parameter (PROFILED) then set by `profile` with the others at their fit, written into
-    `p.base`, and the others refitted under it. Returns the fit and the profiles."""
-    prior = _prior(eff, nom)
-    f = fit(p, [eff], [nom], max_nfev=80, prior=prior)
-    profiles: dict[str, dict[str, Any]] = {}
-    for name in profiled:
-        profiles[name] = profile(p, name, dict(f.theta[0]))
-        p.base = p.base.with_dict({name: profiles[name]["value"]})
-        f = fit(p, [eff], [dict(f.theta[0])], max_nfev=80, prior=prior)
-    return f, profiles
-
-
-def profile(p: Problem, name: str, theta: Mapping[str, float]) -> dict[str, Any]:
-    """`name` (a PROFILED parameter) set by its profile on the fit part of `p`, the other
-    parameters at `theta`: the summed squared normalised residual plus the prior's
-    ((v - v0) / sd)^2 (in ln v for a relative tolerance) on its grid (within its bounds),
-    then at the vertex of the parabola through the best point and its neighbours; the
-    lowest point evaluated is kept."""
-    u = UNCERTAIN[name]
-    v0 = float(p.base.get(name))
-    eff = PlantSet([*theta, name], p.base)
-
-    def x_of(v: float) -> float:
-        return math.log(v) if u.relative else v
-
-    def cost(v: float) -> float:
-        sim = p.simulate([eff], [{**theta, name: v}])
-        r = p.residual(sim, 0, p.n_fit)
-        return float(np.sum(r ** 2) + ((x_of(v) - x_of(v0)) / u.tol) ** 2)
-
-    raw = [g * v0 for g in PROFILED[name]] if u.relative else list(PROFILED[name])
-    grid = sorted({min(max(v, u.lo), u.hi) for v in raw})
-    costs = [cost(v) for v in grid]
-    i = int(np.argmin(costs))
-    pts = list(zip(grid, costs, strict=True))
-    if 0 < i < len(grid) - 1:
-        x = np.array([x_of(v) for v in grid[i - 1:i + 2]])
-        a, b, _ = np.polyfit(x, costs[i - 1:i + 2], 2)
-        if a > 0:
-            xv = min(max(-b / (2 * a), x[0]), x[2])
-            v = float(math.exp(xv) if u.relative else xv)
-            pts.append((v, cost(v)))
-    best = min(pts, key=lambda q: q[1])
-    return {"value": best[0], "nominal": v0, "cost": best[1],
-            "grid": [[float(v), float(c)] for v, c in sorted(pts)],
-            "how": "profile: cost on a grid, then the parabola through the best three "
-                   "(bench.gap.calibrate.PROFILED)"}
 
 
 CONTROLLERS = {

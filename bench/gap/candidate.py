@@ -27,7 +27,7 @@ from plant_rt.params import PlantParams
 
 WEAR_FRACTIONS = (0.5, 0.1)
 """Start points of an effect whose parameters fall with wear (``wear_direction = "down"``),
-as fractions of the nominal (docs/gap.md, "Preload loss start points")."""
+as fractions of the nominal (docs/gap.md, "Candidate effects and their families")."""
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,9 @@ class Param:
     doc: str
     log: bool = False
     integer_step: float = 0.0
+    physical_bounds: bool = False
+    """The bounds are the quantity's own limits (a share from 0 to 1), not the family's:
+    a fit on one of them is no sign of an effect beyond the family (`fit.at_bounds`)."""
 
     def to_unit(self, v: float) -> float:
         """Value -> [0, 1] fitting coordinate."""
@@ -84,24 +87,12 @@ def bound_scale(base: PlantParams, name: str) -> float:
     `name`: base's value / the thesis' value (exactly 1 at the thesis' value; 1 when
     either is not a positive number). Bounds written as a range around the thesis'
     actuator (a 5 mm lead, a 4e-3 kg m^2 rotor) are scaled by it, so that another
-    actuator's value lies where the thesis' lies in them: always for the library's effects
-    (`_Single.for_model`), only when the value lies outside them for the calibration
-    (`follow_model`; docs/gap.md, "Bounds that follow the actuator's own nominal")."""
+    actuator's value lies where the thesis' lies in them (the library's effects,
+    `_Single.for_model`, and the calibration, `bench.gap.calibrate.PlantSet`)."""
     v, ref = float(base.get(name)), _thesis_value(name)
     if not (math.isfinite(v) and math.isfinite(ref) and v > 0 and ref > 0):
         return 1.0
     return v / ref
-
-
-def follow_model(prm: Param, base: PlantParams, name: str) -> Param:
-    """`prm`, a range around the thesis' actuator's value of plant parameter `name`, as
-    used on the model `base`: the same when base's value lies inside it, else moved to
-    that value (scaled by `bound_scale`). The calibration's rule
-    (`bench.gap.calibrate.PlantSet`); the library's effects always scale (session 16,
-    docs/gap.md, "A lead change moves the helix")."""
-    if prm.lo <= float(base.get(name)) <= prm.hi:
-        return prm
-    return prm.scaled(bound_scale(base, name))
 
 
 class Effect:
@@ -136,6 +127,17 @@ class Effect:
         moved to `base`'s value (`bound_scale`) when that value lies outside it. The fit
         calls it."""
         return self
+
+    def loop_delays(self, theta: Mapping[str, float], dt: float) -> tuple[int, int]:
+        """Whole SYNC periods by which the LVDT and the encoder are read later in the
+        loop, each alone (`bench.gap.delays`; default: none)."""
+        return (0, 0)
+
+    def available(self, base: PlantParams) -> bool:
+        """Whether the effect has a place in the model `base` (default: yes); one that
+        has not is not tried (e.g. a drive-side current offset where the model's logged
+        current is a channel of its own: its log-side twin is the candidate there)."""
+        return True
 
     def in_log(self, base: PlantParams) -> bool:
         """Whether `post` applies for the nominal model `base` (default: ``where``). An

@@ -87,14 +87,21 @@ class Cascade:
 def cascade_control(c, kvec, ref, kk, meas, kd):  # pragma: no cover - compiled
     """The generic cascade (module doc) at this SYNC: (position set-point m, speed
     set-point rad/s, mode) = ref[kk]; the measurement row kd (delayed samples)."""
+    return cascade_rows(c, kvec, ref, kk, meas, kd, kd)
+
+
+@njit(inline="always", error_model="numpy")
+def cascade_rows(c, kvec, ref, kk, meas, kl, ke):  # pragma: no cover - compiled
+    """`cascade_control` with the LVDT read from measurement row kl and the encoder
+    (angle and speed) from row ke: sensors delayed apart (`bench.gap.delays`)."""
     count = c[GC_COUNT]
     c[GC_COUNT] = count + 1.0
     every = kvec[G_EVERY]
     if count - every * math.floor(count / every) != 0.0:
         return c[GC_HELD]
     mode = ref[kk, 2]
-    pos = meas[kd, K.M_POS] if kvec[G_SRC] == 0.0 else meas[kd, K.M_ANGLE] * kvec[G_TRAVEL]
-    speed = meas[kd, K.M_SPEED]
+    pos = meas[kl, K.M_POS] if kvec[G_SRC] == 0.0 else meas[ke, K.M_ANGLE] * kvec[G_TRAVEL]
+    speed = meas[ke, K.M_SPEED]
     if mode == 0.0 or not (math.isfinite(pos) and math.isfinite(speed)):
         c[GC_IPOS] = 0.0
         c[GC_ISPD] = 0.0

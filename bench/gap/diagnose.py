@@ -35,12 +35,15 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap import effects as E
+from bench.gap import families as F
 from bench.gap import limitcycle as LC
 from bench.gap import localise as LZ
 from bench.gap import resim as R
+from bench.gap.finding import describe
 from bench.gap.fit import Fit, fit
 from bench.gap.library import FRICTION_SPLITS
 from bench.gap.problem import Problem, build, fill_gaps
+from bench.gap.refine import refine
 from bench.trace import Trace
 from bench.workers import ensure_started, make_pool
 from plant_rt.params import PlantParams
@@ -61,6 +64,7 @@ the log's smoothed energy exceeds max(default threshold, m_s x margin_s), margin
 effective samples of a squared residual), sqrt(2) for two independent draws (the held-out
 log and the judged one), at the default test's own tail bound Z (set on nominal logs of
 the bench's generator, not on any benchmark), L and n from the held-out log."""
+PAIR_MEMBERS = 2        # members of each other family tried as a pair's second effect
 TIE = 0.95              # candidates of the verdict's size explaining >= TIE of what it
                         # explains on held-out data (over the nominal for a single, over
                         # the best single for a pair) are reported as "also explains"
@@ -94,6 +98,8 @@ class Candidate:
     heldout_smooth: dict[str, float] = field(default_factory=dict)
     heldout_excess: float = math.nan
     fit_excess: float = math.nan
+    suspect: list[str] = field(default_factory=list)    # implausible values, one line each
+    edge: list[str] = field(default_factory=list)       # parameters at a family's bound
 
 
 @dataclass
@@ -108,6 +114,7 @@ class Result:
     gap_before_heldout: dict[str, float]
     significant: bool
     ties: list[str] = field(default_factory=list)
+    finding: dict[str, Any] | None = None      # the chosen candidate in words (finding.py)
 
     def json(self) -> dict[str, Any]:
         return to_json(self)
@@ -150,13 +157,24 @@ def evaluate(p: Problem, h: Problem | None, names: Sequence[str],
     en, ex, sm = heldout_eval(p, h, effs, f.theta)
     c = Candidate(f, heldout=en, heldout_excess=ex, heldout_smooth=sm)
     c.fit_excess = f.rss / (f.n / len(R.SIGNALS)) - len(R.SIGNALS)
+    flag(c, p)
     return c
+
+
+def flag(c: Candidate, p: Problem) -> None:
+    """The candidate's trouble: values beyond the family's plausible range
+    (`families.suspect`) and parameters on a bound that is not their no-effect value
+    (`Fit.at_bound`)."""
+    objs = c.fit.objs or [E.get(n) for n in c.fit.effects]
+    nom = {k: v for e in objs for k, v in e.nominal(p.base).items()}
+    c.suspect = F.suspect(c.fit.params_dict(), nom)
+    c.edge = c.fit.bounded()
 
 
 def _strip(p: Problem) -> Problem:
     """A copy without the bulky diagnostics (for worker processes): every other field is
     the problem's (a field left out would fall back to its default in the workers)."""
-    return dataclasses.replace(p, holdout=None, info={})
+    return dataclasses.replace(p, holdout=None, info={}, _cache={})
 
 
 def _run(tasks: Sequence[tuple[tuple[str, ...], list[dict[str, float]] | None]], p: Problem,
@@ -223,8 +241,7 @@ def excess(energies: dict[str, float], reference: dict[str, Any] | None = None) 
     model leaves on a held-out healthy log (`reference["energy"]`, session 13), the sum
     of what each signal has above that healthy energy (and above the floor): the part of
     the gap the calibrated model does not leave on a healthy log, which is what an effect
-    can explain (docs/gap.md, "A current logged apart from the drive, and the gap above
-    the healthy level")."""
+    can explain (docs/gap.md, "Calibration")."""
     ref = (reference or {}).get("energy")
     if not ref:
         return float(sum(e - 1.0 for e in energies.values()))
@@ -339,11 +356,13 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
         loc["significance"]["threshold"] = b["threshold"]
         loc["significance"]["judged_against"] = b
     skipped = [] if o.model == "plant" else not_representable(p, names)
-    names = [n for n in names if n not in skipped]
+    absent = [n for n in names if not E.get(n).available(p.base)]
+    names = [n for n in names if n not in skipped and n not in absent]
     loc["model"] = {"name": o.model, "fidelity": "fast: averaged PWM, massless balls "
                     "(drive.pwm_mode=averaged, sim.ball_model=quasistatic), ~240x real time"
                     if o.model == "plant" else "monitoring model (rigid screw, no PWM)",
                     "effects_not_representable": skipped,
+                    "effects_without_a_place": absent,
                     "load": _load_note(p, o.model),
                     "friction_split": SPLIT_NOTE[o.friction_split],
                     "nominal_differs_from_thesis": {k: v[1] for k, v in
@@ -354,10 +373,11 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     bar = None
     if o.progress:
         from tqdm import tqdm
-        bar = tqdm(total=2 * len(names) - 1, unit="fit",
+        bar = tqdm(total=len(names) + PAIR_MEMBERS * len({F.family(n) for n in names}),
+                   unit="fit",
                    desc="gap", leave=False)
     say(f"fitting {len(names)} candidate effects")
-    singles, pairs, best, L = _select(names, p, h, pool, bar, say)
+    singles, pairs, best, L = _select(names, p, h, pool, bar, say, o.reference)
     if bar is not None:
         bar.close()
     healthy = (o.reference or {}).get("energy")
@@ -369,10 +389,16 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
                                                                ho_ex, sig, L, o.reference,
                                                                ho_en)
+    finding = None
+    if chosen is not None and math.isfinite(chosen.fit.rss):
+        say("refining the verdict's fit against the model at its own fidelity")
+        chosen.fit, loc["selection"]["fast_model_correction"] = refine(p, chosen.fit)
+        flag(chosen, p)
+        finding = describe(p, chosen.fit, chosen.suspect, chosen.edge)
     lc = LC.note(p, names)          # a note under the verdict (the summary prints it)
     if lc is not None:
         loc["limit_cycle"] = lc
-    return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties)
+    return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties, finding)
 
 
 def _localisation(trace: Trace, holdout: Trace | None, p: Any, h: Any, frac: float,
@@ -411,18 +437,34 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
             ho_en: dict[str, float] | None = None
             ) -> tuple[Any, str, list[Any], list[str], dict[str, Any]]:
     """The chosen candidate (the best single, or a pair by the rule in the selection
-    record), the verdict, the ranking, the candidates tied with the chosen one and the
-    selection record. A held-out gap the best single leaves is significant by the same
-    rule as the log's (raised to a calibration's held-out healthy level x margin,
-    `reference`)."""
+    record), the verdict, the ranking (every candidate by BIC), the candidates of other
+    families tied with the chosen one and the selection record. A held-out gap the best
+    single leaves is significant by the same rule as the log's (raised to a calibration's
+    held-out healthy level x margin, `reference`). A pair whose added effect is suspect
+    (`flag`) does not replace the single: a second effect of implausible size is more
+    likely the first one's misfit absorbed. A suspect best single gives way to a
+    plausible one whose BIC is within PAIR_BIC of it (an alias: an LVDT gain of 1.03 read
+    as a lead 3 % long, ahead by 2 of BIC)."""
+    if getattr(best, "suspect", None):     # a plausible single as good takes its place
+        plausible_single = [c for c in singles if not getattr(c, "suspect", None)
+                            and math.isfinite(c.bic) and c.bic <= best.bic + PAIR_BIC]
+        if plausible_single:
+            best = min(plausible_single, key=lambda c: c.bic)
     chosen = best
-    n_ho = h.n if h is not None else p.n - p.n_fit
-    thr_ho = calibrated_thresholds(thresholds(h if h is not None else p, n_ho), reference)
-    remaining = any(best.heldout_smooth.get(s, 0.0) > thr_ho[s] for s in R.SIGNALS)
-    better = [c for c in pairs
-              if c.heldout_excess < (1.0 - PAIR_GAIN) * best.heldout_excess]
-    if remaining and better:
-        bp = min(better, key=lambda c: c.bic)
+    remaining = leaves_gap(best, p, h, reference)
+
+    def above(c: Any) -> float:
+        """The held-out excess of `c` the calibration's healthy model does not leave
+        (`excess`; the whole excess without a healthy energy): what an effect can explain,
+        the quantity the verdict's shrink counts."""
+        if (reference or {}).get("energy") and getattr(c, "heldout", None):
+            return excess(c.heldout, reference)
+        return float(c.heldout_excess)
+
+    better = [c for c in pairs if above(c) < (1.0 - PAIR_GAIN) * above(best)]
+    plausible = [c for c in better if not getattr(c, "suspect", None)]
+    if remaining and plausible:
+        bp = min(plausible, key=lambda c: c.bic)
         if bp.bic < best.bic - PAIR_BIC:
             chosen = bp
     # the verdict's shrink, of the held-out gap above a calibration's healthy energy where
@@ -431,21 +473,28 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
               shrink_pct(excess(ho_en, reference), excess(chosen.heldout, reference)))
     verdict = chosen.fit.name if shrink >= MIN_SHRINK_PCT and sig else (
         "unexplained" if sig else "none")
-    ranking = [chosen] + sorted([c for c in singles + pairs if c is not chosen],
-                                key=lambda c: c.bic)
-    ref = ho_ex if chosen is best else best.heldout_excess
-    gain = ref - chosen.heldout_excess
-    ties = [c.fit.name for c in ranking[1:] if len(c.fit.effects) == len(chosen.fit.effects)
-            and gain > 0 and ref - c.heldout_excess >= TIE * gain]
+    ranking = sorted(singles + pairs, key=lambda c: (c.bic, c is not chosen))
+    before = (excess(ho_en, reference) if ho_en is not None and (reference or {}).get("energy")
+              else ho_ex)
+    ref = before if chosen is best else above(best)
+    gain = ref - above(chosen)
+    tied = [c.fit.name for c in ranking if c is not chosen
+            and len(c.fit.effects) == len(chosen.fit.effects)
+            and gain > 0 and ref - above(c) >= TIE * gain]
+    ties = F.ties_across(chosen.fit.name, tied)
     selection = {"corr_length_samples": L, "best_single": best.fit.name,
                  "best_single_leaves_significant_heldout_gap": remaining,
                  "chosen": chosen.fit.name, "heldout_shrink_pct": shrink,
                  "min_shrink_pct": MIN_SHRINK_PCT,
                  "indistinguishable_from_chosen": ties,
+                 "same_family_forms": [t for t in tied if t not in ties],
+                 "pairs_rejected_as_suspect": [c.fit.name for c in better
+                                               if getattr(c, "suspect", None)],
                  "rule": ("a pair replaces the best single when the single leaves a "
                           f"significant held-out gap, the pair removes >= {PAIR_GAIN:.0%} "
-                          f"of it and its BIC is lower by > {PAIR_BIC:g}; "
-                          f"'unexplained' if the held-out shrink < {MIN_SHRINK_PCT:.0f} %")}
+                          f"of it, no value of it is suspect and its BIC is lower by > "
+                          f"{PAIR_BIC:g}; 'unexplained' if the held-out shrink < "
+                          f"{MIN_SHRINK_PCT:.0f} %")}
     return chosen, verdict, ranking, ties, selection
 
 
@@ -484,10 +533,21 @@ def not_representable(p: Problem, names: Sequence[str], n: int = 1000) -> list[s
     return out
 
 
+def leaves_gap(best: Any, p: Any, h: Any, reference: dict[str, Any] | None) -> bool:
+    """Whether candidate `best` leaves a significant held-out gap: the significance test
+    of the log on its held-out residual (raised to a calibration's held-out healthy level
+    x margin, `reference`)."""
+    n_ho = h.n if h is not None else p.n - p.n_fit
+    thr_ho = calibrated_thresholds(thresholds(h if h is not None else p, n_ho), reference)
+    return any(best.heldout_smooth.get(s, 0.0) > thr_ho[s] for s in R.SIGNALS)
+
+
 def _select(names: Sequence[str], p: Problem, h: Problem | None, pool: Any, bar: Any,
-            say: Callable[[str], None]
+            say: Callable[[str], None], reference: dict[str, Any] | None = None
             ) -> tuple[list[Candidate], list[Candidate], Candidate, float]:
-    """Singles ranked by BIC, then the pairs of the best single (forward selection)."""
+    """Singles ranked by BIC, then the pairs of the best single (forward selection), unless
+    the best single leaves no significant held-out gap (no pair could then replace it:
+    the pair rule of `_choose`)."""
     singles = _run([((n,), None) for n in names], p, h, pool, bar)
     ref = min(singles, key=lambda c: c.fit.rss)
     L = max(ref.fit.corr_len, 1.0)
@@ -495,11 +555,25 @@ def _select(names: Sequence[str], p: Problem, h: Problem | None, pool: Any, bar:
         c.bic, c.aic = c.fit.bic(L), c.fit.aic(L)
     singles.sort(key=lambda c: c.bic)
     best = singles[0]
-    # -- forward selection: pairs --------------------------------------------------------
+    # -- forward selection: pairs, the best single with the best PAIR_MEMBERS members of
+    # each other family (a second member of the best single's own family is another form
+    # of the same mechanism, not a second effect; the member that fits best alone need not
+    # be the one that completes a pair: a delay in the loop beside a log-side one)
     pairs: list[Candidate] = []
-    others = [c for c in singles[1:] if math.isfinite(c.fit.rss)]
+    mine = F.family(best.fit.effects[0])
+    seen: dict[str, int] = {}
+    others = []
+    for c in singles[1:]:
+        fam = F.family(c.fit.effects[0])
+        if math.isfinite(c.fit.rss) and fam != mine and seen.get(fam, 0) < PAIR_MEMBERS:
+            seen[fam] = seen.get(fam, 0) + 1
+            others.append(c)
+    if others and not leaves_gap(best, p, h, reference):
+        say(f"{best.fit.name} leaves no significant held-out gap: no pairs")
+        others = []
     if others:
-        say(f"forward selection: {best.fit.name} + each of {len(others)} others")
+        say(f"forward selection: {best.fit.name} + the best {PAIR_MEMBERS} of each other "
+            f"family ({len(others)} pairs)")
         tasks = [((best.fit.effects[0], c.fit.effects[0]), [best.fit.theta[0], c.fit.theta[0]])
                  for c in others]
         pairs = _run(tasks, p, h, pool, bar)
@@ -541,20 +615,31 @@ def to_json(r: Result) -> dict[str, Any]:
     h = r.holdout or r.problem
     healthy = {"energy": (r.localisation.get("heldout_excess") or {}).get("healthy_energy")}
     ranking = []
-    for c in r.ranking:
+    for i, c in enumerate(r.ranking, 1):
         ranking.append({
+            "rank": i,
             "effect": c.fit.name,
+            "families": F.family_name(c.fit.name),
+            "chosen": c is r.chosen,
             "params": c.fit.params_dict(),
             "gap_before": gap_summary(h, r.gap_before_heldout),
             "gap_after": gap_summary(h, c.heldout),
             "heldout_shrink_pct": shrink_pct(excess(r.gap_before_heldout, healthy),
                                              excess(c.heldout, healthy)),
             "score": {"bic": c.bic, "aic": c.aic},
+            "suspect": c.suspect, "at_bound": c.edge,
         })
     loc = dict(r.localisation)
     if r.chosen is not None:
         loc["hums_indexes"] = hums_distance(r)
-    return _finite({"localisation": loc, "ranking": ranking, "verdict": r.verdict})
+    return _finite({"localisation": loc, "ranking": ranking, "verdict": r.verdict,
+                    "finding": r.finding})
+
+
+def chosen_entry(js: dict[str, Any]) -> dict[str, Any] | None:
+    """The ranking entry of the candidate the diagnosis chose (the ranking is by BIC; the
+    chosen one need not be first), None without one."""
+    return next((c for c in js.get("ranking", []) if c.get("chosen")), None)
 
 
 def hums_distance(r: Result) -> dict[str, Any]:

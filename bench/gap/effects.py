@@ -15,8 +15,9 @@ from collections.abc import Callable
 from bench import BenchError
 from bench.gap.candidate import Effect, Param
 from bench.gap.library import BUILTIN
+from bench.gap.sensors import BUILTIN as SENSOR_BUILTIN
 
-EFFECTS: dict[str, Callable[[], object]] = {cls.name: cls for cls in BUILTIN}
+EFFECTS: dict[str, Callable[[], object]] = {cls.name: cls for cls in BUILTIN + SENSOR_BUILTIN}
 _CACHE: dict[str, Effect] = {}
 
 

@@ -4,9 +4,13 @@ Each candidate (one effect or a combination) is fitted with `scipy.optimize.
 least_squares` on the normalised closed-loop residuals of the fit part of the log, in
 [0, 1] coordinates per parameter (logarithmic where the parameter spans decades), from
 a few starting points (the best is kept). Parameters that only take whole SYNC periods
-(delays) are grid-searched. Confidence intervals come from the Jacobian at the optimum,
-inflated by the residuals' correlation length (residuals of a closed loop are not
-independent samples).
+(delays) are grid-searched. Confidence intervals are the sandwich (Huber-White) form
+around the Jacobian at the optimum with a long-run (Newey-West) covariance of each
+signal's score: the residuals of a closed loop are correlated, and by signal very
+differently (the encoder's travel over tens of samples, the current's hardly at all), so
+one correlation length for all of them gives intervals too narrow for the parameters the
+slow signals carry (`intervals`). A parameter that ends on a bound that is not its
+no-effect value is flagged (`Fit.at_bound`): its interval is open on that side.
 
 Scores (lower is better), with n_eff = n / L the effective number of samples:
     BIC = n_eff ln(RSS / n) + k ln(n_eff),   AIC = n_eff ln(RSS / n) + 2 k
@@ -24,7 +28,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from bench.gap import effects as E
-from bench.gap.autocorr import corr_length
+from bench.gap.autocorr import corr_length, long_run_cov
 from bench.gap.library import with_nut_share
 from bench.gap.problem import Problem
 
@@ -50,6 +54,11 @@ class Fit:
     message: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
     objs: list[E.Effect] = field(default_factory=list)
+    at_bound: list[dict[str, str]] = field(default_factory=list)   # per effect: param ->
+                                             # "lower" | "upper" (a bound not its nominal)
+    cov_u: np.ndarray | None = None          # covariance of the free parameters in [0, 1]
+                                             # coordinates (order `free`)
+    free: list[tuple[int, str]] = field(default_factory=list)   # (effect index, param)
 
     @property
     def name(self) -> str:
@@ -64,14 +73,26 @@ class Fit:
         return neff * math.log(max(self.rss, 1e-300) / self.n) + 2.0 * self.k
 
     def params_dict(self) -> dict[str, dict[str, Any]]:
-        """{param: {value, ci95, unit}} over all effects (JSON-ready)."""
+        """{param: {value, ci95, unit[, at_bound]}} over all effects (JSON-ready); a
+        parameter on a bound that is not its no-effect value has ``at_bound`` ("lower" or
+        "upper") and no interval on that side (None: the effect may be larger)."""
         out: dict[str, dict[str, Any]] = {}
         objs = self.objs or [E.get(n) for n in self.effects]
-        for eff, th, ci in zip(objs, self.theta, self.ci95, strict=True):
+        flags = self.at_bound or [{} for _ in objs]
+        for eff, th, ci, fl in zip(objs, self.theta, self.ci95, flags, strict=True):
             for p in eff.params:
                 lo, hi = ci.get(p.name, (float("nan"), float("nan")))
-                out[p.name] = {"value": th[p.name], "ci95": [lo, hi], "unit": p.unit}
+                d: dict[str, Any] = {"value": th[p.name], "ci95": [lo, hi], "unit": p.unit}
+                side = fl.get(p.name)
+                if side is not None:
+                    d["at_bound"] = side
+                    d["ci95"] = [None, hi] if side == "lower" else [lo, None]
+                out[p.name] = d
         return out
+
+    def bounded(self) -> list[str]:
+        """The parameters at a bound that is not their no-effect value."""
+        return [k for fl in self.at_bound for k in fl]
 
 
 def residual_corr_length(p: Problem, sim: dict[str, np.ndarray], lo: int, hi: int) -> float:
@@ -209,7 +230,8 @@ def _starts(problem: Problem, effs: Sequence[E.Effect], nom: list[dict[str, floa
 
 def fit(problem: Problem, names: Sequence[str | E.Effect],
         start: list[dict[str, float]] | None = None, max_nfev: int = MAX_NFEV,
-        prior: dict[str, tuple[float, float]] | None = None) -> Fit:
+        prior: dict[str, tuple[float, float]] | None = None,
+        diff_step: float = DIFF_STEP) -> Fit:
     """Fit the candidate set `names` (registry names or Effect objects) to the fit part
     of `problem`.
 
@@ -249,12 +271,13 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
         r = problem.residual(sim, 0, problem.n_fit)
         return Fit(effect_names, th, [dict(_exact(f)) for f in fixed], float(r @ r), len(r),
                    k, obj.nfev, residual_corr_length(problem, sim, 0, problem.n_fit),
-                   extra={"discrete_only": True}, objs=list(effs))
+                   extra={"discrete_only": True}, objs=list(effs),
+                   at_bound=at_bounds(effs, nom, obj, np.zeros(0), fixed))
     best_u = np.clip(np.array([prm.to_unit(best_st[i][prm.name]) for i, prm in obj.free]),
                      0.0, 1.0)
     best_cost = float(np.sum(obj(best_u) ** 2))
     with np.errstate(over="ignore", invalid="ignore"):
-        res = least_squares(obj, best_u, bounds=(0.0, 1.0), diff_step=DIFF_STEP,
+        res = least_squares(obj, best_u, bounds=(0.0, 1.0), diff_step=diff_step,
                             x_scale=1.0, max_nfev=max_nfev, method="trf",
                             ftol=FTOL, xtol=XTOL)
     u = res.x if 0.5 * float(res.fun @ res.fun) <= 0.5 * best_cost else best_u
@@ -263,31 +286,79 @@ def fit(problem: Problem, names: Sequence[str | E.Effect],
     r = problem.residual(sim, 0, problem.n_fit)
     rss = float(r @ r)
     L = residual_corr_length(problem, sim, 0, problem.n_fit)
-    ci = _intervals(obj, u, res.jac, rss, len(r), L, fixed)
+    cov = intervals_cov(res.jac, r, len(problem.sigma))
+    ci = _intervals(obj, u, cov, res.jac, fixed)
+    flags = at_bounds(effs, nom, obj, u, fixed)
     return Fit(effect_names, th, ci, rss, len(r), k, obj.nfev, L, bool(res.success),
-               str(res.message), objs=list(effs))
+               str(res.message), objs=list(effs), at_bound=flags, cov_u=cov,
+               free=[(i, prm.name) for i, prm in obj.free])
 
 
 def _exact(fixed: dict[str, float]) -> dict[str, tuple[float, float]]:
     return {k: (v, v) for k, v in fixed.items()}
 
 
-def _intervals(obj: Objective, u: np.ndarray, jac: np.ndarray, rss: float, n: int,
-               corr_len: float, fixed: list[dict[str, float]]
-               ) -> list[dict[str, tuple[float, float]]]:
-    """95 % intervals from the Jacobian: cov_u = (J^T J / (s^2 L) + J_p^T J_p)^-1 with
-    s^2 = RSS/(n-k), L the correlation length and J_p the prior rows (if any), mapped
-    through each parameter's scale (asymmetric for logarithmic ones)."""
-    out: list[dict[str, tuple[float, float]]] = [dict() for _ in obj.effects]
-    k = len(u)
-    jd, jp = jac[:n], jac[n:]                       # data rows, prior rows
+EDGE = 1e-3
+"""A parameter within this of a bound in [0, 1] coordinates is on it."""
+
+
+def at_bounds(effs: Sequence[E.Effect], nom: list[dict[str, float]], obj: Objective,
+              u: np.ndarray, fixed: list[dict[str, float]]) -> list[dict[str, str]]:
+    """Per effect, its parameters that ended on a bound which is not their no-effect
+    value (`nom`): "lower" or "upper". A fit on such a bound says only that the effect
+    is at least that large, or of another form than the family's (docs/gap.md, "Selection")."""
+    out: list[dict[str, str]] = [{} for _ in effs]
+    pos = {(i, prm.name): float(ui) for (i, prm), ui in zip(obj.free, u, strict=True)}
+    for i, e in enumerate(effs):
+        for prm in e.params:
+            if prm.physical_bounds:
+                continue
+            if prm.name in fixed[i]:                       # a grid: its end points
+                v = fixed[i][prm.name]
+                ui = prm.to_unit(v) if prm.hi > prm.lo else 0.5
+            else:
+                ui = pos.get((i, prm.name), 0.5)
+            un = prm.to_unit(min(max(nom[i][prm.name], prm.lo), prm.hi))
+            for side, edge in (("lower", 0.0), ("upper", 1.0)):
+                if abs(ui - edge) <= EDGE and abs(un - edge) > EDGE:
+                    out[i][prm.name] = side
+    return out
+
+
+def intervals_cov(jac: np.ndarray, r: np.ndarray, n_signals: int) -> np.ndarray:
+    """Covariance of the fitted [0, 1] coordinates: the sandwich H^-1 Omega H^-1 with
+    H = J^T J (data and prior rows) and Omega the long-run covariance of the data score
+    J_s^T r_s of each signal s (Bartlett lags up to 4 of its residual's correlation
+    lengths, `autocorr.long_run_cov`) plus the prior rows' J_p^T J_p (unit-variance
+    pseudo-observations). Data rows are `n_signals` blocks of equal length, in the
+    residual's order; rows after them are the prior's."""
+    n = len(r)
+    jd, jp = jac[:n], jac[n:]
+    k = jac.shape[1]
+    omega = jp.T @ jp
+    m = n // max(n_signals, 1)
+    for s in range(n_signals):
+        rs, js = r[s * m:(s + 1) * m], jd[s * m:(s + 1) * m]
+        if not np.any(rs):
+            continue
+        lag = int(min(math.ceil(4.0 * corr_length(rs)), max(len(rs) // 4, 1)))
+        omega = omega + long_run_cov(js * rs[:, None], lag)
     try:
-        s2 = max(rss / max(n - k, 1) * corr_len, 1e-12)
-        info = jd.T @ jd / s2 + jp.T @ jp
-        cov = np.linalg.pinv(info)
-        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        hinv = np.linalg.pinv(jac.T @ jac)
+        return hinv @ omega @ hinv
     except (np.linalg.LinAlgError, ValueError):
-        sd = np.full(k, np.inf)
+        return np.full((k, k), np.inf)
+
+
+def _intervals(obj: Objective, u: np.ndarray, cov: np.ndarray, jac: np.ndarray,
+               fixed: list[dict[str, float]]) -> list[dict[str, tuple[float, float]]]:
+    """95 % intervals of the free parameters from `cov` (`intervals_cov`), mapped through
+    each parameter's scale (asymmetric for logarithmic ones); a parameter the log does
+    not move (a zero Jacobian column) gets its whole range; grid-searched ones are exact
+    on their grid."""
+    out: list[dict[str, tuple[float, float]]] = [dict() for _ in obj.effects]
+    with np.errstate(invalid="ignore"):
+        sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     for j, (i, prm) in enumerate(obj.free):
         if not np.isfinite(sd[j]) or sd[j] == 0.0 and not np.any(jac[:, j]):
             out[i][prm.name] = (prm.lo, prm.hi)      # not identifiable from this log

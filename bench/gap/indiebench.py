@@ -84,8 +84,7 @@ def rolling_friction_for_drag(params: PlantParams, drag_nm: float) -> float:
 
 
 PRELOAD_LAWS = ("none", "hertz", "hertz-fv", "hertz-drag")
-"""How the datasheet model declares its preloaded double nut (docs/gap.md, "Preload and
-the in-loop LVDT lag"): none (before indie6); hertz (the default): the Hertzian preload
+"""How the datasheet model declares its preloaded double nut (docs/gap.md, "Decisions"): none (before indie6); hertz (the default): the Hertzian preload
 law at the datasheet preload, the drag left to the thesis' rolling terms; hertz-fv and
 hertz-drag add the catalogue's preload drag through the rolling friction f_v or as a
 screw torque per N of preload (both rejected on the healthy logs under the bench's ECU)."""
@@ -155,7 +154,7 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
 FRICTION_SPLIT = "unknown"
 """The datasheet model's friction split (`bench.gap.library.FRICTION_SPLITS`): a datasheet
 gives a total friction, not where it acts (at the nut or at the screw), so the diagnoses
-fit it where it shows (docs/gap.md, "Where the friction acts")."""
+fit it where it shows (docs/gap.md, "Inputs")."""
 
 
 def bench_ecu_cascade(cp: ControllerParams | None = None) -> Cascade:
@@ -194,6 +193,7 @@ def _draws(rng: np.random.Generator) -> dict[str, Callable[[], dict[str, float]]
         "stiffness": lambda: {"hertz_n_per_m15": n.hertz_n_per_m15 * _lu(rng, 3e-3, 0.1)},
         "preload": lambda: {"preload_n": n.preload_n * rng.uniform(0.0, 0.5)},
         "sensor_delay": lambda: {"sensor_delay_periods": float(rng.integers(1, 6))},
+        "lvdt_delay": lambda: {"lvdt_delay_periods": float(rng.integers(1, 6))},
         "lvdt_lag": lambda: {"lvdt_extra_lag_s": rng.uniform(1e-3, 10e-3)},
         "lvdt_gain": lambda: {"lvdt_gain": 1.0 + _pm(rng, 0.005, 0.05)},
         "lvdt_offset": lambda: {"lvdt_offset_m": _pm(rng, 5e-6, 200e-6)},
@@ -209,11 +209,47 @@ def _draws(rng: np.random.Generator) -> dict[str, Callable[[], dict[str, float]]
 
 
 POOL = ("backlash", "friction", "viscous", "stiffness", "preload", "sensor_delay",
-        "lvdt_lag", "lvdt_gain", "lvdt_offset", "encoder_gain", "current_offset",
-        "resistance", "kt", "inertia", "lead")
+        "lvdt_delay", "lvdt_lag", "lvdt_gain", "lvdt_offset", "encoder_gain",
+        "current_offset", "resistance", "kt", "inertia", "lead")
 """Effects injected (the library's names, in the independent physics). Not injected:
 stribeck, thermal_drift (no thermal model here), log_skew (a logger's fault, not the
 actuator's)."""
+
+
+TRUTH_KIND = {"friction_scale": "factor", "backlash_m": "lost_motion_m",
+              "sensor_delay_periods": "delay_s", "lvdt_delay_periods": "delay_s",
+              "lvdt_extra_lag_s": "lvdt_lag_s", "current_offset_a": "current_offset_a",
+              "lvdt_offset_m": "lvdt_offset_m", "lvdt_gain": "lvdt_gain",
+              "encoder_gain": "encoder_gain", "lead_m": "lead_m",
+              "resistance_ohm": "resistance_ohm", "kt_nm_per_a": "kt_nm_per_a",
+              "preload_n": "preload_n"}
+"""The independent actuator's effect parameters whose value states the size of the
+family the diagnosis names, in `bench.gap.finding.size_of`'s terms (its backlash is the
+wear clearance of the two nut halves, of which the free play is what the preload's
+deflection does not take up: BL - 2 d0, I8; its delays whole periods). Not stated: a
+viscous or a stiffness change
+(the family's size is another quantity) and the inertia (its 2.5e-3 is everything
+reflected to the motor; the model's rotor is a part of that)."""
+
+
+def truth_size(t: Truth, actuator: IndieParams = NOMINAL) -> tuple[str, float, float] | None:
+    """(kind, value, no-effect value) of an effect injected into `actuator`
+    (`TRUTH_KIND`), None where its value states no size of the family named."""
+    from indie_plant.physics import preload_deflection
+    for k, v in t.plant.items():
+        kind = TRUTH_KIND.get(k)
+        if kind is None:
+            continue
+        if kind == "delay_s":
+            return kind, float(v) * actuator.sync_period_s, 0.0
+        if kind == "lost_motion_m":
+            d0 = preload_deflection(actuator.preload_n, actuator.hertz_n_per_m15)
+            return kind, max(float(v) - 2.0 * d0, 0.0), 0.0
+        nominal = float(getattr(NOMINAL, k))
+        if kind in ("factor", "lvdt_gain", "encoder_gain"):
+            nominal = 1.0
+        return kind, float(v), nominal
+    return None
 
 
 def draw(name: str, rng: np.random.Generator) -> Truth:
@@ -363,7 +399,7 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
     snr_each = {t.name: floor_snr(Case(case.index, case.kind, [t], case.noise_seed),
                                   duration_s, ref, controller, act) for t in case.truths}
     snr_all = floor_snr(case, duration_s, ref, controller, act) if case.truths else {}
-    rec = score(case, res.json(), snr_each, snr_all, elapsed)
+    rec = score(case, res.json(), snr_each, snr_all, elapsed, sizes=truth_size)
     rec["truth_values"] = {t.name: t.plant for t in case.truths}
     return rec
 

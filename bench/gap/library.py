@@ -41,22 +41,28 @@ class _Single(Effect):
     scales_with_model: ClassVar[bool] = False
     """Bounds written around the thesis' actuator's value: scaled to the start model's
     value (`bound_scale`), so that the candidate moves both ways from any actuator's
-    nominal (a value on an edge could move one way only; docs/gap.md, "A lead change
-    moves the helix"). The calibration keeps `follow_model`."""
+    nominal (a value on an edge could move one way only; docs/gap.md, "Calibration"). The calibration scales its ranges the same way."""
 
     def for_model(self, base: PlantParams) -> Effect:
+        """The effect with its first parameter's class bounds (the range around the
+        thesis' actuator) scaled to `base`: the same whether `self` is the registered
+        effect or a copy already fitted on a model (a refit of a fitted candidate scaled
+        the lead's range twice, 2.56-3.84 mm for a 4 mm model, and pinned the refit on its
+        bound)."""
         k = bound_scale(base, self.target) if self.scales_with_model else 1.0
-        if k == 1.0:
+        own = type(self).params[0]
+        if k == 1.0 and self.params[0] == own:
             return self
         eff = copy.copy(self)
-        eff.params = (self.params[0].scaled(k), *self.params[1:])   # type: ignore[misc]
+        eff.params = (own.scaled(k) if k != 1.0 else own,   # type: ignore[misc]
+                      *self.params[1:])
         return eff
 
 
 NUT_SHARE = Param("nut_friction_share", "-", 0.0, 1.0,
                   "share of the model's nut Coulomb friction F_s (eq. 5.31) that acts at the "
                   "nut; the rest acts at the screw (C_fs of eq. 5.14), the same torque at the "
-                  "motor (F_s p / 2 pi)")
+                  "motor (F_s p / 2 pi)", physical_bounds=True)
 """Where the Coulomb friction acts, at the nut (loading the balls) or at the screw (on
 the motor's side of the contacts). A stiff preloaded nut hides the split: both give the
 same motor torque and a deflection below the encoder's resolution. A compliant or loose
@@ -65,7 +71,7 @@ the screw crosses a clearance), and so does a grown friction (a larger F_s / k).
 log cannot calibrate it. When the diagnosis is told that the model's split is unknown
 (`Problem.friction_split`, `bench gap --friction-split unknown`), the effects that show it
 (stiffness, preload, backlash, friction) fit it as a second parameter (`with_nut_share`);
-otherwise they keep the model's split (docs/gap.md, "Where the friction acts")."""
+otherwise they keep the model's split (docs/gap.md, "Inputs")."""
 
 FRICTION_SPLITS = ("model", "unknown")
 """How a diagnosis treats where the model's Coulomb friction acts: "model" (the model's
@@ -149,6 +155,57 @@ def nominal_viscous_motor_side(base: PlantParams) -> float:
     term c_s w_m (eq. 5.13) reflected through the reducer, tau / eta."""
     p = param_vector(base)
     return float(p[K.P_CVISC] * base.effects.viscous_scale * p[K.P_TAU] / p[K.P_ETA])
+
+
+class FrictionLevels(_NutShare):
+    name = "friction_levels"
+    doc = ("every friction level scaled together by one factor of the model's: the static "
+           "and Coulomb torques and forces, the load-dependent rolling friction and the "
+           "viscous coefficients (a lubricant lost or contaminated raises them all)")
+    params: ClassVar[tuple[Param, ...]] = (
+        Param("friction_levels_scale", "-", 0.2, 8.0,
+              "factor on the model's friction levels (1 = the model's)", log=True),)
+    target = "effects.friction_scale"
+    factors: ClassVar[tuple[str, ...]] = ("friction_levels_scale",) * 3
+    """The parameter that scales each of: Coulomb (CS, FS), the load-dependent rolling
+    friction (f_v, eq. 5.13 and 5.31) and the viscous coefficients."""
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        out = {q.name: 1.0 for q in self.params if q.name != NUT_SHARE.name}
+        return {**out, NUT_SHARE.name: 1.0} if self._shares() else out
+
+    def plant_overrides(self, theta: Mapping[str, float], base: PlantParams) -> dict[str, Any]:
+        a, b, c = (theta[k] for k in self.factors)
+        e = base.effects
+        out: dict[str, Any] = {"effects.friction_scale": e.friction_scale * a,
+                               "screw.rolling_friction": min(base.screw.rolling_friction * b,
+                                                             0.1),
+                               "effects.viscous_scale": min(e.viscous_scale * c, 1e6)}
+        share = theta.get(NUT_SHARE.name, 1.0)
+        return {**out, **nut_split(share, base)} if share != 1.0 else out
+
+    def start_points(self, base: PlantParams) -> list[dict[str, float]]:
+        if len(self.params) - self._shares() == 1:
+            return super().start_points(base)
+        pts = [{q.name: 1.0 for q in self.params}]   # the model's, then 3 spread points
+        for frac in (0.15, 0.5, 0.85):
+            pts.append({q.name: q.from_unit(frac) for q in self.params})
+        return [{k: (1.0 if k == NUT_SHARE.name and k in pt else v) for k, v in pt.items()}
+                for pt in pts]
+
+
+class FrictionApart(FrictionLevels):
+    name = "friction_apart"
+    doc = ("the friction levels scaled apart: the static and Coulomb torques and forces, the "
+           "load-dependent rolling friction and the viscous coefficients, each by its own "
+           "factor of the model's")
+    params = (Param("coulomb_scale", "-", 0.2, 8.0, "factor on the model's static and "
+                    "Coulomb levels", log=True),
+              Param("rolling_scale", "-", 0.2, 8.0, "factor on the model's load-dependent "
+                    "rolling friction f_v", log=True),
+              Param("viscous_factor", "-", 0.2, 8.0, "factor on the model's viscous "
+                    "coefficients", log=True))
+    factors = ("coulomb_scale", "rolling_scale", "viscous_factor")
 
 
 class Viscous(Effect):
@@ -274,6 +331,7 @@ class LvdtGain(_Single):
     doc = "LVDT scale error (in the loop)"
     params = (Param("lvdt_gain", "-", 0.8, 1.25, "LVDT gain (1 = exact)"),)
     target = "sensors.lvdt_gain"
+    scales_with_model = True
 
 
 class LvdtOffset(_Single):
@@ -288,13 +346,19 @@ class EncoderGain(_Single):
     doc = "encoder speed scale error (in the loop)"
     params = (Param("encoder_gain", "-", 0.8, 1.25, "speed gain (1 = exact)"),)
     target = "sensors.encoder_gain"
+    scales_with_model = True
 
 
 class CurrentOffset(_Single):
     name = "current_offset"
-    doc = "current-sensor offset (the drive regulates the sensed current)"
+    doc = ("offset of the drive's current sensor, in the loop (the drive regulates the "
+           "sensed current, so the true current is off by it); where the model's logged "
+           "current is a channel of its own, its offset is `current_offset_log`")
     params = (Param("current_offset_a", "A", -2.0, 2.0, "offset"),)
     target = "sensors.current_offset_a"
+
+    def available(self, base: PlantParams) -> bool:
+        return bool(base.sensors.current_in_loop)
 
 
 class Resistance(_Single):
@@ -343,6 +407,7 @@ class Lead(_Single):
 # The built-in candidates in the diagnosis' order (`bench.gap.effects.EFFECTS` is built
 # from this tuple, keyed by each class's `name`).
 BUILTIN: tuple[type[Effect], ...] = (
-    Backlash, Friction, Viscous, Stribeck, Stiffness, Preload, SensorDelay, LvdtLag, LogSkew,
-    LvdtGain, LvdtOffset, EncoderGain, CurrentOffset, Resistance, ThermalDrift,
-    TorqueConstant, Inertia, Lead)
+    Backlash, Friction, FrictionLevels, FrictionApart, Viscous, Stribeck, Stiffness, Preload,
+    SensorDelay,
+    LvdtLag, LogSkew, LvdtGain, LvdtOffset, EncoderGain, CurrentOffset, Resistance,
+    ThermalDrift, TorqueConstant, Inertia, Lead)

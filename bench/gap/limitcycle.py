@@ -1,5 +1,5 @@
 """A loop that oscillates by itself: detected in the log, and the effects that make the
-model's loop oscillate the same way (docs/gap.md, "A loop that oscillates by itself").
+model's loop oscillate the same way (docs/gap.md, "The verdict in words").
 
 A self-excited oscillation (a limit cycle: a speed loop with too much delay, too little
 phase margin) is not locked to the set-point. A model with the right cause oscillates at

@@ -59,6 +59,9 @@ class Problem:
     model: str = "plant"                # nominal model name (bench.gap.models)
     friction_split: str = "model"       # where the model's Coulomb friction acts: "model"
                                         # (known) or "unknown" (bench.gap.library.NUT_SHARE)
+    full_base: PlantParams | None = None   # the model at the fidelity it was given (the
+                                        # fits run `base`, its fast mode), when they differ
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n(self) -> int:
@@ -76,23 +79,53 @@ class Problem:
             over.update(eff.plant_overrides(th, self.base))
         return self.base.with_dict(over) if over else self.base
 
+    def loop_delays(self, effects: Sequence[Effect], thetas: Sequence[dict[str, float]]
+                    ) -> tuple[int, int]:
+        """Extra whole-period delays of the LVDT and of the encoder in the loop that
+        `effects` at `thetas` ask for (`Effect.loop_delays`), summed."""
+        dl = de = 0
+        for eff, th in zip(effects, thetas, strict=True):
+            a, b = eff.loop_delays(th, self.dt)
+            dl, de = dl + a, de + b
+        return dl, de
+
     def simulate(self, effects: Sequence[Effect] = (), thetas: Sequence[dict[str, float]] = (),
-                 n: int | None = None) -> dict[str, np.ndarray]:
-        """Closed-loop re-simulation with `effects` at `thetas`; logged-signal columns."""
+                 n: int | None = None, noise: np.ndarray | None = None
+                 ) -> dict[str, np.ndarray]:
+        """Closed-loop re-simulation with `effects` at `thetas`; logged-signal columns.
+        Effects that act on the log alone re-use the nominal re-simulation (kept per
+        length); `noise` (n, 3): sensor noise as `closed_loop` takes it."""
         params = self.params_for(effects, thetas)
-        cols = self.closed_loop(params, n)
+        delays = self.loop_delays(effects, thetas)
+        if params is self.base and delays == (0, 0) and noise is None:
+            cols = self._nominal_cols(n)
+        else:
+            cols = self.closed_loop(params, n, noise, delays)
         for eff, th in zip(effects, thetas, strict=True):
             if eff.in_log(self.base):
                 cols = eff.post(cols, th, self.dt)
         return self.signals(cols)
 
+    def _nominal_cols(self, n: int | None) -> dict[str, np.ndarray]:
+        """The nominal re-simulation's columns over the first `n` samples, simulated once
+        per model and length (a later change of `base` is a new key)."""
+        key = (id(self.base), self.n if n is None else min(n, self.n))
+        hit = self._cache.get("nominal")
+        if hit is None or hit[0] != key or hit[1] is not self.base:
+            hit = (key, self.base, self.closed_loop(self.base, n))
+            self._cache["nominal"] = hit
+        return dict(hit[2])
+
     def closed_loop(self, params: PlantParams, n: int | None = None,
-                    noise: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """The nominal model's closed-loop re-simulation with `params`."""
+                    noise: np.ndarray | None = None,
+                    delays: tuple[int, int] = (0, 0)) -> dict[str, np.ndarray]:
+        """The nominal model's closed-loop re-simulation with `params` (`delays`: the
+        LVDT's and the encoder's extra periods in the loop, `bench.gap.delays`)."""
         if self.model == "plant":
-            return R.closed_loop(params, self.drive, n, noise=noise)
+            return R.closed_loop(params, self.drive, n, noise=noise, delays=delays)
         from bench.gap.models import closed_loop_of
-        return closed_loop_of(self.model)(params, self.drive, n, noise=noise)
+        cols = closed_loop_of(self.model)(params, self.drive, n, noise=noise)
+        return R.shift_columns(cols, *delays) if delays != (0, 0) else cols
 
     def signals(self, cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Logged-style columns -> the compared signals (encoder angle as nut travel: the
@@ -342,11 +375,14 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           smooth_encoder: bool = True, friction_split: str = "model") -> Problem:
     """A Problem for `trace` against the nominal `base` (made fast-mode here).
 
-    With `smooth_encoder` (default), where the encoder's counts close a loop
-    (`counts_in_loop`), the model every fit, nominal and held-out evaluation simulates
-    has the continuous encoder (`continuous`): whole counts in the loop make the
-    re-simulation, and so the cost, a step function of every parameter (docs/gap.md, "A
-    fit that reaches its minimum"). Elsewhere the model keeps the declared counts.
+    With `smooth_encoder` (default), the model every fit, nominal and held-out evaluation
+    simulates has the continuous encoder (`continuous`): whole counts make the
+    re-simulation, and so the cost, a step function of every parameter, whether they
+    close a loop (`counts_in_loop`) or are only logged (the bench's own plant: its
+    encoder's travel is the signal that carries backlash and friction most sharply, and
+    a count flips under a change of a tenth of a micrometre), so a finite-difference
+    Jacobian sees steps, the fit stops where it starts, and its intervals are not the
+    cost's (docs/gap.md, "Fitting").
 
     Floors: sensor noise is estimated from the log (`estimate_noise`) and pushed through
     the nominal closed loop with the sensors as declared (whole counts) `bootstrap` times
@@ -360,7 +396,6 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     base = with_rate(base, dt)
     sensor = base.with_dict({**R.FAST, "sensors.noise": False})   # the sensors as declared
     drive = drive_of(trace, encoder, sensor, resim, cascade)
-    smooth_encoder = smooth_encoder and counts_in_loop(sensor, drive)
     fast = continuous(sensor) if smooth_encoder else sensor       # what every fit simulates
     p = Problem(fast, drive, {}, {}, 0, dt, model=model, friction_split=friction_split)
     cols = {c: np.asarray(trace[c], float) for c in
@@ -389,6 +424,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
         full = base.with_dict({"sensors.noise": False})
         full = continuous(full) if smooth_encoder else full
         if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
+            p.full_base = full
             hi = p.signals(R.closed_loop(full, drive))
             mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
     p.model_floor = mf

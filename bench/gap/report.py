@@ -164,14 +164,21 @@ def _limit_cycle(js: dict[str, Any]) -> str:
     return f"<p><b>Limit cycle:</b> {html.escape(lc['note'])}</p>" if lc else ""
 
 
+BOLD = " style='font-weight:bold'"
+
+
 def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
     rows = "".join(
-        f"<tr><td>{i}</td><td>{html.escape(c['effect'])}</td>"
+        f"<tr{BOLD if c.get('chosen') else ''}>"
+        f"<td>{c.get('rank', i)}</td><td>{html.escape(c['effect'])}"
+        f"{' (chosen)' if c.get('chosen') else ''}</td>"
         f"<td>{html.escape(fmt_params(c['params']))}</td>"
         f"<td>{_shrink(c['heldout_shrink_pct'])}</td>"
         f"<td>{c['gap_before']['normalised']:.3g} &rarr; {c['gap_after']['normalised']:.3g}</td>"
-        f"<td>{c['score']['bic']:.1f}</td></tr>"
+        f"<td>{c['score']['bic']:.1f}</td>"
+        f"<td>{html.escape('; '.join(c.get('suspect') or []))}</td></tr>"
         for i, c in enumerate(js["ranking"], 1))
+    finding = (js.get("finding") or {}).get("line") or js["verdict"]
     imgs = "".join(f"<h3>{html.escape(cap)}</h3><img src='{f}' style='max-width:100%'>"
                    for f, cap in figs)
     above = " above the healthy level" if js["localisation"].get("heldout_excess") else ""
@@ -180,8 +187,9 @@ def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
 border-bottom:1px solid #ddd;font-size:13px}}pre{{background:#f6f6f6;padding:8px;
 white-space:pre-wrap}}</style>
 </head><body><h1>Sim-to-real gap diagnosis</h1>
-<h2>Verdict: {html.escape(js['verdict'])}</h2>{_limit_cycle(js)}
+<h2>Verdict: {html.escape(finding)}</h2>{_limit_cycle(js)}
 <pre>{html.escape(text(js))}</pre>
-<h2>Ranking</h2><table><tr><th>#</th><th>effect</th><th>parameters (95 % CI)</th>
-<th>held-out shrink{above} (%)</th><th>held-out gap (x floor, RMS)</th><th>BIC</th></tr>{rows}</table>
+<h2>Ranking by BIC, lower is better</h2><table><tr><th>#</th><th>effect</th>
+<th>parameters (95 % CI)</th><th>held-out shrink{above} (%)</th>
+<th>held-out gap (x floor, RMS)</th><th>BIC</th><th>suspect</th></tr>{rows}</table>
 {imgs}<p><a href="gap.json">gap.json</a></p></body></html>"""

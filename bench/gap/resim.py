@@ -36,6 +36,7 @@ import numpy as np
 
 from bench.control import NC as CTRL_NC
 from bench.control import ControllerParams
+from bench.gap import delays as D
 from bench.gap.cascade import NGC, Cascade, cascade_on_plant
 from bench.loop import (
     NT,
@@ -154,44 +155,78 @@ def _x0_true(params: PlantParams, drive: Drive) -> float:
 
 def _run(entry: Callable[..., int], params: PlantParams, drive: Drive, n: int, aux: np.ndarray,
          noise: np.ndarray, ref: np.ndarray, kvec: np.ndarray, cstate: np.ndarray,
-         ndelay: int) -> tuple[np.ndarray, np.ndarray]:
+         ndelay: int, final: dict[str, np.ndarray] | None = None
+         ) -> tuple[np.ndarray, np.ndarray]:
     """Run `entry` (a `bench.loop` entry point) on the plant at rest at the log's start;
-    after a non-finite state the remaining periods are NaN. Returns (meas, demand)."""
+    after a non-finite state the remaining periods are NaN. Returns (meas, demand);
+    `final`, when given, receives the plant's last state (``final["x"]``)."""
     plant = initial_plant(params, _x0_true(params, drive))
     meas = np.zeros((n, K.NM))
     dem = np.zeros(n)
-    got = run_chunks(entry, plant.x.copy(), plant.param_vector, plant.sensor_vector, aux,
+    x = plant.x.copy()
+    got = run_chunks(entry, x, plant.param_vector, plant.sensor_vector, aux,
                      _plant_inputs(params, drive, n), noise, ref, kvec, cstate, ndelay, meas,
                      dem, np.zeros((n, K.NO)), np.zeros((n, NT)))
     meas[got:] = np.nan
     dem[got:] = np.nan
+    if final is not None:
+        final["x"] = x
     return meas, dem
 
 
 def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
                 cparams: ControllerParams | None = None,
-                noise: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                noise: np.ndarray | None = None,
+                delays: tuple[int, int] = (0, 0),
+                final: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Re-simulate the closed loop over the first `n` periods of `drive`.
 
     Returns the measured columns (current_a, motor_speed_rad_s, motor_angle_rad,
     position_m, current_demand_a) as the bus would log them, sensor delay included.
     `noise` (n, 3): optional white noise (A, m, rad/s) per SYNC, as the plant draws it.
+    `delays`: whole SYNC periods by which the LVDT and the encoder are read later still,
+    each alone (`bench.gap.delays`; the measured-current re-simulation has no loop to
+    delay them in: they shift its logged columns). `final`: receives the plant's last
+    state (``final["x"]``; its energy accounts hold the friction's work, `friction_work`).
     """
     n = len(drive.t) if n is None else min(n, len(drive.t))
+    dl, de = (int(d) for d in delays)
     if drive.resim == "measured-current":
-        return current_driven(params, drive, n, noise)
+        out = current_driven(params, drive, n, noise)
+        return shift_columns(out, dl, de) if dl or de else out
     cparams = cparams or ControllerParams(sample_period_s=params.sim.sync_period_s)
     nz = np.zeros((n, 3)) if noise is None else np.ascontiguousarray(noise[:n])
     nd = delay_periods(params)
     ref = ecu_reference(drive.sp_pos[:n], drive.sp_spd[:n], drive.mode[:n])
     if drive.cascade is not None:
         kv = drive.cascade.vector(params.sim.sync_period_s, angle_to_travel(params))
-        meas, dem = _run(cascade_on_plant, params, drive, n, no_columns(n), nz, ref, kv,
-                         np.zeros(NGC), nd)
-        return _columns(meas, dem, nd)
-    meas, dem = _run(ecu_on_plant, params, drive, n, no_columns(n), nz, ref,
-                     cparams.vector(), np.zeros(CTRL_NC), nd)
+        entry, cstate = cascade_on_plant, np.zeros(NGC)
+        if dl or de:
+            entry, kv = D.cascade_split_on_plant, D.with_delays(kv, dl, de)
+    else:
+        kv, entry, cstate = cparams.vector(), ecu_on_plant, np.zeros(CTRL_NC)
+        if dl or de:
+            entry, kv = D.ecu_split_on_plant, D.with_delays(kv, dl, de)
+    meas, dem = _run(entry, params, drive, n, no_columns(n), nz, ref, kv, cstate, nd, final)
+    if dl or de:
+        return D.split_columns(meas, dem, nd, dl, de)
     return _columns(meas, dem, nd)
+
+
+def shift_columns(cols: dict[str, np.ndarray], lvdt_periods: int, encoder_periods: int
+                  ) -> dict[str, np.ndarray]:
+    """Logged columns with the LVDT and the encoder (angle, speed) read `lvdt_periods` and
+    `encoder_periods` SYNC periods late (the first sample repeated)."""
+    out = dict(cols)
+    for names, d in ((("position_m",), lvdt_periods),
+                     (("motor_speed_rad_s", "motor_angle_rad"), encoder_periods)):
+        if d <= 0:
+            continue
+        for c in names:
+            y = cols[c]
+            out[c] = np.concatenate([np.full(min(d, len(y)), y[:1]), y[:-d]])[:len(y)] \
+                if len(y) else y
+    return out
 
 
 def _columns(meas: np.ndarray, dem: np.ndarray, ndelay: int) -> dict[str, np.ndarray]:
@@ -445,3 +480,19 @@ def encoder_speed_from_angle(angle_rad: np.ndarray, params: PlantParams,
     w = np.gradient(angle_rad, dt) if len(angle_rad) > 1 else np.zeros_like(angle_rad)
     # the central difference is centred half a sample late relative to the filter input
     return second_order(w, dt, se.encoder_natural_rad_s, se.encoder_damping)
+
+
+def friction_work(params: PlantParams, drive: Drive, n: int | None = None,
+                  delays: tuple[int, int] = (0, 0)) -> float:
+    """The work (J) the friction of `params` dissipates over the closed-loop re-simulation
+    of the first `n` periods: the screw's friction torque (eq. 5.13-5.14, motor, reducer
+    and support reflected to the screw) and the nut halves' friction forces (eq. 5.31)
+    times their speeds, as the kernel accounts them (`E_FRS`, `E_FRN`). Whatever the law,
+    the ratio of two models' work on one log is the factor their friction differs by
+    along that motion."""
+    final: dict[str, np.ndarray] = {}
+    if drive.resim == "measured-current":
+        return float("nan")
+    closed_loop(params, drive, n, delays=delays, final=final)
+    x = final.get("x")
+    return float(x[K.E_FRS] + x[K.E_FRN]) if x is not None else float("nan")

@@ -9,30 +9,56 @@ from typing import Any
 from bench.gap.localise import BANDS, PATHS, REGIMES
 
 UNIT_SCALE = {"m": (1e6, "um"), "s": (1e3, "ms"), "N/m": (1e-6, "N/um")}
+DIMENSIONLESS = ("-", "")
 
 
 def _scale(unit: str, v: float | None) -> tuple[float, str]:
     if unit == "m" and v is not None and abs(v) >= 1e-3:
         return 1e3, "mm"
+    if unit in DIMENSIONLESS:
+        return 1.0, ""
     return UNIT_SCALE.get(unit, (1.0, unit))
 
 
 def fmt_value(v: float | None, unit: str) -> str:
+    """A value in its display unit; a dimensionless one without a unit mark."""
     if v is None or not math.isfinite(v):
         return "n/a"
     k, u = _scale(unit, v)
-    return f"{v * k:.4g} {u}".rstrip()
+    return f"{v * k:.{_digits(unit)}g} {u}".rstrip()
 
 
-def fmt_params(params: dict[str, Any]) -> str:
+def _digits(unit: str) -> int:
+    """Significant digits: 5 for a dimensionless value (a gain of 1.0061, a scale), 4
+    otherwise."""
+    return 5 if unit in DIMENSIONLESS else 4
+
+
+def fmt_interval(d: dict[str, Any]) -> str:
+    """" [lo, hi]" of a parameter's interval in its display unit; a side the fit left
+    open (the parameter on a bound, `at_bound`) reads "bound"; "" without one."""
+    lo, hi = (d.get("ci95") or [None, None])
+    k, _ = _scale(d["unit"], d["value"])
+    side = d.get("at_bound")
+    if side is None and (lo is None or hi is None):
+        return ""
+    if lo == hi and side is None and lo is not None:
+        return ""                                   # grid-searched: exact on its grid
+    n = _digits(d["unit"])
+    a = "bound" if side == "lower" or lo is None else f"{lo * k:.{n}g}"
+    b = "bound" if side == "upper" or hi is None else f"{hi * k:.{n}g}"
+    return f" [{a}, {b}]"
+
+
+def fmt_params(params: dict[str, Any], names: bool = True) -> str:
+    """"name = value [lo, hi]" per parameter ("; "-joined); a parameter at its bound
+    says so; `names` False: values only."""
     parts = []
     for name, d in params.items():
-        lo, hi = (d.get("ci95") or [None, None])
-        ci = ""
-        if lo is not None and hi is not None:
-            k, _ = _scale(d["unit"], d["value"])
-            ci = f" [{lo * k:.4g}, {hi * k:.4g}]"
-        parts.append(f"{name} = {fmt_value(d['value'], d['unit'])}{ci}")
+        text = f"{fmt_value(d['value'], d['unit'])}{fmt_interval(d)}"
+        if d.get("at_bound"):
+            text += f" (at its {d['at_bound']} bound)"
+        parts.append(f"{name} = {text}" if names else text)
     return "; ".join(parts)
 
 
@@ -86,31 +112,65 @@ def text(js: dict[str, Any], top: int = 8) -> str:
     out.append(f"  regimes  ({main}) " + _shares(reg, REGIMES))
     out.append(f"  bands    ({main}, f0 = {loc.get('fundamental_hz') or float('nan'):.3g} Hz) "
                + _shares(sigs[main]["by_band"], [b[0] for b in BANDS]))
-    rk = js["ranking"]
-    if rk:
-        above = " above the calibration's healthy level" if loc.get("heldout_excess") else ""
-        out.append(f"ranking (held-out shrink of the excess gap{above}; BIC, lower is better):")
-        for i, c in enumerate(rk[:top], 1):
-            sh = c["heldout_shrink_pct"]
-            sh_s = f"{sh:6.1f} %" if sh is not None else "   n/a  "
-            out.append(f"  {i:2d}. {c['effect']:<28s} shrink {sh_s}  BIC "
-                       f"{c['score']['bic']:10.1f}  {fmt_params(c['params'])}")
-    sel = loc.get("selection", {})
-    v = js["verdict"]
-    line = f"verdict: {v}"
-    if v == "none":
-        line += " (no significant gap: the log is within the noise floor of the model)"
-    elif v == "unexplained":
-        line += (f" (no candidate shrinks the held-out gap by {sel.get('min_shrink_pct', 50):.0f}"
-                 f" %; best: {sel.get('chosen')}, {sel.get('heldout_shrink_pct') or 0:.1f} %)")
-    elif sel.get("indistinguishable_from_chosen"):
-        line += (" (indistinguishable on this log: "
-                 + ", ".join(sel["indistinguishable_from_chosen"]) + ")")
+    out += _ranking_lines(js, top)
+    line = _verdict_line(js)
     ja = sig.get("judged_against")
     if ja and ja.get("line"):
         out.append(ja["line"])
-    out.append(line)
+    out += line
     if loc.get("limit_cycle"):
         out.append(textwrap.fill(loc["limit_cycle"]["note"], 88, initial_indent="  limit "
                                  "cycle: ", subsequent_indent="    ", break_on_hyphens=False))
     return "\n".join(out)
+
+
+def _ranking_lines(js: dict[str, Any], top: int) -> list[str]:
+    """The ranking table, in BIC order (lowest first), the chosen candidate marked (and
+    listed after the top ones when it is not among them)."""
+    rk = js["ranking"]
+    if not rk:
+        return []
+    loc = js["localisation"]
+    above = " above the calibration's healthy level" if loc.get("heldout_excess") else ""
+    out = [f"ranking by BIC, lower is better (shrink: of the held-out excess gap{above}):"]
+    shown = [c for c in rk[:top]]
+    shown += [c for c in rk[top:] if c.get("chosen")]
+    for c in shown:
+        sh = c["heldout_shrink_pct"]
+        sh_s = f"{sh:6.1f} %" if sh is not None else "   n/a  "
+        mark = "  <- chosen" if c.get("chosen") else ""
+        flags = "  (suspect)" if c.get("suspect") else ""
+        out.append(f"  {c.get('rank', 0):2d}. {c['effect']:<28s} BIC {c['score']['bic']:9.1f}"
+                   f"  shrink {sh_s}  {fmt_params(c['params'])}{flags}{mark}")
+    return out
+
+
+def _verdict_line(js: dict[str, Any]) -> list[str]:
+    """The verdict in words (its families, sizes and forms) and its trouble."""
+    sel = js["localisation"].get("selection", {})
+    v = js["verdict"]
+    fd = js.get("finding") or {}
+    if v == "none":
+        return [f"verdict: {v} (no significant gap: the log is within the noise floor of "
+                "the model)"]
+    if v == "unexplained":
+        return [f"verdict: {v} (no candidate shrinks the held-out gap by "
+                f"{sel.get('min_shrink_pct', 50):.0f} %; best: {sel.get('chosen')}, "
+                f"{sel.get('heldout_shrink_pct') or 0:.1f} %)"]
+    out = [f"verdict: {fd.get('line') or v}"]
+    notes = [f"candidate {v}"]
+    if sel.get("indistinguishable_from_chosen"):
+        notes.append("indistinguishable on this log from "
+                     + ", ".join(sel["indistinguishable_from_chosen"]))
+    if sel.get("same_family_forms"):
+        notes.append("other forms of the same family fit as well: "
+                     + ", ".join(sel["same_family_forms"]))
+    out.append("  (" + "; ".join(notes) + ")")
+    if fd.get("edge_note"):
+        out.append(f"  {fd['edge_note']} ({', '.join(fd.get('at_bound') or [])})")
+    for s in fd.get("suspect") or []:
+        out.append(f"  suspect: {s}")
+    if sel.get("pairs_rejected_as_suspect"):
+        out.append("  pairs not taken, a value suspect: "
+                   + ", ".join(sel["pairs_rejected_as_suspect"]))
+    return out

@@ -2,7 +2,7 @@
 thesis' 5 mm, the calibration's range 4-6 mm). Before the fix the start and prior were
 clipped to 6 mm, and the calibration compensated with the LVDT gain, friction, kt and a
 current offset on their bounds (held-out gap 21x); the range now moves to the model's
-value (docs/gap.md, "Bounds that follow the actuator's own nominal")."""
+value (docs/gap.md, "Calibration")."""
 
 from __future__ import annotations
 

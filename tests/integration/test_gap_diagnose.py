@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.gap.diagnose import Options, diagnose
+from bench.gap.diagnose import Options, chosen_entry, diagnose
 from bench.gap.maneuvers import compact
 from bench.gap.resim import FAST
 from bench.harness import simulate
@@ -59,16 +59,18 @@ def test_each_effect_alone_is_found(name, extra, param, value, rtol):
         return lag(tr, 0.005) if name == "lvdt_lag" else tr
     js = diagnosed(name, make)
     assert js["verdict"] == name, js["localisation"].get("selection")
-    top = js["ranking"][0]
+    top = chosen_entry(js)
     assert top["effect"] == name
     got = top["params"][param]
     assert got["value"] == pytest.approx(value, rel=rtol)
     lo, hi = got["ci95"]
     assert lo <= got["value"] <= hi
     assert top["heldout_shrink_pct"] > 70.0
-    assert set(js) == {"localisation", "ranking", "verdict"}
-    assert set(top) == {"effect", "params", "gap_before", "gap_after", "heldout_shrink_pct",
-                        "score"}
+    assert set(js) == {"localisation", "ranking", "verdict", "finding"}
+    assert set(top) == {"rank", "effect", "families", "chosen", "params", "gap_before",
+                        "gap_after", "heldout_shrink_pct", "score", "suspect", "at_bound"}
+    bics = [c["score"]["bic"] for c in js["ranking"]]
+    assert bics == sorted(bics)                    # the table is in the order it names
 
 
 def test_backlash_lives_in_the_screw_path_as_lost_motion():
@@ -93,7 +95,7 @@ def test_load_cell_separates_a_soft_screw_from_backlash():
     js = diagnose(log({"screw.contact_stiffness_n_per_m": 2e6}), options=opts).json()
     assert js["verdict"] == "stiffness"
     assert js["localisation"]["selection"]["indistinguishable_from_chosen"] == []
-    k = js["ranking"][0]["params"]["contact_stiffness_n_per_m"]["value"]
+    k = chosen_entry(js)["params"]["contact_stiffness_n_per_m"]["value"]
     assert k == pytest.approx(2e6, rel=0.1)
     bic = {r["effect"]: r["score"]["bic"] for r in js["ranking"]}
     assert bic["backlash"] - bic["stiffness"] > 100.0

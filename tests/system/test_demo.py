@@ -58,6 +58,13 @@ def test_demo_in_process_agrees_with_the_bus_run_and_names_the_wear(tmp_path):
     gap = summary["gap"]
     assert gap is not None
     assert "backlash" in gap["verdict"]
-    assert "backlash" in gap["ranking"][0]["effect"]
-    fitted = gap["ranking"][0]["params"]["backlash_m"]["value"]
+    chosen = next(c for c in gap["ranking"] if c["chosen"])
+    assert "backlash" in chosen["effect"]
+    fitted = chosen["params"]["backlash_m"]["value"]
     assert fitted == pytest.approx(50e-6, rel=0.1)
+    # the worn actuator's friction x2.5 inside the friction family's interval (before:
+    # [2.22, 2.34], the fast model's bias and one correlation length for all signals)
+    friction = [e for e in gap["finding"]["effects"] if e["family"] == "friction"]
+    if friction:
+        lo, hi = friction[0]["size"]["ci95"]
+        assert lo <= 2.5 <= hi

@@ -130,13 +130,17 @@ def test_calibration_bounds_contain_another_actuators_nominal():
     assert prior["screw.lead_m"][0] == 10e-3 and prior["motor.kt_nm_per_a"][0] == 0.1
     same = PlantSet(["screw.lead_m"], PlantParams()).params[0]
     assert (same.lo, same.hi) == (4e-3, 6e-3)
-    inside = PlantSet(["screw.lead_m"], PlantParams().with_dict({"screw.lead_m": 4e-3}))
-    assert (inside.params[0].lo, inside.params[0].hi) == (4e-3, 6e-3)   # a value inside
+    # a value on the edge of the thesis' range: scaled too, so it can move both ways (the
+    # independent actuator's 4 mm lead sat on the 4-6 mm range's lower bound and could
+    # only grow: its calibration's interval read [4.000, 4.016] mm)
+    edge = PlantSet(["screw.lead_m"], PlantParams().with_dict({"screw.lead_m": 4e-3}))
+    lo, hi = edge.params[0].lo, edge.params[0].hi
+    assert lo == pytest.approx(3.2e-3) and hi == pytest.approx(4.8e-3)
 
 
 def test_preload_loss_gets_start_points_below_the_nominal():
     """A preload is lost with wear: its fit also starts at 0.5 and 0.1 x the nominal
-    (docs/gap.md, "Preload loss start points"), the generic start points kept in order."""
+    (docs/gap.md, "Candidate effects and their families"), the generic start points kept in order."""
     eff = E.get("preload")
     assert eff.wear_direction == "down"
     base = PlantParams().with_dict({"effects.preload_n": 1500.0})
@@ -169,3 +173,17 @@ def test_a_drive_whose_current_pi_follows_its_winding():
     ds = datasheet_model()
     assert ds.drive.current_pi_follows_winding
     assert param_vector(ds)[K.P_KII] == pytest.approx(ds.drive.current_ki_v_per_as)
+
+
+def test_bounds_follow_the_model_once_whatever_the_copy():
+    """A fitted candidate's effect, already moved to its model, refitted on that model
+    (the verdict's refit against the full-fidelity model) keeps the same range: before,
+    its range was scaled a second time, 2.56-3.84 mm for a 4 mm model, and the refit of
+    an LVDT gain's 4.12 mm alias ended on that bound at 3.84 mm."""
+    from plant_rt.params import PlantParams
+    four = PlantParams().with_dict({"screw.lead_m": 4e-3})
+    once = E.get("lead").for_model(four)
+    twice = once.for_model(four)
+    assert (twice.params[0].lo, twice.params[0].hi) == (once.params[0].lo, once.params[0].hi)
+    assert once.params[0].lo == pytest.approx(3.2e-3) and once.params[0].hi == pytest.approx(4.8e-3)
+    assert E.get("lead").for_model(PlantParams()) is E.get("lead")

@@ -1,6 +1,6 @@
-"""Issue 11 goal 4: the LVDT conditioning as a declared sensor property
-(`sensors.lvdt_time_constant_s`), the calibration's profiled parameters
-(`bench.gap.calibrate.PROFILED`) and the pair rule judged against a calibration."""
+"""The LVDT conditioning as a declared sensor property (`sensors.lvdt_time_constant_s`),
+what a loaded healthy log calibrates (`bench.gap.calibrate.default_names`) and the pair
+rule judged against a calibration."""
 
 import math
 
@@ -62,40 +62,10 @@ def test_default_names_add_what_the_log_identifies():
     cols = {"t_s": np.arange(n) * 1e-3, "load_force_n": np.full(n, 10.0)}
     assert C.default_names(Trace(cols, {})) == C.DEFAULT + ("motor.viscous_friction_nm_s",)
     cols["load_force_n"] = 2000.0 * np.sin(np.arange(n))
-    assert C.default_names(Trace(cols, {}))[-1] == "screw.contact_stiffness_n_per_m"
+    loaded = C.default_names(Trace(cols, {}))
+    assert loaded[-2:] == ("screw.contact_stiffness_n_per_m", "screw.reaction_lever_m")
     assert "screw.contact_stiffness_n_per_m" not in C.DEFAULT
-    assert set(C.PROFILED) <= set(C.UNCERTAIN)
-
-
-class _Quadratic:
-    """A stand-in problem whose residual is (ln v - ln target) x 100 for the stiffness
-    and (v - target) x 1e5 for the viscous coefficient."""
-
-    def __init__(self, targets: dict[str, float]) -> None:
-        self.base = PlantParams()
-        self.n_fit = 1
-        self.targets = targets
-
-    def simulate(self, effects, thetas):
-        return dict(thetas[0])
-
-    def residual(self, sim, lo, hi):
-        out = []
-        for k, t in self.targets.items():
-            if k in sim:
-                v = sim[k]
-                out.append(100 * math.log(v / t) if C.UNCERTAIN[k].relative else 1e5 * (v - t))
-        return np.array(out)
-
-
-def test_profile_finds_the_minimum_between_grid_points():
-    stiff, visc = "screw.contact_stiffness_n_per_m", "motor.viscous_friction_nm_s"
-    p = _Quadratic({stiff: 0.7e8, visc: 3e-4})
-    s = C.profile(p, stiff, {})
-    assert s["value"] == pytest.approx(0.7e8, rel=0.01) and s["nominal"] == 1e8
-    v = C.profile(p, visc, {})
-    assert v["value"] == pytest.approx(3e-4, rel=0.01)
-    assert len(v["grid"]) == len(C.PROFILED[visc]) + 1
+    assert set(loaded) <= set(C.UNCERTAIN)
 
 
 def test_pair_rule_is_judged_against_the_calibration():

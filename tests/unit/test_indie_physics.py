@@ -111,11 +111,11 @@ def test_only_draws_every_case_as_that_effect_and_leaves_the_default_draw_alone(
     assert [c.kind for c in cases] == ["single"] * 6
     assert all([t.name for t in c.truths] == ["preload"] for c in cases)
     assert len({tuple(sorted(c.truths[0].plant.items())) for c in cases}) == 6
-    # the default draw: 30 % nominal, and fixed by the seed as before
+    # the default draw: 30 % nominal, and fixed by the seed (the pool with lvdt_delay)
     default = IB.make_cases(20, 2025)
     assert sum(c.kind == "nominal" for c in default) == 6
-    assert [t.name for t in default[0].truths] == ["lvdt_gain"]
-    assert default[0].noise_seed == 1436029081
+    assert [t.name for t in default[0].truths] == ["lvdt_lag"]
+    assert default[0].noise_seed == 329502222
     import pytest
     with pytest.raises(ValueError, match="unknown effect"):
         IB.make_cases(2, 1, only="cogging")
@@ -128,3 +128,23 @@ def test_gap_bench_only_is_refused_for_the_bench_generator_and_unknown_effects(c
     assert main(["gap-bench", "--generator", "independent", "--only", "cogging",
                  "--cases", "1"]) == 2
     assert "unknown effect 'cogging'" in capsys.readouterr().err
+
+
+def test_lvdt_delay_delays_the_lvdt_alone():
+    """`lvdt_delay_periods`: the LVDT read that many SYNC periods late, on top of the
+    common sensor delay; the encoder is not."""
+    from indie_plant import physics as ph
+    p = IndieParams().with_dict({"noise": 0.0, "lvdt_delay_periods": 3.0}).vector()
+    x = ph.initial_state()
+    hist = ph.initial_history(x, p)
+    out = np.zeros(5)
+    seen = []
+    for k in range(8):
+        x[ph.XN] = x[ph.LV1] = x[ph.LV2] = 1e-3 * k     # the nut (and the LVDT) moving
+        x[ph.TH] = 0.01 * k
+        ph.sense(x, p, hist, k, np.zeros(3), out)
+        seen.append(out.copy())
+    lv = [s[3] for s in seen]
+    assert lv[5] == pytest.approx(2e-3, abs=2e-6)        # the sample of SYNC 2
+    assert lv[7] == pytest.approx(4e-3, abs=2e-6)
+    assert seen[5][1] > seen[4][1]                       # the encoder: today's angle

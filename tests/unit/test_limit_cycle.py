@@ -1,7 +1,6 @@
 """A loop that oscillates by itself (`bench.gap.limitcycle`): the line statistic on
 synthetic residuals, and on the independent actuator under the bench's ECU with a
-4-period sensor delay, which makes its speed loop oscillate (docs/gap.md, "A loop that
-oscillates by itself")."""
+4-period sensor delay, which makes its speed loop oscillate (docs/gap.md, "The verdict in words")."""
 
 import numpy as np
 import pytest

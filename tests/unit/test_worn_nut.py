@@ -1,6 +1,5 @@
 """A double nut preloaded by an interference that a wear clearance eats first
-(`screw.preload_by_interference`, `plant_rt.contacts.worn_nut`; docs/gap.md, "Backlash on
-a preloaded nut")."""
+(`screw.preload_by_interference`, `plant_rt.contacts.worn_nut`; docs/gap.md, "The verdict in words")."""
 
 import math
 
