@@ -15,8 +15,8 @@ import numpy as np
 
 from bench.reports import Block, Document, Heading, Paragraph, Table
 from bench.reports import Figure as PageFigure
-from bench.rig.study import Study, mean_profile
 from bench.rig.report_goals import goal_blocks
+from bench.rig.study import Study, mean_profile
 
 
 def residual_figure(study: Study, path: Path) -> Path:

@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from bench.reports import Block, blocks_from_markdown
 from bench.rig import naming
 from bench.rig.classify import table_label
 from bench.rig.population import clopper_pearson, naming_summary
-from bench.reports import Block, blocks_from_markdown
 
 
 def pct(x: float | None) -> str:
