@@ -55,8 +55,9 @@ def intervals(seed_list: list[int]) -> list[dict]:
 
 
 def offset(seed_list: list[int]) -> list[dict]:
-    from bench.gap.diagnose import Options, chosen_entry, diagnose
+    from bench.gap.diagnose import Options, diagnose
     from bench.gap.maneuvers import excitation
+    from bench.gap.result_json import chosen_entry
     from bench.harness import simulate
     from plant_rt.params import PlantParams
     rows = []

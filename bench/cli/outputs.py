@@ -183,7 +183,9 @@ IO_TABLE: dict[str, IO] = {
     "fleet synth": IO(dirs={"out": ("fleet-truth.json",)}),
     "rig baseline": IO(inputs=("tables", "actuator"), files=("out",)),
     "rig assess": IO(inputs=("tables", "baseline"), files=("json",)),
-    "rig study": IO(inputs=("directory", "actuator"), dirs={"out": _RIG_STUDY}),
+    "rig study": IO(inputs=("directory", "actuator", "model"), dirs={"out": _RIG_STUDY}),
+    "rig train": IO(inputs=("tables", "actuator"), files=("out", "json")),
+    "rig classify": IO(inputs=("model", "tables", "actuator"), files=("json",)),
     "rig inject": IO(inputs=("tables", "actuator"),
                      dirs={"out": ("inject.json", "inject.md", "inject.png")}),
 }

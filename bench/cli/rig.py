@@ -36,6 +36,15 @@ DESCRIPTIONS = {
         "cycles at sizes in units of the healthy spread, then judged against the "
         "baseline of the calibration runs: the detection rate and the share "
         "named right per kind, size and load.",
+    "train": "Learn fault classes from labelled tables: the label is the file name less "
+        "trailing digits and anything after the first _ (normal_runs1-4 -> normal). "
+        "Per load, standardised cycle features into a balanced logistic regression, "
+        "validated leaving whole runs out (a confusion matrix and each class's recall "
+        "with its exact 95 % interval); a cycle outside every class's spread is "
+        "'unknown'. Writes the model (a skops file with the rig it was trained on).",
+    "classify": "Classify every motion cycle of the given tables or traces with a model "
+        "of `bench rig train`: its class, or 'unknown' when it lies outside every "
+        "class's spread; refused when the tables are of another rig than the model's.",
 }
 """What each action does (its --help)."""
 
@@ -121,7 +130,8 @@ def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
     """The parsers of `bench rig train` and `bench rig classify`."""
     t = sub.add_parser("train", help="learn fault classes from labelled tables (the label "
                                      "is the file name less trailing digits and anything "
-                                     "after the first _), validated leaving runs out")
+                                     "after the first _), validated leaving runs out",
+                          description=DESCRIPTIONS["train"])
     t.add_argument("tables", nargs="+", metavar="TABLE", help="labelled tables or traces")
     t.add_argument("-o", "--out", required=True, metavar="MODEL", help="model file (skops)")
     t.add_argument("--healthy", default="normal", metavar="LABEL",
@@ -134,7 +144,7 @@ def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
                         "says it was not validated)")
     _common(t)
     k = sub.add_parser("classify", help="classify every cycle with a model of `bench rig "
-                                        "train`")
+                                        "train`", description=DESCRIPTIONS["classify"])
     k.add_argument("model", metavar="MODEL", help="model file of `bench rig train`")
     k.add_argument("tables", nargs="+", metavar="TABLE", help="tables or traces")
     k.add_argument("--json", metavar="OUT", help="write the classes here ('-': stdout)")

@@ -44,6 +44,7 @@ from bench.gap.fit import Fit, fit
 from bench.gap.library import FRICTION_SPLITS
 from bench.gap.problem import Problem, build, fill_gaps
 from bench.gap.refine import refine
+from bench.gap.scores import excess, shrink_pct
 from bench.trace import Trace
 from bench.workers import ensure_started, make_pool
 from plant_rt.params import PlantParams
@@ -117,6 +118,7 @@ class Result:
     finding: dict[str, Any] | None = None      # the chosen candidate in words (finding.py)
 
     def json(self) -> dict[str, Any]:
+        from bench.gap.result_json import to_json
         return to_json(self)
 
 
@@ -233,19 +235,6 @@ def heldout_level(p: Problem) -> dict[str, Any]:
     held = p.energies(p.info["nominal"], p.n_fit, p.n)   # the part a diagnosis holds out
     return {"level": {s: float(sm[s]) for s in R.SIGNALS}, "margin": margin,
             "energy": {s: float(held[s]) for s in R.SIGNALS}, "samples": p.n}
-
-
-def excess(energies: dict[str, float], reference: dict[str, Any] | None = None) -> float:
-    """The held-out gap excess X of `energies` (residual energy / floor per signal): the
-    sum of E_s - 1, 0 at the noise floor. Against a calibration that stored the energy its
-    model leaves on a held-out healthy log (`reference["energy"]`, session 13), the sum
-    of what each signal has above that healthy energy (and above the floor): the part of
-    the gap the calibrated model does not leave on a healthy log, which is what an effect
-    can explain (docs/gap.md, "Calibration")."""
-    ref = (reference or {}).get("energy")
-    if not ref:
-        return float(sum(e - 1.0 for e in energies.values()))
-    return float(sum(max(e - max(ref.get(s, 1.0), 1.0), 0.0) for s, e in energies.items()))
 
 
 def calibrated_thresholds(thr: dict[str, float], reference: dict[str, Any] | None
@@ -580,83 +569,3 @@ def _select(names: Sequence[str], p: Problem, h: Problem | None, pool: Any, bar:
         for c in pairs:
             c.bic, c.aic = c.fit.bic(L), c.fit.aic(L)
     return singles, pairs, best, L
-
-
-def shrink_pct(before: float, after: float) -> float:
-    """Held-out shrink of the excess gap (%), at most 100 (NaN without a gap before)."""
-    if not (math.isfinite(before) and before > 1e-9):
-        return float("nan")
-    return float(min(100.0, 100.0 * (before - after) / before))
-
-
-def gap_summary(p: Problem, energies: dict[str, float]) -> dict[str, Any]:
-    """A gap as the normalised RMS (1 = floor) plus the RMS of each signal in its unit."""
-    tot = float(np.sqrt(np.mean(list(energies.values()))))
-    return {"normalised": tot,
-            "rms": {s: float(math.sqrt(max(e, 0.0)) * p.sigma[s]) for s, e in energies.items()}}
-
-
-def _finite(x: Any) -> Any:
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items() if not str(k).startswith("_")}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    if isinstance(x, (np.floating, np.integer)):
-        return _finite(x.item())
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
-def to_json(r: Result) -> dict[str, Any]:
-    """{"localisation", "ranking", "verdict"} with NaN as null."""
-    h = r.holdout or r.problem
-    healthy = {"energy": (r.localisation.get("heldout_excess") or {}).get("healthy_energy")}
-    ranking = []
-    for i, c in enumerate(r.ranking, 1):
-        ranking.append({
-            "rank": i,
-            "effect": c.fit.name,
-            "families": F.family_name(c.fit.name),
-            "chosen": c is r.chosen,
-            "params": c.fit.params_dict(),
-            "gap_before": gap_summary(h, r.gap_before_heldout),
-            "gap_after": gap_summary(h, c.heldout),
-            "heldout_shrink_pct": shrink_pct(excess(r.gap_before_heldout, healthy),
-                                             excess(c.heldout, healthy)),
-            "score": {"bic": c.bic, "aic": c.aic},
-            "suspect": c.suspect, "at_bound": c.edge,
-        })
-    loc = dict(r.localisation)
-    if r.chosen is not None:
-        loc["hums_indexes"] = hums_distance(r)
-    return _finite({"localisation": loc, "ranking": ranking, "verdict": r.verdict,
-                    "finding": r.finding})
-
-
-def chosen_entry(js: dict[str, Any]) -> dict[str, Any] | None:
-    """The ranking entry of the candidate the diagnosis chose (the ranking is by BIC; the
-    chosen one need not be first), None without one."""
-    return next((c for c in js.get("ranking", []) if c.get("chosen")), None)
-
-
-def hums_distance(r: Result) -> dict[str, Any]:
-    """The HUMS indexes of the held-out data against the nominal model and against the
-    model with the verdict's effects: distance from nominal (Cp - 1, Ci - 1, ...)."""
-    from bench.gap.indexes import indexes
-    h = r.holdout
-    p = r.problem
-    if h is not None:
-        tgt, lo, hi = h, 0, h.n
-    else:
-        tgt, lo, hi = p, p.n_fit, p.n
-    before = tgt.info.get("nominal") or tgt.simulate()
-    out: dict[str, Any] = {"before": indexes(tgt.meas, before, lo, hi, tgt.dt)}
-    if r.chosen is not None:
-        effs = [E.get(n) for n in r.chosen.fit.effects]
-        after = tgt.simulate(effs, r.chosen.fit.theta)
-        out["after"] = indexes(tgt.meas, after, lo, hi, tgt.dt)
-    return out
-

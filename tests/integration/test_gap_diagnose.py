@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.gap.diagnose import Options, chosen_entry, diagnose
+from bench.gap.diagnose import Options, diagnose
 from bench.gap.maneuvers import compact
 from bench.gap.resim import FAST
+from bench.gap.result_json import chosen_entry
 from bench.harness import simulate
 from bench.trace import Trace
 from plant_rt.params import PlantParams

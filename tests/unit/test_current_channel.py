@@ -77,7 +77,8 @@ def test_the_rankings_shrink_is_the_verdicts():
     chosen candidate is the one the verdict was decided on (both above the healthy
     level). The log has a rotor inertia the candidates cannot fit, so part of the gap
     stays and the two counts of the excess differ (20 against 29 % before the fix)."""
-    from bench.gap.diagnose import Options, chosen_entry, diagnose
+    from bench.gap.diagnose import Options, diagnose
+    from bench.gap.result_json import chosen_entry
     log = simulate(excitation(2.0), BASE.with_dict({"sensors.noise": True,
                                                    "sensors.noise_seed": 8,
                                                    "sensors.current_offset_a": 0.5,

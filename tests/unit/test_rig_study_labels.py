@@ -45,7 +45,7 @@ def test_every_rig_action_has_a_description():
     actions = next(a for a in top._actions if isinstance(a, argparse._SubParsersAction))
     sub = next(a for a in actions.choices["rig"]._actions
                if isinstance(a, argparse._SubParsersAction))
-    assert set(sub.choices) == {"baseline", "assess", "study", "inject"}
+    assert set(sub.choices) == {"baseline", "assess", "study", "inject", "train", "classify"}
     for name, p in sub.choices.items():
         assert p.description and len(p.description) > 80, name
         assert p.description.split()[0] in p.format_help(), name
