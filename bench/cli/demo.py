@@ -159,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
         from bench.gap.summary import text
         t0 = time.perf_counter()
         res = diagnose(load_log(str(logs[1])), None, None,
-                       Options(workers=2, progress=False))
+                       Options(workers=2, progress=sys.stderr.isatty()))
         gap = res.json()
         print("  " + text(gap).replace("\n", "\n  "))
         idx = gap_report(res, gap, out / "gap")

@@ -107,9 +107,15 @@ def summary_lines(sm: dict[str, Any]) -> list[str]:
     n = g.get("named") or {}
     if n.get("flagged"):
         fam = "; ".join(f"{k} {pct(v['rate'])}" for k, v in n["per_family"].items())
-        rows.append(f"| physics name right on flagged fault cycles | >= 70 % | "
-                    f"{pct(n['rate'])} ({ci(n['rate_95'])}); per family: {fam} | "
-                    f"{'yes' if n['rate'] >= 0.7 else 'no'} |")
+        # pooled, the largest family (the spall stages) would hide the others: the goal
+        # holds when it holds for the pool and for every family
+        low = [k for k, v in n["per_family"].items()
+               if not (math.isfinite(v["rate"]) and v["rate"] >= 0.7)]
+        met = ("yes" if n["rate"] >= 0.7 and not low else
+               "no" + (f" ({', '.join(low)} below)" if low else ""))
+        rows.append(f"| physics name right on flagged fault cycles, pooled and per family "
+                    f"| >= 70 % | {pct(n['rate'])} ({ci(n['rate_95'])}); per family: {fam} "
+                    f"| {met} |")
     v = (sm.get("supervised") or {}).get("validation") or {}
     if "bench" in v:
         b = v["bench"]
