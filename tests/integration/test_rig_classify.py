@@ -124,10 +124,10 @@ def test_bad_inputs_are_one_line_errors_that_write_nothing(model, tmp_path, caps
     assert "no table of the healthy class" in capsys.readouterr().err
     # the model written over an input
     assert main(["rig", "train", str(HEALTHY), str(SPALL), "-o", str(SPALL)]) == 2
-    assert "that is an input" in capsys.readouterr().err
+    assert "would overwrite it" in capsys.readouterr().err
     # --json over the model
     assert main(["rig", "classify", str(path), str(SPALL), "--json", str(path)]) == 2
-    assert "that is an input" in capsys.readouterr().err
+    assert "would overwrite it" in capsys.readouterr().err
     assert not out.exists()
 
 
