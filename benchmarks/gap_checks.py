@@ -56,8 +56,8 @@ def intervals(seed_list: list[int]) -> list[dict]:
 
 def offset(seed_list: list[int]) -> list[dict]:
     from bench.gap.diagnose import Options, chosen_entry, diagnose
-    from bench.gap.maneuvers import excitation
     from bench.harness import simulate
+    from bench.maneuvers import excitation
     from plant_rt.params import PlantParams
     rows = []
     for s in seed_list:

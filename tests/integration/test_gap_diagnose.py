@@ -10,9 +10,9 @@ import pytest
 
 from bench import BenchError
 from bench.gap.diagnose import Options, chosen_entry, diagnose
-from bench.gap.maneuvers import compact
 from bench.gap.resim import FAST
 from bench.harness import simulate
+from bench.maneuvers import compact
 from bench.trace import Trace
 from plant_rt.params import PlantParams
 
