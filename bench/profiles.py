@@ -2,7 +2,7 @@
 flight (`bench.flight`), by name.
 
 Each builds a `bench.setpoints.Profile` (ECU mode and set-points as functions of time);
-the gap diagnosis maneuver comes from `bench.gap.maneuvers`.
+the gap diagnosis maneuver comes from `bench.maneuvers`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.flight import flight
-from bench.gap.maneuvers import excitation
+from bench.maneuvers import excitation
 from bench.setpoints import Profile
 from bench.trace import MODE_POSITION, MODE_SPEED
 
@@ -92,7 +92,7 @@ def rul(duration_s: float = 120.0, amplitude_m: float = 0.5e-3,
 
 
 def gap_excitation(duration_s: float = 10.0, load_n: float = 2000.0) -> Profile:
-    """The gap diagnosis maneuver (`bench.gap.maneuvers.excitation`): 1-4 Hz sines,
+    """The gap diagnosis maneuver (`bench.maneuvers.excitation`): 1-4 Hz sines,
     current-limited steps, cruise ramps and dwells under a `load_n` N sine load."""
     return excitation(duration_s, load_n)
 

@@ -56,9 +56,9 @@ def intervals(seed_list: list[int]) -> list[dict]:
 
 def offset(seed_list: list[int]) -> list[dict]:
     from bench.gap.diagnose import Options, diagnose
-    from bench.gap.maneuvers import excitation
     from bench.gap.result_json import chosen_entry
     from bench.harness import simulate
+    from bench.maneuvers import excitation
     from plant_rt.params import PlantParams
     rows = []
     for s in seed_list:

@@ -5,7 +5,8 @@
 - `ema_contract.states`: NMT states and commands, control and status words, the plant's
   status bits, the pacer,
 - `ema_contract.transport`: which CAN bus to open, and the bench's state files,
-- `ema_contract/dbc/`: `ema.dbc` and `ema.eds`, package data (`$EMA_BENCH_DBC_DIR` points
+- `ema.dbc` and `ema.eds`: their source is the repository's top-level `dbc/`; the wheel
+  carries them as package data in `ema_contract/dbc/` (`$EMA_BENCH_DBC_DIR` points
   elsewhere).
 
 Both the simulated plant (`plant_rt`) and the bench (`bench`) import this package; it

@@ -1,5 +1,5 @@
-"""What crosses the bus: the DBC and the EDS shipped in `ema_contract/dbc/` (the only
-place frame layouts live), bound to the node ids in use.
+"""What crosses the bus: the DBC and the EDS of the top-level `dbc/` (the only place
+frame layouts live), bound to the node ids in use.
 
 `Frames` binds the DBC (`ema.dbc`, cantools, strict) to the node ids in use and
 encodes/decodes frames by message and signal name; `load_od` imports the EDS (`ema.eds`,
@@ -7,8 +7,11 @@ canopen) for a node id. Both the plant node and the ECU use these, so neither si
 a frame layout of its own. The enumerations (NMT, control and status words) are in
 `ema_contract.states`; the EDS's plant parameter objects in `plant_rt.paramobjects`.
 
-The files are package data; `$EMA_BENCH_DBC_DIR` points at another directory holding
-`ema.dbc` and `ema.eds` (a real actuator's description).
+The files' source is the repository's `dbc/`; the wheel carries them as package data in
+`ema_contract/dbc/` (setup.py's build step), found with importlib.resources, and a
+checkout (an editable install, or PYTHONPATH) reads `dbc/` next to the package.
+`$EMA_BENCH_DBC_DIR` points at another directory holding `ema.dbc` and `ema.eds` (a real
+actuator's description).
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from __future__ import annotations
 import math
 import os
 from functools import lru_cache
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +28,18 @@ import cantools
 import numpy as np
 
 DBC_DIR_ENV = "EMA_BENCH_DBC_DIR"
-PACKAGE_DBC_DIR = Path(__file__).resolve().parent / "dbc"   # ema.dbc, ema.eds (package data)
+
+
+def _shipped_dbc_dir() -> Path:
+    """ema.dbc and ema.eds as shipped: the package's copy in an installed wheel, else the
+    checkout's top-level dbc/ (next to the package: an editable install or PYTHONPATH)."""
+    packaged = Path(str(resources.files("ema_contract") / "dbc"))
+    if (packaged / "ema.dbc").is_file():
+        return packaged
+    return Path(__file__).resolve().parents[1] / "dbc"
+
+
+SHIPPED_DBC_DIR = _shipped_dbc_dir()
 
 
 class FrameError(ValueError):
@@ -32,9 +47,9 @@ class FrameError(ValueError):
 
 
 def dbc_dir() -> Path:
-    """Directory holding ema.dbc and ema.eds ($EMA_BENCH_DBC_DIR, else the package's)."""
+    """Directory holding ema.dbc and ema.eds ($EMA_BENCH_DBC_DIR, else the shipped pair)."""
     env = os.environ.get(DBC_DIR_ENV)
-    return Path(env) if env else PACKAGE_DBC_DIR
+    return Path(env) if env else SHIPPED_DBC_DIR
 
 
 def dbc_path() -> Path:

@@ -3,7 +3,7 @@
 `Status` holds the plant's own status bits (the low nibble of the status word), which
 `plant_rt.model.Plant.status` computes; `StatusWord` is the whole TPDO1 StatusWord: the
 plant's bits, then the node's own. A unit test checks these against the DBC's value
-tables and comments (`ema_contract/dbc/ema.dbc`).
+tables and comments (`dbc/ema.dbc`).
 """
 
 from __future__ import annotations
@@ -38,14 +38,14 @@ class NMTCommand(IntEnum):
 
 
 class ControlWord(IntFlag):
-    """RPDO1 ControlWord bits (ema_contract/dbc/ema.dbc, EMA_RPDO1)."""
+    """RPDO1 ControlWord bits (dbc/ema.dbc, EMA_RPDO1)."""
     NONE = 0
     ENABLE = 0x1
     FAULT_RESET = 0x80
 
 
 class StatusWord(IntFlag):
-    """TPDO1 StatusWord bits (ema_contract/dbc/ema.dbc, EMA_TPDO1): the plant's `Status`
+    """TPDO1 StatusWord bits (dbc/ema.dbc, EMA_TPDO1): the plant's `Status`
     bits, then the node's own."""
     NONE = 0
     OVERCURRENT = int(Status.OVERCURRENT)

@@ -69,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--list-params", action="store_true",
                         help="print every settable parameter with unit, default and range")
     parser.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
-                        help="CANopen node id (default 0x10, from ema_contract/dbc/ema.dbc)")
+                        help="CANopen node id (default 0x10, from dbc/ema.dbc)")
     parser.add_argument("--ecu-id", type=lambda s: int(s, 0), default=None,
                         help="node id of the ECU whose heartbeat is consumed (default 0x01)")
     parser.add_argument("--serial", type=serial_arg, default=None, metavar="N",

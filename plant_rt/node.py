@@ -3,9 +3,9 @@
 One thread does everything (receive, SDO, PDOs, stepping), so there is no lock, no
 GIL hand-over between a receive thread and the pacer, and the lockstep mode is
 deterministic. canopen's `LocalNode` is used for what it does well, the object
-dictionary (imported from `ema_contract/dbc/ema.eds`) and the SDO server, fed frame by frame through
+dictionary (imported from `dbc/ema.eds`) and the SDO server, fed frame by frame through
 `Network.notify`; NMT, heartbeat, PDOs and EMCY are handled here with the frame layouts
-of `ema_contract/dbc/ema.dbc` (cantools). See docs/bus.md for why not `durand`.
+of `dbc/ema.dbc` (cantools). See docs/bus.md for why not `durand`.
 
 Timing (CiA 301 synchronous PDOs, transmission type 1):
 

@@ -14,7 +14,7 @@ LOG_SUFFIXES = (".log", ".asc", ".blf", ".trc", ".mf4")
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("decode", help="decode a bus log into a signal table (CSV/Parquet)",
                        description="Decode a bus log (candump .log; .asc, .blf, .trc, .mf4 "
-                       "through python-can) through ema_contract/dbc/ema.dbc into one row per "
+                       "through python-can) through dbc/ema.dbc into one row per "
                        "SYNC period (set-points, demand, current, encoder, LVDT, temperature, "
                        "status). The SYNC period and encoder resolution come from the SDO "
                        "traffic in the log when present. Bad lines are counted and the first "
@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"{name}: " + ("; ".join(found) if found else
                          "no lost, missing, duplicate or out-of-order frame"), file=say)
     if m.get("short_frames"):
-        print(f"{name}: {m['short_frames']} frames shorter than ema_contract/dbc/ema.dbc "
+        print(f"{name}: {m['short_frames']} frames shorter than dbc/ema.dbc "
               "describes (an older frame layout): their signals that fit were decoded, the "
               "columns of the missing ones are empty", file=say)
     if to_stdout:

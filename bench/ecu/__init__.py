@@ -1,8 +1,8 @@
 """The ECU: a CANopen master that runs the bench's controller against the plant over the bus.
 
 It holds a python-can bus and nothing of the plant but what the bus carries: NMT, SYNC
-production, its own heartbeat, SDO (canopen `RemoteNode` from `ema_contract/dbc/ema.eds`) and the
-PDOs of `ema_contract/dbc/ema.dbc` (cantools). The same `bench.control.Controller` as the in-process
+production, its own heartbeat, SDO (canopen `RemoteNode` from `dbc/ema.eds`) and the
+PDOs of `dbc/ema.dbc` (cantools). The same `bench.control.Controller` as the in-process
 harness computes the current demand, so a lockstep bus run reproduces
 `bench.harness.simulate` within the DBC quantisation.
 

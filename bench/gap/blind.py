@@ -12,7 +12,7 @@ balls) with sensor noise on, while the diagnosis re-simulates in the fast mode: 
               does not see, or a position-periodic current-sensor error applied to the
               logged current)
 
-Every log is the diagnosis maneuver (`bench.gap.maneuvers.excitation`, with its axial sine
+Every log is the diagnosis maneuver (`bench.maneuvers.excitation`, with its axial sine
 load measured by the load cell). Effects act in the plant (parameters, inside the loop)
 or, for sensor-side effects, on the logged columns after the run (a first-order LVDT lag,
 a time skew of the measurements). Their magnitudes are drawn here from physical ranges
@@ -38,8 +38,8 @@ from typing import Any
 import numpy as np
 
 from bench.gap.diagnose import Options, diagnose
-from bench.gap.maneuvers import excitation
 from bench.harness import simulate
+from bench.maneuvers import excitation
 from bench.trace import MEASURED, Trace
 from bench.workers import run_all
 from plant_rt.model import viscous_friction

@@ -38,7 +38,7 @@ from bench.control import ControllerParams
 from bench.gap.blind import Case, Truth, score, summarise
 from bench.gap.calibrate import calibrate, default_names, heldout_significance, reference_of
 from bench.gap.diagnose import Options, diagnose
-from bench.gap.maneuvers import LOAD_HZ, excitation
+from bench.maneuvers import LOAD_HZ, excitation
 from bench.trace import Trace
 from bench.workers import run_all
 from indie_plant.controller import Cascade

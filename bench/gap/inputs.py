@@ -27,6 +27,12 @@ SAMPLING = ("sample_period_s", "resampled", "split")
 resampled, and the key values it was split by (`bench import --split-by`)."""
 
 
+BASELINE_FORMAT = "bench-rig-baseline/1"
+"""The format tag of a healthy baseline file (`bench.rig.baseline` writes and checks it):
+defined here, below the rig, so `read_nominal` tells a baseline given as --nominal apart
+without importing the rig (which imports this package)."""
+
+
 class BaselineAsNominal(BenchError):
     """A healthy baseline file given where a calibration or parameter file goes."""
 
@@ -67,8 +73,7 @@ def read_nominal(path: str | Path) -> dict[str, Any]:
         raise BenchError(f"{path}: an empty JSON object holds no parameter: give a "
                          "calibration (bench calibrate) or a parameter file, or leave "
                          "--nominal out for the thesis values")
-    from bench.rig.baseline import FORMAT
-    if data.get("format") == FORMAT:
+    if data.get("format") == BASELINE_FORMAT:
         raise BaselineAsNominal(f"{path}: a healthy baseline (bench rig baseline), not a "
                                 f"calibration or parameter file: bench gap and bench hums "
                                 f"report take it with --baseline {path}")

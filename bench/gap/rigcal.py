@@ -3,7 +3,7 @@
 What the description (`bench.actuator`) leaves unknown is identified from one or more
 healthy logs with the generic model (`bench.gap.rigmodel`), by least squares on the
 residuals at the logs' own sample instants, each signal's residual divided by that log's
-noise floor (`rigmodel.noise_floor`, from the measured samples):
+noise floor (`bench.estimators.noise_floor`, from the measured samples):
 
 - ``fit-gains`` (a set-point is logged): the closed loop with a generic position/speed
   cascade; the unknown gains, feed-forward and current limit are fitted together with
@@ -31,6 +31,7 @@ from scipy.optimize import least_squares
 
 from bench import BenchError
 from bench.actuator import Actuator, model_values
+from bench.estimators import noise_floor
 from bench.gap import rigmodel as RM
 from bench.trace import Trace
 
@@ -44,7 +45,7 @@ NEEDS = {
 """Signals each calibration method needs (current_a is also used by fit-gains if logged)."""
 MIN_FLOOR = {"position_m": 1e-7, "current_a": 1e-4}
 MIN_SAMPLES = 5
-"""Measured samples a signal's noise floor needs (`rigmodel.noise_floor`): a log with
+"""Measured samples a signal's noise floor needs (`bench.estimators.noise_floor`): a log with
 fewer position samples cannot be scored against the model."""
 DEFAULT_PERIOD_S = 1e-3
 X0_FLOORS = 20.0     # the initial nut position is fitted within +- this many floors
@@ -185,7 +186,7 @@ def load_sign(act: Actuator) -> float:
 
 def floors(tr: Trace) -> dict[str, float]:
     """Noise floor per compared signal, from `tr`'s own samples."""
-    return {s: max(RM.noise_floor(tr[s]), MIN_FLOOR[s]) for s in MIN_FLOOR if _has(tr, s)}
+    return {s: max(noise_floor(tr[s]), MIN_FLOOR[s]) for s in MIN_FLOOR if _has(tr, s)}
 
 
 def _residual(z: np.ndarray, fit: _Fit | _Held, traces: Sequence[Trace], fl: Sequence[dict[str, float]],

@@ -184,15 +184,3 @@ def restart_state(t: np.ndarray, x: np.ndarray, half: int, at: np.ndarray
         v, c = np.polyfit(tt[ok], yy[ok], 1)
         xs[j], vs[j] = c, v
     return xs, vs
-
-
-def noise_floor(y: np.ndarray) -> float:
-    """White-noise sigma of a measured signal from its own samples: the robust spread
-    (1.4826 MAD) of its second differences / sqrt(6) (a smooth signal's second difference
-    is ~0; white noise's has variance 6 sigma^2). NaN samples are skipped."""
-    y = np.asarray(y, float)
-    y = y[np.isfinite(y)]
-    if len(y) < 5:
-        return float("nan")
-    d2 = np.diff(y, 2)
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))

@@ -32,13 +32,14 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.gap.inputs import BASELINE_FORMAT
 from bench.rig.cycles import Cycle, ramps
 from bench.rig.spread import MIN_RUNS, spread
 
 SIGNALS = ("current_a", "position_error_mm", "current_ref_a")
 POOL = 7                    # samples pooled into one sample's spread
 MIN_CYCLES = 3              # cycles per load a baseline needs
-FORMAT = "bench-rig-baseline/1"
+FORMAT = BASELINE_FORMAT     # the file's format tag (bench.gap.inputs reads it too)
 
 
 def signal(cycle: Cycle, name: str) -> np.ndarray:

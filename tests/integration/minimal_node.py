@@ -1,11 +1,11 @@
 """A test double of a vendor's actuator node: CiA 301 and the PDOs of
-`ema_contract/dbc/ema.dbc`, nothing else (docs/node-contract.md is the contract it implements).
+`dbc/ema.dbc`, nothing else (docs/node-contract.md is the contract it implements).
 
 Two parts, kept apart so that a node with other physics can reuse the bus part:
 
 - `MinimalNode` (bus): NMT slave, boot-up, heartbeat producer (0x1017) and consumer
   (0x1016), an SDO server (canopen `LocalNode`) over an object dictionary holding only
-  the CiA 301 objects of `ema_contract/dbc/ema.eds` (0x1000-0x1FFF: device type, error register,
+  the CiA 301 objects of `dbc/ema.eds` (0x1000-0x1FFF: device type, error register,
   identity, SYNC period, EMCY, heartbeat, PDO communication and mapping parameters),
   RPDO1 in, TPDO1-3 and EMCY out, frames encoded with cantools from the DBC. None of the
   simulated plant's objects (0x2000-0x2400) exist: an SDO access to them gets CiA 301's
@@ -48,7 +48,7 @@ from ema_contract.states import ControlWord, NMTCommand, NMTState
 TWO_PI = 2.0 * math.pi
 ABORT_VALUE_RANGE = 0x06090030      # CiA 301: invalid value for parameter
 ABORT_READ_ONLY = 0x06010002        # CiA 301: attempt to write a read-only object
-STATUS_COMMAND_TIMEOUT = 0x10       # TPDO1 StatusWord bits (ema_contract/dbc/ema.dbc comment)
+STATUS_COMMAND_TIMEOUT = 0x10       # TPDO1 StatusWord bits (dbc/ema.dbc comment)
 STATUS_DEMAND_CLAMPED = 0x20
 STATUS_ENABLED = 0x40
 ERR_GENERIC, ERR_COMMUNICATION = 0x01, 0x10   # 0x1001 error register bits

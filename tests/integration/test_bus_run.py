@@ -13,7 +13,7 @@ import time
 import canopen
 import numpy as np
 import pytest
-from bus_helpers import BUS_KINDS, ROOT, bench, module_bus_env, spawn, wait_until
+from bus_helpers import BUS_KINDS, bench, module_bus_env, spawn, wait_until
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.bus.logs import trace_from_log
@@ -21,7 +21,7 @@ from bench.ecu import run_over_bus
 from bench.harness import simulate
 from bench.profiles import make_profile
 from bench.trace import Trace
-from ema_contract.frames import load_od
+from ema_contract.frames import dbc_path, eds_path, load_od
 from ema_contract.states import NMTCommand
 from plant_rt.params import PARAMS, PlantParams
 
@@ -111,7 +111,7 @@ def test_python_can_logger_captures_and_cantools_decodes(bus_env, tmp_path):
     assert text.count(" 190#") == 50 and text.count(" 080#") == 50
     with log.open() as fh:
         dec = spawn(sys.executable, "-m", "cantools", "decode",
-                    str(ROOT / "ema_contract" / "dbc" / "ema.dbc"), stdin=fh)
+                    str(dbc_path()), stdin=fh)
         out, err = dec.communicate(timeout=60)
     assert dec.returncode == 0, err
     assert "EMA_TPDO1(" in out and "MotorCurrent:" in out
@@ -123,7 +123,7 @@ def test_plain_canopen_remote_node_reads_and_writes_parameters(bus_env):
     network = canopen.Network(bus_env.bus())
     import can
     network.notifier = can.Notifier(network.bus, network.listeners, timeout=0.05)
-    node = canopen.RemoteNode(0x10, str(ROOT / "ema_contract" / "dbc" / "ema.eds"))
+    node = canopen.RemoteNode(0x10, str(eds_path()))
     network.add_node(node)
     node.sdo.RESPONSE_TIMEOUT = 1.0
     try:

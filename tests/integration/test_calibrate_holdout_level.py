@@ -9,9 +9,9 @@ import json
 import pytest
 
 from bench.cli import main
-from bench.gap.maneuvers import compact
 from bench.gap.resim import FAST
 from bench.harness import simulate
+from bench.maneuvers import compact
 from plant_rt.params import PlantParams
 
 

@@ -3,9 +3,9 @@ progress bar instead of breaking it (a bare print to stderr split the bar in two
 
 from __future__ import annotations
 
-from bench.gap.maneuvers import compact
 from bench.gap.resim import FAST
 from bench.harness import simulate
+from bench.maneuvers import compact
 from plant_rt.params import PlantParams
 
 

@@ -10,10 +10,10 @@ import pytest
 
 from bench import BenchError
 from bench.gap.diagnose import Options, diagnose
-from bench.gap.maneuvers import compact
 from bench.gap.resim import FAST
 from bench.gap.result_json import chosen_entry
 from bench.harness import simulate
+from bench.maneuvers import compact
 from bench.trace import Trace
 from plant_rt.params import PlantParams
 

@@ -1,4 +1,4 @@
-"""The ECU against a node that implements only CiA 301 and the PDOs of ema_contract/dbc/ema.dbc (the
+"""The ECU against a node that implements only CiA 301 and the PDOs of dbc/ema.dbc (the
 test double `minimal_node.py`, a vendor's actuator): optional objects read when there,
 reported missing when not, and the run goes on (issue 9 item 16, docs/node-contract.md).
 
@@ -29,6 +29,7 @@ from bench.ecu import run_over_bus
 from bench.harness import simulate
 from bench.profiles import make_profile
 from bench.trace import Trace
+from ema_contract.frames import eds_path
 from plant_rt.params import PlantParams
 
 NODE = Path(__file__).resolve().parent / "minimal_node.py"
@@ -145,7 +146,7 @@ def test_the_double_has_only_cia301_objects(node_env):
     net = canopen.Network()
     net.connect(**node_env.cfg)
     try:
-        node = net.add_node(0x10, str(ROOT / "ema_contract" / "dbc" / "ema.eds"))
+        node = net.add_node(0x10, str(eds_path()))
         node.sdo.RESPONSE_TIMEOUT = 1.0
         assert node.sdo[0x1000].raw == 0
         assert node.sdo[0x1018][2].raw == 1           # product code of the EDS
@@ -166,7 +167,7 @@ def test_the_double_consumes_the_ecu_heartbeat(node_env):
     net = canopen.Network()
     net.connect(**node_env.cfg)
     try:
-        node = net.add_node(0x10, str(ROOT / "ema_contract" / "dbc" / "ema.eds"))
+        node = net.add_node(0x10, str(eds_path()))
         node.sdo.RESPONSE_TIMEOUT = 1.0
         bootups: list[int] = []
         node.nmt.add_heartbeat_callback(lambda state: state == 0 and bootups.append(state))

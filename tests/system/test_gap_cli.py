@@ -10,9 +10,9 @@ import sys
 import numpy as np
 import pytest
 
-from bench.gap.maneuvers import compact
 from bench.gap.resim import FAST
 from bench.harness import simulate
+from bench.maneuvers import compact
 from plant_rt.params import PlantParams
 
 

@@ -3,7 +3,8 @@ into a clean virtual environment (its dependencies from the running interpreter'
 site-packages, so nothing is downloaded but pip's own build requirements from its
 configured indexes), then `bench demo --in-process` run from it with the working
 directory outside the checkout and no PYTHONPATH, so the checkout's files (the DBC, the
-EDS) cannot be found by accident.
+EDS) cannot be found by accident. The bus description's source is the checkout's
+top-level dbc/; the wheel carries it as ema_contract/dbc/ (setup.py's build step).
 
 The suite may itself run inside a virtual environment (the README's way on a PEP 668
 system): `python -m venv --system-site-packages` then links the new environment to the
@@ -15,6 +16,7 @@ files, an editable install of the checkout among them, are not run)."""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import site
 import subprocess
@@ -99,6 +101,22 @@ def test_wheel_holds_the_four_packages_and_the_bus_description(venv):
     assert len(out) == 4, out
     for path in out:
         assert Path(path).resolve().is_relative_to(root.resolve()), out
+    assert Path(out[2]).parts[-3:] == ("ema_contract", "dbc", "ema.dbc"), out
+    with zipfile.ZipFile(wheel) as zf:                 # the checkout's files, unchanged
+        for name in ("ema.dbc", "ema.eds"):
+            assert zf.read(f"ema_contract/dbc/{name}") == (ROOT / "dbc" / name).read_bytes()
+    dump = _run([str(root / "bin" / "python"), "-m", "cantools", "dump", out[2]],
+                root.parent, env, 120).stdout
+    assert "EMA_TPDO1" in dump and "MotorCurrent" in dump, dump[-2000:]
+
+
+def test_cantools_dumps_the_checkouts_dbc():
+    """`cantools dump dbc/ema.dbc` from the checkout: the source file, as a user reads it."""
+    env = {k: v for k, v in os.environ.items() if k != "EMA_BENCH_DBC_DIR"}
+    dump = _run([sys.executable, "-m", "cantools", "dump", "dbc/ema.dbc"], ROOT, env,
+                120).stdout
+    for message in ("EMA_TPDO1", "EMA_RPDO1", "ECU_Setpoint"):
+        assert re.search(rf"Name: +{message}\n", dump), dump[-2000:]
 
 
 def test_bench_demo_runs_from_the_wheel(venv):

@@ -6,9 +6,9 @@ import numpy as np
 
 from bench.gap import resim as R
 from bench.gap.diagnose import excess, heldout_level
-from bench.gap.maneuvers import excitation
 from bench.gap.problem import build
 from bench.harness import simulate
+from bench.maneuvers import excitation
 from plant_rt.params import PlantParams
 
 BASE = PlantParams().with_dict(R.FAST)

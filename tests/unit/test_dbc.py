@@ -1,4 +1,4 @@
-"""ema_contract/dbc/: the DBC and the EDS load strictly, round-trip, agree with each other
+"""dbc/ (the top-level source of ema_contract's bus description): the DBC and the EDS load strictly, round-trip, agree with each other
 and with the parameter table, and the codecs built on them keep values within the DBC
 quantisation."""
 
@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 from ema_contract.frames import (
     DBC_DIR_ENV,
-    PACKAGE_DBC_DIR,
+    SHIPPED_DBC_DIR,
     FrameError,
     Frames,
     dbc_path,
@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_committed_eds_is_the_generator_output():
     assert eds_path().read_text() == eds.build(), \
-        "ema_contract/dbc/ema.eds is stale: run python -m plant_rt.eds"
+        "dbc/ema.eds is stale: run python -m plant_rt.eds"
 
 
 def test_dbc_load_dump_load_round_trip():
@@ -243,7 +243,7 @@ def test_generator_check_mode(capsys):
 
 
 def test_no_frame_layout_in_python_sources():
-    """Frame layouts live in ema_contract/dbc/ only: no struct formats in the bus code."""
+    """Frame layouts live in dbc/ only: no struct formats in the bus code."""
     pattern = re.compile(r"struct\.(pack|unpack|Struct)\(")
     ecu = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "bench/ecu").glob("*.py"))
     assert ecu, "bench/ecu/ (the ECU package, issue 10) has no modules"
@@ -253,9 +253,9 @@ def test_no_frame_layout_in_python_sources():
 
 
 def test_dbc_dir_env_points_at_another_description(tmp_path, monkeypatch):
-    """$EMA_BENCH_DBC_DIR replaces the package's DBC and EDS (a real actuator's files)."""
+    """$EMA_BENCH_DBC_DIR replaces the shipped DBC and EDS (a real actuator's files)."""
     for name in ("ema.dbc", "ema.eds"):
-        shutil.copy(PACKAGE_DBC_DIR / name, tmp_path / name)
+        shutil.copy(SHIPPED_DBC_DIR / name, tmp_path / name)
     monkeypatch.setenv(DBC_DIR_ENV, str(tmp_path))
     assert (dbc_path(), eds_path()) == (tmp_path / "ema.dbc", tmp_path / "ema.eds")
     assert Frames().node_id == 0x10 and 0x2000 in load_od()
@@ -263,4 +263,24 @@ def test_dbc_dir_env_points_at_another_description(tmp_path, monkeypatch):
     with pytest.raises(FileNotFoundError, match=DBC_DIR_ENV):
         load_db()
     monkeypatch.delenv(DBC_DIR_ENV)
-    assert dbc_path() == PACKAGE_DBC_DIR / "ema.dbc"
+    assert dbc_path() == SHIPPED_DBC_DIR / "ema.dbc"
+
+
+def test_a_checkout_reads_the_top_level_dbc():
+    """Run from a checkout, the shipped pair is the repository's dbc/, the one copy: no
+    ema_contract/dbc/ in the tree (a stale copy there would shadow the source)."""
+    assert SHIPPED_DBC_DIR == ROOT / "dbc"
+    assert (ROOT / "dbc" / "ema.dbc").is_file() and (ROOT / "dbc" / "ema.eds").is_file()
+    assert not (ROOT / "ema_contract" / "dbc").exists()
+    assert eds.DBC == ROOT / "dbc" / "ema.dbc" and eds.EDS == ROOT / "dbc" / "ema.eds"
+
+
+def test_an_installed_package_reads_its_own_copy(tmp_path, monkeypatch):
+    """In a wheel the pair is package data, ema_contract/dbc/, found through
+    importlib.resources; without it (a checkout) the top-level dbc/ next to the package."""
+    from ema_contract import frames
+    (tmp_path / "dbc").mkdir()
+    monkeypatch.setattr(frames.resources, "files", lambda package: tmp_path)
+    assert frames._shipped_dbc_dir() == ROOT / "dbc"          # no ema.dbc in the copy
+    shutil.copy(SHIPPED_DBC_DIR / "ema.dbc", tmp_path / "dbc" / "ema.dbc")
+    assert frames._shipped_dbc_dir() == tmp_path / "dbc"

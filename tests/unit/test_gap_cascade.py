@@ -9,7 +9,7 @@ from bench.control import ControllerParams
 from bench.gap import resim as R
 from bench.gap.calibrate import initial_cascade
 from bench.gap.cascade import Cascade, logged_inputs, replay, replay_one_step
-from bench.gap.maneuvers import excitation
+from bench.maneuvers import excitation
 from bench.trace import Trace
 from plant_rt.params import PlantParams
 

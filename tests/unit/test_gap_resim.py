@@ -8,8 +8,8 @@ import pytest
 
 from bench.gap import problem as P
 from bench.gap import resim as R
-from bench.gap.maneuvers import excitation
 from bench.harness import simulate
+from bench.maneuvers import excitation
 from plant_rt.params import PlantParams
 
 FAST = PlantParams().with_dict(R.FAST)

@@ -9,8 +9,8 @@ import numpy as np
 from bench.gap import effects as E
 from bench.gap import problem as P
 from bench.gap import resim as R
-from bench.gap.maneuvers import excitation
 from bench.harness import simulate
+from bench.maneuvers import excitation
 from bench.profiles import make_profile
 from plant_rt import kernel as K
 from plant_rt.model import sensor_vector

@@ -18,6 +18,9 @@ these separate: backlash is a jump of the nut when the load changes sign, compli
 deflection proportional to it; the current that holds the load is F p / (2 pi eta kt tau)
 (kt, lead), the current that accelerates the rotor is J a / kt. `load_n=0` gives the
 unloaded maneuver (a rig without a load actuator).
+
+The module sits next to `bench.profiles` (which offers `excitation` as `gap-excitation`),
+below the gap diagnosis that uses it, so the profiles do not import the gap package.
 """
 
 from __future__ import annotations
