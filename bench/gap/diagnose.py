@@ -238,7 +238,7 @@ def heldout_level(p: Problem) -> dict[str, Any]:
 def excess(energies: dict[str, float], reference: dict[str, Any] | None = None) -> float:
     """The held-out gap excess X of `energies` (residual energy / floor per signal): the
     sum of E_s - 1, 0 at the noise floor. Against a calibration that stored the energy its
-    model leaves on a held-out healthy log (`reference["energy"]`, session 13), the sum
+    model leaves on a held-out healthy log (`reference["energy"]`), the sum
     of what each signal has above that healthy energy (and above the floor): the part of
     the gap the calibrated model does not leave on a healthy log, which is what an effect
     can explain (docs/gap.md, "Calibration")."""

@@ -1,4 +1,4 @@
-"""`bench rig study` beyond one healthy table (issue 11: the rig's other healthy runs may
+"""`bench rig study` beyond one healthy table (the rig's other healthy runs may
 come in another file): several healthy tables as one condition, the healthy false-alarm
 rate cross-validated over every split of the healthy runs, cycles of a load without a
 threshold reported instead of dropped, and fault tables of two families kept apart."""

@@ -1,4 +1,4 @@
-"""The tree's shape (issue 10): no import cycles, no module over 600 lines, no function over
+"""The tree's shape: no import cycles, no module over 600 lines, no function over
 80 lines without a reason written at its top, and the layers' arrows pointing one way.
 
 A long function states why on its first body line, as a comment starting with
@@ -110,7 +110,7 @@ INDIE_THIRD_PARTY = {"numpy", "scipy", "numba", "can", "canopen", "cantools"}
 
 
 def test_indie_plant_imports_only_the_contract_and_numeric_libraries():
-    """indie_plant (issue 11's independent actuator) may import ema_contract, numpy, scipy,
+    """indie_plant (the blind benchmark's independent actuator) may import ema_contract, numpy, scipy,
     numba and the bus libraries ema_contract itself uses; nothing of plant_rt or bench."""
     import sys
     bad = []

@@ -1,4 +1,4 @@
-"""Issue 9 on the plant node, in-process and deterministic: frames are fed to
+"""Reliability of the plant node, in-process and deterministic: frames are fed to
 `PlantNode.handle()` (then `timers()`, as the node's loop does) with a fake wall clock,
 and what the node sends is kept by a recording bus.
 
