@@ -41,7 +41,7 @@ def test_writes_the_report_and_the_figure(report):
 
 # cycles of 10 named right at 8 sigma (measured with the current features: the 22 mm
 # bump leaks into the lead-periodic projection in one cycle, which is then named
-# periodic, also a position-locked effect; docs/real-data.md, injected faults)
+# periodic, also a position-locked effect; docs/rig-results.md, injected faults)
 NAMED_RIGHT = {"friction": 10, "localised": 9, "periodic": 10, "backlash": 10}
 
 
