@@ -102,7 +102,7 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
     friction laws and contact model stay its own (the thesis' tables): friction, the
     contact stiffness (under the logged load) and the rest are what calibration is for.
 
-    `preload_law` (2026-11-24, indie6; `PRELOAD_LAWS`): the nut is a preloaded double nut
+    `preload_law` (`PRELOAD_LAWS`): the nut is a preloaded double nut
     with Hertzian contacts (its datasheet), so the model declares the Hertzian preload
     law at the datasheet preload (`screw.hertz_reference_preload_n`; "hertz", the
     default) and, optionally, the preload's drag by the catalogue formula
