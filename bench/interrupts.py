@@ -1,8 +1,8 @@
 """Ctrl-C that a library swallowed.
 
 A SIGINT that lands while `bench` is still importing its libraries can be lost: one of
-them catches the KeyboardInterrupt in a broad `except` during its import (measured
-2026-11-24: a Ctrl-C 0.5 s after `bench log` started, inside python-can's import of its
+them catches the KeyboardInterrupt in a broad `except` during its import (measured:
+a Ctrl-C 0.5 s after `bench log` started, inside python-can's import of its
 MF4 support, was swallowed, and the command went on recording until a second Ctrl-C;
 python-can's own `can.logger` does the same). `counting` (around `bench.cli.main`)
 counts every SIGINT and then raises KeyboardInterrupt as Python's own handler does; a

@@ -1,4 +1,4 @@
-"""Bus benchmarks (issue 3): latency, real-time jitter, lockstep throughput, bus load.
+"""Bus benchmarks: latency, real-time jitter, lockstep throughput, bus load.
 
     python benchmarks/bench_bus.py [--write docs/performance.md] [--json OUT]
                                    [--cycles 10000] [--quick]
@@ -31,7 +31,7 @@ import perfdoc  # noqa: E402
 
 from bench import machine_description  # noqa: E402
 
-SECTION = "## Bus (issue 3)"
+SECTION = "## Bus"
 
 RECEIVER = r"""
 import sys, time, can
@@ -330,7 +330,7 @@ def _bus_load_table(res: dict) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="Bus benchmarks (issue 3).")
+    ap = argparse.ArgumentParser(description="Bus benchmarks.")
     ap.add_argument("--write", metavar="MD", help="update the Bus section of this markdown")
     ap.add_argument("--json", metavar="OUT", help="write the raw results as JSON")
     ap.add_argument("--cycles", type=int, default=10_000,

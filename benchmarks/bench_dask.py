@@ -1,11 +1,11 @@
-"""Dask engine benchmark (issue 13): what Dask distributed costs against the old pool.
+"""Dask engine benchmark: what Dask distributed costs against the old pool.
 
     python benchmarks/bench_dask.py [--write docs/performance.md] [--repeats 3]
 
 Side by side in one run, interleaved (old, Dask, old, Dask, ...) so both see the same
 load, 2 workers each:
 - start + close of the engine: the old pool (a `concurrent.futures.ProcessPoolExecutor` of
-  2 spawned single-threaded processes, the one `bench.workers` had before issue 13; a
+  2 spawned single-threaded processes, the one `bench.workers` had before Dask; a
   reference copy is below) and `bench.cluster.Engine` (a `distributed.LocalCluster` of 2
   single-threaded worker processes, scheduler and dashboard on 127.0.0.1);
 - overhead per task: 200 jobs that do nothing on an engine already started (wall / jobs);
@@ -14,7 +14,7 @@ load, 2 workers each:
 - a small sweep end to end (`bench.hums.sweep.run`, 3 points x 3 maneuvers, no noise:
   9 full-fidelity plant runs), engine start included, and the same in this process
   (workers=1). The results must be identical on both engines (the script checks it).
-`--write` replaces the "## Dask engine (issue 13)" section of the given markdown file.
+`--write` replaces the "## Dask engine" section of the given markdown file.
 """
 
 from __future__ import annotations
@@ -42,11 +42,11 @@ from bench.gap import diagnose as D  # noqa: E402
 from bench.hums import sweep as S  # noqa: E402
 from bench.workers import run_all, session  # noqa: E402
 
-SECTION = "## Dask engine (issue 13)"
+SECTION = "## Dask engine"
 N_TASKS = 200
 
 
-# --- the old pool (reference copy of bench/workers.py before issue 13) ------------------
+# --- the old pool (reference copy of bench/workers.py before Dask) ------------------
 
 def _noop(x: Any = None) -> Any:
     return x

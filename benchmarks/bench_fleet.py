@@ -1,4 +1,4 @@
-"""Fleet benchmark (issue 13): ingest throughput on 1 and 2 workers, a synthetic fleet end
+"""Fleet benchmark: ingest throughput on 1 and 2 workers, a synthetic fleet end
 to end (synth + ingest) with the peak memory of the process tree, `bench fleet status`
 on that store and on a 10,000-run store, bytes per stored run.
 
@@ -280,7 +280,7 @@ def section(r: dict) -> str:  # type: ignore[type-arg]
     s1, s2 = r["scaling_logs"] / r["ingest1_s"], r["scaling_logs"] / r["ingest2_s"]
     e2e = r["synth_s"] + r["ingest_s"]
     mib = 2 ** 20
-    return f"""## Fleet (issue 13)
+    return f"""## Fleet
 
 `python benchmarks/bench_fleet.py --actuators {r['actuators']} --days {r['days']} --write docs/performance.md`
 (every stage the real `python -m bench fleet ...` CLI as a subprocess, wall clock, peak

@@ -1,4 +1,4 @@
-"""The fleet RUL against the truth (issue 13): a synthetic fleet (`bench fleet synth`),
+"""The fleet RUL against the truth: a synthetic fleet (`bench fleet synth`),
 ingested (`bench fleet ingest`), then `bench fleet status` evaluated as of the end of
 every day (only the tests up to that day) and compared with the truth the HUMS never
 saw (`bench.fleet.truthcheck`: RULs before the end of life, alpha-lambda, band

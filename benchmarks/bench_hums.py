@@ -1,4 +1,4 @@
-"""HUMS benchmark (issue 4): the full degradation sweep and the 120 s RUL run.
+"""HUMS benchmark: the full degradation sweep and the 120 s RUL run.
 
     python benchmarks/bench_hums.py [--write docs/performance.md] [--repeats 2]
 
@@ -13,7 +13,7 @@
    prediction (bootstrap of 200).
 
 Each is run in a fresh process (numba's on-disk cache warm, as after installation), best
-of `--repeats`. `--write` replaces the "## HUMS (issue 4)" section of the given file.
+of `--repeats`. `--write` replaces the "## HUMS" section of the given file.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 from perfdoc import write_section  # noqa: E402
 
-SECTION = "## HUMS (issue 4)"
+SECTION = "## HUMS"
 
 SWEEP = """
 import time, json

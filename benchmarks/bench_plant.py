@@ -1,4 +1,4 @@
-"""Plant speed and memory benchmark (issue 2), all peers measured side by side in one run.
+"""Plant speed and memory benchmark, all peers measured side by side in one run.
 
     python benchmarks/bench_plant.py [--write docs/performance.md]
 
@@ -12,7 +12,7 @@
    same scenario: speed and the difference in end state. (From rest, the nut's friction
    sign chatters at the first contact oscillations and the variable-step solvers crawl.)
 3. Peak memory of a 120 s closed-loop run recorded at 1 kHz (fresh process).
-Goals (issue 2): >= 20x real time with PWM switching, >= 200x averaged, < 100 MB.
+Goals: >= 20x real time with PWM switching, >= 200x averaged, < 100 MB.
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ FLIGHT_SETTINGS = {"load.kind": "aero", "wear.kind": "archard", "effects.preload
 
 
 def flight_speed(sim_s: float = 30.0, repeats: int = 3) -> tuple[float, float]:
-    """The seeded flight profile (issue 12) at full fidelity (switching PWM, dynamic balls)
+    """The seeded flight profile at full fidelity (switching PWM, dynamic balls)
     in-process with the aero load and Archard wear: best and median sim s / wall s."""
     p = PlantParams().with_dict(FLIGHT_SETTINGS)
     prof = make_profile("flight", duration_s=sim_s)
@@ -245,7 +245,7 @@ def main() -> int:
 
 
 def write_section(path: Path, res: dict) -> None:
-    lines = ["## Plant (issue 2)", "",
+    lines = ["## Plant", "",
              f"Measured by `python benchmarks/bench_plant.py --write docs/performance.md` on "
              f"{res['machine']}, pinned to one core; best (median) of 7 kernel runs of 2 s "
              "and 4 closed-loop runs of 4 s, since this shared VM's noise only ever slows a "

@@ -1,4 +1,4 @@
-"""Soak benchmark (issue 9): a long lockstep run with a flood client and a slow reader.
+"""Soak benchmark: a long lockstep run with a flood client and a slow reader.
 
     python benchmarks/bench_soak.py [--periods 1000000] [--flood-rate 2000]
                                     [--write docs/performance.md] [--json OUT]
@@ -44,7 +44,7 @@ import perfdoc  # noqa: E402
 
 from bench import machine_description  # noqa: E402
 
-SECTION = "## Soak (issue 9)"
+SECTION = "## Soak"
 FLOOD_ID0 = 0x1ABCDE0
 
 FLOOD = r"""
@@ -304,7 +304,7 @@ def write_section(path: Path, res: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="Soak benchmark (issue 9).")
+    ap = argparse.ArgumentParser(description="Soak benchmark.")
     ap.add_argument("--periods", type=int, default=1_000_000,
                     help="lockstep periods of each run (default: %(default)s)")
     ap.add_argument("--flood-rate", type=float, default=2000.0,

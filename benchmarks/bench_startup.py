@@ -8,19 +8,19 @@ interleaved (A, B, A, B, ...) so both see the same load, a fresh interpreter eac
 
 - the plant node's imports (`plant_rt.node`) as `python -m plant_rt` has them (python-can's
   eager import of asammdf, its MF4 log support, refused: the node writes no log file)
-  against the same imports with asammdf loaded (before 2026-11-24);
+  against the same imports with asammdf loaded (before);
 - the ECU's imports (`bench.ecu.master` with `bench.flight`) without scipy.signal (now:
   imported where a turbulence is drawn) against the same plus `scipy.signal` (before);
 - the loopback hub's process as `bench up` starts it (`python -m bench.bus.hub`, asammdf
-  refused since 2026-11-24, session 7: the hub writes no log) against the same module run
+  refused: the hub writes no log) against the same module run
   under another command line (runpy), which keeps python-can's MF4 import (before);
-- `bench down` as the command runs (up, status, down and plant refuse the MF4 import
-  since 2026-11-24, session 7: they read and write no log) against the same command called
+- `bench down` as the command runs (up, status, down and plant refuse the MF4 import:
+  they read and write no log) against the same command called
   in-process (`main(['down'])`, which keeps it: before);
 - for scale, `import can` alone with and without asammdf.
 
 Wall time of `python -c "..."` per variant, the median of `--repeats`, and the ratio.
-`--write` replaces the "## Start-up (2026-11-24)" section of the given markdown file.
+`--write` replaces the "## Start-up" section of the given markdown file.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def measure(repeats: int) -> list[tuple[str, float, float]]:
 
 
 def report(rows: list[tuple[str, float, float]], repeats: int, load: float) -> str:
-    lines = ["## Start-up (2026-11-24)", "",
+    lines = ["## Start-up", "",
              f"`python benchmarks/bench_startup.py --repeats {repeats}`: a fresh interpreter "
              "per sample, the two variants interleaved, the median wall time of "
              f"{repeats}. Machine: {machine_description()}; 1-min load average "

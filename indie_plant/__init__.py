@@ -1,4 +1,4 @@
-"""An independent actuator for the blind benchmark (issue 11): physics that differ from
+"""An independent actuator for the blind benchmark: physics that differ from
 `plant_rt` on purpose (LuGre friction, Hertzian preloaded double nut, cogging and torque
 ripple, ADC/encoder/LVDT quantisation), its own parameters and controller, runnable
 in-process (`indie_plant.generate`) or as a CANopen node obeying only `ema_contract`

@@ -22,7 +22,7 @@ Timing (CiA 301 synchronous PDOs, transmission type 1):
 
 The simulated world only advances in OPERATIONAL: an idle node costs no CPU.
 
-Time bases (issue 9): in lockstep the node's timers count SYNC periods, not wall time.
+Time bases: in lockstep the node's timers count SYNC periods, not wall time.
 The heartbeat consumer (0x1016) declares the ECU lost after more than consumer time /
 SYNC period SYNCs without its heartbeat (a late heartbeat cannot latch a timeout: no
 SYNC, no motion); in real time it runs on the wall clock. A timeout follows the error

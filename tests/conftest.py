@@ -1,4 +1,4 @@
-"""Test layout by cost (issue 10): tests/unit (in-process, under 1 s each), tests/integration
+"""Test layout by cost: tests/unit (in-process, under 1 s each), tests/integration
 (processes and the bus, the CLI in-process, longer physics) and tests/system (the `bench`
 command run as a subprocess end to end: demo, up/down, the CLI's files and signals, the
 built wheel in a clean virtual environment). Markers come from the path, so `-m unit` /
@@ -22,9 +22,9 @@ for _helpers in ("unit", "integration"):        # helper modules shared across t
         sys.path.insert(0, str(ROOT / "tests" / _helpers))
 
 # Tests whose run (setup + call) took over ~5 s on the 2-core development VM under load
-# (pytest --durations, 2026-11-23); re-measured on 2026-11-23 under a load average of
-# 10-20 (the whole suite 26 min 52 s instead of ~3 min 40 s; 24 min 32 s after the moves
-# of issue 10, load 7-12): the tests over ~30 s there were added. A file marks all its tests, "file::test" one test and all its parameter
+# (pytest --durations); re-measured under a load average of
+# 10-20 (the whole suite 26 min 52 s instead of ~3 min 40 s; 24 min 32 s at load 7-12):
+# the tests over ~30 s there were added. A file marks all its tests, "file::test" one test and all its parameter
 # sets.
 SLOW: tuple[str, ...] = (
     "tests/integration/test_calibrate_other_lead.py",

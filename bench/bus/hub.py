@@ -18,7 +18,7 @@ Both bind 127.0.0.1 only (python-can-remote's own default is 0.0.0.0), on a free
 by default, and the hub records ``{"pid", "port", "url"}`` in the state directory
 (``hub.json``) so `bench status/down`, the plant and the ECU find it.
 
-One client cannot stop the select hub or take the bus from the others (issue 9):
+One client cannot stop the select hub or take the bus from the others:
 
 - Every field of every event and binary frame is checked (`check_frame`,
   `message_from_json`, `parse_bus_request`). One bad field in a well-formed event is

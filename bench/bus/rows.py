@@ -12,7 +12,7 @@ frames and frames out of time order are counted in ``count`` (see
 stamp needs the whole log: that step is the log decoder's (`bench.bus.logs.time_ordered`),
 not this module's; a live listener gets the frames in bus order.
 
-Speed (issue 13: a fleet's logs are mostly clean): a classic data frame can be fed as
+Speed (a fleet's logs are mostly clean): a classic data frame can be fed as
 plain values (`RowAssembler.feed_frame`, what `bench.bus.logread.read_log` gives with
 ``raw=True``) instead of a can.Message; the default row sink (`_Rows`) keeps each row
 frame's payload and decodes them all at once when the table is asked for

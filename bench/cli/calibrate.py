@@ -1,7 +1,7 @@
 """`bench calibrate`: fit the nominal model's uncertain parameters to a healthy log, so
-later logs of that actuator are diagnosed against its own baseline (issue 5); or, with
+later logs of that actuator are diagnosed against its own baseline; or, with
 `--actuator`, identify what another actuator's description leaves unknown from one or
-more healthy logs and score held-out ones against their noise floor (issue 11)."""
+more healthy logs and score held-out ones against their noise floor."""
 
 from __future__ import annotations
 

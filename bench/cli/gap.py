@@ -1,5 +1,5 @@
 """`bench gap`: where the sim-to-real gap lies, which unmodelled effect causes it, how far
-it shrinks (issue 5). See docs/gap.md."""
+it shrinks. See docs/gap.md."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""`bench gap-bench`: blind check of the gap diagnosis on generated logs (issue 5)."""
+"""`bench gap-bench`: blind check of the gap diagnosis on generated logs."""
 
 from __future__ import annotations
 

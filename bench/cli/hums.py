@@ -103,9 +103,9 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
 
 
 def _add_usage_options(q: argparse.ArgumentParser) -> None:
-    """`bench hums campaign --usage` and its options (issue 12)."""
+    """`bench hums campaign --usage` and its options."""
     q.add_argument("--usage", action="store_true",
-                   help="the usage campaign instead (issue 12): actuators with Archard wear "
+                   help="the usage campaign instead: actuators with Archard wear "
                    "flown daily under flight profiles of random severity, a daily ground "
                    "test, prognosis from usage and health (docs/hums.md)")
     q.add_argument("--max-days", type=int, default=120,

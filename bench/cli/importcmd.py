@@ -1,5 +1,5 @@
-"""`bench import`: a CSV/Parquet signal table from another rig -> the bench's signal table
-(issues 5, 11). See bench.gap.importer for the map format."""
+"""`bench import`: a CSV/Parquet signal table from another rig -> the bench's signal table.
+See bench.gap.importer for the map format."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""`bench rig`: real rigs that no physics model fits (issue 11). `baseline` builds the
+"""`bench rig`: real rigs that no physics model fits. `baseline` builds the
 healthy baseline (and its thresholds from held-out healthy runs), `assess` diagnoses
 cycles against it, `study` runs a rig's development set end to end, `inject` injects
 known faults into held-out healthy cycles (sensitivity per fault kind and size). See

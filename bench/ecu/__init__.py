@@ -22,7 +22,7 @@ as it sends them (with ``echo=True``, as the bus returns them through
 ``receive_own_messages``, at the cost of one more frame per send to receive). The log is
 flushed and closed whatever ends the run.
 
-A run is a success only when nothing spoilt it (issue 9): the plant reporting a
+A run is a success only when nothing spoilt it: the plant reporting a
 condition that changes what it does with the demand (`FAILING_BITS`, any EMCY outside
 `REPORTING_EMCY`), another ECU on the bus (`claim` before anything is sent, any foreign
 SYNC/RPDO/set-point/heartbeat during the run), a log that cannot be written, or a

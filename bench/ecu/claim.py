@@ -1,4 +1,4 @@
-"""The ECU's claim on the node: no other ECU drives it (issue 9); receive checks, abort."""
+"""The ECU's claim on the node: no other ECU drives it; receive checks, abort."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ class EcuClaim(NodePrepare):
             if self.foreign is None:
                 self.foreign = (name, self._clock())
 
-    # -- claim, checks and abort (issue 9) -------------------------------------------------
+    # -- claim, checks and abort -------------------------------------------------
     def claim(self, announce: Callable[[str], None] | None = None) -> None:
         """Make sure no other ECU drives the node, before this one sends any NMT command
         or SDO write: listen for two heartbeat periods (the plant's and an ECU's); a SYNC,

@@ -1,4 +1,4 @@
-"""The errors of a bus run and the plant conditions that make one (issue 9)."""
+"""The errors of a bus run and the plant conditions that make one."""
 
 from __future__ import annotations
 

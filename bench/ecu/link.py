@@ -83,7 +83,7 @@ class EcuLink:
         self._present: dict[tuple[int, int], bool] = {}   # (index, sub) -> the node has it
         self._absent_index: set[int] = set()                # whole objects it does not have
         self._missing: dict[str, None] = {}                 # labels of objects it lacks
-        # issue 9: claim on the node, foreign producers, receive errors, abort
+        # claim on the node, foreign producers, receive errors, abort
         self.partial: Trace | None = None
         self._ecu_cobs = {self._cob[n]: n for n in ECU_FRAMES}
         self._own_echo: Counter[tuple[int, bytes]] = Counter()   # sent, echo not yet seen

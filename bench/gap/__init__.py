@@ -1,4 +1,4 @@
-"""Sim-to-real gap diagnosis (issue 5; docs/gap.md).
+"""Sim-to-real gap diagnosis (docs/gap.md).
 
 Where the gap between a log and the nominal model lies (signal, path, regime, frequency
 band), which unmodelled effect causes it (a library of bounded, physically parameterised

@@ -1,5 +1,5 @@
 """A generic position/speed cascade for logs run under a controller the bench does not
-know (issue 11: "for an unknown controller, its gains: a generic position/speed cascade
+know ("for an unknown controller, its gains: a generic position/speed cascade
 with saturation and sample time, fitted in closed loop").
 
 The structure is the usual one of a servo drive, stated here as data (`Cascade`):

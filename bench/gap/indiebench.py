@@ -1,5 +1,5 @@
 """Blind check of the gap diagnosis on logs from an independent actuator
-(`bench gap-bench --generator independent`, issue 11).
+(`bench gap-bench --generator independent`).
 
 The logs come from `indie_plant`, physics written apart from `plant_rt` on purpose
 (LuGre friction, a Hertzian preloaded double nut, cogging and torque ripple, ADC,
@@ -94,15 +94,15 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
                     ) -> PlantParams:
     """The bench's model of the independent actuator from its datasheet: ratio, lead,
     motor constants, rotor and screw inertias, nut mass, preload, supply and limits, the
-    drive's current PI (its zero on the winding's own pole, session 8), its
-    spacer-preloaded nut (a backlash first eats the preload, session 9), and
+    drive's current PI (its zero on the winding's own pole), its
+    spacer-preloaded nut (a backlash first eats the preload), and
     how its drive computes the speed (the count difference over `speed_window` SYNC
     periods), the LVDT conditioner's lag (first order, `lvdt_tau_s`) and where its current
-    is logged (a channel of its own, out of the drive's loop; session 13). The bench's
+    is logged (a channel of its own, out of the drive's loop). The bench's
     friction laws and contact model stay its own (the thesis' tables): friction, the
     contact stiffness (under the logged load) and the rest are what calibration is for.
 
-    `preload_law` (2026-11-24, indie6; `PRELOAD_LAWS`): the nut is a preloaded double nut
+    `preload_law` (`PRELOAD_LAWS`): the nut is a preloaded double nut
     with Hertzian contacts (its datasheet), so the model declares the Hertzian preload
     law at the datasheet preload (`screw.hertz_reference_preload_n`; "hertz", the
     default) and, optionally, the preload's drag by the catalogue formula
@@ -127,7 +127,7 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
         # winding's R): a resistance that has risen is still cancelled
         "drive.current_pi_follows_winding": True,
         # its nut: a double nut preloaded by a spacer (an interference), so a wear clearance
-        # eats the preload first and only then opens lost motion (I8; session 9)
+        # eats the preload first and only then opens lost motion (I8)
         "screw.preload_by_interference": True,
         "sensors.encoder_counts_per_rev": n.encoder_counts,
         # the drive's speed: the count difference over 4 SYNC periods (its datasheet)
@@ -135,7 +135,7 @@ def datasheet_model(actuator: IndieParams = NOMINAL, preload_law: str = "hertz"
         # the LVDT conditioner: a first-order 1 ms demodulator (its datasheet)
         "sensors.lvdt_time_constant_s": n.lvdt_tau_s,
         # its logged current is an ADC channel of its own: the drive regulates its own
-        # current measurement (I2 on the winding's current, I13 on the log; session 13)
+        # current measurement (I2 on the winding's current, I13 on the log)
         "sensors.current_in_loop": False})
     if preload_law not in PRELOAD_LAWS:
         raise ValueError(f"preload_law {preload_law!r} not one of {PRELOAD_LAWS}")

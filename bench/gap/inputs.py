@@ -1,7 +1,7 @@
 """Reading what the gap commands are given: logs, traces and nominal parameter files.
 
 - ``*.log`` (candump log format): decoded through the DBC by
-  `bench.bus.logs.trace_from_log` (the bus issue's decoder);
+  `bench.bus.logs.trace_from_log` (the bus's log decoder);
 - ``*.npz`` / ``*.csv`` / ``*.parquet``: a `bench.trace.Trace` file (e.g. from
   `bench import` or a saved run).
 Only measured columns are kept (simulation truth is dropped), and metadata is reduced

@@ -1,4 +1,4 @@
-"""What each consumer of a log needs (issue 11): one declaration per path, regime, effect,
+"""What each consumer of a log needs: one declaration per path, regime, effect,
 index, report section and calibration, and what a given log can therefore support.
 
 A declaration is a tuple of signals; ``"a|b"`` means either one. Consumers built on the

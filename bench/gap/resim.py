@@ -14,7 +14,7 @@ Everything here is driven by logged signals only (never by simulation truth):
 - `current_driven` (`Drive.resim = "measured-current"`, which `closed_loop` then runs):
   no controller; the logged (measured) current is the drive's demand and the mechanics
   are re-started from the measured encoder angle and speed every `RESTART_S`: for logs run
-  under a controller the bench does not know (issue 11).
+  under a controller the bench does not know.
 - `mechanics_replay`: the logged demand replayed in short segments, the mechanical state
   re-synchronised at each segment start from the measured motor speed (isolates
   current -> motor speed: the mechanics path, without the drift of a long open-loop run).
@@ -374,7 +374,7 @@ def current_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out
 
 def current_driven(params: PlantParams, drive: Drive, n: int | None = None,
                    noise: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """The plant driven by the logged current instead of a controller (issue 11: a log
+    """The plant driven by the logged current instead of a controller (a log
     run under a controller the bench does not know).
 
     The drive's demand over period k is the current measured at SYNC k + 1, corrected

@@ -1,4 +1,4 @@
-"""The gap of a log against another actuator's calibrated generic model (issue 11).
+"""The gap of a log against another actuator's calibrated generic model.
 
 `bench gap LOG --nominal CAL.json` with a calibration from `bench calibrate --actuator`
 (`bench.gap.rigcal`) comes here: the thesis plant's diagnosis needs signals and a SYNC

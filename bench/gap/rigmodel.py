@@ -1,4 +1,4 @@
-"""The generic actuator model for logs the bench did not simulate (issue 11).
+"""The generic actuator model for logs the bench did not simulate.
 
 Any rig, at the nut: an equivalent mass m, a force per ampere k_f, Coulomb friction F_c,
 viscous friction c, the logged load F_ext (x the description's load sign):

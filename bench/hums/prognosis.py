@@ -1,4 +1,4 @@
-"""Prognosis from usage and health together (issue 12, beyond the thesis): a wear state
+"""Prognosis from usage and health together (beyond the thesis): a wear state
 driven by usage, updated by the health indexes of ground tests, and an RUL distribution.
 
 The HUMS's wear model (`WearModel`, a progpy `PrognosticsModel`):

@@ -1,4 +1,4 @@
-"""The 50-actuator usage campaign (issue 12): calibration on calibration actuators, the
+"""The 50-actuator usage campaign: calibration on calibration actuators, the
 prognosis of every judged actuator day by day, and its scores with progpy's metrics.
 
 Seeds (every threshold and prior comes from actuators distinct from the judged ones):

@@ -1,4 +1,4 @@
-"""Prognosis from external trends (issue 12): a CSV of per-test health indexes over time,
+"""Prognosis from external trends: a CSV of per-test health indexes over time,
 from this bench or from a rig that is not this bench, into an RUL distribution per
 actuator (`bench hums prognose --trends FILE.csv`).
 

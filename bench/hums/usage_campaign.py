@@ -1,4 +1,4 @@
-"""The usage campaign's simulations (issue 12): actuators with use-driven (Archard) wear,
+"""The usage campaign's simulations: actuators with use-driven (Archard) wear,
 flown day after day under flight profiles of random severity, with a daily ground test.
 
 One actuator (`actuator_days`), day after day until it fails:

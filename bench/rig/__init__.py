@@ -1,4 +1,4 @@
-"""Real rigs without a physics model that fits them (issue 11): a baseline built from
+"""Real rigs without a physics model that fits them: a baseline built from
 several healthy runs, aligned by set-point phase (`baseline`), position-locked and
 direction-split features against it (`features`), thresholds from held-out healthy runs
 and detection / false-alarm rates per condition (`population`), the study of a rig's

@@ -1,4 +1,4 @@
-"""The healthy baseline of a rig that no physics model fits (issue 11, the fallback).
+"""The healthy baseline of a rig that no physics model fits (the fallback).
 
 When no model of the family reaches the noise floor on healthy data (a stepper's load
 angle, the rig's own friction law), the bench compares a log with the rig's own healthy

@@ -1,4 +1,4 @@
-"""The healthy-baseline fallback, chosen automatically (issue 11).
+"""The healthy-baseline fallback, chosen automatically.
 
 When `bench calibrate HEALTHY... --actuator DESC --holdout ...` finds that no model of the
 family reaches `FLOOR_FACTOR` x the noise floor on the held-out healthy logs, it also

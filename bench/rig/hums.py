@@ -1,4 +1,4 @@
-"""`bench hums report` on a log the thesis' monitoring model cannot take (issue 11): a
+"""`bench hums report` on a log the thesis' monitoring model cannot take: a
 rig's table at its own rate, with set-point, position and current but no ECU mode,
 speed set-point or motor angle (e.g. the Cranfield rig at 25 Hz).
 

@@ -1,5 +1,5 @@
 """What else the bench sees on a real rig: known synthetic faults injected into held-out
-healthy cycles (`bench rig inject`, docs/real-data.md "Injected faults").
+healthy cycles (`bench rig inject`, docs/real-data.md "What else the bench sees: injected faults").
 
 The baseline and the thresholds come from the healthy calibration runs exactly as
 `bench rig study` makes them (`baseline.build` of the calibration cycles,

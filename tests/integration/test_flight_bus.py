@@ -1,4 +1,4 @@
-"""The flight profile over the bus (issue 12): the plant computes the aero load (with its
+"""The flight profile over the bus: the plant computes the aero load (with its
 gusts) and Archard wear behind the bus; a lockstep run equals the in-process one."""
 
 from __future__ import annotations

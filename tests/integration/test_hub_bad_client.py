@@ -1,5 +1,5 @@
 """A misbehaving client on the loopback hub during a lockstep run of the plant and the
-ECU (issue 9, items 6-7): every bad event is answered or its client dropped, nothing of
+ECU (items 6-7): every bad event is answered or its client dropped, nothing of
 it reaches the bus, and the run is the same, period by period, as an undisturbed one."""
 
 from __future__ import annotations

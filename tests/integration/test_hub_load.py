@@ -1,4 +1,4 @@
-"""The hub process under 500 readers that never read (issue 9, item 7: 500 slow readers
+"""The hub process under 500 readers that never read (item 7: 500 slow readers
 held 1.66 GB): with its default limits its memory stays within the queue budget, the
 slow readers are dropped and the sender is still served."""
 

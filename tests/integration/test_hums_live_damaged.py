@@ -1,5 +1,5 @@
 """`LiveHums` (`bench hums watch`) on damaged logs gives the numbers and the verdict of
-`bench hums report` for every command period (issue 10: one row assembler, one verdict):
+`bench hums report` for every command period (one row assembler, one verdict):
 one TPDO1 line dropped, every line twice, one SYNC line dropped."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Controller identification for a log run under a controller the bench does not know
-(issue 11 goal 4: `bench.gap.calibrate` controller=fitted-cascade / measured-current)."""
+(`bench.gap.calibrate` controller=fitted-cascade / measured-current)."""
 
 import math
 

@@ -1,5 +1,5 @@
 """The independent actuator in-process (indie_plant.generate) and a tiny blind benchmark on
-it (`bench gap-bench --generator independent`, issue 11)."""
+it (`bench gap-bench --generator independent`)."""
 
 from __future__ import annotations
 

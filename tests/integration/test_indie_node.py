@@ -1,7 +1,7 @@
 """`bench run` over the loopback hub in lockstep against the independent actuator's node
 (`python -m indie_plant`, which knows only ema_contract): the run completes, the ECU
 reports the optional objects the node lacks, and the log decodes through the DBC to the
-signals the actuator's own sensors give (issue 11, an independent "real")."""
+signals the actuator's own sensors give (an independent "real")."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Damaged candump logs of a real lockstep bus run through `bench decode`, `bench hums
-report` and `bench gap` (issue 9 items 3, 4, 5, 14): one TPDO1 line or one SYNC line
+report` and `bench gap`: one TPDO1 line or one SYNC line
 removed, every line twice, the lines shuffled, the log cut to 3 rows, a long gap. The
 damage is counted and printed, short gaps are bridged (the indexes and the gap verdict of
 the intact log stay), long ones make what needs them unavailable, no verdict without its

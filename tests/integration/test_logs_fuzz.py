@@ -1,4 +1,4 @@
-"""Fuzz test of the log reader (issue 9 goal): `parse_line`, `read_log` and
+"""Fuzz test of the log reader: `parse_line`, `read_log` and
 `trace_from_messages` on generated lines and generated frame sequences never raise
 anything but their documented errors (ValueError from `parse_line`, nothing from the
 other two on a readable file but a BenchError for SYNC counters claiming more lost

@@ -1,6 +1,6 @@
 """The ECU against a node that implements only CiA 301 and the PDOs of dbc/ema.dbc (the
 test double `minimal_node.py`, a vendor's actuator): optional objects read when there,
-reported missing when not, and the run goes on (issue 9 item 16, docs/node-contract.md).
+reported missing when not, and the run goes on (docs/node-contract.md).
 
 Real-time runs are tolerant only where real time makes them so (late TPDO sets on a
 loaded machine): they must complete, without error, report every missing optional
@@ -220,7 +220,7 @@ def test_realtime_run_reports_what_is_missing_and_completes(node_env, tmp_path):
     # real time: the trace is its log's rows (bench.bus.rows); a period whose TPDO reached
     # the ECU only after the next SYNC stays NaN, and each such row is counted. How many
     # are late is the machine's load, not the bench's (at most half was asserted here
-    # until a CI run beside another job's tests had 820 of 1000 late, 2026-11-25)
+    # until a CI run beside another job's tests had 820 of 1000 late)
     pos = tr["position_m"]
     missing = tr.meta["bus_rows"]["missing_frames"]["EMA_TPDO3"]
     assert int((~np.isfinite(pos)).sum()) == missing < len(tr)

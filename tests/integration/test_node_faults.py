@@ -1,4 +1,4 @@
-"""The plant node against a flood over the bus (issue 9, item 8): a bounded burst of
+"""The plant node against a flood over the bus (item 8): a bounded burst of
 alternating valid and short RPDOs from one client gives one EMCY per inhibit time
 (0x1015, 100 ms), every bad frame counted, every repeat accounted for."""
 

@@ -149,7 +149,7 @@ def test_trends_csv_errors(tmp_path):
     ({"lnk_mean": "a"}, "lnk_mean is not a number"),
 ])
 def test_a_calibration_of_the_wrong_shape_is_one_line(tmp_path, capsys, change, msg):
-    """Found by fuzzing (session 17): a calibration JSON with the right keys and values
+    """Found by fuzzing: a calibration JSON with the right keys and values
     of the wrong type reached the CLI's catch-all (TypeError, exit 1); a trends file
     that is not UTF-8 too (UnicodeDecodeError)."""
     import json

@@ -1,4 +1,4 @@
-"""Calibration of another actuator (issue 11): synthetic logs from the generic model with
+"""Calibration of another actuator: synthetic logs from the generic model with
 known values, an unknown cascade whose gains are recovered, the measured current driving
 the mechanics, a stepper's limits said, and `bench gap` against the calibration."""
 

@@ -1,4 +1,4 @@
-"""`bench hums report` and `bench gap` on the Cranfield sample's 25 Hz cycles (issue 11),
+"""`bench hums report` and `bench gap` on the Cranfield sample's 25 Hz cycles,
 CLI in-process: the report with neither a calibration nor a baseline (model-free
 indexes, every model-based section "not available" with its reason), with a baseline,
 with a calibration whose model stays above the noise floor (then `bench calibrate` wrote

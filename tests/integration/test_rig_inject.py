@@ -39,9 +39,9 @@ def test_writes_the_report_and_the_figure(report):
                                             "cycles": 10, "flagged": 0}
 
 
-# cycles of 10 named right at 8 sigma (measured with variant 3 of the features: the 22 mm
+# cycles of 10 named right at 8 sigma (measured with the current features: the 22 mm
 # bump leaks into the lead-periodic projection in one cycle, which is then named
-# periodic, also a position-locked effect; docs/real-data.md, injected faults)
+# periodic, also a position-locked effect; docs/rig-results.md, injected faults)
 NAMED_RIGHT = {"friction": 10, "localised": 9, "periodic": 10, "backlash": 10}
 
 
@@ -94,7 +94,7 @@ def test_the_lead_is_required(tmp_path, capsys):
 
 
 def test_a_constant_current_offset_does_not_reach_the_position_locked_features():
-    """Variant 3: a friction offset in amperes is removed in amperes before the localised
+    """A friction offset in amperes is removed in amperes before the localised
     scan and the lead-periodic projection, so both read exactly what they read without it
     (before, the offset divided by the per-sample spread leaked into them and injected
     friction was named localised); a play shifts the out/in hysteresis (reversal)."""

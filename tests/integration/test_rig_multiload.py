@@ -1,4 +1,4 @@
-"""The baseline fallback judges each cycle of a log at its own load (issue 11): a log
+"""The baseline fallback judges each cycle of a log at its own load: a log
 whose cycles run at several loads (no split key: each cycle's median logged load), a
 cycle at a load the baseline lacks ("not judged: no baseline at load X", the rest run),
 and the report's figure showing the most flagged cycle, saying which. Built from the

@@ -1,7 +1,7 @@
 """bench.rig on the shipped Cranfield sample (tests/data/cranfield_sample, PROVENANCE.md):
 baseline build, thresholds from healthy runs 1-2 only, no false alarm on held-out healthy
 runs 3-4, the spall found and named as a position-periodic effect, and not given a
-place it does not show (variant 4)."""
+place it does not show ."""
 
 from __future__ import annotations
 
@@ -67,8 +67,8 @@ def test_held_out_healthy_cycles_are_not_flagged(sample):
 
 def test_spall_is_detected_named_periodic_and_not_given_a_made_up_place(sample):
     """Stage 5 at 40 kgf: found and named position-periodic. Its localised scan stays
-    within the healthy range, so no position is claimed (variant 4; the whole
-    development set at this load and stage: 0 of 50 located, docs/real-data.md). Before,
+    within the healthy range, so no position is claimed (the
+    development set at this load and stage: 0 of 50 located, docs/rig-results.md). Before,
     the strongest window of that scan was reported as the spall's place."""
     base, thr, _, spall = sample
     feats = [cycle_features(base.for_load(40), c, LEAD_MM) for c in spall]

@@ -1,4 +1,4 @@
-"""`bench rig study` beyond one healthy table (issue 11: the rig's other healthy runs may
+"""`bench rig study` beyond one healthy table (the rig's other healthy runs may
 come in another file): several healthy tables as one condition, the healthy false-alarm
 rate cross-validated over every split of the healthy runs, cycles of a load without a
 threshold reported instead of dropped, and fault tables of two families kept apart."""
@@ -64,7 +64,7 @@ def test_cross_validation_judges_every_held_out_cycle_of_every_split():
 
 def test_cross_validation_gives_every_fault_conditions_rate_under_every_split():
     """The detection rate of a fault condition depends on which healthy runs calibrate
-    (docs/real-data.md: on the Cranfield set -40 kgf stage 7 is 72-92 % over the six
+    (docs/rig-results.md: on the Cranfield set -40 kgf stage 7 is 72-92 % over the six
     pairs of runs 1-4): every split also judges the fault cycles, each against its own
     baseline and thresholds."""
     from bench.rig.baseline import build_load

@@ -1,4 +1,4 @@
-"""Usage over the bus (issue 12, "Usage"): the actuator's identity read by SDO during the
+"""Usage over the bus ("Usage"): the actuator's identity read by SDO during the
 ECU's set-up and found again in the log; the live usage of a run equal to `bench usage`
 on its log; a node without the identity object gives "unknown"."""
 

@@ -1,4 +1,4 @@
-"""`bench run` as a process (issue 9): two ECUs on one plant, SIGINT/SIGTERM, a stalled
+"""`bench run` as a process: two ECUs on one plant, SIGINT/SIGTERM, a stalled
 ECU in lockstep, a disk filling up during the run. Lockstep, bounded waits, 127.0.0.1."""
 
 from __future__ import annotations
@@ -62,7 +62,7 @@ def run_proc(env, tmp_path, *args, name="r", **kw):
 
 
 def test_a_second_ecu_is_refused_and_the_first_run_stays_clean(env, tmp_path):
-    """The issue's case: `bench run sine --duration 5` and, a second later, `bench run
+    """The case: `bench run sine --duration 5` and, a second later, `bench run
     step` on the same plant. Unfixed, both exited 0 and the log mixed both runs. Now the
     second is refused before it sends a frame, so the first run is not disturbed and
     ends as an honest success (its log has no foreign frame and no lost SYNC)."""
@@ -154,7 +154,7 @@ def test_a_signal_during_set_up_is_a_one_line_error(env, tmp_path):
 
 
 def test_a_stalled_ecu_is_not_a_silent_success(env, tmp_path):
-    """The issue's 2026-11-23 case: the ECU stalls (SIGSTOP 0.6 s) mid-run in lockstep.
+    """The case: the ECU stalls (SIGSTOP 0.6 s) mid-run in lockstep.
     Either the plant keeps the run valid (consumer counted in SYNC periods) and the run
     succeeds with no command timeout, or the run fails naming the command timeout."""
     proc, log, saved = run_proc(env, tmp_path, "sine", "--duration", "2.5")

@@ -1,4 +1,4 @@
-"""A new user's sequence on a real rig's 25 Hz table (issue 11), each command a
+"""A new user's sequence on a real rig's 25 Hz table, each command a
 subprocess: bench import -> bench calibrate --actuator -> bench gap -> bench hums report.
 The calibration's model stays above the noise floor on the held-out cycle, so calibrate
 writes the healthy baseline beside it and gap and the report judge against it."""

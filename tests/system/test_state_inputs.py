@@ -1,4 +1,4 @@
-"""Durations, counts and speeds that are not numbers a run can end on (issue 9 item 12):
+"""Durations, counts and speeds that are not numbers a run can end on:
 refused in one line by `bench plant`, `python -m plant_rt`, `bench log` and `bench replay`;
 a log with non-finite or absurd timestamps does not make `bench replay` wait forever.
 Each command has a time limit, so a hang fails the test instead of hanging it."""

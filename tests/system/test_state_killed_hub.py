@@ -1,4 +1,4 @@
-"""Clients of a hub that is killed under them (issue 9 item 15a): one `error:` line, exit
+"""Clients of a hub that is killed under them: one `error:` line, exit
 code != 0, and no `BusABC.__del__` traceback or "was not properly shut down" at exit."""
 
 from __future__ import annotations

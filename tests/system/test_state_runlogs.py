@@ -1,4 +1,4 @@
-"""The logs of the hub and plant a command starts for itself (issue 9 item 15d): removed
+"""The logs of the hub and plant a command starts for itself: removed
 when the command ends well, kept and named in the error when it fails, and the run
 directory never grows past a bound."""
 

@@ -1,5 +1,5 @@
-"""`bench up`/`down`/`status`/`run` against stale and corrupt state and against each other
-(issue 9 items 9-10): a lock makes two concurrent `bench up` start one hub and one plant;
+"""`bench up`/`down`/`status`/`run` against stale and corrupt state and against each other:
+a lock makes two concurrent `bench up` start one hub and one plant;
 a record whose pid now runs another program is stale, never signalled; a corrupt record
 is reported in one line. Every process a test starts is stopped by its pid."""
 

@@ -1,4 +1,4 @@
-"""`bench.bus.logs` split by job (issue 10): the names it had stay importable from it, and
+"""`bench.bus.logs` split by job: the names it had stay importable from it, and
 the new modules hold no frame layout (as test_dbc checks for logs.py)."""
 
 from __future__ import annotations

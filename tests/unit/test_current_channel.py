@@ -1,4 +1,4 @@
-"""Where the logged current is measured (`sensors.current_in_loop`, session 13), and the
+"""Where the logged current is measured (`sensors.current_in_loop`), and the
 held-out gap counted above the calibration's healthy energy (`bench.gap.diagnose.excess`;
 docs/gap.md, "Calibration")."""
 

@@ -246,7 +246,7 @@ def test_no_frame_layout_in_python_sources():
     """Frame layouts live in dbc/ only: no struct formats in the bus code."""
     pattern = re.compile(r"struct\.(pack|unpack|Struct)\(")
     ecu = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "bench/ecu").glob("*.py"))
-    assert ecu, "bench/ecu/ (the ECU package, issue 10) has no modules"
+    assert ecu, "bench/ecu/ (the ECU package) has no modules"
     for rel in ("plant_rt/node.py", "ema_contract/frames.py", *ecu, "bench/bus/logs.py",
                 "bench/bus/__init__.py"):
         assert not pattern.search((ROOT / rel).read_text()), rel

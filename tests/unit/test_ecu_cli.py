@@ -1,4 +1,4 @@
-"""`bench run`'s input checks (issue 9 items 11, 13): every bad flag is a one-line error
+"""`bench run`'s input checks: every bad flag is a one-line error
 before anything starts (no hub, no plant, no bus), for every profile."""
 
 from __future__ import annotations

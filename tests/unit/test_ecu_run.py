@@ -1,4 +1,4 @@
-"""The ECU's run against the real plant node on an in-process virtual bus (issue 9):
+"""The ECU's run against the real plant node on an in-process virtual bus:
 a plant that reports a condition changing its behaviour ends the run as a failure, the
 heartbeat follows the SYNC grid in lockstep, a second SYNC producer is refused (before
 anything is sent) or aborts the run, an abort leaves the node PRE-OPERATIONAL, and a
@@ -137,7 +137,7 @@ def test_command_timeout_reported_by_the_plant_fails_the_run(rig):
 
 
 def test_a_stalled_ecu_in_lockstep_is_never_a_silent_success(rig):
-    """The issue's case: the ECU stalls 0.45 s mid-run (GC, JIT, loaded machine). A plant
+    """The case: the ECU stalls 0.45 s mid-run (GC, JIT, loaded machine). A plant
     that counts its consumer time in SYNC periods lets the run go on; one that counts wall
     time latches a command timeout. Either way, a run that ends as a success must carry
     no command timeout."""
@@ -341,7 +341,7 @@ def test_own_frames_echoed_by_the_bus_are_not_another_ecu(rig):
 
 @pytest.mark.parametrize("echo", [False, True])
 def test_the_run_trace_is_its_decoded_log(rig, tmp_path, echo):
-    """One row assembler (issue 10): the trace a bus run returns is, column by column and
+    """One row assembler: the trace a bus run returns is, column by column and
     bit for bit, the trace `bench decode` makes of its log, with the ECU's own frames
     logged as sent or as the bus echoes them."""
     log = tmp_path / "run.log"

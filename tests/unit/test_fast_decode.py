@@ -1,4 +1,4 @@
-"""The fast log path of issue 13 gives what the per-frame path gives, to the bit: the
+"""The fast log path gives what the per-frame path gives, to the bit: the
 vectorised DBC codec (`ema_contract.frames.PayloadCodec`) against cantools, the candump
 line parser `fast_frame` against `parse_line`, the decoded traces of fixture logs (clean,
 damaged, a synthetic fleet log) against the old path (every line through `parse_line`,
@@ -214,7 +214,7 @@ def test_clean_log_columns_are_each_frames_cantools_values(tmp_path):
 
 
 def _old_write_candump(tr: Trace, t0: float) -> str:
-    """The writer before issue 13's speed-up: every frame encoded by cantools."""
+    """The writer before the fast path: every frame encoded by cantools."""
     n, period = len(tr), 1e-3
     angle = np.nan_to_num(tr["motor_angle_rad"])
     values = {

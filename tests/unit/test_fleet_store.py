@@ -77,7 +77,7 @@ def test_a_file_that_is_not_a_duckdb_database_is_named_so(tmp_path):
 
 
 def test_a_database_that_is_not_a_fleet_store_is_one_line(tmp_path):
-    """Found by fuzzing (session 17): a DuckDB file of other tables given to `bench fleet
+    """Found by fuzzing: a DuckDB file of other tables given to `bench fleet
     ingest` got the fleet's tables added to it, or failed with "CatalogException: Table
     with name "runs" already exists!" (exit 1); a schema_version that is not a number
     was a ValueError (exit 1) in every fleet command; `status` on a newer store said to
@@ -205,7 +205,7 @@ def test_expand_files_dirs_globs_and_missing(tmp_path):
     with pytest.raises(BenchError, match="no such file"):
         G.expand([str(tmp_path / "nope")])
     # an empty directory was "0 files ... 0 runs stored", exit 0, and made the store
-    # (found by fuzzing, session 17)
+    # (found by fuzzing)
     (tmp_path / "empty").mkdir()
     with pytest.raises(BenchError, match="empty: a directory with no log in it"):
         G.expand([str(tmp_path / "empty")])

@@ -1,4 +1,4 @@
-"""The seeded flight profile and the aero load (issue 12): determinism, phase content,
+"""The seeded flight profile and the aero load: determinism, phase content,
 parameter checks, the aero load's sign and gain, and the gusts."""
 
 from __future__ import annotations

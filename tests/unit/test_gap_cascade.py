@@ -1,5 +1,5 @@
 """The generic cascade for unknown controllers and the measured-current re-simulation
-(`bench.gap.cascade`, `bench.gap.resim`, issue 11)."""
+(`bench.gap.cascade`, `bench.gap.resim`)."""
 
 import math
 

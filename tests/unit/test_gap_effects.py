@@ -93,8 +93,8 @@ def test_bounds_follow_the_actuators_own_nominal():
     """The library's lead, inertia, kt and resistance bounds are a range around the
     thesis' actuator: a 10 mm lead or a 1e-5 kg m^2 rotor was outside them. Such a value
     now moves the range to it; a value inside keeps it (the thesis' model, and the
-    independent actuator's 4 mm lead on the lower bound: docs/gap.md says why). Since
-    session 16 the library's ranges are scaled to any model's value, so the 4 mm lead's
+    independent actuator's 4 mm lead on the lower bound: docs/gap.md says why). The
+    library's ranges are scaled to any model's value, so the 4 mm lead's
     `lead` candidate can also shorten it; the calibration keeps the range that contains
     the value (`test_calibration_bounds_contain_another_actuators_nominal`)."""
     from bench.gap.candidate import bound_scale

@@ -1,4 +1,4 @@
-"""`bench import` of a table with a NaN block (issue 9 item 4): the block is reported (rows,
+"""`bench import` of a table with a NaN block: the block is reported (rows,
 time span) and its SYNC-grid samples are left empty, as lost samples of a decoded log,
 for the HUMS and the gap diagnosis to bridge or refuse; a channel logged at a lower rate
 is not a block."""

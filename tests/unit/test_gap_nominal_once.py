@@ -119,7 +119,7 @@ def test_a_baseline_given_as_nominal_says_to_pass_it_as_baseline(tmp_path, capsy
 
 
 def test_a_nominal_json_nested_too_deep_is_one_line(tmp_path, capsys):
-    # found by fuzzing (session 17): RecursionError reached the catch-all (exit 1)
+    # found by fuzzing: RecursionError reached the catch-all (exit 1)
     deep = tmp_path / "deep.json"
     deep.write_text("[" * 100_000)
     assert main(["gap", str(tmp_path / "any.npz"), "--nominal", str(deep)]) == 2
@@ -128,7 +128,7 @@ def test_a_nominal_json_nested_too_deep_is_one_line(tmp_path, capsys):
 
 
 def test_an_empty_nominal_object_is_refused_not_read_as_the_thesis_values(tmp_path, capsys):
-    # session 18: `--nominal` of a file holding `{}` ran on the thesis values and exited 0,
+    # the bug: `--nominal` of a file holding `{}` ran on the thesis values and exited 0,
     # as if the user had given no --nominal (a truncated or placeholder calibration)
     from bench import BenchError
     from bench.gap.inputs import load_nominal

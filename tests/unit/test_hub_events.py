@@ -1,4 +1,4 @@
-"""The loopback hub against one bad client (issue 9, item 6): every field of every event
+"""The loopback hub against one bad client (item 6): every field of every event
 and binary frame is checked; a bad field is answered with an ``error`` event, a broken
 session or WebSocket stream closes that client; the hub and its other clients go on.
 

@@ -1,4 +1,4 @@
-"""The loopback hub's bounds (issue 9, item 7): queued bytes per client and in all,
+"""The loopback hub's bounds (item 7): queued bytes per client and in all,
 acceptance filters, periodic tasks, connections, sessions that never start, backlog."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The HUMS report on damaged traces (issue 9 items 3, 4): short gaps (lost SYNCs, a
+"""The HUMS report on damaged traces: short gaps (lost SYNCs, a
 missing frame) are bridged and counted, longer ones make the indexes that need the signal
 "not available" with the reason, and no verdict is given without the index it rests on
 (UNKNOWN, and `bench hums report` exits non-zero)."""

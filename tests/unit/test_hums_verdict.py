@@ -1,4 +1,4 @@
-"""One verdict (issue 10): `bench.hums.verdict.judge` is the report's verdict and the live
+"""One verdict: `bench.hums.verdict.judge` is the report's verdict and the live
 watcher's level; mode-aware, UNKNOWN without the index it rests on."""
 
 from __future__ import annotations

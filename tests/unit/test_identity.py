@@ -1,4 +1,4 @@
-"""The actuator's identity (issue 12): the serial number in object 0x1018 sub 4, set per
+"""The actuator's identity: the serial number in object 0x1018 sub 4, set per
 plant, served by the node's SDO server, refused outside UNSIGNED32."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The independent actuator's physics (indie_plant, issue 11): each law checked on its own,
+"""The independent actuator's physics (indie_plant): each law checked on its own,
 through the pure-Python versions of the compiled functions (no compilation here)."""
 
 from __future__ import annotations

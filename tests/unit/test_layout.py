@@ -215,7 +215,7 @@ INDIE_THIRD_PARTY = {"numpy", "scipy", "numba", "can", "canopen", "cantools"}
 
 
 def test_indie_plant_imports_only_the_contract_and_numeric_libraries():
-    """indie_plant (issue 11's independent actuator) may import ema_contract, numpy, scipy,
+    """indie_plant (the blind benchmark's independent actuator) may import ema_contract, numpy, scipy,
     numba and the bus libraries ema_contract itself uses; nothing of plant_rt or bench."""
     import sys
     bad = []

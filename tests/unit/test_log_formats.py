@@ -1,4 +1,4 @@
-"""Bus logs in every format python-can writes (issue 10): one short lockstep run's frames,
+"""Bus logs in every format python-can writes: one short lockstep run's frames,
 written as candump .log by the ECU, then as .asc, .blf, .trc and .mf4 by python-can's
 writers, decode to the same table and the same parameters (from the SDO traffic) as the
 candump log; bus time within the format's time-stamp resolution. A damaged or unknown

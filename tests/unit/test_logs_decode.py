@@ -1,4 +1,4 @@
-"""`bench decode` and the log reader on bad input (issue 9 items 4, 5, 14): bad lines are
+"""`bench decode` and the log reader on bad input: bad lines are
 streamed (counted, the first few kept: memory bounded), a log with nothing to decode is a
 one-line error with a non-zero exit, and the damage found is printed."""
 
@@ -120,7 +120,7 @@ def test_garbage_sync_counters_are_refused_not_grown_into_rows(tmp_path, capsys)
                                       "{tmp}/missing does not exist"),
 ])
 def test_decode_refuses_bad_options_before_reading_the_log(tmp_path, capsys, extra, msg):
-    """Found by fuzzing (session 17): `--period inf` or `-1` printed "2000 SYNC periods of
+    """Found by fuzzing: `--period inf` or `-1` printed "2000 SYNC periods of
     inf ms" (or -1000 ms) and exited 0; `--period 0` and `--counts-per-rev 0` were taken
     for "not given"; an -o into a missing directory failed after the decoding (exit 1,
     FileNotFoundError)."""

@@ -1,4 +1,4 @@
-"""Decoding damaged frame sequences (issue 9 items 4, 5): missing frames counted per frame
+"""Decoding damaged frame sequences: missing frames counted per frame
 kind, lost SYNCs found by the counter (and their frames kept in their own row when only
 the SYNC line is gone), duplicates detected and dropped (one row per SYNC period), a
 time-shuffled log sorted back, and no verdict-changing shift of a period's values."""

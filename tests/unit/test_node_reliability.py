@@ -1,4 +1,4 @@
-"""Issue 9 on the plant node, in-process and deterministic: frames are fed to
+"""Reliability of the plant node, in-process and deterministic: frames are fed to
 `PlantNode.handle()` (then `timers()`, as the node's loop does) with a fake wall clock,
 and what the node sends is kept by a recording bus.
 
@@ -133,7 +133,7 @@ class Feeder:
 
 # -- heartbeat consumer in lockstep -----------------------------------------------------------
 def test_lockstep_late_ecu_heartbeat_does_not_latch_a_command_timeout():
-    """The 2026-11-23 failure: the ECU's heartbeats arrive every 100 SYNCs, but its thread
+    """The failure this guards against: the ECU's heartbeats arrive every 100 SYNCs, but its thread
     stalls 400 ms of wall time between two SYNCs. Lockstep: nothing was lost."""
     fd = Feeder(Pace.SYNC)
     fd.nmt(NMTCommand.START)

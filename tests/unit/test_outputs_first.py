@@ -1,4 +1,4 @@
-"""Found by fuzzing (session 17): `bench reproduce`, `bench hums fit|sweep|rul|campaign`
+"""Found by fuzzing: `bench reproduce`, `bench hums fit|sweep|rul|campaign`
 checked their output options only when writing them, after minutes of work (exit 1,
 FileExistsError / FileNotFoundError / IsADirectoryError, a --doc with unbalanced markers
 refused at the end), and a negative --seed failed in numpy (exit 1 ValueError) in

@@ -91,7 +91,7 @@ def test_a_damaged_or_foreign_baseline_is_a_clear_error(tmp_path):
     # a directory given as the baseline raised IsADirectoryError (exit 1)
     with pytest.raises(BenchError, match="a directory, not a baseline JSON"):
         B.Baseline.load(tmp_path)
-    # JSON nested too deep reached the catch-all (RecursionError, exit 1; session 17)
+    # JSON nested too deep reached the catch-all (RecursionError, exit 1)
     p.write_text("[" * 100_000)
     with pytest.raises(BenchError, match="not a baseline JSON \\(nested too deep to read\\)"):
         B.Baseline.load(p)
@@ -159,7 +159,7 @@ def test_a_periodic_effect_is_placed_by_the_localised_scan(base):
 
 
 def test_a_periodic_effect_with_nothing_standing_out_is_not_located(base):
-    """Variant 4: the strongest window of a localised scan within its healthy range is
+    """The strongest window of a localised scan within its healthy range is
     not a place; a periodic line spread along the stroke is reported as not located."""
     from bench.rig.features import location, verdict
     rng = np.random.default_rng(17)
@@ -176,7 +176,7 @@ def test_a_periodic_effect_with_nothing_standing_out_is_not_located(base):
 
 
 def test_a_lowered_level_is_drag_not_friction(base):
-    """Variant 4: friction raises the current in both directions; a current lowered in
+    """Friction raises the current in both directions; a current lowered in
     both directions is named drag lowered."""
     rng = np.random.default_rng(18)
     thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
@@ -193,8 +193,8 @@ def test_a_lowered_level_is_drag_not_friction(base):
 
 
 def test_a_position_shift_in_every_phase_is_named_an_offset():
-    """A play held on one flank by a one-sided load shifts the nut in every phase (docs
-    real-data.md, variants 5 and 6): flagged by a mean position-error index, it was named
+    """A play held on one flank by a one-sided load shifts the nut in every phase (docs/decisions.md,
+    "A play under a one-sided load"): flagged by a mean position-error index, it was named
     `index`; now, with every phase moved alike, `offset` (backlash-like under a one-sided
     load), each phase's shift in the verdict. A shift of one phase alone stays `index`."""
     from bench.rig.features import verdict

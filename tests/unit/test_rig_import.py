@@ -1,4 +1,4 @@
-"""`bench import` of a rig's table holding many runs (issue 11): split by key columns,
+"""`bench import` of a rig's table holding many runs: split by key columns,
 named after the keys, load in kgf, position from set-point minus error, and a 25 Hz table
 kept at its own sample instants (nothing interpolated)."""
 

@@ -1,4 +1,4 @@
-"""Signal requirements (issue 11): the reasons a sparse log gets, and the actuator
+"""Signal requirements: the reasons a sparse log gets, and the actuator
 description's checks. (That the declarations equal the consumers' own constants is in
 tests/integration/test_rig_calibrate.py: it imports the compiled modules.)"""
 
@@ -93,7 +93,7 @@ def test_load_sign_minus_one_flips_the_load_and_unknown_is_plus_one():
      "act.json: sources must be a text or a list of texts, got 5"),
 ], ids=["directory", "json-not-utf8", "toml-not-utf8", "nested-too-deep", "sources-5"])
 def test_an_unreadable_actuator_description_is_one_line(tmp_path, name, content, msg):
-    # found by fuzzing `bench calibrate --actuator` (session 17): exit 1 with
+    # found by fuzzing `bench calibrate --actuator`: exit 1 with
     # IsADirectoryError, UnicodeDecodeError, RecursionError, TypeError
     path = tmp_path / name
     if content is None:

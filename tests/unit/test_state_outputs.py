@@ -1,4 +1,4 @@
-"""Output paths are checked before the long work (issue 9 item 13): a bad `calibrate -o`,
+"""Output paths are checked before the long work: a bad `calibrate -o`,
 `gap --json/--report`, `import -o` or `bench log FILE` fails at once, in one line, and
 the fit, the diagnosis, the import or the recording never starts."""
 
@@ -114,7 +114,7 @@ def test_good_outputs_pass_the_check(tmp_path):
         "seed-negative"])
 def test_gap_bench_arguments_are_checked_before_the_work(tmp_path, capsys, monkeypatch,
                                                          extra, message):
-    """Found by fuzzing (session 17): these started the blind benchmark (minutes) and
+    """Found by fuzzing: these started the blind benchmark (minutes) and
     then failed at the end (FileNotFoundError / IsADirectoryError, exit 1), ran with the
     option ignored (--indie-set, an empty --effects) or failed in numpy (ValueError)."""
     import bench.gap.blind

@@ -1,4 +1,4 @@
-"""Stale state never hurts (issue 9 items 9-10): a state record (hub.json, plant.json)
+"""Stale state never hurts: a state record (hub.json, plant.json)
 names its process by pid and start-time token; a corrupt or stale record is reported in
 one line, removed and ignored; nothing is ever signalled without its identity checked.
 

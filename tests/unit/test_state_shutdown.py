@@ -1,4 +1,4 @@
-"""Closing a bus whose hub died (issue 9 item 15a): `close_bus` leaves the bus shut down,
+"""Closing a bus whose hub died: `close_bus` leaves the bus shut down,
 so python-can's `BusABC.__del__` has nothing left to do and prints nothing (it used to
 warn "RemoteBus was not properly shut down" and print a traceback of its second
 shutdown on a dead socket)."""

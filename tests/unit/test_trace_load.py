@@ -69,7 +69,7 @@ def test_a_rig_table_given_as_a_trace_points_to_bench_import(tmp_path):
     ({"t_s": np.array([]), "position_m": np.array([])}, "t.npz: the trace has no rows"),
 ])
 def test_an_npz_whose_columns_are_not_a_trace_is_one_line(tmp_path, columns, msg):
-    """Found by fuzzing (session 17): a single value or text in an .npz was an exit 1
+    """Found by fuzzing: a single value or text in an .npz was an exit 1
     (TypeError: len() of unsized object / ValueError) in usage, gap, calibrate and hums
     report; complex numbers lost their imaginary part and an empty trace gave `bench
     usage` a run of 0 s, both with exit 0."""

@@ -1,4 +1,4 @@
-"""Usage monitoring (bench/usage, issue 12): life consumed against hand calculations,
+"""Usage monitoring (bench/usage): life consumed against hand calculations,
 rainflow on the ASTM E1049 example, reversals under noise, blocks of rows against the
 whole trace (the live watcher's totals equal the log's), accumulation per actuator."""
 

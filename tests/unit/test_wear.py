@@ -1,4 +1,4 @@
-"""Archard wear (plant_rt.wear, issue 12): the laws, the mapping to preload, backlash and
+"""Archard wear (plant_rt.wear): the laws, the mapping to preload, backlash and
 friction, the kernel's accumulation against a hand calculation, and continuation."""
 
 from __future__ import annotations

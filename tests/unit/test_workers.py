@@ -111,7 +111,7 @@ def test_the_usage_campaign_runs_on_the_given_scheduler(monkeypatch):
 
 @pytest.mark.parametrize("address", ["bogus", "tcp://host:abc", "foo://host:1"])
 def test_a_scheduler_address_that_is_not_one_is_refused_at_once(monkeypatch, address):
-    """Found by fuzzing (session 17): `--scheduler bogus` printed the error, then the
+    """Found by fuzzing: `--scheduler bogus` printed the error, then the
     half-made distributed Client hung the interpreter's exit for 40 s and printed a
     TimeoutError traceback from its __del__."""
     import time
@@ -129,7 +129,7 @@ def test_a_scheduler_address_that_is_not_one_is_refused_at_once(monkeypatch, add
 
 def test_a_bad_scheduler_address_is_refused_when_the_jobs_would_run_here(monkeypatch):
     """`--scheduler bogus` with one job (or one worker) ran the job in-process and exited
-    0: the address was never looked at (found by fuzzing, session 17)."""
+    0: the address was never looked at (found by fuzzing)."""
     from bench import BenchError
     from bench.workers import run_all
     with pytest.raises(BenchError, match="not a Dask scheduler address: 'bogus'"):
