@@ -108,43 +108,6 @@ class Document:
         return [b for b in self.blocks if isinstance(b, Heading) and b.level == level]
 
 
-def blocks_from_markdown(lines: list[str]) -> list[Block]:
-    """Markdown lines as blocks: `#` headings, pipe tables (their `|---|` rule dropped),
-    and paragraphs of the lines between blank lines."""
-    out: list[Block] = []
-    para: list[str] = []
-    rows: list[list[str]] = []
-
-    def flush() -> None:
-        if para:
-            out.append(Paragraph(" ".join(para)))
-            para.clear()
-        if rows:
-            out.append(Table(rows[0], rows[1:], [False] * len(rows[0])))
-            rows.clear()
-
-    for line in lines:
-        s = line.strip()
-        if s.startswith("|") and s.endswith("|"):
-            if para:
-                flush()
-            cells = [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", s[1:-1])]
-            if not all(re.fullmatch(r":?-+:?", c) for c in cells):
-                rows.append(cells)
-        elif not s:
-            flush()
-        elif s.startswith("#"):
-            flush()
-            level = len(s) - len(s.lstrip("#"))
-            out.append(Heading(s[level:].strip(), level))
-        else:
-            if rows:
-                flush()
-            para.append(s)
-    flush()
-    return out
-
-
 def anchor(text: str) -> str:
     """An id for `text` (lower case, runs of other characters as one dash)."""
     return re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-") or "section"
