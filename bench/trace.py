@@ -205,7 +205,7 @@ def _read_columns(path: Path, suffix: str) -> tuple[dict[str, np.ndarray], dict[
     table = pq.ParquetFile(path).read()         # (a dataset read fails on duplicates)
     md = table.schema.metadata or {}
     meta = json.loads(md.get(b"bench_meta", b"{}"))
-    _unique(path, table.column_names, "column")
+    unique_names(path, table.column_names, "column")
     cols = {}
     for n, col in zip(table.column_names, table.columns, strict=True):
         cols[n], stamp = arrow_floats(col)
@@ -235,9 +235,11 @@ def arrow_floats(column: Any) -> tuple[np.ndarray, bool]:
     return column.to_numpy(zero_copy_only=False).astype(float), False
 
 
-def _unique(path: Path | str, names: list[str], where: str) -> None:
-    """BenchError naming a column name given twice (which one is meant is unknown)."""
-    for n in dict.fromkeys(names):
+def unique_names(path: Path | str, names: list[str], where: str,
+                 only: list[str] | None = None) -> None:
+    """BenchError naming a column name given twice (which one is meant is unknown); with
+    `only`, just those names are checked."""
+    for n in dict.fromkeys(names if only is None else only):
         at = [i + 1 for i, h in enumerate(names) if h == n]
         if len(at) > 1:
             raise BenchError(f"{path} {where} {n!r} appears {len(at)} times in the header "
@@ -330,7 +332,7 @@ def read_csv_columns(text: str, source: str = "CSV") -> dict[str, np.ndarray]:
     if not rows:
         raise BenchError(f"{source}: empty CSV table")
     header = [h.strip() for h in rows[0]]
-    _unique(source, header, "line 1: column")
+    unique_names(source, header, "line 1: column")
     data: list[list[float]] = []
     for lineno, row in enumerate(rows[1:], start=2):
         if not row:

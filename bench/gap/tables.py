@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.trace import arrow_floats, max_rows
+from bench.trace import arrow_floats, max_rows, unique_names
 
 COMPRESSED: dict[str, Any] = {".xz": lzma.open, ".gz": gzip.open, ".bz2": bz2.open}
 FINITE = "a value must be a finite number (leave a cell blank where there is no value)"
@@ -280,12 +280,7 @@ def _check_columns(path: Path, wanted: list[str], have: list[str], where: str) -
     if missing:
         raise BenchError(f"{path}: no column(s) {', '.join(repr(m) for m in missing)} "
                          f"(the table has: {', '.join(_shown(h) for h in have)})")
-    for c in dict.fromkeys(wanted):
-        at = [i + 1 for i, h in enumerate(have) if h == c]
-        if len(at) > 1:
-            raise BenchError(f"{path} {where} {c!r} appears {len(at)} times in the header "
-                             f"(columns {', '.join(map(str, at))}): which one is meant is "
-                             "unknown; rename the others")
+    unique_names(path, have, where, only=wanted)
 
 
 def _shown(name: str) -> str:

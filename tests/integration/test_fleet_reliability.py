@@ -19,16 +19,8 @@ import pytest
 from bench.cli import main
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "unit"))
+from cli_errors import one_line  # noqa: E402
 from log_frames import run, write_log  # noqa: E402
-
-
-def one_line(capsys, rc: int, *words: str) -> str:
-    err = capsys.readouterr().err.strip()
-    assert rc == 2, err
-    assert err.startswith("error: ") and len(err.splitlines()) == 1, err
-    for w in words:
-        assert w in err, err
-    return err
 
 
 def log(path: Path, n: int = 30, t0: float = 1.7e9) -> Path:

@@ -18,10 +18,10 @@ SCANNED = ("docs", "bench", "plant_rt", "indie_plant", "ema_contract", "tests",
 SUFFIXES = (".md", ".py", ".sh")
 _DATE = r"20\d\d-\d\d-\d\d"
 HISTORY = re.compile(
-    r"\bsessions?\s+\d+"                                    # session 19
-    r"|\bissues?\s+\d+|\bissue's\b"                         # issue 11, the issue's split
-    r"|\bvariants?\s+(?:\d+|[A-Z])\b"                       # variant 3, variant B
-    rf"|\(\s*{_DATE}\s*\)"                                  # (2026-11-24)
+    r"\bsessions?\s+\d+"
+    r"|\bissues?\s+\d+|\bissue's\b"
+    r"|\bvariants?\s+(?:\d+|[A-Z])\b"
+    rf"|\(\s*{_DATE}\s*\)"
     rf"|\b(?:since|before|measured|checked|re-measured)\s+{_DATE}",
     re.IGNORECASE)
 # the rule's own statement names what it forbids

@@ -11,17 +11,9 @@ import json
 import os
 
 import pytest
+from cli_errors import one_line
 
 from bench.cli import build_parser, main
-
-
-def one_line(capsys, rc: int, *words: str) -> str:
-    err = capsys.readouterr().err.strip()
-    assert rc == 2, err
-    assert err.startswith("error: ") and len(err.splitlines()) == 1, err
-    for w in words:
-        assert w in err, err
-    return err
 
 
 def table(tmp_path, name="T.csv"):
