@@ -113,3 +113,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.system)
         if _is_slow(item.nodeid):
             item.add_marker(pytest.mark.slow)
+    # the longest files first: pytest-xdist's loadfile hands files out in this order, so
+    # the system tests (minutes each) no longer start last and leave one worker alone at
+    # the end; a stable sort keeps each file's tests together and in order
+    rank = {"system": 0, "integration": 1}
+    items.sort(key=lambda it: next((rank[p] for p in Path(str(it.fspath)).parts
+                                    if p in rank), 2))
