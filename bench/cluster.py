@@ -42,6 +42,13 @@ SCHEDULER_HELP = ("run on the existing Dask cluster of this scheduler (e.g. "
 _shown: set[str] = set()           # dashboard links already printed by this process
 
 
+def dashboard_available() -> bool:
+    """Whether a local cluster can serve Dask's dashboard: it needs bokeh (the
+    ``dashboard`` extra); without it the cluster runs the same, with no dashboard."""
+    import importlib.util
+    return importlib.util.find_spec("bokeh") is not None
+
+
 def scheduler_address(scheduler: str | None = None) -> str | None:
     """The scheduler to use: `scheduler`, else ``$BENCH_DASK_SCHEDULER``, else None (a
     local cluster)."""
@@ -200,7 +207,8 @@ class Engine:
             raise BenchError(f"the Dask workers did not start ({why}); a script using "
                              "bench.gap or bench.hums with workers > 1 needs an `if "
                              "__name__ == '__main__':` guard, or use workers=1") from None
-        if self.announce if announce is None else announce:
+        shown = self.scheduler is not None or dashboard_available()
+        if shown and (self.announce if announce is None else announce):
             link = self._client.dashboard_link
             if link not in _shown:
                 _shown.add(link)
@@ -238,7 +246,7 @@ class Engine:
 
 def _local_cluster(workers: int) -> Any:
     """A LocalCluster of `workers` single-threaded worker processes, every socket (the
-    scheduler, the workers, the dashboard) on 127.0.0.1. The nannies set their pre-spawn
+    scheduler, the workers, the dashboard when bokeh is installed) on 127.0.0.1. The nannies set their pre-spawn
     variables in this process's environment to spawn the workers; they are put back
     afterwards, so that processes this one starts later do not inherit them (a nanny
     that restarts a dead worker sets them again)."""
@@ -246,7 +254,8 @@ def _local_cluster(workers: int) -> Any:
     saved = {k: os.environ.get(k) for k in PRE_SPAWN_VARS}
     try:
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            host="127.0.0.1", dashboard_address=DASHBOARD,
+                            host="127.0.0.1",
+                            dashboard_address=DASHBOARD if dashboard_available() else None,
                             silence_logs=logging.CRITICAL,
                             env={k: "1" for k in THREAD_VARS})
     finally:

@@ -177,7 +177,7 @@ IO_TABLE: dict[str, IO] = {
     "import": IO(inputs=("table", "map"), files=("output",)),
     "fleet ingest": IO(inputs=("paths",), files=("db",)),
     "fleet status": IO(inputs=("db",)),
-    "fleet report": IO(inputs=("db",), dirs={"out": ("index.html",)}),
+    "fleet report": IO(inputs=("db",), dirs={"out": ("index.html", "status.json")}),
     "fleet export": IO(inputs=("db",), dirs={"out": ("runs.parquet", "failures.parquet",
                                                      "meta.parquet")}),
     "fleet synth": IO(dirs={"out": ("fleet-truth.json",)}),

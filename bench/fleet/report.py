@@ -2,7 +2,8 @@
 
 ``DIR/index.html`` is the overview a maintenance planner reads first: the actuators to
 inspect this week and why, most urgent first (`inspect_reason`), then every actuator
-with its status line (`bench.fleet.status`) and a figure of the fleet's Ci. One page per
+with its status line (`bench.fleet.status`; the same values in ``DIR/status.json``) and a
+figure of the fleet's Ci. One page per
 actuator (``DIR/actuators/<id>.html``): Ci per test against the thesis' levels (0.93
 threshold, 0.80 warning, 0.56 failure), with the RUL's failure-time band when there is
 one; Cp and the lost motion; the usage (docs/usage.md); the
@@ -15,7 +16,7 @@ actuator's beside its page. An actuator's files are named by `bench.filenames.da
 from __future__ import annotations
 
 import datetime as dt
-import html
+import json
 import math
 import os
 from pathlib import Path
@@ -36,17 +37,11 @@ from bench.fleet.status import (
     usage_text,
 )
 from bench.hums import rul as R
+from bench.jsonsafe import json_safe
 
 INSPECT_RUL_DAYS = 14.0
 """Inspect this week when the RUL's band starts within this many days."""
 MAX_ALERTS = 60
-CSS = ("body{font-family:sans-serif;max-width:1150px;margin:1.5em auto;color:#222}"
-       "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;"
-       "padding:3px 7px;text-align:left;font-size:14px}th{background:#eee}"
-       ".v{display:inline-block;padding:2px 8px;border-radius:4px;color:#fff;"
-       "font-weight:bold}.HEALTHY{background:#2a7}.DEGRADED{background:#c90}"
-       ".WARNING{background:#d60}.FAILURE{background:#c22}.UNKNOWN{background:#777}"
-       "img{max-width:100%}small{color:#555}")
 
 
 def inspect_reason(st: ActuatorStatus) -> str | None:
@@ -95,6 +90,8 @@ def write_report(store: Any, out_dir: str | Path) -> Path:
         page.write_text(_actuator_page(st, sub, out))
     index = out / "index.html"
     index.write_text(_overview(rows, store))
+    (out / "status.json").write_text(json.dumps(
+        json_safe([status_record(st) for st in rows]), indent=1))
     return index
 
 
@@ -115,77 +112,81 @@ def _when(t_s: float) -> str:
     return dt.datetime.fromtimestamp(t_s, dt.UTC).strftime("%Y-%m-%d %H:%M")
 
 
-def _head(title: str) -> list[str]:
-    return ["<!doctype html><html><head><meta charset='utf-8'>",
-            f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>"]
+def _level_cells(st: ActuatorStatus) -> list[Any]:
+    """The actuator (a link to its page), its level badge and its last Ci."""
+    from bench.reports import badge, link
+    return [link(f"actuators/{_href(st.ident)}", st.ident), badge(st.verdict),
+            f"{st.ci_last:.3f}"]
+
+
+def status_record(st: ActuatorStatus) -> dict[str, Any]:
+    """The values the overview's fleet table shows of `st` (``status.json``)."""
+    lo, hi = st.rul_band_days
+    return {"actuator": st.ident, "tests": st.tests, "last_test_utc": _when(st.last_time_s),
+            "level": st.verdict, "ci": st.ci_last, "slope_ci_per_day": st.slope_per_day,
+            "rul_days": st.rul_days, "rul_band_days": [lo, hi], "rul": rul_text(st),
+            "life_consumed": st.life_consumed, "usage": usage_text(st),
+            "reasons": st.reasons}
+
+
+def fleet_table(rows: list[ActuatorStatus]) -> Any:
+    """Every actuator's status line (the overview's summary table)."""
+    from bench.reports import Table
+    return Table(["actuator", "tests", "last test (UTC)", "level", "Ci", "trend Ci/day",
+                  "RUL (days)", "usage consumed"],
+                 [[c[0], str(st.tests), _when(st.last_time_s), c[1], c[2], _slope(st),
+                   rul_text(st), usage_text(st)] for st in rows
+                  for c in [_level_cells(st)]],
+                 numeric=[False, True, False, False, True, True, False, False],
+                 role="summary")
 
 
 def _overview(rows: list[ActuatorStatus], store: Any) -> str:
-    e = html.escape
+    from bench.reports import Document, Figure, Heading, Paragraph, Table, render_document
     inspect = [(st, inspect_reason(st)) for st in rows]
     inspect = [(st, w) for st, w in inspect if w]
     watch = [(st, watch_reason(st)) for st in rows if not inspect_reason(st)]
     watch = [(st, w) for st, w in watch if w]
-    n_fail = len(store.failures())
+    failures = store.failures()
     last = max(st.last_time_s for st in rows)
-    p = _head("Fleet health: inspection plan")
-    p.append(f"<h1>Fleet health: inspection plan</h1><p>{len(rows)} actuators, "
-             f"{sum(st.tests for st in rows)} ground tests up to {_when(last)} UTC"
-             + (f"; {n_fail} logs could not be read (listed at the end)" if n_fail else "")
-             + ".</p>")
-    p.append(f"<h2>Inspect this week ({len(inspect)})</h2>")
+    doc = Document([Paragraph(
+        f"{len(rows)} actuators, {sum(st.tests for st in rows)} ground tests up to "
+        f"{_when(last)} UTC" + (f"; {len(failures)} logs could not be read (listed at the "
+                                 "end)" if failures else "") + "."),
+        Heading(f"Inspect this week ({len(inspect)})")])
+    num = [False, False, False, True, True, False, False]
     if inspect:
-        p.append("<table><tr><th>#</th><th>actuator</th><th>level</th><th>Ci</th>"
-                 "<th>trend Ci/day</th><th>RUL (days) [90 % band]</th><th>why</th></tr>")
-        for k, (st, why) in enumerate(inspect, 1):
-            p.append(f"<tr><td>{k}</td>{_id_cell(st)}<td><span class='v {st.verdict}'>"
-                     f"{st.verdict}</span></td><td>{st.ci_last:.3f}</td>"
-                     f"<td>{_slope(st)}</td><td>{e(rul_text(st))}</td><td>{e(why or '')}</td></tr>")
-        p.append("</table>")
+        doc.add(Table(["#", "actuator", "level", "Ci", "trend Ci/day", "RUL (days) [90 % band]",
+                       "why"], [[str(k), *_level_cells(st), _slope(st), rul_text(st), why or ""]
+                                for k, (st, why) in enumerate(inspect, 1)],
+                      numeric=[True, *num[1:]]))
     else:
-        p.append("<p>No actuator needs an inspection this week.</p>")
-    p.append(f"<h2>Watch ({len(watch)})</h2>")
+        doc.add("No actuator needs an inspection this week.")
+    doc.add(Heading(f"Watch ({len(watch)})"))
     if watch:
-        p.append("<table><tr><th>actuator</th><th>level</th><th>Ci</th><th>trend Ci/day"
-                 "</th><th>why</th></tr>")
-        for st, why in watch:
-            p.append(f"<tr>{_id_cell(st)}<td><span class='v {st.verdict}'>{st.verdict}"
-                     f"</span></td><td>{st.ci_last:.3f}</td><td>{_slope(st)}</td>"
-                     f"<td>{e(why or '')}</td></tr>")
-        p.append("</table>")
-    p.append("<h2>Fleet</h2><img alt='Ci of every actuator' src='figures/fleet-ci.png'>")
-    p.append("<table><tr><th>actuator</th><th>tests</th><th>last test (UTC)</th>"
-             "<th>level</th><th>Ci</th><th>trend Ci/day</th><th>RUL (days)</th>"
-             "<th>usage consumed</th></tr>")
-    for st in rows:
-        p.append(f"<tr>{_id_cell(st)}<td>{st.tests}</td><td>{_when(st.last_time_s)}</td>"
-                 f"<td><span class='v {st.verdict}'>{st.verdict}</span></td>"
-                 f"<td>{st.ci_last:.3f}</td><td>{_slope(st)}</td><td>{e(rul_text(st))}</td>"
-                 f"<td>{e(usage_text(st))}</td></tr>")
-    p.append("</table>")
-    if n_fail:
-        p.append("<h2>Logs that could not be read</h2><table><tr><th>actuator</th><th>log"
-                 "</th><th>error</th></tr>" + "".join(
-                     f"<tr><td>{e(a or '')}</td><td>{e(path)}</td><td>{e(err)}</td></tr>"
-                     for a, path, err in store.failures()[:200]) + "</table>")
-    p.append(_footer())
-    return "\n".join(p)
+        doc.add(Table(["actuator", "level", "Ci", "trend Ci/day", "why"],
+                      [[*_level_cells(st), _slope(st), why or ""] for st, why in watch],
+                      numeric=num[1:-1]))
+    doc.add(Heading("Fleet"), Figure("Ci of every actuator", src="figures/fleet-ci.png"),
+            fleet_table(rows))
+    if failures:
+        doc.add(Heading("Logs that could not be read"),
+                Table(["actuator", "log", "error"], [[a or "", path, err] for a, path, err
+                                                     in failures[:200]], numeric=[False] * 3))
+    return render_document(doc, title="Fleet health: inspection plan", footer=_footer())
 
 
-def _footer() -> str:
-    return (f"<p><small>Ci is the current fidelity coefficient (eq. 6.6) of each ground test "
-            f"against the monitoring model, on the command frequency and its harmonics. "
-            f"Levels (thesis section 6.5): threshold {R.THRESHOLD}, warning {R.WARNING}, "
-            f"failure {R.FAILURE}. RUL: the thesis' cubic on Ci over the daily tests from "
-            f"the threshold crossing, extrapolated to {R.FAILURE}, band 5-95 % of a "
-            f"bootstrap. Inspect this week: last test WARNING or FAILURE, or the RUL band "
-            f"starting within {INSPECT_RUL_DAYS:.0f} days. Usage: docs/usage.md (L10 life "
-            "consumed by Palmgren-Miner).</small></p></body></html>")
-
-
-def _id_cell(st: ActuatorStatus) -> str:
-    return (f"<td><a href='actuators/{html.escape(_href(st.ident))}'>"
-            f"{html.escape(st.ident)}</a></td>")
+def _footer() -> Any:
+    from bench.reports import Document, Paragraph
+    return Document([Paragraph(
+        f"Ci is the current fidelity coefficient (eq. 6.6) of each ground test "
+        f"against the monitoring model, on the command frequency and its harmonics. "
+        f"Levels (thesis section 6.5): threshold {R.THRESHOLD}, warning {R.WARNING}, "
+        f"failure {R.FAILURE}. RUL: the thesis' cubic on Ci over the daily tests from "
+        f"the threshold crossing, extrapolated to {R.FAILURE}, band 5-95 % of a "
+        f"bootstrap. Inspect this week: last test WARNING or FAILURE, or the RUL band "
+        f"starting within {INSPECT_RUL_DAYS:.0f} days. Usage: docs/usage.md (L10 life "
+        "consumed by Palmgren-Miner).")])
 
 
 def _slope(st: ActuatorStatus) -> str:
@@ -199,63 +200,68 @@ USAGE_ROWS = (("nut travel", "travel_m", 1.0, "m"), ("screw revolutions", "screw
                                                    "s"))
 
 
-def _usage_table(sub: dict[str, np.ndarray]) -> str:
+def _usage_table(sub: dict[str, np.ndarray]) -> Any:
     """The actuator's usage summed over its runs, and the equivalent load of the latest
     run that had one (NULL columns, runs without a load signal, are left out)."""
+    from bench.reports import Table
     rows = []
     for label, col, scale, unit in USAGE_ROWS:
         v = _f(sub[col])
         ok = np.isfinite(v)
         txt = f"{scale * float(v[ok].sum()):.4g} {unit}" if ok.any() else "n/a"
-        rows.append(f"<tr><td>{label}</td><td>{txt}</td><td>{int(ok.sum())}</td></tr>")
+        rows.append([label, txt, str(int(ok.sum()))])
     fm = _f(sub["equivalent_load_n"])
     last = fm[np.isfinite(fm)]
-    rows.append("<tr><td>equivalent load F_m, latest run</td><td>"
-                + (f"{last[-1]:.0f} N" if len(last) else "n/a") + "</td><td></td></tr>")
-    return ("<table><tr><th>usage (sum of runs)</th><th>value</th><th>runs</th></tr>"
-            + "".join(rows) + "</table>")
+    rows.append(["equivalent load F_m, latest run", f"{last[-1]:.0f} N" if len(last) else
+                 "n/a", ""])
+    return Table(["usage (sum of runs)", "value", "runs"], rows, numeric=[False, True, True])
 
 
 def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) -> str:
-    e = html.escape
     from urllib.parse import quote
 
     from bench.filenames import data_file
+    from bench.reports import (
+        Document,
+        Figure,
+        Heading,
+        Paragraph,
+        Table,
+        badge,
+        link,
+        render_document,
+    )
     fig = data_file(out / "actuators", st.ident, ".png")     # beside its page
     _actuator_figure(st, sub, fig)
-    p = _head(f"{st.ident}: health")
-    p.append(f"<p><a href='../index.html'>fleet overview</a></p><h1>{e(st.ident)} "
-             f"<span class='v {st.verdict}'>{st.verdict}</span></h1>")
     why = inspect_reason(st) or watch_reason(st)
-    p.append("<table>" + "".join(f"<tr><th>{k}</th><td>{e(v)}</td></tr>" for k, v in (
+    doc = Document([Paragraph(badge(st.verdict)), Table(["quantity", "value"], [list(kv) for kv in (
         ("tests", str(st.tests)), ("last test (UTC)", _when(st.last_time_s)),
         ("last verdict", f"{st.verdict}: {st.reasons}"), ("Ci (last)", f"{st.ci_last:.3f}"),
         ("trend", f"{_slope(st)} Ci per day over the last tests"),
         ("RUL (days) [90 % band]", rul_text(st)), ("usage consumed", usage_text(st)),
-        ("action", why or "none"))) + "</table>")
-    p.append(f"<h2>Index trends</h2><img alt='trends' src='{e(quote(fig.name))}'>")
-    p.append("<h2>Usage</h2>" + _usage_table(sub))
+        ("action", why or "none"))], numeric=[False, False], role="summary"),
+        Heading("Index trends"), Figure("", src=quote(fig.name), alt="trends"),
+        Heading("Usage"), _usage_table(sub)])
     lvl = np.array([_level(v) for v in sub["verdict"]])
     alerts = np.flatnonzero(lvl >= 1)[::-1][:MAX_ALERTS]
-    p.append(f"<h2>Alerts ({int((lvl >= 1).sum())} tests not HEALTHY"
-             + (f", latest {MAX_ALERTS} shown" if (lvl >= 1).sum() > MAX_ALERTS else "")
-             + ")</h2>")
+    doc.add(Heading(f"Alerts ({int((lvl >= 1).sum())} tests not HEALTHY"
+                    + (f", latest {MAX_ALERTS} shown" if (lvl >= 1).sum() > MAX_ALERTS else "")
+                    + ")"))
     if len(alerts):
-        p.append("<table><tr><th>test (UTC)</th><th>verdict</th><th>Ci</th><th>why</th>"
-                 "<th>log</th></tr>")
         ci = judged_ci(_f(sub["ci"]), _f(sub["ci_harmonic"]))
+        rows = []
         for k in alerts:
             path = str(sub["path"][k])
             href = os.path.relpath(path, out / "actuators") if path else ""
-            p.append(f"<tr><td>{_when(float(sub['run_time'][k]))}</td><td><span class='v "
-                     f"{sub['verdict'][k]}'>{sub['verdict'][k]}</span></td>"
-                     f"<td>{ci[k]:.3f}</td><td>{e(str(sub['reasons'][k]))}</td>"
-                     f"<td><a href='{e(href)}'>{e(Path(path).name)}</a></td></tr>")
-        p.append("</table>")
+            rows.append([_when(float(sub["run_time"][k])), badge(str(sub["verdict"][k])),
+                         f"{ci[k]:.3f}", str(sub["reasons"][k]),
+                         link(quote(href), Path(path).name)])
+        doc.add(Table(["test (UTC)", "verdict", "Ci", "why", "log"], rows,
+                      numeric=[False, False, True, False, False]))
     else:
-        p.append("<p>None: every test HEALTHY.</p>")
-    p.append(_footer())
-    return "\n".join(p)
+        doc.add("None: every test HEALTHY.")
+    return render_document(doc, title=f"{st.ident}: health", footer=_footer(),
+                           nav=[("../index.html", "fleet overview")])
 
 
 def _level(v: Any) -> int:

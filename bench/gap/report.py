@@ -7,7 +7,6 @@ effect(s) (before/after), and the path residuals over time with the regimes shad
 
 from __future__ import annotations
 
-import html
 import json
 from pathlib import Path
 from typing import Any
@@ -158,38 +157,44 @@ def _shrink(pct: float | None) -> float | None:
     return pct if pct is None else round(pct, 1)
 
 
-def _limit_cycle(js: dict[str, Any]) -> str:
+def _limit_cycle(js: dict[str, Any]) -> list[Any]:
     """The limit-cycle note (bench.gap.limitcycle) as a paragraph under the verdict."""
+    from bench.reports import Paragraph, strong
     lc = js["localisation"].get("limit_cycle")
-    return f"<p><b>Limit cycle:</b> {html.escape(lc['note'])}</p>" if lc else ""
+    return [Paragraph(strong("Limit cycle:") + " " + lc["note"])] if lc else []
 
 
-BOLD = " style='font-weight:bold'"
+def ranking_table(js: dict[str, Any]) -> Any:
+    """The candidates ranked by BIC (the page's summary table; the chosen row in bold)."""
+    from bench.reports import Table, strong
+    above = " above the healthy level" if js["localisation"].get("heldout_excess") else ""
+    rows = []
+    for i, c in enumerate(js["ranking"], 1):
+        row = [str(c.get("rank", i)), c["effect"] + (" (chosen)" if c.get("chosen") else ""),
+               fmt_params(c["params"]), str(_shrink(c["heldout_shrink_pct"])),
+               f"{c['gap_before']['normalised']:.3g} \u2192 {c['gap_after']['normalised']:.3g}",
+               f"{c['score']['bic']:.1f}", "; ".join(c.get("suspect") or [])]
+        rows.append([strong(x) for x in row] if c.get("chosen") else row)
+    return Table(["#", "effect", "parameters (95 % CI)", f"held-out shrink{above} (%)",
+                  "held-out gap (x floor, RMS)", "BIC", "suspect"], rows,
+                 numeric=[True, False, False, True, True, True, False], role="summary")
 
 
 def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
-    rows = "".join(
-        f"<tr{BOLD if c.get('chosen') else ''}>"
-        f"<td>{c.get('rank', i)}</td><td>{html.escape(c['effect'])}"
-        f"{' (chosen)' if c.get('chosen') else ''}</td>"
-        f"<td>{html.escape(fmt_params(c['params']))}</td>"
-        f"<td>{_shrink(c['heldout_shrink_pct'])}</td>"
-        f"<td>{c['gap_before']['normalised']:.3g} &rarr; {c['gap_after']['normalised']:.3g}</td>"
-        f"<td>{c['score']['bic']:.1f}</td>"
-        f"<td>{html.escape('; '.join(c.get('suspect') or []))}</td></tr>"
-        for i, c in enumerate(js["ranking"], 1))
+    from bench.reports import (
+        Document,
+        Figure,
+        Heading,
+        Paragraph,
+        Preformatted,
+        link,
+        render_document,
+    )
     finding = (js.get("finding") or {}).get("line") or js["verdict"]
-    imgs = "".join(f"<h3>{html.escape(cap)}</h3><img src='{f}' style='max-width:100%'>"
-                   for f, cap in figs)
-    above = " above the healthy level" if js["localisation"].get("heldout_excess") else ""
-    return f"""<!doctype html><html><head><meta charset="utf-8"><title>gap diagnosis</title>
-<style>body{{font-family:sans-serif;max-width:1300px;margin:auto}}td,th{{padding:2px 8px;
-border-bottom:1px solid #ddd;font-size:13px}}pre{{background:#f6f6f6;padding:8px;
-white-space:pre-wrap}}</style>
-</head><body><h1>Sim-to-real gap diagnosis</h1>
-<h2>Verdict: {html.escape(finding)}</h2>{_limit_cycle(js)}
-<pre>{html.escape(text(js))}</pre>
-<h2>Ranking by BIC, lower is better</h2><table><tr><th>#</th><th>effect</th>
-<th>parameters (95 % CI)</th><th>held-out shrink{above} (%)</th>
-<th>held-out gap (x floor, RMS)</th><th>BIC</th><th>suspect</th></tr>{rows}</table>
-{imgs}<p><a href="gap.json">gap.json</a></p></body></html>"""
+    doc = Document([Heading("Verdict: " + finding), *_limit_cycle(js),
+                    Preformatted(text(js)), Heading("Ranking by BIC, lower is better"),
+                    ranking_table(js)])
+    for f, cap in figs:
+        doc.add(Heading(cap, 3), Figure("", src=f, alt=cap))
+    doc.add(Paragraph(link("gap.json", "gap.json")))
+    return render_document(doc, title="Sim-to-real gap diagnosis")

@@ -38,6 +38,9 @@ class Table:
     header: list[str]
     rows: list[list[str]]
     numeric: list[bool] | None = None
+    role: str = ""
+    """``summary``: the page's summary table (one row per item, the values of its JSON)."""
+    caption: str = ""
     kind: str = "table"
 
     def is_numeric(self, k: int) -> bool:
@@ -54,10 +57,12 @@ class Table:
 
 @dataclass
 class Figure:
-    """A figure: `src` a file path relative to the page, or `data` a base64 PNG."""
+    """A figure: `src` a file path relative to the page, or `data` a base64 PNG; `alt`
+    its text for a reader that shows no images (default: the caption)."""
     caption: str
     src: str = ""
     data: str = ""
+    alt: str = ""
     kind: str = "figure"
 
     def markdown(self) -> str:
@@ -66,12 +71,35 @@ class Figure:
 
 @dataclass
 class Paragraph:
-    """A paragraph of plain text; `code` spans are written between backticks."""
+    """A paragraph of plain text; `code` spans are written between backticks. `role`
+    is its class on the page (``note``: small print, ``ref``: what a verdict was judged
+    against)."""
     text: str
+    role: str = ""
     kind: str = "paragraph"
 
     def markdown(self) -> str:
-        return self.text
+        return str(self.text)
+
+
+@dataclass
+class Bullets:
+    """A list of items (plain text, `code` spans between backticks, or `Markup`)."""
+    items: list[Any]
+    kind: str = "list"
+
+    def markdown(self) -> str:
+        return "\n".join(f"- {i}" for i in self.items)
+
+
+@dataclass
+class Preformatted:
+    """Text shown as printed (a command's text output)."""
+    text: str
+    kind: str = "pre"
+
+    def markdown(self) -> str:
+        return "```\n" + self.text.rstrip("\n") + "\n```"
 
 
 @dataclass
@@ -88,7 +116,7 @@ class Heading:
         return "#" * self.level + " " + self.text
 
 
-Block = Table | Figure | Paragraph | Heading
+Block = Table | Figure | Paragraph | Bullets | Preformatted | Heading
 
 
 @dataclass
@@ -113,14 +141,37 @@ def anchor(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", str(text).lower()).strip("-") or "section"
 
 
-def inline_code(text: str) -> Markup:
-    """`text` escaped, with spans between backticks as <code>."""
+def inline_code(text: Any) -> Markup:
+    """`text` escaped, with spans between backticks as <code> (`Markup` as it is)."""
+    if isinstance(text, Markup):
+        return text
     parts = str(text).split("`")
     if len(parts) % 2 == 0:          # an odd backtick: keep it as written
         return escape(text)
     return Markup("").join(escape(p) if k % 2 == 0 else
                            Markup("<code>") + escape(p) + Markup("</code>")
                            for k, p in enumerate(parts))
+
+
+def badge(level: str) -> Markup:
+    """A verdict level as its coloured badge (an unknown word: the UNKNOWN colour)."""
+    cls = level if level in LEVEL_CLASSES else "UNKNOWN"
+    return Markup('<span class="v {}">{}</span>').format(cls, level)
+
+
+def link(href: str, text: str) -> Markup:
+    """A link to `href` (a relative path or an anchor, quoted by the caller)."""
+    return Markup('<a href="{}">{}</a>').format(href, text)
+
+
+def strong(text: str) -> Markup:
+    """`text` in bold (the chosen row of a ranking)."""
+    return Markup("<b>{}</b>").format(text)
+
+
+def marked(text: str) -> Markup:
+    """`text` highlighted (a value outside its band)."""
+    return Markup("<mark>{}</mark>").format(text)
 
 
 def stylesheet() -> str:
@@ -146,6 +197,14 @@ def render(template: str, **context: Any) -> str:
     context.setdefault("nav", [])
     context.setdefault("subtitle", "")
     return environment().get_template(template).render(**context)
+
+
+def render_document(doc: Document, title: str, summary: Document | None = None,
+                    footer: Document | None = None, **context: Any) -> str:
+    """The HTML text of `doc` on the base page (``document.html.j2``), `summary` above
+    it and `footer` below; `context`: subtitle, nav."""
+    return render("document.html.j2", title=title, doc=doc,
+                  summary=summary or Document(), footer=footer or Document(), **context)
 
 
 def png_base64(fig: Any, dpi: int = 80, tight: bool = True) -> str:

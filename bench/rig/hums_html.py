@@ -5,7 +5,6 @@ file is all there is)."""
 
 from __future__ import annotations
 
-import html
 import json
 import math
 from pathlib import Path
@@ -15,20 +14,25 @@ import numpy as np
 
 from bench import BenchError
 from bench.jsonsafe import json_safe
-from bench.reports import png_base64
+from bench.reports import (
+    Block,
+    Bullets,
+    Document,
+    Figure,
+    Heading,
+    Paragraph,
+    Table,
+    badge,
+    marked,
+    png_base64,
+    render_document,
+    strong,
+)
 from bench.rig import fallback as FB
 from bench.rig import hums as H
 from bench.rig.baseline import residuals
 from bench.rig.cycles import phases
 
-STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}"
-         "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;"
-         "padding:3px 8px;text-align:right}th{background:#eee;text-align:center}"
-         "td.l{text-align:left}code{white-space:nowrap}"
-         ".v{display:inline-block;padding:4px 12px;border-radius:4px;color:#fff;"
-         "font-weight:bold}.HEALTHY{background:#2a7}.DEGRADED{background:#c90}"
-         ".UNKNOWN{background:#777}.na{color:#777}img{max-width:100%}"
-         "p.ref{background:#f4f4f4;border-left:4px solid #888;padding:6px 10px}")
 MF_LABELS = [("position_error_mean_mm", "position error, mean (mm)"),
              ("position_error_peak_mm", "position error, peak |e| (mm)"),
              ("position_error_rms_mm", "position error, RMS (mm)"),
@@ -141,89 +145,75 @@ def baseline_figure(a: H.RigAnalysis) -> str | None:
     return png_base64(fig, tight=False)
 
 
-def _model_free(a: H.RigAnalysis, e: Any) -> list[str]:
+def _model_free(a: H.RigAnalysis) -> list[Block]:
     dirs = [d for d in ("extend", "retract", "dwell", "all") if d in a.model_free]
     if not dirs:
         return []
-    parts = ["<h3>Model-free indexes (no model, no baseline)</h3><table><tr><th>index</th>"
-             + "".join(f"<th>{d} ({int(a.model_free[d]['samples'])} samples)</th>"
-                       for d in dirs) + "</tr>"]
-    for key, label in MF_LABELS:
-        if any(key in a.model_free[d] for d in dirs):
-            parts.append(f"<tr><td class='l'>{e(label)}</td>" + "".join(
-                f"<td>{_fmt(a.model_free[d].get(key, math.nan))}</td>" for d in dirs)
-                + "</tr>")
-    parts.append("</table>")
-    return parts
+    rows = [[label] + [_fmt(a.model_free[d].get(key, math.nan)) for d in dirs]
+            for key, label in MF_LABELS if any(key in a.model_free[d] for d in dirs)]
+    return [Heading("Model-free indexes (no model, no baseline)", 3),
+            Table(["index"] + [f"{d} ({int(a.model_free[d]['samples'])} samples)"
+                               for d in dirs], rows)]
 
 
-def _model(a: H.RigAnalysis, e: Any) -> list[str]:
+def _model(a: H.RigAnalysis) -> list[Block]:
     m = a.model
     if m is None:
         return []
-    parts = [f"<h3>Against the calibrated model ({e(m['calibration'])})</h3>"]
+    parts: list[Block] = [Heading(f"Against the calibrated model ({m['calibration']})", 3)]
     if not m["reaches_noise_floor"]:
         how = ("its indexes are shown for information; the verdict comes from the healthy "
                "baseline" if a.baseline is not None and a.baseline["judged"] else
                "the verdict is judged against it nonetheless (asked for, or no healthy "
                "baseline to judge against)")
-        parts.append(f"<p>This model does not reach the noise floor on the calibration's "
-                     f"healthy logs (worst x{m['healthy_ratio']:.3g}): {how}.</p>")
-    parts.append("<table><tr><th>index</th><th>value</th></tr>")
-    for k, v in m["indexes"].items():
-        scale = 1e3 if k == "mean_error_m" else 1.0
-        parts.append(f"<tr><td class='l'>{e(MODEL_LABELS.get(k, k))}</td>"
-                     f"<td>{_fmt(v * scale, 6 if k == 'cp' else 4)}</td></tr>")
-    parts.append("</table>")
+        parts.append(Paragraph(f"This model does not reach the noise floor on the "
+                               f"calibration's healthy logs (worst x{m['healthy_ratio']:.3g}):"
+                               f" {how}."))
+    parts.append(Table(["index", "value"], [
+        [MODEL_LABELS.get(k, k), _fmt(v * (1e3 if k == "mean_error_m" else 1.0),
+                                      6 if k == "cp" else 4)] for k, v in m["indexes"].items()]))
     if a.gap is not None:                   # the gap's table above has the RMS ratios
         return parts
-    parts.append("<table><tr><th>signal</th><th>RMS / noise floor</th>"
-                 "<th>threshold</th><th>noise floor</th></tr>")
-    for s, r in m["rms_ratio"].items():
-        parts.append(f"<tr><td class='l'>{e(s)}</td><td>{_fmt(r, 3)}</td>"
-                     f"<td>{_fmt(m['threshold'][s], 3)}</td>"
-                     f"<td>{_fmt(m['noise_floor'][s], 3)}</td></tr>")
-    parts.append("</table>")
+    parts.append(Table(["signal", "RMS / noise floor", "threshold", "noise floor"], [
+        [s, _fmt(r, 3), _fmt(m["threshold"][s], 3), _fmt(m["noise_floor"][s], 3)]
+        for s, r in m["rms_ratio"].items()]))
     return parts
 
 
-def _baseline(a: H.RigAnalysis, e: Any) -> list[str]:
+def _baseline(a: H.RigAnalysis) -> list[Block]:
     b = a.baseline
     if b is None:
         return []
-    parts = [f"<h3>Against the healthy baseline</h3><p>{e(b['baseline'])}</p>"]
+    parts: list[Block] = [Heading("Against the healthy baseline", 3), Paragraph(b["baseline"])]
     if b["verdicts"]:
-        parts.append("<table><tr><th>cycle</th><th>baseline load</th><th>flagged</th>"
-                     "<th>effect</th><th>features against their thresholds</th></tr>")
+        rows = []
         for v in b["verdicts"]:
-            at = (e(a.base_obj.load_text(v["baseline_load"])) if v["judged"] and a.base_obj
+            at = (a.base_obj.load_text(v["baseline_load"]) if v["judged"] and a.base_obj
                   else "-")
             flag = ("yes" if v["flagged"] else "no") if v["judged"] else "not judged"
-            parts.append(f"<tr><td class='l'>{e(v['cycle'])}</td><td>{at}</td><td>{flag}"
-                         f"</td><td class='l'>{e(v['verdict'])}</td><td class='l'>"
-                         f"{e('; '.join(v['reasons']))}</td></tr>")
-        parts.append("</table>")
-    for n in b["notes"]:
-        parts.append(f"<p class='na'>{e(n)}</p>")
+            rows.append([v["cycle"], at, flag, v["verdict"], "; ".join(v["reasons"])])
+        parts.append(Table(["cycle", "baseline load", "flagged", "effect",
+                            "features against their thresholds"], rows, numeric=[False] * 5))
+    parts += [Paragraph(n, role="note") for n in b["notes"]]
     rows = b["phase_indexes"]
     if rows:
-        parts.append("<p>Phase indexes (mean over the log's cycles) against the baseline's "
-                     "mean and spread (information; the verdict rests on the features "
-                     "above):</p><table><tr><th>load</th><th>phase</th><th>index</th>"
-                     "<th>log</th><th>baseline mean</th><th>baseline sd</th><th>z</th></tr>")
-        for r in rows:
-            z = r["z"]
-            style = " style='background:#fdd'" if z is not None and abs(z) > 3 else ""
-            parts.append(f"<tr><td>{r['load']:g}</td><td class='l'>{e(r['phase'])}</td>"
-                         "<td class='l'>"
-                         f"{e(r['index'])}</td><td>{_fmt(r['value'])}</td>"
-                         f"<td>{_fmt(r['baseline_mean'])}</td><td>{_fmt(r['baseline_sd'], 3)}"
-                         f"</td><td{style}>{_fmt(z, 3)}</td></tr>")
-        parts.append("</table>")
+        parts.append(Paragraph("Phase indexes (mean over the log's cycles) against the "
+                               "baseline's mean and spread (information; the verdict rests on "
+                               "the features above):"))
+        parts.append(Table(["load", "phase", "index", "log", "baseline mean", "baseline sd",
+                            "z"], [
+            [f"{r['load']:g}", r["phase"], r["index"], _fmt(r["value"]),
+             _fmt(r["baseline_mean"]), _fmt(r["baseline_sd"], 3),
+             marked(_fmt(r["z"], 3)) if r["z"] is not None and abs(r["z"]) > 3 else
+             _fmt(r["z"], 3)] for r in rows],
+            numeric=[True, False, False, True, True, True, True]))
     return parts
 
 
-def _gap(a: H.RigAnalysis, e: Any) -> list[str]:
+GAP_SHARES = ("start_stop", "cruise", "dwell", "extend", "retract")
+
+
+def _gap(a: H.RigAnalysis) -> list[Block]:
     """`bench gap`'s diagnosis against the calibrated model (`bench.gap.riggap`): per
     signal the RMS against its threshold and where its excess lies, the candidates
     ranked, the verdict."""
@@ -232,38 +222,35 @@ def _gap(a: H.RigAnalysis, e: Any) -> list[str]:
         return []
     from bench.gap.riggap import judged_text
     loc = g["localisation"]
-    parts = [f"<h3>Gap against the calibrated model: {e(g['verdict'])}</h3>"
-             f"<p>{e(judged_text(g))}.</p>"
-             f"<p>{e(g['baseline'])}; significant when a signal's RMS exceeds its "
-             "threshold (the larger of 2 and the worst ratio the calibration's held-out "
-             "healthy logs left).</p><table><tr><th>signal</th><th>noise floor</th>"
-             "<th>RMS / noise floor</th><th>threshold</th><th>start/stop</th><th>cruise</th>"
-             "<th>dwell</th><th>extend</th><th>retract</th></tr>"]
     floor = (a.model or {}).get("noise_floor") or {}
+    rows = []
     for s, r in g["rms_ratio"].items():
         shares = {**loc["regimes"][s], **loc["direction"][s]}
-        parts.append(f"<tr><td class='l'>{e(s)}</td><td>{_fmt(floor.get(s, math.nan), 3)}"
-                     f"</td><td>{_fmt(r, 3)}</td>"
-                     f"<td>{_fmt(g['threshold'][s], 3)}</td>" + "".join(
-                         f"<td>{100 * shares[k]:.0f} %</td>" for k in
-                         ("start_stop", "cruise", "dwell", "extend", "retract")) + "</tr>")
-    parts.append("</table><p>Shares of each signal's excess residual energy (above its "
-                 "floor) by regime and by direction.</p>")
+        rows.append([s, _fmt(floor.get(s, math.nan), 3), _fmt(r, 3),
+                     _fmt(g["threshold"][s], 3)] + [f"{100 * shares[k]:.0f} %"
+                                                    for k in GAP_SHARES])
+    parts: list[Block] = [
+        Heading(f"Gap against the calibrated model: {g['verdict']}", 3),
+        Paragraph(f"{judged_text(g)}."),
+        Paragraph(f"{g['baseline']}; significant when a signal's RMS exceeds its threshold "
+                  "(the larger of 2 and the worst ratio the calibration's held-out healthy "
+                  "logs left)."),
+        Table(["signal", "noise floor", "RMS / noise floor", "threshold", "start/stop",
+               "cruise", "dwell", "extend", "retract"], rows),
+        Paragraph("Shares of each signal's excess residual energy (above its floor) by "
+                  "regime and by direction.")]
     if g["ranking"]:
-        parts.append("<table><tr><th>rank</th><th>candidate effect</th><th>dBIC</th>"
-                     "<th>RMS / floor after</th><th>fitted values</th></tr>")
-        for i, r in enumerate(g["ranking"], start=1):
-            vals = "; ".join(f"{k} = {v:.4g}" for k, v in r["values"].items())
-            parts.append(f"<tr><td>{i}</td><td class='l'>{e(r['effect'])}: {e(r['doc'])}"
-                         f"</td><td>{r['delta_bic']:.1f}</td>"
-                         f"<td>{_fmt(r['rms_ratio_after'], 3)}</td><td class='l'>{e(vals)}"
-                         "</td></tr>")
-        parts.append("</table><p>A candidate is named when it lowers the BIC by more than "
-                     "10 and the gap is significant.</p>")
-    for eff, why in g.get("not_available", {}).items():
-        parts.append(f"<p>{e(eff)}: {e(why)}</p>")
-    png = gap_figure(g)
-    parts.append(f"<img alt='gap by nut position' src='data:image/png;base64,{png}'>")
+        parts.append(Table(["rank", "candidate effect", "dBIC", "RMS / floor after",
+                            "fitted values"], [
+            [str(i), f"{r['effect']}: {r['doc']}", f"{r['delta_bic']:.1f}",
+             _fmt(r["rms_ratio_after"], 3), "; ".join(f"{k} = {v:.4g}"
+                                                       for k, v in r["values"].items())]
+            for i, r in enumerate(g["ranking"], start=1)],
+            numeric=[True, False, True, True, False]))
+        parts.append(Paragraph("A candidate is named when it lowers the BIC by more than 10 "
+                               "and the gap is significant."))
+    parts += [Paragraph(f"{eff}: {why}") for eff, why in g.get("not_available", {}).items()]
+    parts.append(Figure("", data=gap_figure(g), alt="gap by nut position"))
     return parts
 
 
@@ -284,63 +271,68 @@ def gap_figure(g: dict[str, Any]) -> str:
     ax.legend(fontsize=8)
     return png_base64(fig)
 
-
-def _log(a: H.RigAnalysis, e: Any) -> list[str]:
-    parts = [f"<h2>{e(a.name)}</h2><p><span class='v {a.verdict}'>{a.verdict}</span></p>",
-             f"<p class='ref'><b>Judged against:</b> {e(a.reference)}</p>",
-             "<ul>" + "".join(f"<li>{e(r)}</li>" for r in a.reasons) + "</ul>"]
-    parts += _gap(a, e) + _model_free(a, e) + _model(a, e) + _baseline(a, e)
+def _log(a: H.RigAnalysis) -> list[Block]:
+    parts: list[Block] = [Heading(a.name), Paragraph(badge(a.verdict)),
+                          Paragraph("Judged against: " + a.reference, role="ref"),
+                          Bullets(list(a.reasons))]
+    parts += _gap(a) + _model_free(a) + _model(a) + _baseline(a)
     na = {k: v for k, v in a.sections.items() if v}
     if na:
-        parts.append("<h3>Not available on this log</h3><ul>" + "".join(
-            f"<li><b>{e(k)}</b>: {e(v)}</li>" for k, v in na.items()) + "</ul>")
-    parts.append("<h3>Signals" + (" against the calibrated model" if a.sim else "")
-                 + f"</h3><img alt='signals' src='data:image/png;base64,{signals_figure(a)}'>")
+        parts += [Heading("Not available on this log", 3),
+                  Bullets([strong(k) + ": " + v for k, v in na.items()])]
+    parts += [Heading("Signals" + (" against the calibrated model" if a.sim else ""), 3),
+              Figure("", data=signals_figure(a), alt="signals")]
     png = baseline_figure(a)
     if png:
         assert a.baseline is not None
-        parts.append("<h3>The most flagged cycle against the healthy baseline</h3>"
-                     f"<p>{e(worst_text(a.baseline))}</p>"
-                     f"<img alt='baseline' src='data:image/png;base64,{png}'>")
+        parts += [Heading("The most flagged cycle against the healthy baseline", 3),
+                  Paragraph(worst_text(a.baseline)), Figure("", data=png, alt="baseline")]
     return parts
 
 
 INTRO = ("These logs come from an actuator the bench did not simulate. Each is compared "
-         "with what was given: a calibration of its generic model (<code>bench calibrate "
-         "--actuator</code>), a healthy baseline built from its own healthy runs, or neither "
+         "with what was given: a calibration of its generic model (`bench calibrate "
+         "--actuator`), a healthy baseline built from its own healthy runs, or neither "
          "(then only indexes that need no model). What a log cannot support is listed as not "
          "available, with the reason.")
-GAP_INTRO = ("<code>bench gap</code> on a log of an actuator the bench did not simulate: the "
-             "log against the calibrated generic model (<code>bench calibrate --actuator"
-             "</code>), the residual localised and the candidate effects ranked, or, when "
+GAP_INTRO = ("`bench gap` on a log of an actuator the bench did not simulate: the "
+             "log against the calibrated generic model (`bench calibrate --actuator`), the "
+             "residual localised and the candidate effects ranked, or, when "
              "that model does not reach the noise floor on healthy logs, against the healthy "
              "baseline built from the actuator's own healthy runs. The same page as "
-             "<code>bench hums report</code>, with the gap's diagnosis added.")
+             "`bench hums report`, with the gap's diagnosis added.")
+LEVELS_NOTE = ("Levels: HEALTHY within the reference (the calibrated model's healthy "
+               "threshold, or every feature within the baseline's thresholds); DEGRADED "
+               "outside it; UNKNOWN without a reference. Baseline thresholds come from "
+               "healthy calibration runs only (docs/real-data.md).")
+
+
+def summary_record(a: H.RigAnalysis) -> dict[str, Any]:
+    """The summary row of `a` (the page's and ``indexes.json``'s ``summary``)."""
+    dur = len(a.trace) * a.trace.dt if len(a.trace) > 1 else 0.0
+    return {"log": a.name, "samples": len(a.trace), "duration_s": dur,
+            "verdict": a.verdict, "judged_against": a.reference}
+
+
+def summary_table(analyses: list[H.RigAnalysis]) -> Table:
+    """One row per log: samples, duration, verdict, what it was judged against."""
+    rows = [[r["log"], str(r["samples"]), f"{r['duration_s']:.1f}", badge(r["verdict"]),
+             r["judged_against"]] for r in map(summary_record, analyses)]
+    return Table(["log", "samples", "duration (s)", "verdict", "judged against"], rows,
+                 numeric=[False, True, True, False, False], role="summary")
 
 
 def render(analyses: list[H.RigAnalysis], title: str = "Actuator health report",
            intro: str = INTRO) -> str:
-    """The HTML text of the report (`intro`: HTML)."""
-    e = html.escape
-    parts = ["<!doctype html><html><head><meta charset='utf-8'>",
-             f"<title>{e(title)}</title><style>{STYLE}</style></head><body>",
-             f"<h1>{e(title)}</h1>", f"<p>{intro}</p>",
-             "<h2>Summary</h2><table><tr><th>log</th><th>samples</th><th>duration (s)</th>"
-             "<th>verdict</th><th>judged against</th></tr>"]
+    """The HTML text of the report (`intro`: text, `code` spans between backticks)."""
+    doc = Document()
     for a in analyses:
-        dur = len(a.trace) * a.trace.dt if len(a.trace) > 1 else 0.0
-        parts.append(f"<tr><td class='l'>{e(a.name)}</td><td>{len(a.trace)}</td>"
-                     f"<td>{dur:.1f}</td><td><span class='v {a.verdict}'>{a.verdict}</span>"
-                     f"</td><td class='l'>{e(a.reference)}</td></tr>")
-    parts.append("</table>")
-    for a in analyses:
-        parts += _log(a, e)
-    parts.append("<p><small>Levels: HEALTHY within the reference (the calibrated model's "
-                 "healthy threshold, or every feature within the baseline's thresholds); "
-                 "DEGRADED outside it; UNKNOWN without a reference. Baseline thresholds come "
-                 "from healthy calibration runs only (docs/real-data.md).</small></p>"
-                 "</body></html>")
-    return "\n".join(parts)
+        doc.add(*_log(a))
+    summary = Document([Paragraph(intro), Heading("Summary"), summary_table(analyses)])
+    return render_document(doc, title=title, summary=summary,
+                           footer=Document([Paragraph(LEVELS_NOTE, role="note")]),
+                           nav=[("#summary", "summary")] + [("#" + h.anchor, h.text)
+                                                           for h in doc.headings()])
 
 
 def write_rig_report(paths: list[str], out_dir: str | Path, nominal: str | None = None,
@@ -368,7 +360,8 @@ def write_files(analyses: list[H.RigAnalysis], out_dir: str | Path,
     page = out / page_name
     page.write_text(render(analyses, title, intro))
     (out / "indexes.json").write_text(json.dumps(
-        [json_safe(a.to_json()) for a in analyses], indent=1, default=str))
+        [json_safe({**a.to_json(), "summary": summary_record(a)}) for a in analyses],
+        indent=1, default=str))
     (out / "summary.txt").write_text("\n\n".join(H.summary_text(a) for a in analyses) + "\n")
     return page
 

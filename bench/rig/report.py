@@ -341,7 +341,7 @@ def _cost_blocks(sm: dict[str, Any]) -> list[Block]:
 def write(study: Study, out: Path, command: str) -> dict[str, Path]:
     """baseline.json, study.json, residual.png, detection.png, location.png and
     report.md/.html."""
-    from bench.reports import render
+    from bench.reports import render_document
     out.mkdir(parents=True, exist_ok=True)
     paths = {"baseline": study.baseline.save(out / "baseline.json")}
     study.summary["baseline"] = study.baseline.describe()      # now with its file
@@ -354,8 +354,8 @@ def write(study: Study, out: Path, command: str) -> dict[str, Path]:
     paths["md"] = out / "report.md"
     paths["md"].write_text("# Rig study\n\n" + doc.markdown())
     paths["html"] = out / "report.html"
-    paths["html"].write_text(render("rig_study.html.j2", title="Rig study", doc=doc,
-                                    nav=[("#" + h.anchor, h.text) for h in doc.headings()]))
+    paths["html"].write_text(render_document(doc, title="Rig study",
+                                             nav=[("#" + h.anchor, h.text) for h in doc.headings()]))
     return paths
 
 

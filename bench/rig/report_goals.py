@@ -132,7 +132,8 @@ def summary_blocks(sm: dict[str, Any]) -> list[Block]:
                      "yes" if b["rate"] >= 0.9 and b["least_recall"] >= 0.8 else "no"])
     if not rows:
         return []
-    return [Table(["goal", "target", "result (95 % interval)", "met"], rows, [False] * 4)]
+    return [Table(["goal", "target", "result (95 % interval)", "met"], rows, [False] * 4,
+                  role="summary")]
 
 
 def naming_blocks(sm: dict[str, Any], conds: list[str]) -> list[Block]:

@@ -116,7 +116,7 @@ def test_gap_report_against_the_calibrated_model(data, tmp_path, capsys):
     verdict = text.split("verdict: ")[-1].split(" (baseline")[0]
     assert f"Gap against the calibrated model: {verdict}" in page
     for effect in ("friction", "force_gain", "localised_resistance"):
-        assert f"<td class='l'>{effect}: " in page            # the ranking
+        assert f"<td>{effect}: " in page            # the ranking
     assert page.count("data:image/png;base64,") == 2          # signals, gap by position
     js = json.loads((out / "indexes.json").read_text())[0]
     assert js["gap"]["verdict"] == verdict and js["model"] is not None

@@ -158,3 +158,32 @@ def _pids_without(client, victim: int, timeout: float = 60.0) -> set[int]:
         if (victim not in pids and len(pids) == 2) or time.monotonic() > t_end:
             return pids
         time.sleep(0.2)
+
+
+_NO_BOKEH = """
+import sys
+sys.modules["bokeh"] = None          # `import bokeh` fails in every process of the run
+"""
+_RUN = """
+import sys
+from bench.workers import run_all
+if __name__ == "__main__":
+    print(run_all(abs, [-1, -2, -3], workers=2, progress=True))
+    print("bokeh" in sys.modules and sys.modules["bokeh"] is not None)
+"""
+
+
+def test_a_local_cluster_runs_without_bokeh(tmp_path):
+    """bokeh is an extra (the dashboard): without it a job runs on two workers the same,
+    and no dashboard link is printed (it would point at Dask's "needs bokeh" page)."""
+    import subprocess
+    import sys
+    (tmp_path / "sitecustomize.py").write_text(_NO_BOKEH)      # the workers' too
+    (tmp_path / "run.py").write_text(_RUN)
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(root)])}
+    r = subprocess.run([sys.executable, str(tmp_path / "run.py")], capture_output=True,
+                       text=True, timeout=180, env=env, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split("\n")[:2] == ["[1, 2, 3]", "False"]
+    assert "dask dashboard" not in r.stderr

@@ -91,7 +91,8 @@ def test_wheel_holds_the_four_packages_and_the_bus_description(venv):
     assert top == {"bench", "plant_rt", "ema_contract", "indie_plant"}, top
     assert {"ema_contract/dbc/ema.dbc", "ema_contract/dbc/ema.eds"} <= set(names)
     assert {"bench/reports/style.css", "bench/reports/templates/base.html.j2",
-            "bench/reports/templates/hums_report.html.j2"} <= set(names)   # report pages
+            "bench/reports/templates/hums_report.html.j2",
+            "bench/reports/templates/document.html.j2"} <= set(names)      # report pages
     code = ("import bench, ema_contract; "
             "from ema_contract.frames import dbc_path, eds_path, load_od, Frames; "
             "print(bench.__file__); print(ema_contract.__file__); print(dbc_path()); "

@@ -1,6 +1,7 @@
 """The tree's shape: no import cycles (between modules, and between packages), no module
 over 600 lines, no function over 80 lines without a reason written at its top, and the
-layers' arrows pointing one way.
+layers' arrows pointing one way, and one HTML page skeleton and one base64-PNG helper
+(bench/reports).
 
 A long function states why on its first body line, as a comment starting with
 ``# long:`` (e.g. ``# long: one compiled loop, splitting it costs a call per sub-step``).
@@ -9,6 +10,7 @@ A long function states why on its first body line, as a comment starting with
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -341,10 +343,48 @@ def test_the_judged_ci_rule_is_written_once():
     assert all("judged_ci" in (ROOT / u).read_text() for u in users)
 
 
-def test_one_base64_png_helper():
-    """A figure becomes a base64 PNG in `bench.reports.png_base64` only (a module that
-    both saves a figure and base64-encodes is writing its own)."""
-    own = [rel for rel, path in ((p.relative_to(ROOT).as_posix(), p) for p in MODULES.values())
-           if rel != "bench/reports/__init__.py"
-           and "b64encode" in (text := path.read_text()) and "savefig" in text]
+REPORTS = "bench/reports/"
+SKELETON = re.compile(r"<html\b|<head\b|<!doctype", re.IGNORECASE)
+
+
+def _sources_outside_reports() -> dict[str, str]:
+    """Every source file of the packages outside bench/reports (modules, templates and
+    pages: a skeleton may sit in a template file as well as in a string)."""
+    out = {}
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*")):
+            rel = path.relative_to(ROOT).as_posix()
+            if (path.suffix in (".py", ".j2", ".html", ".htm", ".jinja", ".jinja2")
+                    and not rel.startswith(REPORTS)):
+                out[rel] = path.read_text(encoding="utf-8", errors="replace")
+    return out
+
+
+SOURCES = _sources_outside_reports()
+
+
+def test_one_page_skeleton():
+    """Every HTML page comes from bench/reports' base template: no ``<html``, ``<head``
+    or doctype anywhere else in the packages (a report builds `bench.reports` blocks)."""
+    own = {rel: SKELETON.search(text).group(0) for rel, text in SOURCES.items()
+           if SKELETON.search(text)}
     assert not own, own
+
+
+def test_one_base64_png_helper():
+    """A figure becomes a base64 PNG in `bench.reports.png_base64` only: a module
+    outside bench/reports that base64-encodes and saves a figure or speaks of PNG is
+    writing its own (`bench.rig.update`'s base64 of compressed float arrays is data, not
+    a picture)."""
+    png = re.compile(r"savefig|png", re.IGNORECASE)
+    own = [rel for rel, text in SOURCES.items() if rel.endswith(".py")
+           and "b64encode" in text and png.search(text)]
+    assert not own, own
+    assert "b64encode" in (ROOT / "bench/rig/update.py").read_text()   # the check sees it
+
+
+def test_the_layout_checks_see_the_sources():
+    """The two checks above read the modules that once built their own pages."""
+    assert {"bench/gap/report.py", "bench/fleet/report.py", "bench/rig/hums_html.py",
+            "bench/hums/report.py", "bench/rig/report.py"} <= set(SOURCES)
+    assert not any(rel.startswith(REPORTS) for rel in SOURCES)

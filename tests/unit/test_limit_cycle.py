@@ -59,5 +59,6 @@ def test_the_note_is_printed_under_the_verdict_and_on_the_report(delayed):
     from bench.gap.report import _limit_cycle
     note = LC.note(delayed["delay"], ["sensor_delay"])
     js = {"localisation": {"limit_cycle": note}}
-    assert _limit_cycle(js).startswith("<p><b>Limit cycle:</b> the loop oscillates by itself")
-    assert _limit_cycle({"localisation": {}}) == ""
+    (para,) = _limit_cycle(js)
+    assert para.text.startswith("<b>Limit cycle:</b> the loop oscillates by itself")
+    assert _limit_cycle({"localisation": {}}) == []

@@ -167,12 +167,13 @@ def test_fleet_report_pages_of_ids_that_collapse_and_a_300_character_id(tmp_path
     index = (out / "index.html").read_text()
     import re
     from urllib.parse import unquote
-    links = re.findall(r"href='actuators/([^']+)'", index)
+    links = re.findall(r'href="actuators/([^"]+)"', index)
     assert len(set(links)) == 5
     for link in set(links):
         page = (out / "actuators" / unquote(link)).read_text()
-        img = re.search(r"<img alt='trends' src='([^']+)'", page).group(1)
+        img = re.search(r'<img alt="trends" src="([^"]+)"', page).group(1)
         assert (out / "actuators" / unquote(img)).is_file()
     heads = {p: re.search(r"<h1>(.*?)</h1>", p.read_text()).group(1) for p in pages}
-    failure = [p for p, h in heads.items() if "'v FAILURE'" in h]
-    assert len(failure) == 1 and heads[failure[0]].startswith("EMA/7 ")
+    level = {p: re.search(r'<p><span class="v (\w+)">', p.read_text()).group(1) for p in pages}
+    failure = [p for p, v in level.items() if v == "FAILURE"]
+    assert len(failure) == 1 and heads[failure[0]] == "EMA/7: health"
