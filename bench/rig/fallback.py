@@ -31,6 +31,7 @@ from bench.rig import baseline as B
 from bench.rig import population as P
 from bench.rig.cycles import Cycle, cycle_numbers, cycles_from_trace, load_unit, phases
 from bench.rig.features import cycle_features, verdict
+from bench.units import convert
 
 FLOOR_FACTOR = 2.0       # as bench.gap.rigcal.FLOOR_FACTOR (the calibration carries its own)
 AGAINST = ("auto", "model", "baseline")
@@ -245,14 +246,9 @@ def calibration_baseline(cal: dict[str, Any], cal_path: str
         return None, f"the calibration's baseline cannot be read: {exc}"
 
 
-NEWTONS = {"N": 1.0, "kN": 1e3, "kgf": 9.80665, "lbf": 4.4482216152605}
-
-
 def in_unit(load: float, unit: str, target: str) -> float:
     """`load` in `unit` expressed in `target` (unchanged when either is unknown)."""
-    if unit == target or unit not in NEWTONS or target not in NEWTONS:
-        return load
-    return load * NEWTONS[unit] / NEWTONS[target]
+    return convert(load, unit, target, "force")
 
 
 def match_load(base: B.Baseline, load: float) -> tuple[float | None, str]:
