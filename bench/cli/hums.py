@@ -254,7 +254,8 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def run_sweep(args: argparse.Namespace) -> int:
     from bench.hums import sweep as S
-    from bench.hums.table import check, replace_section
+    from bench.hums.table import replace_section
+    from bench.thesis_rows import check
     _check_args(args, "sweep")
     res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
                 scheduler=args.scheduler)
