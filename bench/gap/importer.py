@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.gap.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
+from bench.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
 from bench.trace import Trace
 from bench.units import UNITS
 
@@ -277,7 +277,7 @@ def _values(raw: dict[str, np.ndarray], e: MapEntry, rows: Rows) -> np.ndarray:
 
 
 def _check_types(by_sig: dict[str, MapEntry], rows: Rows) -> None:
-    """A timestamp or duration column (Parquet; read in seconds, `bench.gap.tables`)
+    """A timestamp or duration column (Parquet; read in seconds, `bench.tables`)
     maps only to the time t_s, with unit s and scale 1: any other use is a BenchError
     naming the column."""
     for sig, e in by_sig.items():
