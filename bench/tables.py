@@ -197,7 +197,7 @@ def _read_parquet(path: Path, columns: list[str] | None, text: bool, finite: boo
             continue
         if stamp:
             stamps.add(c)
-        inf = np.flatnonzero(np.isinf(out[c])) if finite else ()
+        inf = np.flatnonzero(np.isinf(out[c])) if finite else np.array([], dtype=int)
         if len(inf):
             raise BenchError(f"{rows.at(int(inf[0]))}: column {c!r} holds an infinite "
                              f"value ({out[c][inf[0]]}); {FINITE}")

@@ -4,9 +4,10 @@
   `bench.bus.logs.trace_from_log` (the bus's log decoder);
 - ``*.npz`` / ``*.csv`` / ``*.parquet``: a `bench.trace.Trace` file (e.g. from
   `bench import` or a saved run).
-Only measured columns are kept (simulation truth is dropped), and metadata is reduced
-to what a real log could carry (the command fundamental, if recorded) and what the
-decoder or the importer found missing or repeated in it (LOG_INTEGRITY).
+Both through the one log loader, `bench.bus.logs.load_trace`: only measured columns are
+kept (simulation truth is dropped), and metadata is reduced to what a real log could
+carry (the command fundamental, if recorded) and what the decoder or the importer found
+missing or repeated in it (`bench.bus.logs.LOG_INTEGRITY`).
 """
 
 from __future__ import annotations
@@ -19,14 +20,6 @@ from bench import BenchError
 from bench.trace import Trace
 from plant_rt.params import ParameterError, PlantParams
 
-LOG_INTEGRITY = ("sync_gaps", "sync_recovered", "missing_frames", "duplicate_frames",
-                 "replaced_frames", "out_of_order", "sorted_by_time", "nan_blocks")
-"""Metadata kept from a decoded log or an imported table: what it lost or repeated."""
-SAMPLING = ("sample_period_s", "resampled", "split")
-"""Metadata kept from an imported table: its own sample period, whether it was
-resampled, and the key values it was split by (`bench import --split-by`)."""
-
-
 BASELINE_FORMAT = "bench-rig-baseline/1"
 """The format tag of a healthy baseline file (`bench.rig.baseline` writes and checks it):
 defined here, below the rig, so `read_nominal` tells a baseline given as --nominal apart
@@ -38,18 +31,10 @@ class BaselineAsNominal(BenchError):
 
 
 def load_log(path: str | Path) -> Trace:
-    """A log or trace file as a Trace of measured columns (BenchError if unreadable)."""
+    """A log or trace file as a Trace of measured columns (`bench.bus.logs.load_trace`,
+    the one log loader, with ``measured``); BenchError if unreadable."""
     from bench.bus.logs import load_trace
-    tr = load_trace(path)
-    meta: dict[str, Any] = {"source": str(path)}
-    meta.update({k: v for k, v in (tr.meta or {}).items() if k in LOG_INTEGRITY})
-    meta.update({k: v for k, v in (tr.meta or {}).items() if k in SAMPLING})
-    f0 = (tr.meta or {}).get("fundamental_hz")
-    if isinstance(f0, (int, float)):
-        meta["fundamental_hz"] = float(f0)
-    out = tr.measured()
-    out.meta = meta
-    return out
+    return load_trace(path, measured=True)
 
 
 def read_nominal(path: str | Path) -> dict[str, Any]:

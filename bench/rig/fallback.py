@@ -38,17 +38,6 @@ AGAINST = ("auto", "model", "baseline")
 LOAD_TOLERANCE = 0.05    # a log's load matches a baseline load within 5 %
 
 
-def read_log(path: str | Path) -> Any:
-    """A trace file (read directly: no bus decoder to import) or a bus log."""
-    from bench.trace import Trace
-    if Path(path).suffix.lower() in (".npz", ".csv", ".parquet") and Path(path).exists():
-        tr = Trace.load(path)
-        tr.meta.setdefault("source", str(path))
-        return tr
-    from bench.bus.logs import load_trace
-    return load_trace(path)
-
-
 def log_cycles(trace: Any, name: str, run: int | None = None,
                skipped: list[str] | None = None) -> list[Cycle]:
     """The motion cycles of one log (`cycles.cycles_from_trace`; those it cannot read
@@ -69,12 +58,13 @@ def build_from_logs(paths: Sequence[str | Path], lead_mm: float | None,
     """The healthy baseline of `paths` and its thresholds per load (notes: which runs set
     them, or why a load has none). A log without a run key is its own run (its position
     in `paths`, from 1)."""
+    from bench.bus.logs import load_trace
     cycles: list[Cycle] = []
     sources: list[str] = []
     lost: list[str] = []
     unit = ""
     for k, p in enumerate(paths, start=1):
-        tr = read_log(p)
+        tr = load_trace(p)
         cycles += log_cycles(tr, Path(p).name, run=k, skipped=lost)
         src = Path(str(tr.meta.get("source", p))).name
         if src not in sources:
