@@ -13,6 +13,7 @@ missing or repeated in it (`bench.bus.logs.LOG_INTEGRITY`).
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,47 @@ without importing the rig (which imports this package)."""
 
 class BaselineAsNominal(BenchError):
     """A healthy baseline file given where a calibration or parameter file goes."""
+
+
+CALIBRATION_KINDS = {
+    "plant": "the thesis plant's uncertain parameters fitted to a healthy log (`bench "
+             "calibrate`): {\"params\": {dotted name: value}, ...}",
+    "actuator": "another actuator's generic nut-level model fitted to healthy logs "
+                "(`bench calibrate --actuator`): its description and values",
+}
+"""What a calibration file calibrates, by its ``kind`` field."""
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A calibration file's object (`doc`) and its `kind` (CALIBRATION_KINDS). A file
+    written before calibrations said their kind is told by its content: a generic
+    model's ``model`` name is an actuator's, a ``params`` object the plant's."""
+    kind: str
+    doc: dict[str, Any]
+
+    @classmethod
+    def of(cls, data: Any, path: str | Path = "calibration") -> Calibration | None:
+        """The calibration `data` is, None for another object (a parameter file); a
+        one-line BenchError for an unknown kind."""
+        if not isinstance(data, dict):
+            return None
+        kind = data.get("kind")
+        if kind is None:
+            if str(data.get("model", "")).startswith("generic"):
+                kind = "actuator"
+            elif isinstance(data.get("params"), dict):
+                kind = "plant"
+            else:
+                return None
+        if kind not in CALIBRATION_KINDS:
+            raise BenchError(f"{path}: unknown calibration kind {kind!r} (known: "
+                             f"{', '.join(CALIBRATION_KINDS)})")
+        return cls(str(kind), data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The file's object, its kind first."""
+        return {"kind": self.kind, **{k: v for k, v in self.doc.items() if k != "kind"}}
 
 
 def load_log(path: str | Path) -> Trace:
@@ -69,7 +111,8 @@ def nominal_params(data: dict[str, Any], path: str | Path) -> PlantParams:
     """The parameters of a --nominal file's object (`read_nominal`): a calibration's
     {"params": {dotted name: value}} on the thesis values, or a full parameter JSON."""
     try:
-        if "params" in data and isinstance(data["params"], dict):
+        cal = Calibration.of(data, path)
+        if cal is not None and cal.kind == "plant":
             return PlantParams().with_dict(data["params"])
         return PlantParams.from_dict(data)
     except ParameterError as exc:
