@@ -20,32 +20,11 @@ from bench.control import ControllerParams
 from bench.freqresp import FreqResponse, current_loop, position_loop, speed_loop
 from bench.harness import simulate
 from bench.profiles import make_profile, sine, step
+from bench.thesis_rows import Row
+from bench.thesis_rows import markdown as rows_table
 from bench.trace import Trace
 from plant_rt.contacts import helix_rad
 from plant_rt.params import PlantParams
-
-
-@dataclass
-class Row:
-    id: str
-    quantity: str
-    unit: str
-    thesis: float | str
-    project: float | str
-    note: str = ""
-
-    @property
-    def ratio(self) -> float:
-        if isinstance(self.thesis, (int, float)) and isinstance(self.project, (int, float)) \
-                and self.thesis != 0:
-            return float(self.project) / float(self.thesis)
-        return float("nan")
-
-    def to_json(self) -> dict[str, Any]:
-        r = self.ratio
-        return {"id": self.id, "quantity": self.quantity, "unit": self.unit,
-                "thesis": self.thesis, "project": self.project,
-                "ratio": None if math.isnan(r) else round(r, 4), "note": self.note}
 
 
 @dataclass
@@ -298,6 +277,25 @@ def run(params: PlantParams | None = None, cparams: ControllerParams | None = No
 
 
 # --------------------------------------------------------------------------- output
+def row_json(row: Row) -> dict[str, Any]:
+    """A row as `bench reproduce --json` writes it: the ratio to 4 decimals, the reason
+    as "note"."""
+    r = row.ratio
+    return {"id": row.id, "quantity": row.quantity, "unit": row.unit,
+            "thesis": row.thesis, "project": row.project,
+            "ratio": None if math.isnan(r) else round(r, 4), "note": row.why}
+
+
+def _page_reason(r: Row) -> str:
+    """The page's last cell: the reason of a row that differs by more than 10 %, of a
+    row compared in words, and of P4 (the load steps' note)."""
+    if _differs(r) and not r.why:
+        return "(no explanation recorded: a defect)"
+    if _differs(r) or not isinstance(r.thesis, (int, float)) or r.id == "P4":
+        return r.why
+    return ""
+
+
 def value_text(v: Any) -> str:
     """A thesis or project value as the page and the terminal table print it."""
     if isinstance(v, float):
@@ -316,17 +314,7 @@ def markdown(res: Result, machine: str = "", command: str = "bench reproduce") -
              ""]
     if machine:
         lines += [f"Machine: {machine}", ""]
-    lines += ["| id | quantity | unit | thesis | project | ratio | why they differ |",
-              "|---|---|---|---|---|---|---|"]
-    for r in res.rows:
-        ratio = r.ratio
-        rs = "" if math.isnan(ratio) else f"{ratio:.3f}"
-        note = r.note if (_differs(r) or not isinstance(r.thesis, (int, float))
-                          or r.id == "P4") else ""
-        if _differs(r) and not r.note:
-            note = "(no explanation recorded: a defect)"
-        lines.append(f"| {r.id} | {r.quantity} | {r.unit} | {value_text(r.thesis)} | "
-                     f"{value_text(r.project)} | {rs} | {note} |")
+    lines += rows_table(res.rows, value=value_text, reason=_page_reason).splitlines()
     if "P8" in res.extra:
         e = res.extra["P8"]
         lines += ["", "P8 check of the model against its own closed form (two nuts in parallel, "
@@ -452,5 +440,5 @@ def _fig_preload(res: Result) -> Any:
     return fig
 
 
-__all__ = ["run", "markdown", "figures", "Row", "Result", "make_profile",
+__all__ = ["run", "markdown", "figures", "row_json", "Row", "Result", "make_profile",
            "stiffness_deflection", "analytic_axial_stiffness"]

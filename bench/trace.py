@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import csv
 import errno
-import io
 import json
 import os
-import zipfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +30,17 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.tables import (  # noqa: F401 - the memory bounds are also the trace's
+    MEMORY_SHARE,
+    ROW_COPIES,
+    TRACE_FORMATS,
+    Rows,
+    max_rows,
+    memory_available,
+    read_table,
+)
+
+TABLE_FORMATS = TRACE_FORMATS
 
 MEASURED = ("t_s", "setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
             "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m", "load_force_n")
@@ -41,11 +50,6 @@ TRUTH = ("true_position_m", "true_current_a", "true_motor_speed_rad_s", "motor_t
 
 # ECU modes published on the bus (also a DBC value table)
 MODE_IDLE, MODE_POSITION, MODE_SPEED = 0, 1, 2
-TABLE_FORMATS = (".csv", ".parquet", ".npz")
-# a trace held in memory: 8-byte values, and up to 3 copies alive at once (the columns,
-# the temporaries of the set-point functions, the table built to save it)
-ROW_COPIES = 3
-MEMORY_SHARE = 0.5    # of the memory available when the run starts
 
 
 @dataclass
@@ -143,18 +147,15 @@ class Trace:
         path = Path(path)
         if not path.exists():
             raise BenchError(f"no such file: {path}")
-        suffix = path.suffix.lower()
-        if suffix not in TABLE_FORMATS:
-            raise BenchError(f"unknown table format {suffix!r} (use .csv, .parquet or .npz)")
         try:
-            cols, meta = _read_columns(path, suffix)
+            tab = read_table(path, formats=TRACE_FORMATS)
         except BenchError as exc:
             raise BenchError(f"{exc}; {NOT_A_TRACE}") from None
-        except IsADirectoryError:
-            raise BenchError(f"{path}: is a directory, not a trace file") from None
-        except Exception as exc:  # noqa: BLE001 - zipfile, numpy, json, pyarrow raise many types
-            raise BenchError(f"{path}: not a readable {suffix} trace ({type(exc).__name__}: "
-                             f"{exc})") from None
+        cols, meta = tab.columns, tab.meta
+        stamped = sorted(tab.rows.timestamps - {"t_s"})
+        if stamped:
+            raise BenchError(f"{path}: column {stamped[0]!r} holds timestamps (a Parquet "
+                             "timestamp type); only the time t_s may (read as seconds)")
         if not isinstance(meta, dict):
             raise BenchError(f"{path}: its metadata is not a JSON object but "
                              f"{type(meta).__name__}; {NOT_A_TRACE}")
@@ -165,7 +166,7 @@ class Trace:
             tr = cls(cols, meta)
         except BenchError as exc:
             raise BenchError(f"{path}: {exc}") from None
-        _check_loaded(path, tr, suffix)
+        _check_loaded(path, tr, tab.rows)
         return tr
 
 
@@ -188,70 +189,11 @@ NOT_A_TRACE = ("not a trace the bench wrote? A rig's own table is read with "
                "`bench import TABLE --map MAP` (docs/real-data.md)")
 
 
-def _read_columns(path: Path, suffix: str) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """The columns and metadata of a trace file (`Trace.load`); a CSV's bad row is a
-    BenchError ``PATH line N: ...``."""
-    if suffix == ".npz":
-        if not zipfile.is_zipfile(path):           # np.load would try it as a pickle
-            raise zipfile.BadZipFile("not a zip archive, as an .npz file is")
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["__meta__"])) if "__meta__" in z else {}
-            return {k: z[k] for k in z.files if k != "__meta__"}, meta
-    if suffix == ".csv":
-        text = path.read_text(encoding="utf-8-sig")       # a byte-order mark is dropped
-        return read_csv_columns(text, str(path)), {"source": str(path)}
-    import pyarrow.parquet as pq
-
-    table = pq.ParquetFile(path).read()         # (a dataset read fails on duplicates)
-    md = table.schema.metadata or {}
-    meta = json.loads(md.get(b"bench_meta", b"{}"))
-    unique_names(path, table.column_names, "column")
-    cols = {}
-    for n, col in zip(table.column_names, table.columns, strict=True):
-        cols[n], stamp = arrow_floats(col)
-        if stamp and n != "t_s":
-            raise BenchError(f"{path}: column {n!r} holds timestamps (a Parquet timestamp "
-                             "type); only the time t_s may (read as seconds)")
-    return cols, meta
-
-
-def arrow_floats(column: Any) -> tuple[np.ndarray, bool]:
-    """A pyarrow column as float64 and whether it was a timestamp or duration (then in
-    seconds: since the Unix epoch in UTC for a timestamp, whatever its own unit and
-    zone). TypeError/ValueError for a column that is not numbers."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-    kind = column.type
-    if pa.types.is_timestamp(kind) or pa.types.is_duration(kind):
-        unit = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[kind.unit]
-        ints = pc.cast(column, pa.int64()).to_numpy(zero_copy_only=False)
-        return np.asarray(ints, dtype=float) * unit, True
-    if pa.types.is_date(kind):
-        raise TypeError("a date column, not a time of day")
-    if not (pa.types.is_integer(kind) or pa.types.is_floating(kind)
-            or pa.types.is_boolean(kind) or pa.types.is_null(kind)
-            or pa.types.is_decimal(kind) or pa.types.is_dictionary(kind)):
-        raise TypeError(f"of type {kind}")
-    return column.to_numpy(zero_copy_only=False).astype(float), False
-
-
-def unique_names(path: Path | str, names: list[str], where: str,
-                 only: list[str] | None = None) -> None:
-    """BenchError naming a column name given twice (which one is meant is unknown); with
-    `only`, just those names are checked."""
-    for n in dict.fromkeys(names if only is None else only):
-        at = [i + 1 for i, h in enumerate(names) if h == n]
-        if len(at) > 1:
-            raise BenchError(f"{path} {where} {n!r} appears {len(at)} times in the header "
-                             f"(columns {', '.join(map(str, at))}): which one is meant is "
-                             "unknown; rename the others")
-
-
-def _check_loaded(path: Path, tr: Trace, suffix: str) -> None:
+def _check_loaded(path: Path, tr: Trace, rows: Rows) -> None:
     """BenchError naming `path` unless it has rows, t_s is finite and strictly increasing
     and no column holds an infinite value."""
     def row(i: int) -> str:
-        return f"line {i + 2}" if suffix == ".csv" else f"row {i + 1}"
+        return f"{rows.word} {int(rows.numbers[i])}" if i < len(rows.numbers) else f"row {i + 1}"
     t = tr.t
     if not len(t):
         raise BenchError(f"{path}: the trace has no rows (no sample to read)")
@@ -270,29 +212,6 @@ def _check_loaded(path: Path, tr: Trace, suffix: str) -> None:
         if len(inf):
             raise BenchError(f"{path} {row(int(inf[0]))}: column {name!r} holds an infinite "
                              "value (a missing value is NaN; inf is no measurement)")
-
-
-def memory_available() -> int:
-    """Bytes of memory available to a new allocation now (Linux ``MemAvailable``, else
-    the free physical pages)."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, AttributeError):
-        return 1 << 33
-
-
-def max_rows(n_columns: int, available: int | None = None) -> int:
-    """How many rows of `n_columns` float64 columns a trace may have: MEMORY_SHARE of the
-    memory available, counting ROW_COPIES copies of every row."""
-    avail = memory_available() if available is None else available
-    return int(avail * MEMORY_SHARE) // (8 * n_columns * ROW_COPIES)
 
 
 def probe_output(path: str | Path, what: str) -> Path:
@@ -323,31 +242,6 @@ def check_save_path(path: str | Path) -> Path:
     if suffix not in TABLE_FORMATS:
         raise BenchError(f"--save: unknown table format {suffix!r} (use .csv, .parquet or .npz)")
     return probe_output(path, "trace")
-
-
-def read_csv_columns(text: str, source: str = "CSV") -> dict[str, np.ndarray]:
-    """Numeric columns of a CSV text with a header row; clear errors on bad rows
-    (``{source} line N: ...``)."""
-    rows = list(csv.reader(io.StringIO(text)))
-    if not rows:
-        raise BenchError(f"{source}: empty CSV table")
-    header = [h.strip() for h in rows[0]]
-    unique_names(source, header, "line 1: column")
-    data: list[list[float]] = []
-    for lineno, row in enumerate(rows[1:], start=2):
-        if not row:
-            continue
-        if len(row) != len(header):
-            raise BenchError(f"{source} line {lineno}: {len(row)} fields, header has "
-                             f"{len(header)}")
-        try:
-            data.append([float(x) if x.strip() else float("nan") for x in row])
-        except ValueError:
-            bad = next(j for j, x in enumerate(row) if x.strip() and not is_number(x))
-            raise BenchError(f"{source} line {lineno}: column {header[bad]!r} is not a number "
-                             f"({row[bad].strip()!r})") from None
-    arr = np.array(data, dtype=float).reshape(-1, len(header))
-    return {h: arr[:, i].copy() for i, h in enumerate(header)}
 
 
 def is_number(x: str) -> bool:

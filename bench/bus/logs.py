@@ -28,7 +28,7 @@ needs the whole log and is done here only.
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -64,6 +64,7 @@ from bench.bus.rows import (
     trace_columns,
 )
 from bench.bus.sdo import SdoTracker, sdo_values, serial_of
+from bench.tables import TRACE_FORMATS
 from bench.trace import Trace
 from ema_contract.frames import Frames, load_od
 from ema_contract.states import Pace
@@ -72,7 +73,7 @@ from plant_rt.params import ParameterError, PlantParams
 
 __all__ = ["COLUMNS", "FD_LENGTHS", "LINE", "MAX_EMCY_KEPT", "MAX_LINE", "MAX_LOST_SYNCS",
            "OUT_OF_ORDER_S", "ROW_FRAMES", "SIGNAL_COLUMNS", "LogIssue", "LogIssues",
-           "SdoTracker", "integrity", "load_trace", "parse_line", "read_frames", "read_log",
+           "LOG_READERS", "SdoTracker", "integrity", "load_trace", "parse_line", "read_frames", "read_log",
            "report_issues",
            "time_ordered", "trace_from_log", "trace_from_messages"]
 
@@ -342,25 +343,66 @@ class _Counted:
 
 
 
-TABLE_SUFFIXES = (".npz", ".csv", ".parquet")
+TABLE_SUFFIXES = TRACE_FORMATS
+"""The trace tables a log may also be (`bench.tables.TRACE_FORMATS`)."""
+LOG_INTEGRITY = ("sync_gaps", "sync_recovered", "missing_frames", "duplicate_frames",
+                 "replaced_frames", "out_of_order", "sorted_by_time", "nan_blocks")
+"""Metadata kept from a decoded log or an imported table: what it lost or repeated."""
+SAMPLING = ("sample_period_s", "resampled", "split")
+"""Metadata kept from an imported table: its own sample period, whether it was
+resampled, and the key values it was split by (`bench import --split-by`)."""
 
 
-def load_trace(path: str | Path, fmt: str | None = None) -> Trace:
-    """A bus log (LOG_FORMATS, decoded through the DBC; ``-``: standard input, `fmt`: the
-    format where the suffix does not say it) or a saved trace table (.npz, .csv, .parquet)
-    as a Trace; BenchError naming the file when it cannot be read."""
+def _decoded(path: str | Path, fmt: str | None) -> Trace:
+    return trace_from_log(path, fmt=fmt)
+
+
+def _table(path: str | Path, fmt: str | None) -> Trace:
+    return Trace.load(path)
+
+
+LOG_READERS: dict[str, Callable[[str | Path, str | None], Trace]] = {
+    **{s: _decoded for s in LOG_FORMATS}, **{s: _table for s in TABLE_SUFFIXES}}
+"""Log suffix -> its loader, as python-can's ``can.io.MESSAGE_READERS``: a bus log of
+LOG_FORMATS decoded through the DBC (python-can's readers underneath, candump ``.log``
+by the tolerant line reader), or a trace table (`bench.trace.Trace.load`)."""
+
+
+def known_logs() -> str:
+    """The log suffixes in words, for a message."""
+    return (", ".join(f"{s} ({d})" for s, d in LOG_FORMATS.items())
+            + f", or a trace {', '.join(TABLE_SUFFIXES)}")
+
+
+def load_trace(path: str | Path, fmt: str | None = None, measured: bool = False) -> Trace:
+    """The one log loader: a bus log or a saved trace table as a Trace, by the loader of
+    its suffix (`LOG_READERS`; ``-``: standard input, candump -L unless `fmt` names the
+    format; `fmt` also where the suffix does not say it); BenchError in one line naming
+    the file, and for an unknown suffix the known ones. `measured`: only the measured
+    columns (simulation truth dropped) and the metadata a real log could carry (the
+    command fundamental, LOG_INTEGRITY, SAMPLING), as the gap and calibration read."""
     if is_stdin(path) or fmt:
-        return trace_from_log(path, fmt=fmt)
-    path = Path(path)
-    if not path.exists():
-        raise BenchError(f"no such file: {path}")
-    suffix = path.suffix.lower()
-    if suffix in LOG_FORMATS:
-        tr = trace_from_log(path)
-    elif suffix in TABLE_SUFFIXES:
-        tr = Trace.load(path)
+        tr = trace_from_log(path, fmt=fmt)
     else:
-        raise BenchError(f"{path}: unknown log format {suffix!r} (a bus log "
-                         f"{', '.join(LOG_FORMATS)}, or a trace {', '.join(TABLE_SUFFIXES)})")
+        path = Path(path)
+        if not path.exists():
+            raise BenchError(f"no such file: {path}")
+        suffix = path.suffix.lower()
+        if suffix not in LOG_READERS:
+            raise BenchError(f"{path}: unknown log format {suffix or '(no suffix)'!r} (use "
+                             f"{known_logs()})")
+        tr = LOG_READERS[suffix](path, None)
     tr.meta.setdefault("source", str(path))
-    return tr
+    return _measured(tr, path) if measured else tr
+
+
+def _measured(tr: Trace, path: str | Path) -> Trace:
+    meta: dict[str, Any] = {"source": str(path)}
+    meta.update({k: v for k, v in (tr.meta or {}).items() if k in LOG_INTEGRITY})
+    meta.update({k: v for k, v in (tr.meta or {}).items() if k in SAMPLING})
+    f0 = (tr.meta or {}).get("fundamental_hz")
+    if isinstance(f0, (int, float)):
+        meta["fundamental_hz"] = float(f0)
+    out = tr.measured()
+    out.meta = meta
+    return out

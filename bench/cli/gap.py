@@ -317,7 +317,8 @@ def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
     from bench.rig import fallback as FB
     assert isinstance(ref, FB.Reference) and ref.baseline is not None
     t0 = time.perf_counter()
-    log = FB.read_log(args.log)
+    from bench.bus.logs import load_trace
+    log = load_trace(args.log)
     try:
         res = FB.assess(ref.baseline, log, Path(args.log).name)
     except BenchError as exc:

@@ -254,7 +254,8 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def run_sweep(args: argparse.Namespace) -> int:
     from bench.hums import sweep as S
-    from bench.hums.table import check, replace_section
+    from bench.hums.table import replace_section
+    from bench.thesis_rows import check
     _check_args(args, "sweep")
     res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
                 scheduler=args.scheduler)
@@ -378,14 +379,14 @@ def _rig_report(args: argparse.Namespace) -> bool:
     """Whether the logs go to the report of another actuator (bench.rig.hums): a
     calibration or baseline is given, or a trace lacks what the monitoring model needs.
     A mix of both kinds of log is refused (one report each)."""
-    from bench.rig.fallback import read_log
+    from bench.bus.logs import load_trace
     from bench.rig.hums import is_rig_log
     if args.nominal or args.baseline or args.against != "auto":
         return True
     kinds = {}
     for p in args.logs:
         if Path(p).suffix.lower() in (".npz", ".csv", ".parquet"):
-            kinds[p] = is_rig_log(read_log(p))
+            kinds[p] = is_rig_log(load_trace(p))
         else:
             kinds[p] = False                 # a bus log decodes to the bench's signals
     if len(set(kinds.values())) > 1:

@@ -8,6 +8,8 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from bench import units
+
 if TYPE_CHECKING:
     from bench.trace import Trace
 
@@ -27,9 +29,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                     "signal,column,unit,scale[,wrap,minus]. "
                     "Signals: t_s, setpoint_position_m, setpoint_speed_rad_s, mode, "
                     "current_demand_a, current_a, motor_speed_rad_s, motor_angle_rad, "
-                    "position_m, load_force_n (load cell). Units: time s/ms/us/ns/min, "
-                    "length m/mm/um/in, speed rad/s/rpm/deg/s/rev/s, angle rad/deg/rev, "
-                    "current A/mA, force N/kN/lbf/kgf, mode -.")
+                    "position_m, load_force_n (load cell). Units: " + units.summary() + ".")
     p.add_argument("table", metavar="TABLE",
                    help="CSV (also .csv.xz/.gz/.bz2) or Parquet table")
     p.add_argument("--map", required=True, metavar="MAP", help="column map (.json or .csv)")

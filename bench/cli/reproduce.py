@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         doc.write_text(_page(res, elapsed, doc_figs, doc, f"bench reproduce --doc {doc}"))
         written += [doc, *doc_figs]
     if args.json:
-        Path(args.json).write_text(json.dumps([r.to_json() for r in res.rows], indent=2))
+        Path(args.json).write_text(json.dumps([R.row_json(r) for r in res.rows], indent=2))
         written.append(Path(args.json))
     print(terminal_table(res.rows))
     for p in written + figs:

@@ -13,6 +13,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bench.units import FORCE
+
 DESCRIPTIONS = {
     "baseline": "A healthy baseline from the given healthy runs: per load, set-point "
         "phase, direction and aligned sample, the mean and pooled spread of "
@@ -71,8 +73,8 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "baseline is not); the result goes to --out, the old file stays")
     b.add_argument("--force", action="store_true",
                    help="with --update: add a run judged a change anyway")
-    b.add_argument("--load-unit", choices=("N", "kN", "kgf", "lbf"), metavar="UNIT",
-                   help="unit of a rig table's load column (N, kN, kgf, lbf), so that a log "
+    b.add_argument("--load-unit", choices=tuple(FORCE), metavar="UNIT",
+                   help=f"unit of a rig table's load column ({', '.join(FORCE)}), so that a log "
                         "whose load is logged in N is matched to it; `bench import` traces "
                         "carry theirs")
     _common(b)

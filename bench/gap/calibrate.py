@@ -43,6 +43,7 @@ from bench.gap.candidate import bound_scale
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect, Param
 from bench.gap.fit import fit
+from bench.gap.inputs import Calibration
 from bench.gap.problem import Problem, build, with_rate
 from bench.trace import Trace
 from plant_rt.params import PlantParams, resolve
@@ -194,7 +195,7 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
               "may then need it moved back)" for k, z in distance.items() if abs(z) > FAR_SD]
     notes += [f"{k} ended on its bound: the log asks for more than the range allows"
               for k in edge]
-    return {
+    return Calibration("plant", {
         "model": model,
         "fidelity": "fast mode (averaged PWM, massless balls)",
         "controller": {"method": controller, "doc": CONTROLLERS[controller],
@@ -211,7 +212,7 @@ def calibrate(trace: Trace, base: PlantParams | None = None,
         "noise_sigma": p.noise_sigma,
         "samples": p.n, "fit_samples": p.n_fit,
         "notes": notes,
-    }
+    }).to_dict()
 
 
 FAR_SD = 2.0

@@ -50,8 +50,9 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.gap.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
+from bench.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
 from bench.trace import Trace
+from bench.units import UNITS
 
 __all__ = ["COMPRESSED", "FINITE", "MapEntry", "Rows", "build_trace", "import_table",
            "map_columns", "read_map", "read_rows", "read_table", "split_table"]
@@ -61,16 +62,6 @@ QUANTITY = {
     "setpoint_speed_rad_s": "speed", "motor_speed_rad_s": "speed",
     "motor_angle_rad": "angle", "current_a": "current", "current_demand_a": "current",
     "mode": "mode", "load_force_n": "force",
-}
-UNITS: dict[str, dict[str, float]] = {
-    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9, "min": 60.0},
-    "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},
-    "speed": {"rad/s": 1.0, "rpm": 2 * math.pi / 60, "deg/s": math.pi / 180,
-              "rev/s": 2 * math.pi},
-    "angle": {"rad": 1.0, "deg": math.pi / 180, "rev": 2 * math.pi},
-    "current": {"A": 1.0, "mA": 1e-3},
-    "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605, "kgf": 9.80665},
-    "mode": {"-": 1.0, "": 1.0},
 }
 
 
@@ -286,7 +277,7 @@ def _values(raw: dict[str, np.ndarray], e: MapEntry, rows: Rows) -> np.ndarray:
 
 
 def _check_types(by_sig: dict[str, MapEntry], rows: Rows) -> None:
-    """A timestamp or duration column (Parquet; read in seconds, `bench.gap.tables`)
+    """A timestamp or duration column (Parquet; read in seconds, `bench.tables`)
     maps only to the time t_s, with unit s and scale 1: any other use is a BenchError
     naming the column."""
     for sig, e in by_sig.items():

@@ -4,28 +4,22 @@
   `bench.bus.logs.trace_from_log` (the bus's log decoder);
 - ``*.npz`` / ``*.csv`` / ``*.parquet``: a `bench.trace.Trace` file (e.g. from
   `bench import` or a saved run).
-Only measured columns are kept (simulation truth is dropped), and metadata is reduced
-to what a real log could carry (the command fundamental, if recorded) and what the
-decoder or the importer found missing or repeated in it (LOG_INTEGRITY).
+Both through the one log loader, `bench.bus.logs.load_trace`: only measured columns are
+kept (simulation truth is dropped), and metadata is reduced to what a real log could
+carry (the command fundamental, if recorded) and what the decoder or the importer found
+missing or repeated in it (`bench.bus.logs.LOG_INTEGRITY`).
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bench import BenchError
 from bench.trace import Trace
 from plant_rt.params import ParameterError, PlantParams
-
-LOG_INTEGRITY = ("sync_gaps", "sync_recovered", "missing_frames", "duplicate_frames",
-                 "replaced_frames", "out_of_order", "sorted_by_time", "nan_blocks")
-"""Metadata kept from a decoded log or an imported table: what it lost or repeated."""
-SAMPLING = ("sample_period_s", "resampled", "split")
-"""Metadata kept from an imported table: its own sample period, whether it was
-resampled, and the key values it was split by (`bench import --split-by`)."""
-
 
 BASELINE_FORMAT = "bench-rig-baseline/1"
 """The format tag of a healthy baseline file (`bench.rig.baseline` writes and checks it):
@@ -37,19 +31,52 @@ class BaselineAsNominal(BenchError):
     """A healthy baseline file given where a calibration or parameter file goes."""
 
 
+CALIBRATION_KINDS = {
+    "plant": "the thesis plant's uncertain parameters fitted to a healthy log (`bench "
+             "calibrate`): {\"params\": {dotted name: value}, ...}",
+    "actuator": "another actuator's generic nut-level model fitted to healthy logs "
+                "(`bench calibrate --actuator`): its description and values",
+}
+"""What a calibration file calibrates, by its ``kind`` field."""
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A calibration file's object (`doc`) and its `kind` (CALIBRATION_KINDS). A file
+    written before calibrations said their kind is told by its content: a generic
+    model's ``model`` name is an actuator's, a ``params`` object the plant's."""
+    kind: str
+    doc: dict[str, Any]
+
+    @classmethod
+    def of(cls, data: Any, path: str | Path = "calibration") -> Calibration | None:
+        """The calibration `data` is, None for another object (a parameter file); a
+        one-line BenchError for an unknown kind."""
+        if not isinstance(data, dict):
+            return None
+        kind = data.get("kind")
+        if kind is None:
+            if str(data.get("model", "")).startswith("generic"):
+                kind = "actuator"
+            elif isinstance(data.get("params"), dict):
+                kind = "plant"
+            else:
+                return None
+        if kind not in CALIBRATION_KINDS:
+            raise BenchError(f"{path}: unknown calibration kind {kind!r} (known: "
+                             f"{', '.join(CALIBRATION_KINDS)})")
+        return cls(str(kind), data)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The file's object, its kind first."""
+        return {"kind": self.kind, **{k: v for k, v in self.doc.items() if k != "kind"}}
+
+
 def load_log(path: str | Path) -> Trace:
-    """A log or trace file as a Trace of measured columns (BenchError if unreadable)."""
+    """A log or trace file as a Trace of measured columns (`bench.bus.logs.load_trace`,
+    the one log loader, with ``measured``); BenchError if unreadable."""
     from bench.bus.logs import load_trace
-    tr = load_trace(path)
-    meta: dict[str, Any] = {"source": str(path)}
-    meta.update({k: v for k, v in (tr.meta or {}).items() if k in LOG_INTEGRITY})
-    meta.update({k: v for k, v in (tr.meta or {}).items() if k in SAMPLING})
-    f0 = (tr.meta or {}).get("fundamental_hz")
-    if isinstance(f0, (int, float)):
-        meta["fundamental_hz"] = float(f0)
-    out = tr.measured()
-    out.meta = meta
-    return out
+    return load_trace(path, measured=True)
 
 
 def read_nominal(path: str | Path) -> dict[str, Any]:
@@ -84,7 +111,8 @@ def nominal_params(data: dict[str, Any], path: str | Path) -> PlantParams:
     """The parameters of a --nominal file's object (`read_nominal`): a calibration's
     {"params": {dotted name: value}} on the thesis values, or a full parameter JSON."""
     try:
-        if "params" in data and isinstance(data["params"], dict):
+        cal = Calibration.of(data, path)
+        if cal is not None and cal.kind == "plant":
             return PlantParams().with_dict(data["params"])
         return PlantParams.from_dict(data)
     except ParameterError as exc:

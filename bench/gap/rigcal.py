@@ -33,6 +33,7 @@ from bench import BenchError
 from bench.actuator import Actuator, model_values
 from bench.estimators import noise_floor
 from bench.gap import rigmodel as RM
+from bench.gap.inputs import Calibration
 from bench.trace import Trace
 
 METHODS = ("auto", "fit-gains", "measured-current")
@@ -273,7 +274,7 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     unscored = not_scored(fit_scores, held, holdout)
     notes += [f"held-out {u['log']}: {u['signal']} not scored ({u['reason']}): only "
               f"{', '.join(u['scored']) or 'nothing'} judged on it" for u in unscored]
-    return {
+    return Calibration("actuator", {
         "model": "generic nut-level model (bench.gap.rigmodel)",
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,
         "actuator_description": act.to_dict(),
@@ -288,7 +289,7 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
         "reaches_noise_floor": reach,
         "floor_factor": FLOOR_FACTOR, "notes": notes,
         "seconds": round(time.perf_counter() - t0, 3),
-    }
+    }).to_dict()
 
 
 def not_scored(fit_scores: Sequence[dict[str, Any]], held: Sequence[dict[str, Any]],

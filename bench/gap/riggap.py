@@ -34,6 +34,7 @@ from bench import BenchError
 from bench.actuator import Actuator, from_dict
 from bench.gap import rigcal as RC
 from bench.gap import rigmodel as RM
+from bench.gap.inputs import Calibration
 from bench.hums import formulas as F
 from bench.trace import Trace
 
@@ -63,8 +64,10 @@ NBINS = 10
 
 
 def is_rig_doc(data: Any) -> bool:
-    """Whether a JSON object is a calibration of `bench calibrate --actuator`."""
-    return isinstance(data, dict) and str(data.get("model", "")).startswith("generic")
+    """Whether a JSON object is a calibration of `bench calibrate --actuator` (kind
+    "actuator", `bench.gap.inputs.Calibration`)."""
+    cal = Calibration.of(data)
+    return cal is not None and cal.kind == "actuator"
 
 
 def calibration_of(cal: dict[str, Any], path: str | Path) -> tuple[dict[str, Any], Actuator]:

@@ -38,12 +38,6 @@ from plant_rt.params import PlantParams
 MIN_PERIODS_FOR_TREND = 6
 
 
-def load_log(path: str | Path) -> Trace:
-    """A Trace from a candump log (through the DBC) or a trace table."""
-    from bench.bus.logs import load_trace
-    return load_trace(path)
-
-
 def command_frequency(trace: Trace) -> float:
     """The command frequency (Hz): the trace's metadata, else the strongest line of the
     set-point spectrum (NaN for a non-periodic command such as a step)."""
@@ -494,10 +488,11 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
     """Analyse every log and write ``report.html`` (and ``indexes.json``) into out_dir."""
     if not paths:
         raise BenchError("give at least one log")
+    from bench.bus.logs import load_trace
     from bench.filenames import distinct_labels
     analyses = []
     for p, label in zip(paths, distinct_labels(paths), strict=True):
-        tr = load_log(p)
+        tr = load_trace(p)
         analyses.append(analyse(tr, label, params, rul, period_s, progress))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

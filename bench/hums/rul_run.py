@@ -42,8 +42,9 @@ from bench.hums.rul import (
     thesis_predict,
     thesis_profile,
 )
-from bench.hums.table import Row, figure_links
-from bench.hums.table import markdown as table
+from bench.hums.table import figure_links
+from bench.thesis_rows import Row
+from bench.thesis_rows import markdown as table
 from bench.workers import run_all
 from plant_rt.params import PlantParams
 

@@ -28,9 +28,10 @@ from bench import BenchError, machine_description
 from bench.harness import simulate
 from bench.hums import indexes as I
 from bench.hums import monitor as M
-from bench.hums.table import Row, figure_links
-from bench.hums.table import markdown as table
+from bench.hums.table import figure_links
 from bench.profiles import make_profile
+from bench.thesis_rows import Row
+from bench.thesis_rows import markdown as table
 from bench.workers import run_all
 from plant_rt.params import PlantParams
 

@@ -1,80 +1,12 @@
-"""Rows of thesis value vs project value, their markdown table and generated doc sections."""
+"""Generated doc sections: a page's text between markers replaced, figure links (the rows
+themselves and their table: `bench.thesis_rows`)."""
 
 from __future__ import annotations
 
-import math
 import re
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from bench import BenchError
-
-
-@dataclass
-class Row:
-    """One reproduced number: `thesis` is a number or the thesis' words; `project` is
-    what the bench measured. `why` explains a difference above 10 % (or a qualitative
-    mismatch); it is required for those rows (`check`)."""
-    id: str
-    quantity: str
-    unit: str
-    thesis: Any
-    project: Any
-    why: str = ""
-
-    @property
-    def ratio(self) -> float:
-        if _num(self.thesis) and _num(self.project) and float(self.thesis) != 0:
-            return float(self.project) / float(self.thesis)
-        return math.nan
-
-    def needs_reason(self) -> bool:
-        r = self.ratio
-        return math.isfinite(r) and abs(r - 1.0) > 0.10
-
-    def to_json(self) -> dict[str, Any]:
-        def enc(v: Any) -> Any:
-            if isinstance(v, float) and not math.isfinite(v):
-                return None
-            return v
-        return {"id": self.id, "quantity": self.quantity, "unit": self.unit,
-                "thesis": enc(self.thesis), "project": enc(self.project),
-                "ratio": enc(self.ratio), "why": self.why}
-
-
-def _num(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
-
-
-def fmt(v: Any) -> str:
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            return "-"
-        a = abs(v)
-        if a != 0 and (a >= 1e5 or a < 1e-3):
-            return f"{v:.4g}"
-        return f"{v:.4g}"
-    return str(v)
-
-
-def check(rows: list[Row]) -> list[str]:
-    """Ids of rows that differ by more than 10 % and give no reason."""
-    return [r.id for r in rows if r.needs_reason() and not r.why.strip()]
-
-
-def markdown(rows: list[Row]) -> str:
-    out = ["| id | quantity | unit | thesis | project | ratio | why they differ |",
-           "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        ratio = r.ratio
-        rs = f"{ratio:.3f}" if math.isfinite(ratio) else ""
-        cells = [r.id, r.quantity, r.unit, fmt(r.thesis), fmt(r.project), rs, r.why]
-        out.append("| " + " | ".join(c.replace("\n", " ").replace("|", "\\|")
-                                     for c in cells) + " |")
-    return "\n".join(out) + "\n"
 
 
 def replace_section(path: str | Path, name: str, body: str) -> Path:

@@ -28,13 +28,16 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.tables import COMPRESSED, file_suffixes, read_table
 
 # the signals a cycle needs and the Cranfield table's column for each
 DEFAULT_COLUMNS: dict[str, str] = {
     "setpoint": "set_point", "position_error": "position_error", "current": "current",
     "load": "load", "run": "run", "group": "group", "time": "time",
 }
-SUFFIXES = (".csv", ".csv.xz", ".csv.gz", ".csv.bz2", ".parquet", ".npz")
+RIG_FORMATS = (".csv", ".parquet")
+"""The rig tables `read_columns` reads (CSV also compressed; a trace is also .npz)."""
+SUFFIXES = file_suffixes((*RIG_FORMATS, ".npz"))
 MOVING_FRACTION = 0.02     # |set-point step| above this share of the largest step: moving
 RAMP_FRACTION = 0.9        # |set-point speed| below this share of the stroke's median: ramp
 
@@ -131,51 +134,20 @@ def condition_family(condition: str) -> str:
 
 def read_columns(path: str | Path, text: dict[str, np.ndarray] | None = None
                  ) -> dict[str, np.ndarray]:
-    """Every numeric column of a CSV (plain or xz/gz/bz2) or Parquet table; a column that
-    is not all numbers (the Cranfield table's text column `profile`, or a number column
-    with a text cell) is left out, or put in `text` (when given) as its cells' strings."""
-    path = Path(path)
-    if not path.exists():
-        raise BenchError(f"no such table: {path}")
-    low = path.name.lower()
-    try:
-        if low.endswith(".parquet"):
-            import pyarrow.parquet as pq
-            table = pq.read_table(path)
-        elif low.endswith((".csv", ".csv.xz", ".csv.gz", ".csv.bz2")):
-            import pyarrow.csv as pacsv
-            table = pacsv.read_csv(io.BytesIO(_decompressed(path)))
-        else:
-            raise BenchError(f"{path}: unknown table format (use {', '.join(SUFFIXES)})")
-    except BenchError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - pyarrow and the codecs raise many types
-        raise BenchError(f"{path}: cannot read the table ({type(exc).__name__}: {exc})"
-                         ) from None
-    out = {}
-    for name in table.column_names:
-        col = table.column(name)
-        try:
-            out[name] = col.to_numpy(zero_copy_only=False).astype(float)
-        except (ValueError, TypeError):
-            if text is not None:
-                text[name] = np.array([None if x is None else str(x)
-                                       for x in col.to_pylist()], dtype=object)
-    return out
+    """Every numeric column of a CSV (plain or xz/gz/bz2) or Parquet table
+    (`bench.tables.read_table`); a column that is not all numbers (the Cranfield table's
+    text column `profile`, or a number column with a text cell) is left out, or put in
+    `text` (when given) as its cells' strings (None for a blank cell)."""
+    tab = read_table(path, formats=RIG_FORMATS, text=True)
+    if text is not None:
+        text.update(tab.text)
+    return tab.columns
 
 
 def _decompressed(path: Path) -> bytes:
-    low = path.name.lower()
-    if low.endswith(".xz"):
-        import lzma
-        return lzma.decompress(path.read_bytes())
-    if low.endswith(".gz"):
-        import gzip
-        return gzip.decompress(path.read_bytes())
-    if low.endswith(".bz2"):
-        import bz2
-        return bz2.decompress(path.read_bytes())
-    return path.read_bytes()
+    with COMPRESSED.get(path.suffix.lower(), open)(path, "rb") as fh:
+        data: bytes = fh.read()
+    return data
 
 
 MIN_SAMPLES = 8          # a cycle shorter than this is not read

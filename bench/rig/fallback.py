@@ -31,21 +31,11 @@ from bench.rig import baseline as B
 from bench.rig import population as P
 from bench.rig.cycles import Cycle, cycle_numbers, cycles_from_trace, load_unit, phases
 from bench.rig.features import cycle_features, verdict
+from bench.units import convert
 
 FLOOR_FACTOR = 2.0       # as bench.gap.rigcal.FLOOR_FACTOR (the calibration carries its own)
 AGAINST = ("auto", "model", "baseline")
 LOAD_TOLERANCE = 0.05    # a log's load matches a baseline load within 5 %
-
-
-def read_log(path: str | Path) -> Any:
-    """A trace file (read directly: no bus decoder to import) or a bus log."""
-    from bench.trace import Trace
-    if Path(path).suffix.lower() in (".npz", ".csv", ".parquet") and Path(path).exists():
-        tr = Trace.load(path)
-        tr.meta.setdefault("source", str(path))
-        return tr
-    from bench.bus.logs import load_trace
-    return load_trace(path)
 
 
 def log_cycles(trace: Any, name: str, run: int | None = None,
@@ -68,12 +58,13 @@ def build_from_logs(paths: Sequence[str | Path], lead_mm: float | None,
     """The healthy baseline of `paths` and its thresholds per load (notes: which runs set
     them, or why a load has none). A log without a run key is its own run (its position
     in `paths`, from 1)."""
+    from bench.bus.logs import load_trace
     cycles: list[Cycle] = []
     sources: list[str] = []
     lost: list[str] = []
     unit = ""
     for k, p in enumerate(paths, start=1):
-        tr = read_log(p)
+        tr = load_trace(p)
         cycles += log_cycles(tr, Path(p).name, run=k, skipped=lost)
         src = Path(str(tr.meta.get("source", p))).name
         if src not in sources:
@@ -245,14 +236,9 @@ def calibration_baseline(cal: dict[str, Any], cal_path: str
         return None, f"the calibration's baseline cannot be read: {exc}"
 
 
-NEWTONS = {"N": 1.0, "kN": 1e3, "kgf": 9.80665, "lbf": 4.4482216152605}
-
-
 def in_unit(load: float, unit: str, target: str) -> float:
     """`load` in `unit` expressed in `target` (unchanged when either is unknown)."""
-    if unit == target or unit not in NEWTONS or target not in NEWTONS:
-        return load
-    return load * NEWTONS[unit] / NEWTONS[target]
+    return convert(load, unit, target, "force")
 
 
 def match_load(base: B.Baseline, load: float) -> tuple[float | None, str]:

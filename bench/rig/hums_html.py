@@ -344,8 +344,9 @@ def write_rig_report(paths: list[str], out_dir: str | Path, nominal: str | None 
         raise BenchError("give at least one log")
     cal = H.calibration_file(nominal) if nominal is not None else None
     ref = FB.choose(cal, nominal, baseline, against)
+    from bench.bus.logs import load_trace
     from bench.filenames import distinct_labels
-    analyses = [H.analyse_rig(FB.read_log(p), label, ref)
+    analyses = [H.analyse_rig(load_trace(p), label, ref)
                 for p, label in zip(paths, distinct_labels(paths), strict=True)]
     return write_files(analyses, out_dir), analyses
 

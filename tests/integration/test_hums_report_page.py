@@ -10,6 +10,7 @@ from html.parser import HTMLParser
 import numpy as np
 import pytest
 
+from bench.bus.logs import load_trace
 from bench.cli import main
 from bench.harness import simulate
 from bench.hums import fusion as F
@@ -105,7 +106,7 @@ def test_rul_figure_has_a_median_and_a_band_upright(noisy_logs, monkeypatch):
     not, and a band whose upper edge is nowhere below its lower one (both clipped alike);
     the words say 'no failure predicted' and why, never 'inf'."""
     from matplotlib.figure import Figure
-    a = HR.analyse(HR.load_log(noisy_logs / "worn.npz"), "worn.npz", rul=False)
+    a = HR.analyse(load_trace(noisy_logs / "worn.npz"), "worn.npz", rul=False)
     b = [10.0 * k for k in range(11)]
     cal = F.Calibration(b, {}, [1 - 0.0046 * x for x in b], {}, {}, {}, 0.98, 0.8, 89.7)
     est = np.full(len(a.period_table["ci"]), 50.0)

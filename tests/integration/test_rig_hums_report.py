@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from bench import BenchError
+from bench.bus.logs import load_trace
 from bench.cli import main
 from bench.rig import fallback as FB
 
@@ -158,7 +159,7 @@ def test_reference_choice_and_a_log_set_that_cannot_make_a_baseline(data, tmp_pa
 
 def test_cycles_that_do_not_repeat_one_setpoint_make_no_baseline(data):
     from bench.rig.baseline import build
-    cycles = [c for f in FIT[:4] for c in FB.log_cycles(FB.read_log(data / "n" / f), f)]
+    cycles = [c for f in FIT[:4] for c in FB.log_cycles(load_trace(data / "n" / f), f)]
     cycles[0].setpoint_mm = cycles[0].setpoint_mm * 0.8 + 4.0   # a shorter stroke
     with pytest.raises(BenchError, match="do not repeat one set-point profile"):
         build(cycles)

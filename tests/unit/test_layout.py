@@ -388,3 +388,67 @@ def test_the_layout_checks_see_the_sources():
     assert {"bench/gap/report.py", "bench/fleet/report.py", "bench/rig/hums_html.py",
             "bench/hums/report.py", "bench/rig/report.py"} <= set(SOURCES)
     assert not any(rel.startswith(REPORTS) for rel in SOURCES)
+
+
+UNITS_MODULE = "bench/units.py"
+FORCE_FACTORS = (9.80665, 4.4482216152605)       # kgf and lbf in newtons
+
+
+def _bench_trees() -> list[tuple[str, ast.AST]]:
+    return [(rel, ast.parse(path.read_text())) for rel, path in
+            ((p.relative_to(ROOT).as_posix(), p) for p in MODULES.values())
+            if rel.startswith("bench/")]
+
+
+def test_one_units_table():
+    """Unit factors live in `bench.units` only: no kgf/lbf factor as a number, and no
+    table keyed by a force unit, in another module."""
+    own = []
+    for rel, tree in _bench_trees():
+        if rel == UNITS_MODULE:
+            continue
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Constant) and isinstance(n.value, float) \
+                    and any(abs(n.value - f) < 1e-9 for f in FORCE_FACTORS):
+                own.append(f"{rel}:{n.lineno}: a force unit's factor {n.value}")
+            if isinstance(n, ast.Dict) and any(isinstance(k, ast.Constant)
+                                               and k.value in ("kgf", "lbf") for k in n.keys):
+                own.append(f"{rel}:{n.lineno}: a table keyed by force units")
+    assert not own, "\n".join(own)
+
+
+def test_one_thesis_row_and_one_table_writer():
+    """The thesis-vs-project `Row` and its markdown table are written once, in
+    `bench.thesis_rows`."""
+    rows, writers = [], []
+    for rel, tree in _bench_trees():
+        for n in ast.walk(tree):
+            if isinstance(n, ast.ClassDef) and n.name == "Row":
+                rows.append(f"{rel}:{n.lineno}")
+            if isinstance(n, ast.Constant) and isinstance(n.value, str) \
+                    and n.value.startswith("| id | quantity | unit | thesis"):
+                writers.append(f"{rel}:{n.lineno}")
+    assert len(rows) == 1 and rows[0].startswith("bench/thesis_rows.py:"), rows
+    assert len(writers) == 1 and writers[0].startswith("bench/thesis_rows.py:"), writers
+
+
+def test_one_table_reader():
+    """A table file is opened by `bench.tables` only: no other module parses CSV with
+    pyarrow or opens Parquet or .npz files itself."""
+    own = []
+    for rel, tree in _bench_trees():
+        if rel == "bench/tables.py":
+            continue
+        for n in ast.walk(tree):
+            if isinstance(n, (ast.Import, ast.ImportFrom)):
+                names = [a.name for a in n.names] + [getattr(n, "module", None) or ""]
+                from_pyarrow = isinstance(n, ast.ImportFrom) and n.module == "pyarrow"
+                if "pyarrow.csv" in names or (from_pyarrow and "csv" in names):
+                    own.append(f"{rel}:{n.lineno}: imports pyarrow.csv")
+            if isinstance(n, ast.Attribute) and n.attr in ("read_table", "ParquetFile") \
+                    and isinstance(n.value, ast.Name) and n.value.id == "pq":
+                own.append(f"{rel}:{n.lineno}: pq.{n.attr}")
+            if isinstance(n, ast.Attribute) and n.attr == "load" \
+                    and isinstance(n.value, ast.Name) and n.value.id == "np":
+                own.append(f"{rel}:{n.lineno}: np.load")
+    assert not own, "\n".join(own)

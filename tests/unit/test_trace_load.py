@@ -37,9 +37,9 @@ def test_a_bad_time_or_an_infinite_value_is_refused(tmp_path, suffix, where, t, 
 
 
 @pytest.mark.parametrize("name, data, msg", [
-    ("t.npz", b"not a zip", r"t.npz: not a readable .npz trace \(BadZipFile"),
-    ("t.parquet", b"not parquet", r"t.parquet: not a readable .parquet trace \(ArrowInvalid"),
-    ("t.csv", b"t_s,x\n0,\xe9\n", r"t.csv: not a readable .csv trace \(UnicodeDecodeError"),
+    ("t.npz", b"not a zip", r"t.npz: not a readable .npz table \(not a zip archive"),
+    ("t.parquet", b"not parquet", r"t.parquet: cannot read Parquet \(ArrowInvalid"),
+    ("t.csv", b"t_s,x\n0,\xe9\n", r"t.csv: not UTF-8 text \(byte 0xe9 at offset 8\)"),
 ])
 def test_an_unreadable_trace_file_is_one_line(tmp_path, name, data, msg):
     (tmp_path / name).write_bytes(data)
@@ -49,8 +49,8 @@ def test_an_unreadable_trace_file_is_one_line(tmp_path, name, data, msg):
 
 def test_a_rig_table_given_as_a_trace_points_to_bench_import(tmp_path):
     (tmp_path / "rig.csv").write_text("set_point,profile,time\n20.96,trap,0\n")
-    with pytest.raises(BenchError, match=r"rig.csv line 2: column 'profile' is not a number "
-                                         r"\('trap'\); .*`bench import TABLE --map MAP`"):
+    with pytest.raises(BenchError, match=r"rig.csv line 2: column 'profile' is not a number: "
+                                         r"'trap'; .*`bench import TABLE --map MAP`"):
         Trace.load(tmp_path / "rig.csv")
     (tmp_path / "num.csv").write_text("set_point,time\n20.96,0\n21.92,0.04\n")
     with pytest.raises(BenchError, match=r"num.csv: no time column t_s \(it has: set_point, "
@@ -80,5 +80,5 @@ def test_an_npz_whose_columns_are_not_a_trace_is_one_line(tmp_path, columns, msg
 
 def test_a_header_only_csv_trace_has_no_rows(tmp_path):
     (tmp_path / "t.csv").write_text("t_s,position_m\n")
-    with pytest.raises(BenchError, match="t.csv: the trace has no rows"):
+    with pytest.raises(BenchError, match="t.csv: the table has a header but no rows"):
         Trace.load(tmp_path / "t.csv")
