@@ -63,10 +63,6 @@ class IndieNode(CanopenNode):
         self.pace = 0
         self.on_reset_communication()
 
-    @property
-    def bad_frames(self) -> int:
-        return int(self.counters.bad_frames)
-
     def on_reset_node(self) -> None:
         self.act.reset()
         self.pace = 0

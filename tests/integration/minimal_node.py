@@ -119,10 +119,6 @@ class MinimalNode(CanopenNode):
         self.on_frame(frames.cob["EMA_RPDO1"], self._on_rpdo)
         self.on_reset_communication()
 
-    @property
-    def bad_frames(self) -> int:
-        return int(self.counters.bad_frames)
-
     # -- NMT and heartbeat ------------------------------------------------------------------
     def on_reset_node(self) -> None:
         self.physics.reset()
