@@ -1,6 +1,6 @@
 """The independent actuator as a CANopen node that knows only `ema_contract`.
 
-CiA 301 through canopen's `LocalNode` over the EDS's CiA 301 objects (0x1000-0x1FFF)
+CiA 301 through `ema_contract.node.CanopenNode` (canopen's `LocalNode`) over the EDS's CiA 301 objects (0x1000-0x1FFF)
 plus one vendor object, 0x2200 sub 1-2 (pace, restart the physics), so `bench run
 --pace sync` can run it in lockstep: NMT slave and boot-up, heartbeat producer (0x1017)
 and consumer (0x1016 sub 1), SDO server, RPDO1 in, TPDO1-3 and EMCY out, every frame
@@ -21,122 +21,75 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any
 
 import can
-import canopen
 from canopen.objectdictionary import ObjectDictionary
 from canopen.sdo.exceptions import SdoAbortedError
 
-from ema_contract.frames import Frames, load_od
-from ema_contract.states import ControlWord, NMTCommand, NMTState
+from ema_contract.frames import Frames
+from ema_contract.node import (
+    ABORT_READ_ONLY,
+    ABORT_VALUE_RANGE,
+    ERR_COMMUNICATION,
+    ERR_GENERIC,
+    TPDOS,
+    CanopenNode,
+    cia301_od,
+)
+from ema_contract.states import ControlWord, NMTState
 from indie_plant.generate import Actuator
 
-ABORT_VALUE_RANGE = 0x06090030
-ABORT_READ_ONLY = 0x06010002
 STATUS_COMMAND_TIMEOUT, STATUS_DEMAND_CLAMPED, STATUS_ENABLED = 0x10, 0x20, 0x40
-ERR_GENERIC, ERR_COMMUNICATION = 0x01, 0x10
-TPDOS = ("EMA_TPDO1", "EMA_TPDO2", "EMA_TPDO3")
 WINDING_K = 293.15          # no thermal model: the winding sensor reads 20 C
 
 
 def node_od(node_id: int) -> ObjectDictionary:
     """The EDS's CiA 301 objects and 0x2200 (node control); nothing else from 0x2000 on."""
-    od = load_od(node_id)
-    for index in [i for i in od.keys() if isinstance(i, int) and i >= 0x2000 and i != 0x2200]:
-        del od[index]
-    return od
+    return cia301_od(node_id, keep=(0x2200,))
 
 
-class IndieNode:
-    """The node's bus side (single-threaded: `serve()` reads the bus, hands each frame to
-    canopen's `Network.notify` and runs the heartbeat timers)."""
+class IndieNode(CanopenNode):
+    """The node's bus side on `ema_contract.node.CanopenNode` (single-threaded: `serve()`
+    reads the bus, SDO requests go to canopen's server, the rest to the hooks below)."""
 
     def __init__(self, bus: can.BusABC, actuator: Actuator, node_id: int | None = None,
                  load_n: float = 0.0, load_hz: float = 0.0,
                  clock: Callable[[], float] = time.monotonic) -> None:
-        self.bus = bus
+        frames = Frames(node_id, None)
+        super().__init__(bus, frames, node_od(frames.node_id), clock)
         self.act = actuator
         self.load_n, self.load_hz = load_n, load_hz
-        self.frames = Frames(node_id, None)
-        self.node_id = self.frames.node_id
-        self.od = node_od(self.node_id)
-        self.local = canopen.LocalNode(self.node_id, self.od)
-        self.network = canopen.Network(bus)
-        self.network.add_node(self.local)
-        self.network.unsubscribe(0, self.local.nmt.on_command)
-        self.local._write_callbacks.remove(self.local.nmt.on_write)
-        self.local.add_read_callback(self._on_sdo_read)
-        self.local.add_write_callback(self._on_sdo_write)
-        cob = self.frames.cob
-        self.network.subscribe(cob["NMT"], self._on_nmt)
-        self.network.subscribe(cob["SYNC"], self._on_sync)
-        self.network.subscribe(cob["EMA_RPDO1"], self._on_rpdo)
-        self.clock = clock
-        self.state = NMTState.BOOT_UP
-        self.running = False
-        self.bad_frames = 0
+        self.on_frame(frames.cob["EMA_RPDO1"], self._on_rpdo)
         self.pace = 0
-        self._reset_communication()
+        self.on_reset_communication()
 
-    def _reset_communication(self) -> None:
-        self.local.data_store.clear()
-        od: Any = self.od
-        self.heartbeat_ms = int(od[0x1017].default)
-        self.consumer = int(od[0x1016][1].default)
+    def on_reset_node(self) -> None:
+        self.act.reset()
+        self.pace = 0
+
+    def on_reset_communication(self) -> None:
+        self.local.data_store.clear()          # 0x2200 too: every written object
         self.pending = (0.0, 0, False)
-        self.ecu_hb: float | None = None
         self.timed_out = False
-        self.next_hb = 0.0
 
-    def boot(self) -> None:
-        self.send(self.frames.encode("EMA_Heartbeat", {"EMA_NMTState": 0}))
-        self.state = NMTState.PRE_OPERATIONAL
-        self.next_hb = self.clock() + self.heartbeat_ms / 1000.0
+    def set_state(self, new: NMTState) -> None:
+        if new == NMTState.OPERATIONAL and self.state != NMTState.OPERATIONAL:
+            self.pending = (0.0, 0, False)
+        super().set_state(new)
 
-    def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:  # noqa: ARG002
-        if len(data) != 2 or data[1] not in (0, self.node_id):
-            return
-        cmd = data[0]
-        if cmd == NMTCommand.RESET_NODE:
-            self.act.reset()
-            self.pace = 0
-        if cmd in (NMTCommand.RESET_NODE, NMTCommand.RESET_COMMUNICATION):
-            self._reset_communication()
-            self.boot()
-        elif cmd == NMTCommand.START:
-            if self.state != NMTState.OPERATIONAL:
-                self.pending = (0.0, 0, False)
-            self.state = NMTState.OPERATIONAL
-        elif cmd == NMTCommand.STOP:
-            self.state = NMTState.STOPPED
-        elif cmd == NMTCommand.ENTER_PRE_OPERATIONAL:
-            self.state = NMTState.PRE_OPERATIONAL
-
-    def timers(self) -> float:
-        """Heartbeat producer and consumer; seconds to the next timer."""
-        now = self.clock()
-        nxt = 0.05
-        if self.heartbeat_ms > 0:
-            if now >= self.next_hb:
-                self.send(self.frames.encode("EMA_Heartbeat", {"EMA_NMTState": int(self.state)}))
-                self.next_hb = max(self.next_hb + self.heartbeat_ms / 1000.0, now)
-            nxt = min(nxt, self.next_hb - now)
-        timeout_s = (self.consumer & 0xFFFF) / 1000.0
+    def on_timers(self, now: float, nxt: float) -> float:
+        """The heartbeat consumer, on the wall clock in real time only (pace 0)."""
+        timeout_s = self.consumer_timeout_s()
         if timeout_s > 0 and self.ecu_hb is not None and not self.timed_out \
                 and now - self.ecu_hb > timeout_s and self.pace == 0:
             self.timed_out = True
             self.emcy("heartbeat_lost", ERR_GENERIC | ERR_COMMUNICATION)
-        return max(nxt, 0.0)
+        return nxt
 
-    def _on_rpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:  # noqa: ARG002
+    def _on_rpdo(self, msg: can.Message) -> None:
         if self.state != NMTState.OPERATIONAL:
             return
-        m = self.frames.by_name["EMA_RPDO1"]
-        if len(data) != m.length:
-            self.bad_frames += 1
-            return
-        sig: Any = m.decode(bytes(data), decode_choices=False)
+        _, sig = self.frames.decode(msg)  # type: ignore[misc]
         demand = float(sig["CurrentDemand"])
         control = int(sig["ControlWord"])
         if (control & ControlWord.FAULT_RESET and not self.pending[1] & ControlWord.FAULT_RESET
@@ -152,7 +105,7 @@ class IndieNode:
         t = self.act.k * self.act.period_s
         return self.load_n * math.sin(2.0 * math.pi * self.load_hz * t)
 
-    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:  # noqa: ARG002
+    def on_sync(self, msg: can.Message) -> None:  # noqa: ARG002
         if self.state != NMTState.OPERATIONAL:
             return
         demand, control, clamped = self.pending
@@ -165,20 +118,15 @@ class IndieNode:
                   "EncoderAngle": round(s[1] * cpr / (2.0 * math.pi)),
                   "EncoderSpeed": s[2], "LvdtPosition": s[3],
                   "WindingTemperature": WINDING_K, "LoadForce": s[4]}
-        for name in TPDOS:
-            self.send(self.frames.encode(name, {
-                sg.name: self.frames.clamp(name, sg.name, values[sg.name])
-                for sg in self.frames.by_name[name].signals}))
+        for m in self.pdo_frames(values, TPDOS):
+            self.send(m)
         self.act.step(demand if enabled else 0.0, self.rig_load())
 
     def emcy(self, label: str, register: int) -> None:
-        code = self.frames.choice("EMA_EMCY", "EMCY_ErrorCode", label)
-        self.send(self.frames.encode("EMA_EMCY", {
-            "EMCY_ErrorCode": code, "EMCY_ErrorRegister": register,
-            "EMCY_StatusWord": STATUS_COMMAND_TIMEOUT if self.timed_out else 0,
-            "EMCY_Cycle": 0}))
+        status = STATUS_COMMAND_TIMEOUT if self.timed_out else 0
+        self.send(self.frames.encode("EMA_EMCY", self.emcy_values(label, register, status)))
 
-    def _on_sdo_read(self, index: int, subindex: int, od) -> int | None:  # noqa: ARG002
+    def sdo_read(self, index: int, subindex: int, od) -> int | None:  # noqa: ARG002
         if index == 0x1001:
             return ERR_GENERIC | ERR_COMMUNICATION if self.timed_out else 0
         if index == 0x1006:
@@ -187,18 +135,13 @@ class IndieNode:
             return self.pace
         return None
 
-    def _on_sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
+    def sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
         raw = od.decode_raw(data)
         if index == 0x1006 and raw != int(round(self.act.period_s * 1e6)):
             raise SdoAbortedError(ABORT_VALUE_RANGE)
         if 0x1400 <= index <= 0x1BFF:
             raise SdoAbortedError(ABORT_READ_ONLY)
-        if index == 0x1017:
-            self.heartbeat_ms = int(raw)
-            self.next_hb = self.clock() + self.heartbeat_ms / 1000.0
-        elif (index, subindex) == (0x1016, 1):
-            self.consumer = int(raw)
-        elif index == 0x2200:
+        if index == 0x2200:
             self._node_control(subindex, int(raw))
 
     def _node_control(self, sub: int, raw: int) -> None:
@@ -212,44 +155,3 @@ class IndieNode:
             if self.state == NMTState.OPERATIONAL:
                 raise SdoAbortedError(ABORT_VALUE_RANGE)
             self.act.reset()
-
-    def send(self, msg: can.Message) -> None:
-        self.bus.send(msg)
-
-    def handle(self, msg: can.Message) -> None:
-        """One received frame; a frame that does not decode is counted, never raised."""
-        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
-            return
-        cid = msg.arbitration_id
-        if cid == 0x700 + (self.consumer >> 16 & 0x7F):
-            self.ecu_hb = self.clock()
-            return
-        if cid == self.local.sdo.rx_cobid and (self.state == NMTState.STOPPED
-                                               or len(msg.data) != 8):
-            return
-        try:
-            self.network.notify(cid, msg.data, msg.timestamp)
-        except Exception:  # noqa: BLE001 - a frame never stops the node
-            self.bad_frames += 1
-
-    def serve(self, duration_s: float | None = None,
-              alive: Callable[[], bool] | None = None) -> None:
-        """Boot, then serve the bus until `stop()`, `duration_s` or `alive()` is False."""
-        self.running = True
-        end = None if duration_s is None else self.clock() + duration_s
-        next_check = 0.0
-        self.boot()
-        while self.running:
-            now = self.clock()
-            if end is not None and now >= end:
-                break
-            if alive is not None and now >= next_check:
-                next_check = now + 0.25
-                if not alive():
-                    break
-            msg = self.bus.recv(timeout=min(0.05, self.timers()))
-            if msg is not None:
-                self.handle(msg)
-
-    def stop(self) -> None:
-        self.running = False

@@ -11,15 +11,19 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 
+from ema_contract.node import (  # the error register bits (CiA 301 0x1001)
+    ERR_COMMUNICATION,
+    ERR_CURRENT,
+    ERR_GENERIC,
+    ERR_MANUFACTURER,
+    ERR_TEMPERATURE,
+)
 from ema_contract.states import StatusWord
 from plant_rt.nodebase import NodePart
 from plant_rt.ratelimit import Inhibit
 
 log = logging.getLogger("plant_rt.node")    # the node's logger: one name for its lines
 
-# EMCY error register bits (CiA 301 0x1001)
-ERR_GENERIC, ERR_CURRENT, ERR_TEMPERATURE, ERR_COMMUNICATION, ERR_MANUFACTURER = (
-    0x01, 0x02, 0x08, 0x10, 0x80)
 
 # condition -> (DBC EMCY value-table label, error register bits)
 EMCY_CONDITIONS: dict[StatusWord, tuple[str, int]] = {
@@ -59,11 +63,10 @@ class EmcyProducer(NodePart):
     def emcy(self, label: str, register: int | None = None) -> None:
         """Raise EMCY `label` (DBC value table) with the state now; sent at once, or when
         the inhibit time (0x1015) ends, replacing a waiting EMCY with the same code."""
-        code = self.frames.choice("EMA_EMCY", "EMCY_ErrorCode", label)
         reg = self.error_register() if register is None else register
         status = self.status_word(self.plant.status())
-        values = {"EMCY_ErrorCode": code, "EMCY_ErrorRegister": reg,
-                  "EMCY_StatusWord": status, "EMCY_Cycle": self.counters.cycles % (1 << 24)}
+        values = self.emcy_values(label, reg, status, self.counters.cycles % (1 << 24))
+        code = values["EMCY_ErrorCode"]
         if self._emcy_inhibit.add(code, (label, code, values)):
             self.counters.emcy_suppressed += 1
         self._send_due_emcy(self.node_time())

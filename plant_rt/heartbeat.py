@@ -1,5 +1,5 @@
-"""The plant node's heartbeat (CiA 301 NMT error control): the producer (0x1017), the
-consumer of the ECU's heartbeat (0x1016) on the node's time base (SYNC periods in
+"""The plant node's heartbeat (CiA 301 NMT error control) beyond the producer (0x1017,
+`ema_contract.node.CanopenNode`): the consumer of the ECU's heartbeat (0x1016) on the node's time base (SYNC periods in
 lockstep, the wall clock in real time), and the error behaviour on a lost heartbeat
 (0x1029 sub 1) and its clearing by a fault reset.
 
@@ -28,11 +28,11 @@ class Heartbeat(NodePart):
 
     _check_conditions: Callable[[], None]     # plant_rt.emcy.EmcyProducer
 
-    def _on_ecu_heartbeat(self, msg: can.Message) -> None:
+    def on_ecu_heartbeat(self, msg: can.Message) -> None:
         if len(msg.data) != 1:
             self.counters.bad_frames += 1
             return
-        self._last_ecu_hb = self.clock()
+        self.ecu_hb = self.clock()
         self._syncs_since_hb = 0
 
     def _fault_reset(self) -> None:
@@ -41,24 +41,21 @@ class Heartbeat(NodePart):
             self._log.log(self.node_time(), logging.INFO,
                           "command timeout cleared by fault reset")
 
-    def _consumer_timeout_s(self) -> float:
-        return (self._consumer & 0xFFFF) / 1000.0
-
     def _consumer_syncs(self) -> int:
         """Lockstep heartbeat consumer time in SYNC periods (consumer time / SYNC period,
         rounded up)."""
-        return math.ceil(self._consumer_timeout_s() / self.period_s - EPS_S)
+        return math.ceil(self.consumer_timeout_s() / self.period_s - EPS_S)
 
     def _ecu_alive(self) -> bool:
         """False once the ECU heartbeat, seen before, has been missing for longer than the
         consumer time: more SYNC periods in lockstep, wall time in real time."""
-        tmo = self._consumer_timeout_s()
+        tmo = self.consumer_timeout_s()
         if tmo <= 0:
             return True
         if self.pace == Pace.SYNC:
             n = self._syncs_since_hb
             return n is None or n <= self._consumer_syncs()
-        return self._last_ecu_hb is None or self.clock() - self._last_ecu_hb < tmo
+        return self.ecu_hb is None or self.clock() - self.ecu_hb < tmo
 
     def _consumer_timed_out(self) -> None:
         """Heartbeat lost: demand 0, status bit 4, EMCY 0x8130, then the error behaviour
@@ -66,33 +63,25 @@ class Heartbeat(NodePart):
         self._timeout = True
         self.counters.heartbeat_timeouts += 1
         self.applied_a = 0.0
-        tmo = self._consumer_timeout_s()
+        tmo = self.consumer_timeout_s()
         base = (f"{self._consumer_syncs()} SYNC periods" if self.pace == Pace.SYNC
                 else f"{tmo * 1e3:.0f} ms")
         self._log.log(self.node_time(), logging.WARNING,
                       "ECU heartbeat lost for more than %s: demand forced to 0", base)
         self._check_conditions()
         if self._error_behaviour == ERROR_BEHAVIOUR_STOPPED:
-            self._set_state(NMTState.STOPPED)
+            self.set_state(NMTState.STOPPED)
         elif (self._error_behaviour == ERROR_BEHAVIOUR_PRE_OPERATIONAL
               and self.state == NMTState.OPERATIONAL):
-            self._set_state(NMTState.PRE_OPERATIONAL)
+            self.set_state(NMTState.PRE_OPERATIONAL)
 
-    def _heartbeat_timers(self, now: float, nxt: float) -> float:
-        """Heartbeat production and the real-time heartbeat consumer at wall time `now`;
-        returns `nxt` or the seconds to the next of these timers if sooner."""
-        if self._hb_period_ms > 0:
-            if now >= self._next_hb:
-                self.send(self.frames.encode("EMA_Heartbeat",
-                                             {"EMA_NMTState": int(self.state)}))
-                self._next_hb += self._hb_period_ms / 1000.0
-                if self._next_hb < now:
-                    self._next_hb = now + self._hb_period_ms / 1000.0
-            nxt = min(nxt, self._next_hb - now)
-        tmo = self._consumer_timeout_s()
-        if (self.pace == Pace.REALTIME and tmo > 0 and self._last_ecu_hb is not None
+    def _consumer_timer(self, now: float, nxt: float) -> float:
+        """The real-time heartbeat consumer at wall time `now`; returns `nxt` or the
+        seconds to the consumer's timeout if sooner."""
+        tmo = self.consumer_timeout_s()
+        if (self.pace == Pace.REALTIME and tmo > 0 and self.ecu_hb is not None
                 and not self._timeout):
-            left = self._last_ecu_hb + tmo - now
+            left = self.ecu_hb + tmo - now
             if left <= 0:
                 self._consumer_timed_out()
             else:

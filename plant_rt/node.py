@@ -2,10 +2,11 @@
 
 One thread does everything (receive, SDO, PDOs, stepping), so there is no lock, no
 GIL hand-over between a receive thread and the pacer, and the lockstep mode is
-deterministic. canopen's `LocalNode` is used for what it does well, the object
-dictionary (imported from `dbc/ema.eds`) and the SDO server, fed frame by frame through
-`Network.notify`; NMT, heartbeat, PDOs and EMCY are handled here with the frame layouts
-of `dbc/ema.dbc` (cantools). See docs/bus.md for why not `durand`.
+deterministic. The CiA 301 part every node on the bench's bus shares (NMT state machine,
+heartbeat producer, the SDO server over the object dictionary of `dbc/ema.eds`, SYNC
+and frame dispatch, the loop and its frame drain) is `ema_contract.node.CanopenNode`;
+the plant's PDOs, EMCY, heartbeat consumer and objects are handled here with the frame
+layouts of `dbc/ema.dbc` (cantools). See docs/bus.md for why not `durand`.
 
 Timing (CiA 301 synchronous PDOs, transmission type 1):
 
@@ -31,10 +32,10 @@ time (0x1015) and the log rate limit run on the node clock (`PlantNode.node_time
 time in lockstep while OPERATIONAL (EMCYs fall on the same SYNCs in every run), the wall
 clock otherwise.
 
-The node is one class, `PlantNode`, written in six modules by job: this one (the core:
-NMT state machine, frame dispatch, SYNC handling, PDOs, node clock, run loop),
-`plant_rt.emcy` (EMCY producer), `plant_rt.heartbeat` (heartbeat producer/consumer,
-error behaviour), `plant_rt.sdoobjects` (SDO object callbacks) as its mixins, and
+The node is one class, `PlantNode`, on `ema_contract.node.CanopenNode`, written in six
+modules by job: this one (the plant's NMT transitions, SYNC handling, PDOs, node clock,
+real-time loop turn), `plant_rt.emcy` (EMCY producer), `plant_rt.heartbeat` (heartbeat
+consumer, error behaviour), `plant_rt.sdoobjects` (SDO object callbacks) as its mixins, and
 `plant_rt.ratelimit` (EMCY inhibit queue, log limiter) and `plant_rt.nodebase` (counters,
 command, the interface the parts use) which they build on.
 """
@@ -47,10 +48,10 @@ import time
 from collections.abc import Callable
 
 import can
-import canopen
 
 from ema_contract.frames import FrameError, Frames, load_od
-from ema_contract.states import ControlWord, NMTCommand, NMTState, Pace, Status, StatusWord
+from ema_contract.node import IDLE_POLL_S, CanopenNode
+from ema_contract.states import ControlWord, NMTState, Pace, Status, StatusWord
 from plant_rt.emcy import EMCY_CONDITIONS, ERR_COMMUNICATION, EmcyProducer, EmcyState
 from plant_rt.heartbeat import Heartbeat
 from plant_rt.model import Plant
@@ -75,8 +76,10 @@ _ENABLE = int(ControlWord.ENABLE)
 SYNC_PHASE = 0.3
 
 
-class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
+class PlantNode(EmcyProducer, Heartbeat, SdoObjects, CanopenNode):
     """The actuator node on `bus`, integrating `Plant(params)` (see module docstring)."""
+
+    logger = log
 
     def __init__(self, bus: can.BusABC, params: PlantParams | None = None,
                  pace: Pace = Pace.REALTIME, node_id: int | None = None,
@@ -84,27 +87,16 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
                  serial: int | None = None,
                  plant_factory: Callable[[PlantParams], Plant] = Plant,
                  clock: Callable[[], float] = time.monotonic) -> None:
-        self.bus = bus
-        self.frames = Frames(node_id, ecu_id)
-        self.node_id = self.frames.node_id
-        self.od = load_od(self.node_id)
-        self.local = canopen.LocalNode(self.node_id, self.od)
-        self.network = canopen.Network(bus)     # no notifier: frames are fed by run()
-        self.network.add_node(self.local)
-        # NMT and heartbeat are ours (IntEnum states, heartbeat from this loop), not
-        # canopen's NmtSlave (string states, heartbeat from a timer thread).
-        self.network.unsubscribe(0, self.local.nmt.on_command)
-        if self.local.nmt.on_write in self.local._write_callbacks:
-            self.local._write_callbacks.remove(self.local.nmt.on_write)
-        self.local.add_read_callback(self._on_sdo_read)
-        self.local.add_write_callback(self._on_sdo_write)
+        frames = Frames(node_id, ecu_id)
+        self.counters = Counters()
+        CanopenNode.__init__(self, bus, frames, load_od(frames.node_id), clock,
+                             self.counters)
         self.param_objects = ParamObjects(self.od)
         self._status_keys = self._record_keys("node_status")
         self._control_keys = self._record_keys("node_control")
         self._tx_keys = self._record_keys("tx_process_data")
         self._rx_keys = self._record_keys("rx_process_data")
         self._plant_factory = plant_factory
-        self.clock = clock
         self.startup_params = params or PlantParams()
         # the actuator's serial number, identity object 0x1018 sub 4 (default: the EDS's)
         self.serial = int(self.od[0x1018][4].default) if serial is None else int(serial)
@@ -116,8 +108,6 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         self.startup_pace = Pace(pace)
         self.pace = self.startup_pace
         self.spin_us = int(spin_us)
-        self.counters = Counters()
-        self.state = NMTState.BOOT_UP
         self.pending = Command()
         self.latched = Command()
         self.applied_a = 0.0
@@ -126,10 +116,7 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         self._last_control = ControlWord.NONE
         self._last_sync_counter: int | None = None
         self._sync_max = int(self.od[0x1019].default)
-        self._hb_period_ms = int(self.od[0x1017].default)
-        self._consumer = int(self.od[0x1016][1].default)
         self._error_behaviour = int(self.od[0x1029][1].default)
-        self._last_ecu_hb: float | None = None    # wall clock (s)
         self._syncs_since_hb: int | None = None   # SYNCs received since the ECU heartbeat
         self._timeout = False
         self._rpdo_missing_flag = False
@@ -141,18 +128,12 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         self._emcy_inhibit = Inhibit(0.0)
         self._log = LogLimiter(log, 0.0)
         self._set_emcy_inhibit(int(self.od[0x1015].default))
-        self._next_hb = 0.0
         self._pdo_len_bad = False
         self._pacer = self._new_pacer()
         self.step_stats = LatenessStats()
         self._last_process: dict[str, float | int] | None = None
         self._sensor_cache: tuple[dict[str, float | int], list[can.Message], int] | None = None
-        self.running = False
-        self.sdo_cob = self.frames.sdo_rx
-        self._rx_ids = {0: self._on_nmt, self.frames.cob["SYNC"]: self._on_sync,
-                        self.frames.cob["EMA_RPDO1"]: self._on_rpdo,
-                        self.sdo_cob: self._on_sdo}
-        self._known_ids = set(self.frames.by_cob)
+        self.on_frame(self.frames.cob["EMA_RPDO1"], self._on_rpdo)
 
     # -- helpers ------------------------------------------------------------------------
     def _record_keys(self, name: str) -> dict[str, tuple[int, int]]:
@@ -178,41 +159,27 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
             self._tbase_sync = sync_base
         return raw + self._tbase_offset_s
 
-    def send(self, msg: can.Message) -> None:
-        try:
-            self.bus.send(msg)
-        except can.CanError as exc:
-            self._log.log(self.node_time(), logging.WARNING, "send failed: %s", exc)
-        except OSError as exc:
-            raise ConnectionError(f"bus connection lost: {exc}") from exc
+    def note(self, level: int, fmt: str, *args: object, exc_info: bool = False) -> None:
+        """A log line, rate-limited on the node clock (`plant_rt.ratelimit.LogLimiter`)."""
+        self._log.log(self.node_time(), level, fmt, *args, exc_info=exc_info)
 
     # -- life cycle ---------------------------------------------------------------------
     def boot(self) -> None:
         """Power-on / reset: boot-up frame, then PRE-OPERATIONAL with heartbeat."""
-        self.state = NMTState.BOOT_UP
-        self.send(self.frames.encode("EMA_Heartbeat", {"EMA_NMTState": int(NMTState.BOOT_UP)}))
-        self.state = NMTState.PRE_OPERATIONAL
-        self._next_hb = self.clock() + self._hb_period_ms / 1000.0
-        self._log.log(self.node_time(), logging.INFO, "node 0x%02X booted, PRE-OPERATIONAL",
-                      self.node_id)
+        super().boot()
+        self.note(logging.INFO, "node 0x%02X booted, PRE-OPERATIONAL", self.node_id)
 
-    def reset_node(self) -> None:
+    def on_reset_node(self) -> None:
         """NMT reset node: parameters back to their start-up values, plant at t = 0."""
-        self.local.data_store.clear()
         self.params = self.startup_params
         self.pace = self.startup_pace
         self.plant = self._plant_factory(self.params)
         self._sensor_cache = None
-        self._reset_communication()
 
-    def _reset_communication(self) -> None:
+    def on_reset_communication(self) -> None:
         # EMCYs still waiting for the inhibit time belong to the session the reset ends:
         # sent now, before the boot-up, never after it; the new session starts unthrottled
         self._send_emcy(self._emcy_inhibit.drain())
-        for idx in [i for i in self.local.data_store if i < 0x2000]:
-            del self.local.data_store[idx]
-        self._hb_period_ms = int(self.od[0x1017].default)
-        self._consumer = int(self.od[0x1016][1].default)
         self._error_behaviour = int(self.od[0x1029][1].default)
         self._set_emcy_inhibit(int(self.od[0x1015].default))
         self.counters.reset()
@@ -222,18 +189,15 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         self.latched = Command()
         self.applied_a = 0.0
         self._timeout = False
-        self._last_ecu_hb = None
         self._syncs_since_hb = None
         self._last_sync_counter = None
         self._emcy = EmcyState()
         self._pdo_len_bad = False
-        self.boot()
 
-    def _set_state(self, new: NMTState) -> None:
+    def set_state(self, new: NMTState) -> None:
         if new == self.state:
             return
-        self._log.log(self.node_time(), logging.INFO, "NMT %s -> %s", self.state.name,
-                      new.name)
+        self.note(logging.INFO, "NMT %s -> %s", self.state.name, new.name)
         if new == NMTState.OPERATIONAL:
             self._synced_since_start = False
             self._rpdo_fresh = False
@@ -245,63 +209,15 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         elif self.state == NMTState.OPERATIONAL:
             self.applied_a = 0.0          # leaving OPERATIONAL disables the drive
             self.latched = Command()
-        self.state = new
+        super().set_state(new)
         self.node_time()                  # the node clock may change its base here
 
-    # -- frame dispatch -----------------------------------------------------------------
-    def handle(self, msg: can.Message) -> None:
-        """Process one received frame; bad frames are counted and ignored, never raised."""
-        c = self.counters
-        c.frames_received += 1
-        if msg.is_error_frame or msg.is_remote_frame or msg.is_extended_id:
-            c.unknown_frames += 1
-            return
-        handler = self._rx_ids.get(msg.arbitration_id)
-        if handler is None:
-            if msg.arbitration_id == 0x700 + (self._consumer >> 16 & 0x7F):
-                self._on_ecu_heartbeat(msg)
-            elif msg.arbitration_id not in self._known_ids:
-                c.unknown_frames += 1
-            return
-        try:
-            handler(msg)
-        except FrameError as exc:
-            c.bad_frames += 1
-            self._log.log(self.node_time(), logging.DEBUG, "bad frame ignored: %s", exc)
-            if msg.arbitration_id == self.frames.cob["EMA_RPDO1"] and not self._pdo_len_bad:
-                self._pdo_len_bad = True
-                self.emcy("pdo_length", ERR_COMMUNICATION)
-        except Exception:  # noqa: BLE001 - a frame must never stop the node
-            c.bad_frames += 1
-            self._log.log(self.node_time(), logging.ERROR, "frame 0x%03X not processed",
-                          msg.arbitration_id, exc_info=True)
-
-    def _on_nmt(self, msg: can.Message) -> None:
-        _, sig = self.frames.decode(msg)  # type: ignore[misc]
-        if sig["NMT_NodeId"] not in (0, self.node_id):
-            return
-        try:
-            cmd = NMTCommand(sig["NMT_Command"])
-        except ValueError:
-            self.counters.bad_frames += 1
-            return
-        if cmd == NMTCommand.RESET_NODE:
-            self.reset_node()
-        elif cmd == NMTCommand.RESET_COMMUNICATION:
-            self._reset_communication()
-        elif cmd == NMTCommand.START:
-            self._set_state(NMTState.OPERATIONAL)
-        elif cmd == NMTCommand.STOP:
-            self._set_state(NMTState.STOPPED)
-        elif cmd == NMTCommand.ENTER_PRE_OPERATIONAL:
-            self._set_state(NMTState.PRE_OPERATIONAL)
-
-    def _on_sdo(self, msg: can.Message) -> None:
-        if self.state == NMTState.STOPPED:
-            return
-        if len(msg.data) != 8:
-            raise FrameError(f"SDO request with {len(msg.data)} bytes")
-        self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+    # -- frames -------------------------------------------------------------------------
+    def on_bad_frame(self, msg: can.Message, exc: FrameError) -> None:
+        super().on_bad_frame(msg, exc)
+        if msg.arbitration_id == self.frames.cob["EMA_RPDO1"] and not self._pdo_len_bad:
+            self._pdo_len_bad = True
+            self.emcy("pdo_length", ERR_COMMUNICATION)
 
     def _on_rpdo(self, msg: can.Message) -> None:
         _, sig = self.frames.decode(msg)  # type: ignore[misc]
@@ -326,9 +242,7 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         self.pending = Command(demand, control, invalid)
         self._rpdo_fresh = True
 
-    def _on_sync(self, msg: can.Message) -> None:
-        if len(msg.data) not in (0, 1):
-            raise FrameError(f"SYNC with {len(msg.data)} bytes")
+    def on_sync(self, msg: can.Message) -> None:
         c = self.counters
         c.sync_received += 1
         self._sync_time_s += self.period_s
@@ -435,74 +349,37 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects):
         self._sensors()             # encode the next TPDOs now, off the SYNC's path
 
     # -- timers ---------------------------------------------------------------------------
-    def timers(self) -> float:
-        """Heartbeat production, the real-time heartbeat consumer, EMCYs and log lines
-        whose inhibit time has ended; returns seconds to the next timer."""
-        now = self.clock()
-        nxt = self._heartbeat_timers(now, 0.05)
+    def on_timers(self, now: float, nxt: float) -> float:
+        """The real-time heartbeat consumer, EMCYs and log lines whose inhibit time has
+        ended (after the heartbeat producer, `CanopenNode.timers`)."""
+        nxt = self._consumer_timer(now, nxt)
         t = self.node_time()
         self._send_due_emcy(t)
         self._log.flush(t)
         if self._emcy_inhibit.pending:
             nxt = min(nxt, self._emcy_inhibit.next_s() - t)
-        return max(nxt, 0.0)
+        return nxt
 
     # -- main loop ------------------------------------------------------------------------
-    def _poll(self, timeout: float) -> None:
-        try:
-            msg = self.bus.recv(timeout=max(0.0, min(timeout, self.timers())))
-        except Exception as exc:  # noqa: BLE001 - CanError, OSError, closed websocket
-            raise ConnectionError(f"bus connection lost: {type(exc).__name__}: {exc}") from exc
-        if msg is not None:
-            self.handle(msg)
-
-    def _drain(self, limit: int = 64) -> None:
-        """Serve the frames already received and the timers, without waiting. A node
-        behind its releases (a loaded machine: each step ended after the next release)
-        never waits, so it read no frame and sent no heartbeat until it caught up: the
-        ECU's heartbeat went unseen for 300 ms (a command timeout) and its own for
-        0.35 s, which ended the run ("the plant stopped answering at ... SYNC 250")."""
-        self.timers()
-        for _ in range(limit):
-            try:
-                msg = self.bus.recv(timeout=0.0)
-            except Exception as exc:  # noqa: BLE001 - CanError, OSError, closed websocket
-                raise ConnectionError(f"bus connection lost: {type(exc).__name__}: "
-                                      f"{exc}") from exc
-            if msg is None:
-                return
-            self.handle(msg)
+    def serve_once(self) -> None:
+        """Real time in OPERATIONAL: wait for the pacer's release serving the bus, drain
+        the frames received meanwhile, step; otherwise wait for a frame."""
+        if self.pace == Pace.REALTIME and self.state == NMTState.OPERATIONAL:
+            pacer = self._pacer
+            pacer.wait(self.poll)
+            self.drain()
+            if self.state != NMTState.OPERATIONAL or self.pace != Pace.REALTIME:
+                return       # a frame handled while waiting changed the state
+            self._step()
+            pacer.done()
+        else:
+            self.poll(IDLE_POLL_S)
 
     def run(self, duration_s: float | None = None,
             alive: Callable[[], bool] | None = None) -> None:
-        """Serve the bus until `stop()`, for `duration_s` of wall time, or until
-        `alive()` (checked every 0.25 s) returns False."""
-        self.running = True
-        end = None if duration_s is None else self.clock() + duration_s
-        next_check = self.clock() + 0.25
-        self.boot()
-        while self.running:
-            now = self.clock()
-            if end is not None and now >= end:
-                break
-            if alive is not None and now >= next_check:
-                next_check = now + 0.25
-                if not alive():
-                    log.warning("parent process gone: stopping")   # once: the loop ends
-                    break
-            if self.pace == Pace.REALTIME and self.state == NMTState.OPERATIONAL:
-                pacer = self._pacer
-                pacer.wait(self._poll)
-                self._drain()
-                if self.state != NMTState.OPERATIONAL or self.pace != Pace.REALTIME:
-                    continue     # a frame handled while waiting changed the state
-                self._step()
-                pacer.done()
-            else:
-                self._poll(0.05)
-
-    def stop(self) -> None:
-        self.running = False
+        """`serve()`: boot, then serve the bus until `stop()`, for `duration_s` of wall
+        time, or until `alive()` (checked every 0.25 s) returns False."""
+        self.serve(duration_s, alive)
 
 
 def plant_status_names(word: int) -> list[str]:

@@ -1,6 +1,6 @@
 """What the parts of the plant node share: its counters (object 0x2100), the ECU command
-it latches, and `NodePart`, the typed interface of `plant_rt.node.PlantNode` that its
-parts (`plant_rt.emcy`, `plant_rt.heartbeat`, `plant_rt.sdoobjects`) use.
+it latches, and `NodePart`, the typed interface of `plant_rt.node.PlantNode` (on
+`ema_contract.node.CanopenNode`) that its parts (`plant_rt.emcy`, `plant_rt.heartbeat`, `plant_rt.sdoobjects`) use.
 
 `NodePart` only declares (annotations, no values, no behaviour): `PlantNode` sets and
 implements everything; the declarations let the parts be checked on their own.
@@ -10,10 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import can
 
 from ema_contract.frames import Frames
+from ema_contract.node import FrameCounters
 from ema_contract.states import ControlWord, NMTState, Pace
 from plant_rt.model import Plant
 from plant_rt.pacing import LatenessStats, RealtimePacer
@@ -23,11 +25,9 @@ from plant_rt.ratelimit import LogLimiter
 
 
 @dataclass
-class Counters:
-    """What object 0x2100 reports (reset by NMT reset and by 0x2200 sub 3)."""
-    frames_received: int = 0
-    bad_frames: int = 0
-    unknown_frames: int = 0
+class Counters(FrameCounters):
+    """What object 0x2100 reports (reset by NMT reset and by 0x2200 sub 3): the frame
+    counters of `ema_contract.node.FrameCounters`, then the plant's."""
     demands_invalid: int = 0
     sync_received: int = 0
     cycles: int = 0
@@ -36,10 +36,6 @@ class Counters:
     rpdo_missing: int = 0
     sync_counter_gaps: int = 0
     emcy_suppressed: int = 0
-
-    def reset(self) -> None:
-        for k in self.__dataclass_fields__:
-            setattr(self, k, 0)
 
 
 @dataclass
@@ -74,19 +70,24 @@ class NodePart:
     step_stats: LatenessStats
     _last_process: dict[str, float | int] | None
     _sensor_cache: tuple[dict[str, float | int], list[can.Message], int] | None
-    _hb_period_ms: int
+    heartbeat_ms: int
     serial: int
-    _next_hb: float
-    _consumer: int
+    next_hb: float
+    consumer: int
     _error_behaviour: int
-    _last_ecu_hb: float | None
+    ecu_hb: float | None
     _syncs_since_hb: int | None
     send: Callable[[can.Message], None]
     node_time: Callable[[], float]
     status_word: Callable[[int], int]
     process_values: Callable[[], dict[str, float | int]]
-    _set_state: Callable[[NMTState], None]
+    set_state: Callable[[NMTState], None]
+    consumer_timeout_s: Callable[[], float]
     _new_pacer: Callable[[], RealtimePacer]
+
+    if TYPE_CHECKING:     # ema_contract.node.CanopenNode's (after NodePart in the MRO)
+        def emcy_values(self, label: str, register: int, status_word: int = 0,
+                        cycle: int = 0) -> dict[str, int]: ...
 
     @property
     def period_s(self) -> float:

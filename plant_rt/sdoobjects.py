@@ -1,11 +1,12 @@
 """The plant node's SDO object callbacks: reads and writes of the parameters (0x2000-0x2008,
 `plant_rt.paramobjects`), the status counters (0x2100), the node control (0x2200), the
 process data images (0x2300, 0x2400) and the communication objects it serves itself
-(0x1001, 0x1006, 0x1015, 0x1016, 0x1017, 0x1018 sub 4 serial number, 0x1029), with the
-CiA 301 abort codes.
+(0x1001, 0x1006, 0x1015, 0x1018 sub 4 serial number, 0x1029; the heartbeat objects
+0x1016 and 0x1017 are `ema_contract.node.CanopenNode`'s), with the CiA 301 abort codes.
 
 `SdoObjects` is a part of `plant_rt.node.PlantNode` (a mixin): canopen's SDO server calls
-these callbacks; they use the node's state, parameters, plant, counters and timers.
+these callbacks (the hooks `CanopenNode.sdo_read` / `sdo_write`); they use the node's
+state, parameters, plant, counters and timers.
 """
 
 from __future__ import annotations
@@ -15,6 +16,13 @@ from collections.abc import Callable
 
 from canopen.sdo.exceptions import SdoAbortedError
 
+from ema_contract.node import (
+    ABORT_APP_REFUSED,
+    ABORT_DEVICE_STATE,
+    ABORT_VALUE_HIGH,
+    ABORT_VALUE_LOW,
+    ABORT_VALUE_RANGE,
+)
 from ema_contract.states import NMTState, Pace
 from plant_rt.emcy import EmcyState
 from plant_rt.heartbeat import (
@@ -26,13 +34,6 @@ from plant_rt.nodebase import NodePart
 from plant_rt.paramobjects import ParamObjects
 from plant_rt.params import ParameterError, PlantParams
 
-# SDO abort codes (CiA 301)
-ABORT_VALUE_RANGE = 0x06090030
-ABORT_VALUE_HIGH = 0x06090031
-ABORT_VALUE_LOW = 0x06090032
-ABORT_DEVICE_STATE = 0x08000022
-ABORT_APP_REFUSED = 0x08000020
-
 
 class SdoObjects(NodePart):
     """The SDO read/write callbacks of `PlantNode` (see the module docstring)."""
@@ -43,7 +44,7 @@ class SdoObjects(NodePart):
     error_register: Callable[[], int]
     _set_emcy_inhibit: Callable[[int], None]
 
-    def _on_sdo_read(self, index: int, subindex: int, od) -> object | None:
+    def sdo_read(self, index: int, subindex: int, od) -> object | None:
         key = (index, subindex)
         po = self.param_objects.by_key.get(key)
         if po is not None:
@@ -69,12 +70,8 @@ class SdoObjects(NodePart):
             return self.error_register()
         if index == 0x1006:
             return int(round(self.params.sim.sync_period_s * 1e6))
-        if index == 0x1017:
-            return self._hb_period_ms
         if key == (0x1018, 4):
             return self.serial
-        if key == (0x1016, 1):
-            return self._consumer
         if index == 0x1015:
             return self._emcy_inhibit_raw
         if key == (0x1029, 1):
@@ -99,7 +96,7 @@ class SdoObjects(NodePart):
             return values[name]
         return int(getattr(c, name))
 
-    def _on_sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
+    def sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
         key = (index, subindex)
         po = self.param_objects.by_key.get(key)
         if po is not None:
@@ -161,7 +158,7 @@ class SdoObjects(NodePart):
             self._pacer.spin_ns = int(raw) * 1000
 
     def _write_communication(self, index: int, subindex: int, od, data: bytes) -> None:
-        """The communication objects served here: 0x1006, 0x1017, 0x1016, 0x1015, 0x1029."""
+        """The communication objects served here: 0x1006, 0x1015, 0x1029."""
         key = (index, subindex)
         if index == 0x1006:
             self._require_preop()
@@ -171,13 +168,6 @@ class SdoObjects(NodePart):
             except ParameterError:
                 raise SdoAbortedError(ABORT_VALUE_RANGE) from None
             self._apply_params(new)
-            return
-        if index == 0x1017:
-            self._hb_period_ms = int(od.decode_raw(data))
-            self._next_hb = self.clock() + self._hb_period_ms / 1000.0
-            return
-        if key == (0x1016, 1):
-            self._consumer = int(od.decode_raw(data))
             return
         if index == 0x1015:
             self._set_emcy_inhibit(od.decode_raw(data))

@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bench.cli import options as opt
+
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     from bench.gap.calibrate import DEFAULT
@@ -65,7 +67,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "friction) or the model's. A healthy log cannot tell, so the "
                         "calibration only stores it; bench gap --nominal then fits it where "
                         "it shows (see bench gap --help)")
-    p.add_argument("-o", "--output", metavar="CALIBRATION.json", default="calibration.json",
+    opt.add_output(p, metavar="CALIBRATION.json", default="calibration.json",
                    help="where to write the calibration (default calibration.json; '-': stdout)")
     p.set_defaults(func=run)
 

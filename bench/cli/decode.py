@@ -7,6 +7,7 @@ import argparse
 import sys
 
 from bench import BenchError
+from bench.cli import options as opt
 
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".trc", ".mf4")
 
@@ -25,15 +26,13 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("file", metavar="FILE.log", help="bus log (.log, .asc, .blf, .trc, .mf4); "
                    "'-': standard input (candump -L unless --format says otherwise), e.g. "
                    "`candump -L can0 | bench decode - -o -`")
-    p.add_argument("-o", "--output", metavar="OUT",
-                   help="write the table (.csv, .parquet or .npz; '-': CSV on standard "
+    opt.add_output(p, help="write the table (.csv, .parquet or .npz; '-': CSV on standard "
                         "output, the summary then on standard error); default: print a "
                         "summary")
     p.add_argument("--format", choices=[s[1:] for s in LOG_SUFFIXES], default=None,
                    help="the log's format where its name does not say it (standard input, "
                         "a file without a known suffix); default: the suffix")
-    p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
-                   help="actuator node id (default 0x10)")
+    opt.add_node_id(p)
     p.add_argument("--period", type=float, default=None, metavar="S",
                    help="SYNC period if the log does not show it (default 0.001)")
     p.add_argument("--counts-per-rev", type=int, default=None, metavar="N",

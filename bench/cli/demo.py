@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from bench import BenchError
-from bench.bus import add_bus_arguments, bus_settings
+from bench.bus import bus_settings
+from bench.cli import options as opt
 
 # name, degradation d (0..1; backlash 100 d um, friction x(1 + 3 d)), noise seed
 CASES: tuple[tuple[str, float, int], ...] = (("healthy", 0.0, 11), ("worn", 0.5, 12),
@@ -36,8 +37,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         "demo", help="the main job on embedded defaults: healthy, worn and failing "
         "actuator over the bus, HUMS report, gap diagnosis",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", default="out/demo", metavar="DIR",
-                   help="where the logs, traces and reports go (default: %(default)s)")
+    opt.add_out(p, default="out/demo", help="where the logs, traces and reports go (default: %(default)s)")
     p.add_argument("--cycles", type=float, default=10.0, metavar="N",
                    help="sine periods per run, 2 Hz, 0.5 mm (default: %(default)g)")
     p.add_argument("--pace", choices=["sync", "realtime"], default="sync",
@@ -46,7 +46,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--in-process", action="store_true",
                    help="no bus: run the plant and the ECU in this process")
     p.add_argument("--no-gap", action="store_true", help="skip the gap diagnosis")
-    add_bus_arguments(p)
+    opt.add_bus(p)
     p.set_defaults(func=run)
 
 

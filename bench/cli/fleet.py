@@ -14,6 +14,7 @@ import sys
 import time
 
 from bench import BenchError
+from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -32,11 +33,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                        "$BENCH_FLEET_DB, else fleet.duckdb)")
 
     def pool(q: argparse.ArgumentParser) -> None:
-        q.add_argument("--workers", type=int, default=None,
-                       help="worker processes (default: 2, or 1 on a one-core machine)")
-        q.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                       help="a Dask scheduler address to send the work to (default: "
-                       "$BENCH_DASK_SCHEDULER, else a LocalCluster on 127.0.0.1)")
+        opt.add_workers(q)
+        opt.add_scheduler(q, "a Dask scheduler address to send the work to (default: "
+                          "$BENCH_DASK_SCHEDULER, else a LocalCluster on 127.0.0.1)")
 
     q = s.add_parser("ingest", help="ingest logs into the store",
                      description="Read candump logs and trace tables (files, directories "
@@ -69,13 +68,13 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                      description="Static HTML with PNG figures: an overview (actuators to "
                      "inspect this week, why, most urgent first) and one page per actuator.")
     db(q)
-    q.add_argument("--out", required=True, metavar="DIR")
+    opt.add_out(q, "output folder", required=True)
     q.set_defaults(func=run_report)
 
     q = s.add_parser("export", help="every table as Parquet",
                      description="Write runs.parquet, failures.parquet and meta.parquet.")
     db(q)
-    q.add_argument("--out", required=True, metavar="DIR")
+    opt.add_out(q, "output folder", required=True)
     q.set_defaults(func=run_export)
 
     q = s.add_parser("synth", help="a synthetic fleet of ground-test logs",
@@ -85,8 +84,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                      "in-process and written as candump logs in OUT/<actuator>/.")
     q.add_argument("--actuators", type=int, required=True, metavar="N")
     q.add_argument("--days", type=int, required=True, metavar="D")
-    q.add_argument("--out", required=True, metavar="DIR")
-    q.add_argument("--seed", type=int, default=0)
+    opt.add_out(q, "output folder", required=True)
+    opt.add_seed(q, 0)
     q.add_argument("--wear", choices=["use", "time"], default="use",
                    help="use: wear driven by each actuator's flights (life consumed, "
                    "ISO 3408-5 L10 with Palmgren-Miner); time: the thesis' schedule in "

@@ -11,6 +11,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from bench.cli import options as opt
+
 if TYPE_CHECKING:
     from bench.trace import Trace
 
@@ -64,14 +66,13 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fundamental", type=float, metavar="HZ",
                    help="command fundamental for the frequency split (default: from the "
                         "log's metadata, else the strongest line of the set-point velocity)")
-    p.add_argument("--json", metavar="PATH", help="write the diagnosis JSON here ('-': stdout)")
+    opt.add_json(p, "write the diagnosis JSON here ('-': stdout)")
     p.add_argument("--report", metavar="DIR",
                    help="write figures (PNG) and index.html here; against a calibration of "
                         "another actuator or a baseline: the page of bench hums report with the "
                         "gap's diagnosis (index.html, indexes.json, summary.txt)")
-    p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    from bench.cluster import SCHEDULER_HELP
-    p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
+    opt.add_workers(p, default=opt.DEFAULT_WORKERS)   # fits in parallel above 1: literal
+    opt.add_scheduler(p)
     p.add_argument("--fit-always", action="store_true",
                    help="fit the candidates even when the gap is within the noise floor")
     p.add_argument("--list-effects", action="store_true",

@@ -7,9 +7,10 @@ import json
 import sys
 from pathlib import Path
 
+from bench.cli import options as opt
+
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
-    from bench.cluster import SCHEDULER_HELP
     p = subparsers.add_parser(
         "gap-bench", help="blind check of the gap diagnosis on generated logs",
         description="Generate logs with the plant in-process (bench.harness, full fidelity: "
@@ -20,9 +21,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                     "attribution, pair recovery, parameter error, held-out shrink and false "
                     "attribution on nominal logs. Uses both cores.")
     p.add_argument("--cases", type=int, default=40, metavar="N", help="number of logs (40)")
-    p.add_argument("--seed", type=int, default=2025, metavar="S", help="case seed (2025)")
-    p.add_argument("--workers", type=int, default=2, help="worker processes (2)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
+    opt.add_seed(p, 2025, "case seed", metavar="S")
+    opt.add_workers(p, default=opt.DEFAULT_WORKERS)   # recorded in the results: literal
+    opt.add_scheduler(p)
     p.add_argument("--log-s", type=float, default=10.0, metavar="S",
                    help="length of each generated log (10 s)")
     p.add_argument("--fidelity", choices=("full", "fast"), default="full",
@@ -53,7 +54,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--only", metavar="EFFECT",
                    help="independent generator: every case is this one effect at a random "
                         "magnitude (a benchmark aimed at one effect; no nominal cases)")
-    p.add_argument("--json", metavar="PATH", help="write every case and the summary here")
+    opt.add_json(p, "write every case and the summary here")
     p.add_argument("--markdown", metavar="PATH", help="write the results table (markdown)")
     p.set_defaults(func=run)
 

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from bench import BenchError, interrupts
+from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -35,14 +36,11 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 
 def _common(q: argparse.ArgumentParser, workers: bool = True) -> None:
-    q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
-                   help="override a plant parameter (see `bench plant --list-params`)")
+    opt.add_set(q, "override a plant parameter (see `bench plant --list-params`)")
     if workers:
-        q.add_argument("--workers", type=int, default=None,
-                       help="worker processes (default: 2, or 1 on a one-core machine)")
-        from bench.cluster import SCHEDULER_HELP
-        q.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
-    q.add_argument("--json", metavar="PATH", help="write the results as JSON")
+        opt.add_workers(q)
+        opt.add_scheduler(q)
+    opt.add_json(q, "write the results as JSON")
 
 
 def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
@@ -62,9 +60,9 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     q.add_argument("--noise", choices=["on", "off", "both"], default="both",
                    help="sensor noise (default: %(default)s)")
     q.add_argument("--points", type=int, default=11, help="degradation points (default 11)")
-    q.add_argument("--figures", metavar="DIR", help="write PNG figures (figs. 6.2-6.10)")
-    q.add_argument("--doc", metavar="PATH", help="update the generated sweep section of "
-                   "this markdown file (e.g. docs/hums.md)")
+    opt.add_figures(q, "write PNG figures (figs. 6.2-6.10)")
+    opt.add_doc(q, "update the generated sweep section of this markdown file "
+                "(e.g. docs/hums.md)")
     common(q)
     q.set_defaults(func=run_sweep)
 
@@ -77,9 +75,8 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
                    "time then comes from a noise-free twin run)")
     q.add_argument("--no-fused", action="store_true",
                    help="only the thesis' algorithm (skips the fusion calibration runs)")
-    q.add_argument("--figures", metavar="DIR", help="write PNG figures (figs. 6.11-6.15)")
-    q.add_argument("--doc", metavar="PATH", help="update the generated rul section of "
-                   "this markdown file")
+    opt.add_figures(q, "write PNG figures (figs. 6.11-6.15)")
+    opt.add_doc(q, "update the generated rul section of this markdown file")
     common(q)
     q.set_defaults(func=run_rul)
 
@@ -93,10 +90,9 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
                    help="run-to-failure runs (default 20; with --usage: 50 actuators)")
     q.add_argument("--healthy", type=int, default=None,
                    help="healthy runs (default 10; with --usage: 5 healthy actuators)")
-    q.add_argument("--seed", type=int, default=2024, help="campaign seed (default 2024)")
-    q.add_argument("--figures", metavar="DIR", help="write the campaign figure")
-    q.add_argument("--doc", metavar="PATH", help="update the generated campaign section "
-                   "of this markdown file")
+    opt.add_seed(q, 2024, "campaign seed")
+    opt.add_figures(q, "write the campaign figure")
+    opt.add_doc(q, "update the generated campaign section of this markdown file")
     _add_usage_options(q)
     common(q)
     q.set_defaults(func=run_campaign)
@@ -139,13 +135,11 @@ def _add_report(s: argparse._SubParsersAction) -> None:
                      "they had it) and at least 5 position samples: without one the verdict "
                      "is UNKNOWN (exit 3).")
     q.add_argument("logs", nargs="+", metavar="LOG", help="bus log (.log, .asc, .blf, .trc, .mf4) or trace file")
-    q.add_argument("--out", default="hums-report", metavar="DIR",
-                   help="output directory (default: %(default)s)")
+    opt.add_out(q, "output directory (default: %(default)s)", default="hums-report")
     q.add_argument("--period", type=float, default=None, metavar="S",
                    help="command period in s (default: from the log)")
     q.add_argument("--no-rul", action="store_true", help="skip the trend/RUL part")
-    q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
-                   help="nominal plant parameter override")
+    opt.add_set(q, "nominal plant parameter override")
     q.add_argument("--nominal", metavar="CAL.json",
                    help="another actuator's calibration (bench calibrate --actuator): its "
                         "calibrated model is the monitoring model, or its healthy baseline "
@@ -160,7 +154,6 @@ def _add_report(s: argparse._SubParsersAction) -> None:
 
 
 def _add_watch(s: argparse._SubParsersAction) -> None:
-    from bench.bus import add_bus_arguments
     q = s.add_parser("watch", help="live indexes per command period, listening to the bus",
                      description="The HUMS as a passive bus client: decodes the ECU's "
                      "set-points and the actuator's PDOs through the DBC, runs the monitoring "
@@ -177,15 +170,13 @@ def _add_watch(s: argparse._SubParsersAction) -> None:
                    help="stop after S seconds of listening")
     q.add_argument("--idle", type=float, default=2.0, metavar="S",
                    help="stop S seconds after the last SYNC (default: %(default)s)")
-    q.add_argument("--out", metavar="FILE.csv", help="append one row per period (CSV)")
+    opt.add_out(q, "append one row per period (CSV)", metavar="FILE.csv")
     q.add_argument("--usage", metavar="FILE.json",
                    help="usage of every run so far (bench usage's JSON), rewritten at every "
                         "command period; a usage table of each run is printed when it ends")
-    q.add_argument("--node-id", type=lambda v: int(v, 0), default=None,
-                   help="actuator node id (default 0x10)")
-    q.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
-                   help="nominal plant parameter override")
-    add_bus_arguments(q)
+    opt.add_node_id(q)
+    opt.add_set(q, "nominal plant parameter override")
+    opt.add_bus(q)
     q.set_defaults(func=run_watch)
 
 

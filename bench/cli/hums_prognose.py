@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import BenchError
+from bench.cli import options as opt
 
 
 def add_prognose(s: argparse._SubParsersAction) -> None:
@@ -45,19 +46,19 @@ def add_prognose(s: argparse._SubParsersAction) -> None:
     q.add_argument("--truth", metavar="[ACTUATOR=]DAY|DATE", action="append",
                    help="the true failure time, drawn in the figures (of every actuator, or "
                    "of the one named; repeatable)")
-    q.add_argument("--figures", metavar="DIR", help="a figure per actuator (the first "
-                   "100): the trend, its thresholds, the RUL band over time")
+    opt.add_figures(q, "a figure per actuator (the first 100): the trend, its thresholds, "
+                    "the RUL band over time")
     q.add_argument("--model", choices=("auto", "trend", "calibration"), default="auto",
                    help="auto (default): the calibration's when the index names match it "
                    "and no option of the trend's own is given; trend; calibration")
     q.add_argument("--calibration", metavar="FILE.json",
                    help="prognosis calibration (default: the one the last `bench hums "
                    "campaign --usage` wrote to the cache)")
-    q.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    q.add_argument("--workers", type=int, default=None,
-                   help="Dask worker processes (default: the trend's own prognosis in this "
-                   "process; the calibrated one in this process below 2,000 tests, else 2)")
-    q.add_argument("--json", metavar="PATH", help="write every estimate as JSON")
+    opt.add_seed(q, 0)
+    opt.add_workers(q, help="Dask worker processes (default: the trend's own prognosis in "
+                    "this process; the calibrated one in this process below 2,000 tests, "
+                    "else 2)")
+    opt.add_json(q, "write every estimate as JSON")
     q.set_defaults(func=run_prognose)
 
 

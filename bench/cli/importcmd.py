@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bench import units
+from bench.cli import options as opt
 
 if TYPE_CHECKING:
     from bench.trace import Trace
@@ -33,8 +34,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("table", metavar="TABLE",
                    help="CSV (also .csv.xz/.gz/.bz2) or Parquet table")
     p.add_argument("--map", required=True, metavar="MAP", help="column map (.json or .csv)")
-    p.add_argument("-o", "--output", metavar="OUT",
-                   help="output trace (.npz, .csv or .parquet; default TABLE.npz); with "
+    opt.add_output(p, help="output trace (.npz, .csv or .parquet; default TABLE.npz); with "
                         "--split-by a directory (default: TABLE's name without suffixes)")
     p.add_argument("--split-by", metavar="COL,COL,...",
                    help="one trace per combination of these columns' values, named "

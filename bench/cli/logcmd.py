@@ -11,10 +11,10 @@ import time
 from pathlib import Path
 
 from bench import BenchError
+from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    from bench.bus import add_bus_arguments
     p = sub.add_parser("log", help="record the bus to a log (candump -L by default)",
                        description="Record every frame on the bus (any bus python-can opens; "
                        "by default the loopback hub of `bench up` or vcan0) to a log, until "
@@ -31,7 +31,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="stop after S seconds")
     p.add_argument("--count", type=int, default=None, metavar="N", help="stop after N frames")
-    add_bus_arguments(p)
+    opt.add_bus(p)
     p.set_defaults(func=run)
 
 

@@ -13,12 +13,12 @@ from pathlib import Path
 import can
 
 from bench import BenchError
+from bench.cli import options as opt
 
 MAX_GAP_S = 10.0
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    from bench.bus import add_bus_arguments
     p = sub.add_parser("replay", help="play a bus log onto the bus (like canplayer)",
                        description="Send the frames of a bus log onto the bus with their "
                        "original timing (relative to the first frame). The format comes from "
@@ -37,7 +37,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                    help="longest wait between two frames, in wall seconds: a longer step "
                         "between timestamps (either way) is played at once and counted "
                         "(default: %(default)s)")
-    add_bus_arguments(p)
+    opt.add_bus(p)
     p.set_defaults(func=run)
 
 

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from bench import BenchError, machine_description
+from bench.cli import options as opt
 
 PAGE = "reproduction.md"
 
@@ -27,19 +28,16 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                        "plant and write a table of thesis value, project value and ratio "
                        f"({PAGE} and figures/ in --out; the repository's page only with "
                        "--doc).")
-    p.add_argument("--out", default="out/reproduce", metavar="DIR",
-                   help=f"folder for {PAGE} and figures/ (default: %(default)s)")
-    p.add_argument("--json", metavar="PATH", help="also write the rows as JSON")
-    p.add_argument("--figures", metavar="DIR", default=None,
-                   help="folder for the PNG figures (default: OUT/figures; '' for none)")
-    p.add_argument("--doc", metavar="PATH",
-                   help="also write the page to PATH (the repository's: docs/reproduction.md) "
+    opt.add_out(p, f"folder for {PAGE} and figures/ (default: %(default)s)",
+                default="out/reproduce")
+    opt.add_json(p, "also write the rows as JSON")
+    opt.add_figures(p, "folder for the PNG figures (default: OUT/figures; '' for none)")
+    opt.add_doc(p, "also write the page to PATH (the repository's: docs/reproduction.md) "
                         "and its figures into PATH's folder's figures/")
     p.add_argument("--only", metavar="GROUP", action="append",
                    choices=["P1-P3", "P4", "P5-P7", "P8", "P9"],
                    help="run only these row groups (repeatable)")
-    p.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
-                   help="override a plant parameter (see `bench plant --list-params`)")
+    opt.add_set(p, "override a plant parameter (see `bench plant --list-params`)")
     p.set_defaults(func=run)
 
 

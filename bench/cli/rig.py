@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bench.cli import options as opt
 from bench.units import FORCE
 
 DESCRIPTIONS = {
@@ -66,7 +67,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                        description=DESCRIPTIONS["baseline"])
     b.add_argument("tables", nargs="+", metavar="HEALTHY", help="healthy tables or traces")
     b.add_argument("--runs", metavar="LIST", help="runs to use (e.g. 1,2; default: all)")
-    b.add_argument("-o", "--out", required=True, metavar="BASE.json", help="baseline file")
+    opt.add_out(b, "baseline file", metavar="BASE.json", required=True, short=True)
     b.add_argument("--update", metavar="BASE.json",
                    help="add the tables' healthy runs to this baseline (each run judged "
                         "first: drift is added, a step or a slow change since the first "
@@ -83,7 +84,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     a.add_argument("tables", nargs="+", metavar="LOG", help="tables or traces to assess")
     a.add_argument("--baseline", required=True, metavar="BASE.json")
     a.add_argument("--runs", metavar="LIST", help="only these runs (default: all)")
-    a.add_argument("--json", metavar="PATH", help="write every verdict here ('-': stdout)")
+    opt.add_json(a, "write every verdict here ('-': stdout)")
     a.add_argument("-q", "--quiet", action="store_true", help="only the per-condition rates")
     s = sub.add_parser("study", help="a rig's development set end to end, with a report",
                        description=DESCRIPTIONS["study"])
@@ -96,15 +97,14 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    help="name prefix of the healthy table(s); several tables (e.g. runs "
                         "1-4 and 5-10) are one healthy condition (default: normal)")
     s.add_argument("--only", metavar="A,B", help="fault tables to score (default: all)")
-    s.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
+    opt.add_out(s, "report folder", required=True, short=True)
     s.add_argument("--model", metavar="MODEL", help="a model of `bench rig train`: its "
                    "classes on the cycles of runs it was not trained on")
     s.add_argument("--no-supervised", action="store_true",
                    help="skip the leave-runs-out validation of the classifiers on the "
                         "folder's labelled tables")
-    s.add_argument("--workers", type=int, default=None, help="worker processes (default 2)")
-    from bench.cluster import SCHEDULER_HELP
-    s.add_argument("--scheduler", metavar="ADDRESS", help=SCHEDULER_HELP)
+    opt.add_workers(s)
+    opt.add_scheduler(s)
     _common(s)
     i = sub.add_parser("inject", help="sensitivity: known faults injected into held-out "
                        "healthy cycles, detection and naming per size",
@@ -120,7 +120,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    "backlash,loaded_play,localised,periodic)")
     i.add_argument("--at-mm", type=float, metavar="MM", help="centre of the localised "
                    "bump, measured position (default: the middle of the out-stroke)")
-    i.add_argument("-o", "--out", required=True, metavar="DIR", help="report folder")
+    opt.add_out(i, "report folder", required=True, short=True)
     _common(i)
     t, k = _supervised_parsers(sub)
     for q in (b, a, s, i, t, k):
@@ -135,12 +135,12 @@ def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
                                      "after the first _), validated leaving runs out",
                           description=DESCRIPTIONS["train"])
     t.add_argument("tables", nargs="+", metavar="TABLE", help="labelled tables or traces")
-    t.add_argument("-o", "--out", required=True, metavar="MODEL", help="model file (skops)")
+    opt.add_out(t, "model file (skops)", metavar="MODEL", required=True, short=True)
     t.add_argument("--healthy", default="normal", metavar="LABEL",
                    help="the healthy class's label (default: normal)")
     t.add_argument("--folds", type=int, default=5, help="leave-runs-out folds (default 5)")
-    t.add_argument("--seed", type=int, default=0, help="seed of the folds (default 0)")
-    t.add_argument("--json", metavar="PATH", help="write the validation here ('-': stdout)")
+    opt.add_seed(t, 0, "seed of the folds")
+    opt.add_json(t, "write the validation here ('-': stdout)")
     t.add_argument("--no-validate", action="store_true",
                    help="train only, without the leave-runs-out validation (the model then "
                         "says it was not validated)")
@@ -149,7 +149,7 @@ def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
                                         "train`", description=DESCRIPTIONS["classify"])
     k.add_argument("model", metavar="MODEL", help="model file of `bench rig train`")
     k.add_argument("tables", nargs="+", metavar="TABLE", help="tables or traces")
-    k.add_argument("--json", metavar="OUT", help="write the classes here ('-': stdout)")
+    opt.add_json(k, "write the classes here ('-': stdout)", metavar="OUT")
     k.add_argument("--actuator", metavar="DESC", help="the actuator the tables are of "
                    "(checked against the model's)")
     return t, k

@@ -12,6 +12,7 @@ from collections import Counter
 import numpy as np
 
 from bench import BenchError
+from bench.cli import options as opt
 
 
 def _profile_flags() -> dict[str, str]:
@@ -26,7 +27,6 @@ def _profile_flags() -> dict[str, str]:
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    from bench.bus import add_bus_arguments
     from bench.profiles import PROFILES, profile_args
     lines = []
     for name in PROFILES:
@@ -57,9 +57,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                         "real-time run's bus time)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="run length (s); the profile's own by default")
-    p.add_argument("--set", dest="assignments", action="append", default=[],
-                   metavar="NAME=VALUE", help="plant parameter, written by SDO before the run "
-                   "(repeatable; see `bench plant --list-params`)")
+    opt.add_set(p, "plant parameter, written by SDO before the run (repeatable; see "
+                "`bench plant --list-params`)", dest="assignments")
     p.add_argument("--log", metavar="FILE.log", help="log of every frame: candump .log, or "
                    ".asc, .blf, .trc, .mf4 (python-can's writers)")
     p.add_argument("--save", metavar="TRACE", help="save the trace (.csv, .parquet or .npz)")
@@ -72,11 +71,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                         "(default)")
     p.add_argument("--no-plant", action="store_true",
                    help="never start a plant (a real actuator must answer)")
-    p.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
-                   help="actuator node id (default 0x10)")
-    from plant_rt.cli import SERIAL_HELP, serial_arg
-    p.add_argument("--serial", type=serial_arg, default=None, metavar="N",
-                   help=SERIAL_HELP + "; for the plant this run starts when none answers")
+    opt.add_node_id(p)
+    opt.add_serial(p, "; for the plant this run starts when none answers")
     p.add_argument("--encoder-counts", type=int, default=None, metavar="N",
                    help="encoder resolution (counts/rev) of a node without object 0x2003 "
                         "sub 11 (default: the EDS default, 16384)")
@@ -88,7 +84,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     for kw, flag in _profile_flags().items():
         g.add_argument(flag, dest=f"pf_{kw}", type=float, default=None, metavar="X",
                        help=argparse.SUPPRESS)
-    add_bus_arguments(p)
+    opt.add_bus(p)
     p.set_defaults(func=run)
 
 

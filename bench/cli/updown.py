@@ -9,10 +9,10 @@ import time
 from contextlib import contextmanager
 
 from bench import BenchError
+from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    from bench.bus import add_bus_arguments
     up = sub.add_parser("up", help="start the loopback bus and the plant in the background",
                         description="Start the loopback CAN hub (when no bus is configured and "
                         "there is no vcan0) and the plant node in the background; their pids "
@@ -21,16 +21,13 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     up.add_argument("--pace", choices=["realtime", "sync"], default="realtime",
                     help="the plant's pacer at start (a run may switch it; default: "
                          "%(default)s)")
-    up.add_argument("--set", dest="assignments", action="append", default=[],
-                    metavar="NAME=VALUE", help="plant parameter at start (repeatable)")
-    up.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
-                    help="actuator node id (default 0x10)")
-    from plant_rt.cli import SERIAL_HELP, serial_arg
-    up.add_argument("--serial", type=serial_arg, default=None, metavar="N", help=SERIAL_HELP)
+    opt.add_set(up, "plant parameter at start (repeatable)", dest="assignments")
+    opt.add_node_id(up)
+    opt.add_serial(up)
     up.add_argument("--rt-priority", type=int, default=0, metavar="N",
                     help="start hub and plant under SCHED_FIFO at priority N (1-99; needs "
                          "root or CAP_SYS_NICE); 0: normal scheduling (default)")
-    add_bus_arguments(up)
+    opt.add_bus(up)
     up.set_defaults(func=cmd_up)
 
     st = sub.add_parser("status", help="show the plant node's state, counters and parameters",
@@ -39,9 +36,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                         "there.")
     st.add_argument("--all", action="store_true",
                     help="list every parameter (default: only those not at their default)")
-    st.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
-                    help="actuator node id (default 0x10)")
-    add_bus_arguments(st)
+    opt.add_node_id(st)
+    opt.add_bus(st)
     st.set_defaults(func=cmd_status)
 
     dn = sub.add_parser("down", help="stop the background plant and loopback bus",

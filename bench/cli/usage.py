@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from bench import BenchError
+from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -29,7 +30,7 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                         "saved by bench run --save (.npz, .csv, .parquet)")
     p.add_argument("--by-actuator", action="store_true",
                    help="also print the runs accumulated per actuator (serial number)")
-    p.add_argument("--json", metavar="OUT.json", help="write every run and every actuator")
+    opt.add_json(p, "write every run and every actuator", metavar="OUT.json")
     p.add_argument("--plot", metavar="DIR",
                    help="write a PNG per run and per actuator: load spectrum, rainflow "
                         "matrices")
@@ -38,9 +39,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                         "%(default)s; docs/usage.md)")
     p.add_argument("--preload-n", type=float, default=None, metavar="N",
                    help="double-nut preload (default: the run's effects.preload_n)")
-    p.add_argument("--set", dest="assignments", action="append", default=[],
-                   metavar="NAME=VALUE", help="a usage setting, e.g. "
-                   "usage.reversal_hysteresis_m=5e-6 (repeatable; docs/usage.md)")
+    opt.add_set(p, "a usage setting, e.g. usage.reversal_hysteresis_m=5e-6 (repeatable; "
+                "docs/usage.md)", dest="assignments")
     p.add_argument("--load-rating-n", type=float, default=None, metavar="N",
                    help="dynamic load rating C_a (default: the run's "
                         "screw.dynamic_load_rating_n)")
