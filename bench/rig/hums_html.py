@@ -286,7 +286,8 @@ def gap_figure(g: dict[str, Any]) -> str:
 
 
 def _log(a: H.RigAnalysis, e: Any) -> list[str]:
-    parts = [f"<h2>{e(a.name)}</h2><p><span class='v {a.verdict}'>{a.verdict}</span></p>",
+    lv = a.verdict.name
+    parts = [f"<h2>{e(a.name)}</h2><p><span class='v {lv}'>{lv}</span></p>",
              f"<p class='ref'><b>Judged against:</b> {e(a.reference)}</p>",
              "<ul>" + "".join(f"<li>{e(r)}</li>" for r in a.reasons) + "</ul>"]
     parts += _gap(a, e) + _model_free(a, e) + _model(a, e) + _baseline(a, e)
@@ -330,7 +331,8 @@ def render(analyses: list[H.RigAnalysis], title: str = "Actuator health report",
     for a in analyses:
         dur = len(a.trace) * a.trace.dt if len(a.trace) > 1 else 0.0
         parts.append(f"<tr><td class='l'>{e(a.name)}</td><td>{len(a.trace)}</td>"
-                     f"<td>{dur:.1f}</td><td><span class='v {a.verdict}'>{a.verdict}</span>"
+                     f"<td>{dur:.1f}</td><td><span class='v {a.verdict.name}'>"
+                     f"{a.verdict.name}</span>"
                      f"</td><td class='l'>{e(a.reference)}</td></tr>")
     parts.append("</table>")
     for a in analyses:
