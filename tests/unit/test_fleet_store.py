@@ -311,3 +311,16 @@ def test_levels_of_old_stores_read_in_the_one_encoding(tmp_path):
         with pytest.raises(BenchError, match="^the fleet store holds a run whose verdict is "
                                              "not a level: 'FLAGGED'$"):
             T.fleet_status(st)
+
+
+def test_an_unjudged_run_is_stored_with_the_one_unknown_code(tmp_path):
+    """The ingest stores UNKNOWN as its code -1 (`bench.verdict.Level`), not as NULL."""
+    from bench.trace import Trace
+    t = np.arange(2000) * 1e-3
+    cols = ("mode", "setpoint_position_m", "position_m", "current_a", "motor_speed_rad_s",
+            "setpoint_speed_rad_s", "current_demand_a", "motor_angle_rad")
+    tr = Trace({"t_s": t, **{c: np.zeros_like(t) for c in cols}}, {"source": "idle"})
+    path = tmp_path / "idle.npz"
+    tr.save(path)
+    row = G._row(path, "d", None, tr)             # mode 0 throughout: nothing commanded
+    assert (row["verdict"], row["level"]) == ("UNKNOWN", -1)
