@@ -141,9 +141,9 @@ def run(args: argparse.Namespace) -> int:
         ix = a.indexes
         ci = judged_ci(ix.ci, ix.ci_harmonic)
         lm = ix.lost_motion_m * 1e6 if math.isfinite(ix.lost_motion_m) else float("nan")
-        print(f"  {a.name:16s} {a.verdict:9s} {ix.cp:7.3f} {ci:7.3f} {ix.peak_ratio:10.2f} "
+        print(f"  {a.name:16s} {a.verdict.name:9s} {ix.cp:7.3f} {ci:7.3f} {ix.peak_ratio:10.2f} "
               f"{lm:14.1f}")
-        rows.append({"log": a.name, "verdict": a.verdict, "cp": ix.cp, "ci": ci,
+        rows.append({"log": a.name, "verdict": a.verdict.name, "cp": ix.cp, "ci": ci,
                      "ci_broadband": ix.ci,
                      "peak_ratio": ix.peak_ratio, "lost_motion_um": lm,
                      "reasons": a.reasons})

@@ -142,9 +142,14 @@ def run(args: argparse.Namespace) -> int:
     if ctrl_line:
         js["controller"] = {"line": ctrl_line, **{
             k: v for k, v in log.meta["controller"].items() if k != "structures_tried"}}
-    say(f"done in {time.perf_counter() - t0:.1f} s")
+    seconds = time.perf_counter() - t0
+    say(f"done in {seconds:.1f} s")
+    from bench.gap.result_json import gap_document, model_gap_verdict
+    doc_js = gap_document(str(args.log), "model",
+                          model_gap_verdict(js, _thesis_reference(args, doc)), js,
+                          round(seconds, 3))
     if args.json == "-":
-        json.dump(js, sys.stdout, indent=1)
+        json.dump(doc_js, sys.stdout, indent=1)
         print()
     else:
         print(f"log: {args.log} ({len(log)} samples, {len(log) * log.dt:.3g} s)")
@@ -152,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
             print(ctrl_line)
         print(text(js))
         if args.json:
-            Path(args.json).write_text(json.dumps(js, indent=1))
+            Path(args.json).write_text(json.dumps(doc_js, indent=1))
             print(f"json: {args.json}")
     if args.report:
         from bench.gap.report import write_report
@@ -168,6 +173,16 @@ def status_printer(quiet: bool) -> Any:
         return lambda s: None
     from tqdm import tqdm
     return lambda s: tqdm.write(f"gap: {s}", file=sys.stderr)
+
+
+def _thesis_reference(args: argparse.Namespace, data: dict[str, Any] | None) -> str:
+    """What the thesis plant's diagnosis judged the log against, in words."""
+    if not args.nominal:
+        return "thesis model (nominal values)"
+    name = Path(args.nominal).name
+    if data is not None and isinstance(data.get("params"), dict):
+        return f"thesis model, calibration {name}"
+    return f"thesis model, parameters {name}"
 
 
 def _calibration_reference(args: argparse.Namespace, data: dict[str, Any] | None
@@ -304,11 +319,13 @@ def _rig(args: argparse.Namespace, data: dict[str, Any] | None) -> int:
         if bad:
             raise BenchError(f"unknown effect(s) {', '.join(bad)} for a generic calibration "
                              f"(effects: {', '.join(CANDIDATES)})")
+    from bench.gap.result_json import gap_document
+    from bench.rig.verdict import model_verdict
     log = load_log(args.log)
     js = diagnose_rig(log, cal, act, names)
-    js["log"] = str(args.log)
-    js["reference"] = ref.line()
-    return _rig_out(args, js, ref.line() + "\n" + text(js),
+    doc = gap_document(str(args.log), "model",
+                       model_verdict(js, ref.line(), effect=str(js["verdict"])), js)
+    return _rig_out(args, doc, ref.line() + "\n" + text(js),
                     lambda: _rig_report(args, log, ref, gap=js))
 
 
@@ -325,10 +342,15 @@ def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
     except BenchError as exc:
         raise BenchError(f"{args.log}: the gap against the healthy baseline not available: "
                          f"{exc}") from None
-    res["log"] = str(args.log)
-    res["reference"] = ref.line(FB.loads_judged(res))
-    res["seconds"] = round(time.perf_counter() - t0, 3)
-    return _rig_out(args, res, res["reference"] + "\n" + FB.text(res),
+    from bench.gap.result_json import gap_document
+    from bench.rig.verdict import baseline_verdict
+    from bench.verdict import Verdict
+    line = ref.line(FB.loads_judged(res))
+    v = baseline_verdict(res, line) or Verdict.unknown(
+        [f"the healthy baseline gave no verdict ({res['notes'][-1] if res['notes'] else ''})"],
+        line)
+    doc = gap_document(str(args.log), "baseline", v, res, round(time.perf_counter() - t0, 3))
+    return _rig_out(args, doc, line + "\n" + FB.text(res),
                     lambda: _rig_report(args, log, ref, assessed=res))
 
 

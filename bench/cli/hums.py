@@ -400,7 +400,7 @@ def _run_rig_report(args: argparse.Namespace) -> int:
     for a in analyses:
         print(summary_text(a))
     print(f"wrote {page}")
-    unknown = [a for a in analyses if a.verdict == "UNKNOWN"]
+    unknown = [a for a in analyses if not a.verdict.judged]
     if unknown:
         print(f"error: no verdict for {', '.join(a.name for a in unknown)} ("
               + "; ".join(a.reasons[-1] for a in unknown) + f"); the report is in {page}",
@@ -420,11 +420,11 @@ def run_report(args: argparse.Namespace) -> int:
     page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,
                                   period_s=args.period)
     for a in analyses:
-        print(f"{a.name}: {a.verdict}; " + "; ".join(a.reasons))
+        print(f"{a.name}: {a.verdict.name}; " + "; ".join(a.reasons))
         if a.notes:
             print(f"{a.name}: log: " + "; ".join(a.notes))
     print(f"wrote {page}")
-    unknown = [a for a in analyses if a.verdict == "UNKNOWN"]
+    unknown = [a for a in analyses if not a.verdict.judged]
     if unknown:
         import sys
         print(f"error: no verdict for {', '.join(a.name for a in unknown)} ("

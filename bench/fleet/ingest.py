@@ -275,7 +275,6 @@ def _safe_id(trace: Trace | None, path: Path, given: str | None) -> str:
 def _row(path: Path, dig: str, given: str | None, trace: Trace) -> dict[str, Any]:
     """The stored row of one decoded log: graded by the HUMS report's analysis."""
     from bench.hums.report import analyse
-    from bench.hums.verdict import LEVELS
     when = run_datetime(run_time(path, trace))
     a = analyse(trace, path.name, rul=False)
     tr = a.trace
@@ -283,8 +282,7 @@ def _row(path: Path, dig: str, given: str | None, trace: Trace) -> dict[str, Any
         "digest": dig, "actuator_id": actuator_id(trace, path, given), "run_time": when,
         "path": str(path.resolve()), "bytes": path.stat().st_size, "rows": len(tr),
         "duration_s": len(tr) * tr.dt if len(tr) > 1 else 0.0, "mode": _mode(tr),
-        "f0_hz": _finite(a.f0_hz), "verdict": a.verdict,
-        "level": LEVELS.index(a.verdict) if a.verdict in LEVELS else None,
+        "f0_hz": _finite(a.f0_hz), "verdict": a.verdict.name, "level": int(a.verdict.level),
         "reasons": "; ".join(a.reasons), "notes": "; ".join(a.notes)}
     from bench.fleet.schema import INDEX_COLUMNS
     for c in INDEX_COLUMNS:

@@ -33,11 +33,13 @@ from bench.fleet.status import (
     floats,
     judged_ci,
     rul_text,
+    stored_level,
     urgency,
     usage_text,
 )
 from bench.hums import rul as R
 from bench.jsonsafe import json_safe
+from bench.verdict import Level
 
 INSPECT_RUL_DAYS = 14.0
 """Inspect this week when the RUL's band starts within this many days."""
@@ -48,10 +50,10 @@ def inspect_reason(st: ActuatorStatus) -> str | None:
     """Why `st` should be inspected this week (None: it need not be): its last test at
     WARNING or FAILURE, or its RUL band starting within INSPECT_RUL_DAYS."""
     why = []
-    if st.level >= 2:
+    if st.level >= Level.WARNING:
         why.append(f"last test {st.verdict}: {st.reasons}")
     lo = st.rul_band_days[0]
-    if st.level < 3 and math.isfinite(st.rul_days) and lo <= INSPECT_RUL_DAYS:
+    if st.level < Level.FAILURE and math.isfinite(st.rul_days) and lo <= INSPECT_RUL_DAYS:
         why.append(f"RUL {rul_text(st)}: failure level {R.FAILURE} may be reached within "
                    f"{max(lo, 0.0):.0f} days")
     return "; ".join(why) or None
@@ -60,8 +62,8 @@ def inspect_reason(st: ActuatorStatus) -> str | None:
 def watch_reason(st: ActuatorStatus) -> str | None:
     """Why `st` is to be watched (not inspected yet): DEGRADED, or Ci below the
     threshold with no RUL yet."""
-    if st.level == 1:
-        return f"last test DEGRADED: {st.reasons}"
+    if st.level == Level.DEGRADED:
+        return f"last test {st.level.name}: {st.reasons}"
     if math.isfinite(st.t_threshold_s):
         return st.rul_why or f"Ci below the threshold {R.THRESHOLD}"
     return None
@@ -242,10 +244,11 @@ def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) ->
         ("action", why or "none"))], numeric=[False, False], role="summary"),
         Heading("Index trends"), Figure("", src=quote(fig.name), alt="trends"),
         Heading("Usage"), _usage_table(sub)])
-    lvl = np.array([_level(v) for v in sub["verdict"]])
-    alerts = np.flatnonzero(lvl >= 1)[::-1][:MAX_ALERTS]
-    doc.add(Heading(f"Alerts ({int((lvl >= 1).sum())} tests not HEALTHY"
-                    + (f", latest {MAX_ALERTS} shown" if (lvl >= 1).sum() > MAX_ALERTS else "")
+    lvl = np.array([int(stored_level(v)) for v in sub["verdict"]])
+    alerts = np.flatnonzero(lvl > Level.HEALTHY)[::-1][:MAX_ALERTS]
+    n_alerts = int((lvl > Level.HEALTHY).sum())
+    doc.add(Heading(f"Alerts ({n_alerts} tests not {Level.HEALTHY.name}"
+                    + (f", latest {MAX_ALERTS} shown" if n_alerts > MAX_ALERTS else "")
                     + ")"))
     if len(alerts):
         ci = judged_ci(_f(sub["ci"]), _f(sub["ci_harmonic"]))
@@ -259,14 +262,9 @@ def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) ->
         doc.add(Table(["test (UTC)", "verdict", "Ci", "why", "log"], rows,
                       numeric=[False, False, True, False, False]))
     else:
-        doc.add("None: every test HEALTHY.")
+        doc.add(f"None: every test {Level.HEALTHY.name}.")
     return render_document(doc, title=f"{st.ident}: health", footer=_footer(),
                            nav=[("../index.html", "fleet overview")])
-
-
-def _level(v: Any) -> int:
-    from bench.hums.verdict import LEVELS
-    return LEVELS.index(v) if v in LEVELS else -1
 
 
 _f = floats

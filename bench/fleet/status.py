@@ -30,7 +30,8 @@ import numpy as np
 
 from bench import BenchError
 from bench.hums import rul as R
-from bench.hums.verdict import LEVELS, UNKNOWN, judged_ci
+from bench.hums.verdict import judged_ci
+from bench.verdict import Level
 
 DAY_S = 86400.0
 N_TREND = 10
@@ -56,9 +57,9 @@ class ActuatorStatus:
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
-    def level(self) -> int:
-        """0-3 (HEALTHY..FAILURE), -1 for UNKNOWN."""
-        return LEVELS.index(self.verdict) if self.verdict in LEVELS else -1
+    def level(self) -> Level:
+        """The last test's level (`bench.verdict.Level`: its code is -1 for UNKNOWN)."""
+        return Level.parse(self.verdict)
 
 
 def slope_per_day(t_s: np.ndarray, y: np.ndarray, n: int = N_TREND) -> float:
@@ -141,11 +142,21 @@ def status_of_series(s: dict[str, Any], n_trend: int = N_TREND, as_of: float | N
         life = life_all[a:b]
         rul, band, why, t_thr, t_warn = rul_of(t, ci)
         out.append(ActuatorStatus(
-            str(ids[a]), int(b - a), float(t[-1]), str(verdicts[b - 1] or UNKNOWN),
+            str(ids[a]), int(b - a), float(t[-1]), stored_level(verdicts[b - 1]).name,
             float(ci[-1]), slope_per_day(t, ci, n_trend), rul, band, why,
             float(np.nansum(life)) if np.isfinite(life).any() else math.nan,
             str(reasons[b - 1] or ""), t_thr, t_warn))
     return out
+
+
+def stored_level(value: Any) -> Level:
+    """The level of a stored run (`Level.parse`: a name, a code, NULL for UNKNOWN, as
+    every schema version stored it); BenchError naming the value when it is none."""
+    try:
+        return Level.parse(value)
+    except ValueError:
+        raise BenchError(f"the fleet store holds a run whose verdict is not a level: "
+                         f"{value!r}") from None
 
 
 def parse_as_of(text: str) -> float:

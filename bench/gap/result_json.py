@@ -13,6 +13,7 @@ from bench.gap import effects as E
 from bench.gap import families as F
 from bench.gap.problem import Problem
 from bench.gap.scores import excess, shrink_pct
+from bench.verdict import Level, Verdict
 
 
 def gap_summary(p: Problem, energies: dict[str, float]) -> dict[str, Any]:
@@ -86,3 +87,50 @@ def hums_distance(r: Any) -> dict[str, Any]:
         out["after"] = indexes(tgt.meas, after, lo, hi, tgt.dt)
     return out
 
+
+
+GAP_KEYS = (
+    # every diagnosis
+    "log", "against", "reference", "verdict", "judged", "seconds",
+    # against a model (the thesis plant, or a rig's calibrated generic model)
+    "localisation", "ranking", "finding", "controller", "model", "rms_ratio", "threshold",
+    "significant", "judged_on", "not_judged", "not_available", "indexes",
+    # against a rig's healthy baseline
+    "baseline", "load", "loads", "thresholds", "thresholds_by_load", "cycles",
+    "judged_cycles", "flagged", "effects", "verdicts", "worst", "features",
+    "phase_indexes", "notes",
+)
+"""The top-level keys of `bench gap --json`, whatever the log was judged against: the
+keys a path has no value for are null. `verdict` is `bench.verdict.Verdict.to_json()`;
+`against` is "model" or "baseline"; `reference` says what exactly."""
+
+
+def gap_document(log: str, against: str, verdict: Verdict, details: dict[str, Any],
+                 seconds: float | None = None) -> dict[str, Any]:
+    """The one `bench gap --json` document (`GAP_KEYS`) of a diagnosis: `details` are the
+    path's own keys (its effect-name ``verdict`` is the verdict's effect and is dropped)."""
+    if against not in ("model", "baseline"):
+        raise ValueError(f"against: model or baseline, not {against!r}")
+    rest = {k: v for k, v in details.items() if k not in ("verdict", "against")}
+    extra = sorted(set(rest) - set(GAP_KEYS))
+    if extra:
+        raise ValueError(f"keys outside the gap JSON schema: {', '.join(extra)}")
+    out: dict[str, Any] = dict.fromkeys(GAP_KEYS)
+    out.update(rest)
+    out.update({"log": log, "against": against, "reference": verdict.reference,
+                "verdict": verdict.to_json(), "judged": verdict.judged})
+    if seconds is not None:
+        out["seconds"] = seconds
+    return out
+
+
+def model_gap_verdict(js: dict[str, Any], reference: str) -> Verdict:
+    """The thesis diagnosis' verdict (`to_json`): its effect is what the diagnosis named
+    ("none": no significant gap, HEALTHY; a candidate or "unexplained": DEGRADED, the
+    log is outside the noise floor of the model)."""
+    effect = str(js["verdict"])
+    sig = (js.get("localisation") or {}).get("significance") or {}
+    ja = (sig.get("judged_against") or {}).get("line")
+    reasons = [f"gap diagnosis: {effect}"] + ([ja] if ja else [])
+    return Verdict(Level.HEALTHY if effect == "none" else Level.DEGRADED, effect,
+                   tuple(reasons), reference)

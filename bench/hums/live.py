@@ -25,6 +25,7 @@ from bench.bus.rows import RowAssembler
 from bench.hums import indexes as I
 from bench.hums import verdict as V
 from bench.hums.indexes import Indexes, OnlineHums
+from bench.verdict import Level, Verdict
 from ema_contract.frames import Frames, load_od
 from plant_rt.params import PlantParams
 
@@ -34,7 +35,6 @@ ROW_COLUMNS = ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_d
 BRIDGED = ("setpoint_position_m", "setpoint_speed_rad_s", "mode", "current_demand_a",
            "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")
 """The columns pushed whose short gaps are bridged as the report bridges them."""
-LEVELS = (*V.LEVELS, V.UNKNOWN)
 
 
 @dataclass
@@ -43,8 +43,12 @@ class PeriodResult:
     period: int
     t_start_s: float
     indexes: Indexes
-    level: int
-    """Index into LEVELS: the report's verdict of this command period (4: UNKNOWN)."""
+    verdict: Verdict
+    """The report's verdict of this command period (`bench.hums.verdict.judge`)."""
+
+    @property
+    def level(self) -> Level:
+        return self.verdict.level
 
     def row(self) -> dict[str, Any]:
         ix = self.indexes
@@ -52,7 +56,7 @@ class PeriodResult:
                 "cp": ix.cp, "ci": V.judged_ci(ix.ci, ix.ci_harmonic),
                 "ci_broadband": ix.ci, "ci_harmonic": ix.ci_harmonic,
                 "peak_ratio": ix.peak_ratio, "mean_error_m": ix.mean_error_m,
-                "lost_motion_m": ix.lost_motion_m, "level": LEVELS[self.level]}
+                "lost_motion_m": ix.lost_motion_m, "level": self.level.name}
 
 
 class _RowQueue:
@@ -246,9 +250,8 @@ class LiveHums:
                 del self._modes[:self._online.m]
                 m = m[np.isfinite(m)]
                 mode = int(np.bincount(m.astype(int)).argmax()) if len(m) else 0
-                level = LEVELS.index(V.judge(ix, mode)[0])
                 out.append(PeriodResult(self.run, self._periods,
-                                        self._periods * self.period_s, ix, level))
+                                        self._periods * self.period_s, ix, V.judge(ix, mode)))
                 self._periods += 1
         return out
 
@@ -317,4 +320,4 @@ def format_result(r: PeriodResult) -> str:
     lm = ix.lost_motion_m * 1e6 if math.isfinite(ix.lost_motion_m) else float("nan")
     return (f"run {r.run} period {r.period:4d} t {r.t_start_s:8.2f} s  Cp {ix.cp:6.3f}  "
             f"Ci {ci:6.3f}  peak ratio {ix.peak_ratio:5.2f}  lost motion {lm:6.1f} um  "
-            f"{LEVELS[r.level]}")
+            f"{r.level.name}")

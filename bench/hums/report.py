@@ -24,15 +24,10 @@ import numpy as np
 from bench import BenchError
 from bench.hums import indexes as I
 from bench.hums import monitor as M
-from bench.hums.verdict import (  # noqa: F401  (LEVELS, UNKNOWN: re-exported)
-    LEVELS,
-    UNKNOWN,
-    index_record,
-    judge,
-    judged_ci,
-)
+from bench.hums.verdict import index_record, judge, judged_ci
 from bench.jsonsafe import json_safe
 from bench.trace import MEASURED, MODE_POSITION, MODE_SPEED, Trace
+from bench.verdict import Verdict
 from plant_rt.params import PlantParams
 
 MIN_PERIODS_FOR_TREND = 6
@@ -82,14 +77,18 @@ class LogAnalysis:
     nominal: Trace
     f0_hz: float
     indexes: I.Indexes
-    verdict: str
-    reasons: list[str]
+    verdict: Verdict
     period_table: dict[str, np.ndarray] = field(default_factory=dict)
     fused: Any = None
     missing: list[str] = field(default_factory=list)
     bridged: dict[str, int] = field(default_factory=dict)   # signal -> samples bridged
     notes: list[str] = field(default_factory=list)          # what the log lost / repeated
     rul_note: str = ""                                       # why there is no RUL
+
+    @property
+    def reasons(self) -> list[str]:
+        """The verdict's reasons."""
+        return list(self.verdict.reasons)
 
 
 def _cache_dir() -> Path:
@@ -162,8 +161,8 @@ def analyse(trace: Trace, name: str, params: PlantParams | None = None,
     meas.meta["fundamental_hz"] = f0
     ix = I.compare(meas, nom, f0_hz=f0 if math.isfinite(f0) else None, need=())
     I.mark_unavailable(ix, blocked, M.NOMINAL_DRIVE)
-    out = LogAnalysis(name, meas, nom, f0, ix, "", [], missing=missing, bridged=bridged,
-                      notes=notes)
+    out = LogAnalysis(name, meas, nom, f0, ix, Verdict.unknown(()), missing=missing,
+                      bridged=bridged, notes=notes)
     n_periods = int(len(meas) * meas.dt * f0) if math.isfinite(f0) else 0
     trend_blocked = set(blocked) & {"current_a", "position_m", *M.NOMINAL_DRIVE}
     if trend_blocked:
@@ -177,7 +176,7 @@ def analyse(trace: Trace, name: str, params: PlantParams | None = None,
         cal = cached_calibration(M.nominal_plant(params), kp, progress)
         t_end = out.period_table["t_start_s"] + 1.0 / f0
         out.fused = (R.FusedPredictor(cal).run(t_end, out.period_table), cal, t_end)
-    out.verdict, out.reasons = verdict(out)
+    out.verdict = verdict(out)
     return out
 
 
@@ -226,14 +225,14 @@ def _unjudged(meas: Trace, name: str, why: str, missing: list[str],
     ix.unavailable = {k: f"not available {why}" for k in I.INDEX_SIGNALS}
     nom = Trace({"t_s": t.copy(), **{c: np.full(len(t), np.nan)
                                       for c in ("position_m", "current_a")}})
-    out = LogAnalysis(name, meas, nom, math.nan, ix, "", [], missing=missing, notes=notes,
-                      rul_note=f"log too short: {why}")
-    out.verdict, out.reasons = verdict(out)
+    out = LogAnalysis(name, meas, nom, math.nan, ix, Verdict.unknown(()), missing=missing,
+                      notes=notes, rul_note=f"log too short: {why}")
+    out.verdict = verdict(out)
     return out
 
 
-def verdict(a: LogAnalysis) -> tuple[str, list[str]]:
-    """The log's verdict and its reasons (`bench.hums.verdict.judge` on the log's indexes,
+def verdict(a: LogAnalysis) -> Verdict:
+    """The log's verdict (`bench.hums.verdict.judge` on the log's indexes,
     its most frequent mode and its fused backlash estimate)."""
     return judge(a.indexes, _mode(a.trace), a.fused)
 
@@ -402,7 +401,7 @@ def summary_rows(analyses: list[LogAnalysis]) -> list[dict[str, Any]]:
     the same): Ci is `judged_ci`, the one the verdict reads."""
     return [{"log": a.name, "command": _describe(a), "duration_s": len(a.trace) * a.trace.dt,
              "ci": judged_ci(a.indexes.ci, a.indexes.ci_harmonic), "cp": a.indexes.cp,
-             "lost_motion_um": a.indexes.lost_motion_m * 1e6, "verdict": a.verdict,
+             "lost_motion_um": a.indexes.lost_motion_m * 1e6, "verdict": a.verdict.name,
              "rul": _rul_text(a)} for a in analyses]
 
 
@@ -426,7 +425,8 @@ def render(analyses: list[LogAnalysis]) -> str:
             lines = Table(["current line"] + [f"{h + 1} x f0" for h in range(len(ix.harmonics_a))],
                           [["log (A)"] + [_fmt(v) for v in ix.harmonics_a],
                            ["nominal (A)"] + [_fmt(v) for v in ix.nominal_harmonics_a]])
-        logs.append({"name": a.name, "anchor": "log-" + anchor(a.name), "verdict": a.verdict,
+        logs.append({"name": a.name, "anchor": "log-" + anchor(a.name),
+                     "verdict": a.verdict.name,
                      "reasons": a.reasons, "missing": a.missing, "notes": a.notes,
                      "unavailable": ix.unavailable, "rul": _rul_text(a),
                      "indexes": Table(["index (whole log)", "value", "reading"],
@@ -498,7 +498,7 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
     out.mkdir(parents=True, exist_ok=True)
     page = out / "report.html"
     page.write_text(render(analyses))
-    js = [{"log": a.name, "verdict": a.verdict, "reasons": a.reasons, "log_notes": a.notes,
+    js = [{"log": a.name, "verdict": a.verdict.name, "reasons": a.reasons, "log_notes": a.notes,
            "bridged_samples": a.bridged,
            "fundamental_hz": a.f0_hz if math.isfinite(a.f0_hz) else None,
            "summary": json_safe(row), "indexes": json_safe(index_record(a.indexes)),

@@ -1,7 +1,8 @@
-"""The verdict of a stretch of a run: HEALTHY / DEGRADED / WARNING / FAILURE / UNKNOWN
-from its indexes, the ECU's mode and (long logs) the fused backlash estimate. One
-function, `judge`, for the HUMS report (`bench.hums.report.verdict`, a whole log) and
-the live watcher (`bench.hums.live`, one command period).
+"""The verdict of a stretch of a run against the thesis' monitoring model (a
+`bench.verdict.Verdict`: HEALTHY / DEGRADED / WARNING / FAILURE / UNKNOWN) from its
+indexes, the ECU's mode and (long logs) the fused backlash estimate. One function,
+`judge`, for the HUMS report (`bench.hums.report.verdict`, a whole log) and the live
+watcher (`bench.hums.live`, one command period).
 
 The Ci it judges is `judged_ci`, the one place that picks it: Ci on the command frequency
 and its first 15 harmonics where the window has a command frequency, else the broadband
@@ -18,9 +19,10 @@ import numpy as np
 
 from bench.hums.indexes import Indexes
 from bench.trace import MODE_POSITION, MODE_SPEED
+from bench.verdict import Level, Verdict
 
-UNKNOWN = "UNKNOWN"
-LEVELS = ["HEALTHY", "DEGRADED", "WARNING", "FAILURE"]
+THESIS_MODEL = "thesis model"
+"""The reference of every `judge` verdict: the thesis' monitoring model and its levels."""
 
 
 @overload
@@ -56,61 +58,65 @@ def index_record(ix: Indexes) -> dict[str, Any]:
     return d
 
 
-def judge(ix: Indexes, mode: int, fused: Any = None) -> tuple[str, list[str]]:
-    """HEALTHY / DEGRADED / WARNING / FAILURE and the reasons, from the thesis' Ci levels
-    (0.93 / 0.80 / 0.56) in position mode, Cp in speed mode, and the fused backlash
-    estimate (`fused`: (FusedResult, Calibration, t_end) or None) against its warning
-    level, else the lost motion; UNKNOWN (first reason: what is missing) when nothing was
-    commanded (`mode` neither position nor speed) or the index the mode's level rests on
-    is not available."""
+def judge(ix: Indexes, mode: int, fused: Any = None) -> Verdict:
+    """HEALTHY / DEGRADED / WARNING / FAILURE with the index that set it (the effect:
+    "Ci", "Cp", "fused backlash", "lost motion"; "none" when HEALTHY) and the reasons,
+    from the thesis' Ci levels (0.93 / 0.80 / 0.56) in position mode, Cp in speed mode,
+    and the fused backlash estimate (`fused`: (FusedResult, Calibration, t_end) or None)
+    against its warning level, else the lost motion; UNKNOWN (first reason: what is
+    missing) when nothing was commanded (`mode` neither position nor speed) or the index
+    the mode's level rests on is not available. Judged against `THESIS_MODEL`."""
     reasons: list[str] = []
-    level = 0
     ci = judged_ci(ix.ci, ix.ci_harmonic)
     if mode not in (MODE_POSITION, MODE_SPEED):
-        return UNKNOWN, ["the ECU is idle (mode 0) through the log: nothing was commanded, "
-                         "so there is no index to judge"]
+        return Verdict.unknown(["the ECU is idle (mode 0) through the log: nothing was "
+                                "commanded, so there is no index to judge"], THESIS_MODEL)
     key, value = ("Ci", ci) if mode == MODE_POSITION else ("Cp", ix.cp)
     unknown = None
     if not math.isfinite(value):
         why = ix.unavailable.get(key.lower()) or "not available (not computable from this log)"
         unknown = f"{key} {why}"
+    level, effect = Level.HEALTHY, "none"
     if math.isfinite(ci) and mode == MODE_POSITION:
-        level = _ci_level(ci, reasons)
+        level, effect = _ci_level(ci, reasons), "Ci"
     if math.isfinite(ix.cp) and mode == MODE_SPEED:
-        level = max(level, _cp_level(ix.cp, reasons))
-    level = max(level, _backlash_level(ix, fused, reasons))
+        level, effect = _cp_level(ix.cp, reasons), "Cp"
+    rest = _backlash_level(ix, fused, reasons)
+    if rest > level:
+        level, effect = rest, "fused backlash" if fused is not None else "lost motion"
     if unknown is not None:
-        return UNKNOWN, [unknown] + reasons
-    return LEVELS[level], reasons
+        return Verdict.unknown([unknown] + reasons, THESIS_MODEL)
+    return Verdict(level, effect if level > Level.HEALTHY else "none", tuple(reasons),
+                   THESIS_MODEL)
 
 
-def _ci_level(ci: float, reasons: list[str]) -> int:
-    """The thesis' Ci levels (section 6.5): 3 failure, 2 warning, 1 threshold, else 0."""
+def _ci_level(ci: float, reasons: list[str]) -> Level:
+    """The thesis' Ci levels (section 6.5): failure, warning, threshold (DEGRADED)."""
     from bench.hums import rul as R
     if ci < R.FAILURE:
         reasons.append(f"Ci = {ci:.3f} is below the failure level {R.FAILURE}")
-        return 3
+        return Level.FAILURE
     if ci < R.WARNING:
         reasons.append(f"Ci = {ci:.3f} is below the warning level {R.WARNING}")
-        return 2
+        return Level.WARNING
     if ci < R.THRESHOLD:
         reasons.append(f"Ci = {ci:.3f} is below the threshold {R.THRESHOLD} "
                        "(deviation from nominal no longer negligible)")
-        return 1
+        return Level.DEGRADED
     reasons.append(f"Ci = {ci:.3f} is within 7 % of nominal")
-    return 0
+    return Level.HEALTHY
 
 
-def _cp_level(cp: float, reasons: list[str]) -> int:
+def _cp_level(cp: float, reasons: list[str]) -> Level:
     if cp > 1.005:     # 4x the largest noise effect on Cp in the sweep (H6)
         reasons.append(f"Cp = {cp:.3f}: the nut moves {100 * (1 - 1 / cp):.1f} % "
                        "less than nominal (lost motion)")
-        return 1
+        return Level.DEGRADED
     reasons.append(f"Cp = {cp:.4f} is within 0.5 % of nominal")
-    return 0
+    return Level.HEALTHY
 
 
-def _backlash_level(ix: Indexes, fused: Any, reasons: list[str]) -> int:
+def _backlash_level(ix: Indexes, fused: Any, reasons: list[str]) -> Level:
     """The fused backlash estimate (the median of its last three periods) on the Ci
     levels' scale, else the lost motion: FAILURE from the backlash at which the
     calibration sweep's Ci reaches 0.56, WARNING from where it reaches 0.80, DEGRADED once
@@ -123,16 +129,16 @@ def _backlash_level(ix: Indexes, fused: Any, reasons: list[str]) -> int:
         if lm > 5.0:
             reasons.append(f"lost motion between motor and nut {lm:.1f} um (nominal "
                            f"{ix.nominal_lost_motion_m * 1e6:.1f} um)")
-            return 1
-    return 0
+            return Level.DEGRADED
+    return Level.HEALTHY
 
 
-def _fused_level(fused: Any, reasons: list[str]) -> int:
+def _fused_level(fused: Any, reasons: list[str]) -> Level:
     from bench.hums import rul as R
     fr, cal, _ = fused
     b = float(np.nanmedian(fr.b_um[-3:]))
-    levels = ((3, "failure", cal.fail_um, R.FAILURE),
-              (2, "warning", cal.backlash_at_ci(R.WARNING), R.WARNING))
+    levels = ((Level.FAILURE, "failure", cal.fail_um, R.FAILURE),
+              (Level.WARNING, "warning", cal.backlash_at_ci(R.WARNING), R.WARNING))
     for level, name, b_lv, ci_lv in levels:
         if b >= b_lv:
             reasons.append(f"fused backlash estimate {b:.1f} um is above the {name} backlash "
@@ -142,7 +148,7 @@ def _fused_level(fused: Any, reasons: list[str]) -> int:
         reasons.append(f"fused backlash estimate {b:.1f} um: backlash detected (above the "
                        f"detection level {cal.warn_um:.2f} um since t = {fr.t_warning_s:.1f}"
                        f" s), below the warning backlash {levels[1][2]:.1f} um")
-        return 1
+        return Level.DEGRADED
     reasons.append(f"fused backlash estimate {b:.2f} um is below the detection level "
                    f"{cal.warn_um:.2f} um")
-    return 0
+    return Level.HEALTHY

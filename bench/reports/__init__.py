@@ -27,8 +27,11 @@ from typing import Any
 import jinja2
 from markupsafe import Markup, escape
 
-LEVEL_CLASSES = ("HEALTHY", "DEGRADED", "WARNING", "FAILURE", "UNKNOWN")
-"""Verdict levels the stylesheet colours (class ``v LEVEL``)."""
+from bench.verdict import Level
+
+LEVEL_CLASSES = tuple(lv.name for lv in sorted(Level, key=lambda lv: (lv < 0, lv)))
+"""Verdict levels the stylesheet colours (class ``v LEVEL``): `bench.verdict.Level`'s
+names, HEALTHY to FAILURE then UNKNOWN."""
 
 
 @dataclass

@@ -32,6 +32,7 @@ from bench.rig import population as P
 from bench.rig.cycles import Cycle, cycle_numbers, cycles_from_trace, load_unit, phases
 from bench.rig.features import cycle_features, verdict
 from bench.units import convert
+from bench.verdict import Level
 
 FLOOR_FACTOR = 2.0       # as bench.gap.rigcal.FLOOR_FACTOR (the calibration carries its own)
 AGAINST = ("auto", "model", "baseline")
@@ -309,7 +310,8 @@ def _no_baseline(base: B.Baseline, load: float, unit: str) -> str:
 
 
 def _unjudged(c: Cycle, load: float, why: str) -> dict[str, Any]:
-    return {"cycle": c.label, "flagged": False, "judged": False, "effect": None,
+    return {"cycle": c.label, "level": Level.UNKNOWN.name, "flagged": False, "judged": False,
+            "effect": None,
             "verdict": f"not judged: {why}", "reasons": [], "baseline": None,
             "location_mm": None, "load": load, "baseline_load": None}
 

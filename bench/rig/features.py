@@ -78,7 +78,8 @@ from bench.rig.baseline import (
 )
 from bench.rig.cycles import Cycle, ramps
 from bench.rig.offsets import is_offset, position_shifts, shift_text
-from bench.rig.verdict import HEALTHY, UNKNOWN, WARNING, RigVerdict, provisional_note
+from bench.rig.verdict import RigVerdict, provisional_note
+from bench.verdict import Level, Verdict
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
@@ -480,10 +481,12 @@ def assess(f: CycleFeatures, thresholds: dict[str, float]) -> Judgement:
     return Judgement(True, effect, fault, reasons, ratios)
 
 
-def judge(f: CycleFeatures, thresholds: dict[str, float]) -> tuple[bool, str, list[str]]:
-    """(flagged, the signature named, reasons) of `assess`."""
+def judge(f: CycleFeatures, thresholds: dict[str, float], reference: str = "") -> Verdict:
+    """`assess` as a verdict: WARNING with the signature named when flagged, else
+    HEALTHY; judged against `reference` (the baseline the thresholds come from)."""
     j = assess(f, thresholds)
-    return j.flagged, j.effect, j.reasons
+    return Verdict(Level.WARNING if j.flagged else Level.HEALTHY, j.effect, tuple(j.reasons),
+                   reference)
 
 
 FEATURE_OF = {"drag": "level", "offset": "index"}   # effects named by another feature
@@ -505,8 +508,9 @@ def rig_verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]
     lb = base.for_load(f.load)
     prov = lb.provisional
     if f.incomplete:
-        return RigVerdict(f.label, UNKNOWN, "not judged", "", f"not judged: {f.incomplete}",
-                          base.describe(f.load), prov)
+        return RigVerdict(level=Level.UNKNOWN, effect="not judged", cycle=f.label,
+                          text=f"not judged: {f.incomplete}", reference=base.describe(f.load),
+                          provisional=prov)
     j = assess(f, thresholds)
     where = location(f, j.effect, thresholds) if j.flagged else None
     if not j.flagged:
@@ -520,8 +524,10 @@ def rig_verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]
             text += "; also above threshold: " + ", ".join(others)
     if prov:
         text += f"; {provisional_note(len(set(lb.runs)))}"
-    return RigVerdict(f.label, WARNING if j.flagged else HEALTHY, j.effect, j.fault, text,
-                      base.describe(f.load), prov, where, j.reasons)
+    return RigVerdict(level=Level.WARNING if j.flagged else Level.HEALTHY, effect=j.effect,
+                      reasons=tuple(j.reasons), reference=base.describe(f.load),
+                      cycle=f.label, fault=j.fault, text=text, provisional=prov,
+                      location_mm=where)
 
 
 def effect_text(f: CycleFeatures, effect: str, where: float | None,

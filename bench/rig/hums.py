@@ -34,7 +34,9 @@ from bench import BenchError
 from bench.gap import needs as N
 from bench.rig import fallback as FB
 from bench.rig.cycles import direction_labels
+from bench.rig.verdict import baseline_verdict, model_verdict
 from bench.trace import Trace
+from bench.verdict import Verdict
 
 MODEL_FREE = "model-free indexes: position error per direction"
 MODEL_FREE_I = "model-free indexes: current per direction"
@@ -66,16 +68,20 @@ class RigAnalysis:
     sections: dict[str, str | None]            # None: available, else the reason
     model_free: dict[str, dict[str, float]]    # direction -> index -> value
     reference: str                             # what the verdict was judged against
-    verdict: str = "UNKNOWN"
-    reasons: list[str] = field(default_factory=list)
+    verdict: Verdict = field(default_factory=lambda: Verdict.unknown(()))
     model: dict[str, Any] | None = None
     baseline: dict[str, Any] | None = None
     sim: dict[str, np.ndarray] = field(default_factory=dict)
     base_obj: Any = None
     gap: dict[str, Any] | None = None          # `bench gap`'s diagnosis (riggap), if any
 
+    @property
+    def reasons(self) -> list[str]:
+        """The verdict's reasons."""
+        return list(self.verdict.reasons)
+
     def to_json(self) -> dict[str, Any]:
-        return {"log": self.name, "verdict": self.verdict, "reasons": self.reasons,
+        return {"log": self.name, "verdict": self.verdict.name, "reasons": self.reasons,
                 "judged_against": self.reference,
                 "sections": {k: (v or "available") for k, v in self.sections.items()},
                 "model_free": self.model_free, "model": self.model,
@@ -163,7 +169,7 @@ def analyse_rig(trace: Trace, name: str, ref: FB.Reference,
         _model(a, ref)
     if ref.kind == "baseline" and ref.baseline is not None and sections[BASELINE] is None:
         _baseline(a, ref, assessed)
-    a.verdict, a.reasons = _verdict(a, ref)
+    a.verdict = _verdict(a, ref)
     return a
 
 
@@ -196,14 +202,10 @@ def _baseline(a: RigAnalysis, ref: FB.Reference, assessed: dict[str, Any] | None
     a.reference = ref.line(FB.loads_judged(a.baseline))
 
 
-def _verdict(a: RigAnalysis, ref: FB.Reference) -> tuple[str, list[str]]:
+def _verdict(a: RigAnalysis, ref: FB.Reference) -> Verdict:
     b = a.baseline
-    if b is not None and b["judged"]:
-        reasons = [f"{b['flagged']} of {b['judged_cycles']} cycle(s) outside the healthy "
-                   f"baseline's thresholds"]
-        reasons += [f"{v['cycle']}: {v['verdict']}" for v in b["verdicts"]
-                    if v["flagged"] or not v["judged"]]
-        return ("DEGRADED" if b["flagged"] else "HEALTHY"), reasons
+    if b is not None and (v := baseline_verdict(b, a.reference)) is not None:
+        return v
     pre = []
     if ref.kind == "baseline":
         why = a.sections[BASELINE] or (b["notes"][-1] if b and b["notes"] else "")
@@ -220,23 +222,13 @@ def _verdict(a: RigAnalysis, ref: FB.Reference) -> tuple[str, list[str]]:
             why = f"the calibrated model gave no verdict ({a.sections[MODEL_CP]})"
         else:
             why = "no reference this log can be judged against"
-        return "UNKNOWN", pre + [why]
-    reasons = []
-    for s, r in m["rms_ratio"].items():
-        side = "above" if r > m["threshold"][s] else "within"
-        reasons.append(f"{s} RMS {r:.2f} x its noise floor, {side} the threshold "
-                       f"{m['threshold'][s]:.2f} (the calibration's worst healthy ratio, at "
-                       "least 2)")
-    if m.get("not_judged"):      # a verdict without a signal it rests on is no verdict
-        return "UNKNOWN", pre + reasons + [
-            "the calibrated model's verdict needs every signal its healthy logs were scored "
-            "on; not judged: " + "; ".join(f"{s} ({why})" for s, why in m["not_judged"].items())]
-    return ("DEGRADED" if m["significant"] else "HEALTHY"), pre + reasons
+        return Verdict.unknown(pre + [why], a.reference)
+    return model_verdict(m, a.reference, tuple(pre))
 
 
 def summary_text(a: RigAnalysis) -> str:
     """The text summary of one log (printed and written as summary.txt)."""
-    lines = [f"{a.name}: {a.verdict}", f"  judged against: {a.reference}"]
+    lines = [f"{a.name}: {a.verdict.name}", f"  judged against: {a.reference}"]
     lines += [f"  {r}" for r in a.reasons]
     for d, row in a.model_free.items():
         vals = ", ".join(f"{k} {v:.4g}" for k, v in row.items() if k != "samples")

@@ -272,7 +272,7 @@ def gap_figure(g: dict[str, Any]) -> str:
     return png_base64(fig)
 
 def _log(a: H.RigAnalysis) -> list[Block]:
-    parts: list[Block] = [Heading(a.name), Paragraph(badge(a.verdict)),
+    parts: list[Block] = [Heading(a.name), Paragraph(badge(a.verdict.name)),
                           Paragraph("Judged against: " + a.reference, role="ref"),
                           Bullets(list(a.reasons))]
     parts += _gap(a) + _model_free(a) + _model(a) + _baseline(a)
@@ -311,7 +311,7 @@ def summary_record(a: H.RigAnalysis) -> dict[str, Any]:
     """The summary row of `a` (the page's and ``indexes.json``'s ``summary``)."""
     dur = len(a.trace) * a.trace.dt if len(a.trace) > 1 else 0.0
     return {"log": a.name, "samples": len(a.trace), "duration_s": dur,
-            "verdict": a.verdict, "judged_against": a.reference}
+            "verdict": a.verdict.name, "judged_against": a.reference}
 
 
 def summary_table(analyses: list[H.RigAnalysis]) -> Table:

@@ -123,11 +123,11 @@ def _flagged(lb: B.LoadBaseline, thr: dict[str, float], cycles: Sequence[Cycle],
         f = cycle_features(lb, c, lead_mm)
         if f.incomplete:
             continue
-        hit, effect, _ = judge(f, thr)
+        v = judge(f, thr)
         n += 1
-        k += int(hit)
-        if hit:
-            effects.append(effect)
+        k += int(v.flagged)
+        if v.flagged:
+            effects.append(v.effect)
     return k, n, effects
 
 

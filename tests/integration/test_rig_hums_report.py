@@ -254,3 +254,30 @@ def test_a_log_without_a_signal_the_model_was_scored_on_gets_no_verdict(tmp_path
     cal = rig_calibration(tmp_path / "cal_pos.json", scored=("position_m",))
     code, js, _ = _report([log, "--nominal", cal], tmp_path / "out2")
     assert code == 0 and js["verdict"] in ("HEALTHY", "DEGRADED")
+
+
+def test_gap_json_has_one_schema_against_the_model_and_the_baseline(data, calibrated,
+                                                                     tmp_path):
+    """`bench gap --json` of one log judged against the calibrated model and against the
+    healthy baseline: the same top-level keys (`GAP_KEYS`), a `verdict` of
+    `Verdict.to_json()`, `against` and `reference` saying which; and each verdict is the
+    one `bench hums report` gives the log against the same reference."""
+    from bench.gap.result_json import GAP_KEYS
+    docs = {}
+    for against in ("model", "baseline"):
+        path = tmp_path / f"{against}.json"
+        assert main(["gap", str(data / "s" / SPALL), "--nominal", str(calibrated),
+                     "--against", against, "--json", str(path)]) == 0
+        docs[against] = json.loads(path.read_text())
+        code, rep, _ = _report([data / "s" / SPALL, "--nominal", calibrated, "--against",
+                                against], tmp_path / f"r_{against}")
+        assert docs[against]["verdict"]["level"] == rep["verdict"], against
+    m, b = docs["model"], docs["baseline"]
+    assert set(m) == set(b) == set(GAP_KEYS)
+    assert set(m["verdict"]) == set(b["verdict"]) == {"level", "code", "effect", "reasons",
+                                                      "reference"}
+    assert (m["against"], b["against"]) == ("model", "baseline")
+    assert m["reference"] == m["verdict"]["reference"] != b["reference"]
+    assert "healthy baseline" in b["reference"] and m["ranking"] and b["ranking"] is None
+    assert b["verdicts"] and m["verdicts"] is None
+    assert b["verdict"]["level"] == "DEGRADED" and b["verdict"]["effect"] == "periodic"

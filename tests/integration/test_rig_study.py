@@ -56,7 +56,7 @@ def test_cross_validation_judges_every_held_out_cycle_of_every_split():
     cal = [c for c in cyc if c.run in (1, 2)]
     thr = P.calibrate(cal, lead_mm=5.0).thresholds
     lb = build_load(cal)
-    hand = sum(judge(cycle_features(lb, c, 5.0), thr)[0] for c in cyc if c.run in (3, 4))
+    hand = sum(judge(cycle_features(lb, c, 5.0), thr).flagged for c in cyc if c.run in (3, 4))
     first = next(s for s in cv["per_split"] if s["calibrate_runs"] == [1, 2])
     assert first["flagged"] == hand
     assert P.cross_validate(cyc, 4) == {}              # no run left to hold out
@@ -84,7 +84,7 @@ def test_cross_validation_gives_every_fault_conditions_rate_under_every_split():
         cal = [c for c in cyc if c.run in runs]
         thr = P.calibrate(cal, lead_mm=5.0).thresholds
         lb = build_load(cal)
-        hand = sum(judge(cycle_features(lb, c, 5.0), thr)[0] for c in spall)
+        hand = sum(judge(cycle_features(lb, c, 5.0), thr).flagged for c in spall)
         assert next(s for s in r["per_split"] if s["calibrate_runs"] == runs)["flagged"] \
             == hand
 

@@ -76,7 +76,10 @@ def test_import_calibrate_gap(logs):
     assert r.returncode == 0, r.stderr
     assert "verdict: backlash" in r.stdout
     js = json.loads((logs / "gap.json").read_text())
-    assert js["verdict"] == "backlash"
+    from bench.gap.result_json import GAP_KEYS
+    assert set(js) == set(GAP_KEYS) and js["against"] == "model"
+    assert js["verdict"]["effect"] == "backlash" and js["verdict"]["level"] == "DEGRADED"
+    assert js["reference"] == js["verdict"]["reference"] == "thesis model, calibration cal.json"
     assert (logs / "report" / "index.html").exists()
     assert (logs / "report" / "traces_before_after.png").exists()
 

@@ -286,3 +286,41 @@ def test_a_job_that_fails_in_a_worker_is_named_by_its_label():
     assert str(err) == "fleet ingest: b.log failed in a worker: ValueError: boom"
     err = _job_error(RuntimeError("worker died"), "fleet ingest", jobs, None, 2, 1)
     assert str(err) == "fleet ingest: job 2 failed in a worker: RuntimeError: worker died"
+
+
+def test_levels_of_old_stores_read_in_the_one_encoding(tmp_path):
+    """A version-1 store kept UNKNOWN as a NULL level (and a NULL verdict reads as none):
+    the status reads every stored run's level as `bench.verdict.Level` (-1 for UNKNOWN);
+    a verdict that is no level is one line naming it, not a traceback."""
+    from bench.verdict import Level
+    path = tmp_path / "v1.duckdb"
+    con = S.connect(path, target=1)
+    con.execute("INSERT INTO runs (digest, actuator_id, run_time, ci, ci_harmonic, verdict, "
+                "level) VALUES ('a', 'A7', TIMESTAMP '2026-01-05 08:00:00', 0.91, 0.91, "
+                "'DEGRADED', 1), ('b', 'A8', TIMESTAMP '2026-01-05 08:00:00', 1.0, 1.0, "
+                "NULL, NULL), ('c', 'A9', TIMESTAMP '2026-01-05 08:00:00', 1.0, 1.0, "
+                "'UNKNOWN', NULL)")
+    con.close()
+    with Store(path) as st:
+        rows = {r.ident: r for r in T.fleet_status(st)}
+    assert rows["A7"].level is Level.DEGRADED and rows["A7"].verdict == "DEGRADED"
+    assert rows["A8"].level is Level.UNKNOWN and int(rows["A8"].level) == -1
+    assert rows["A8"].verdict == rows["A9"].verdict == "UNKNOWN"
+    with Store(path) as st:
+        st.con.execute("UPDATE runs SET verdict = 'FLAGGED' WHERE digest = 'a'")
+        with pytest.raises(BenchError, match="^the fleet store holds a run whose verdict is "
+                                             "not a level: 'FLAGGED'$"):
+            T.fleet_status(st)
+
+
+def test_an_unjudged_run_is_stored_with_the_one_unknown_code(tmp_path):
+    """The ingest stores UNKNOWN as its code -1 (`bench.verdict.Level`), not as NULL."""
+    from bench.trace import Trace
+    t = np.arange(2000) * 1e-3
+    cols = ("mode", "setpoint_position_m", "position_m", "current_a", "motor_speed_rad_s",
+            "setpoint_speed_rad_s", "current_demand_a", "motor_angle_rad")
+    tr = Trace({"t_s": t, **{c: np.zeros_like(t) for c in cols}}, {"source": "idle"})
+    path = tmp_path / "idle.npz"
+    tr.save(path)
+    row = G._row(path, "d", None, tr)             # mode 0 throughout: nothing commanded
+    assert (row["verdict"], row["level"]) == ("UNKNOWN", -1)

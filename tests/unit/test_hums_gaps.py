@@ -49,7 +49,7 @@ def test_short_gaps_are_bridged_counted_and_change_nothing_that_matters(healthy,
                          "current_demand_a": 1, "current_a": 2, "motor_speed_rad_s": 1,
                          "motor_angle_rad": 1, "position_m": 5, "load_force_n": 1}
     assert not a.indexes.unavailable
-    assert a.verdict == intact.verdict == "HEALTHY"
+    assert a.verdict.name == intact.verdict.name == "HEALTHY"
     assert a.indexes.ci == pytest.approx(intact.indexes.ci, abs=2e-3)
     assert a.indexes.ci_harmonic == pytest.approx(intact.indexes.ci_harmonic, abs=2e-3)
     assert a.indexes.cp == pytest.approx(intact.indexes.cp, abs=1e-4)
@@ -66,14 +66,14 @@ def test_a_long_gap_makes_the_indexes_that_need_it_unavailable(healthy, intact):
     assert "longest gap 120 samples at t = 0.500 s" in ix.unavailable["ci"]
     assert ix.cp == pytest.approx(intact.indexes.cp, abs=1e-9)        # the LVDT is intact
     assert math.isfinite(ix.lost_motion_m)
-    assert a.verdict == "UNKNOWN"
+    assert a.verdict.name == "UNKNOWN"
     assert a.reasons[0].startswith("Ci not available: 120 samples missing in current_a")
 
 
 @pytest.mark.parametrize("rows", [1, 3, 99])
 def test_no_verdict_on_a_log_too_short_for_the_index(healthy, rows):
     a = HR.analyse(_copy(healthy, slice(0, rows)), "short", rul=False)
-    assert a.verdict == "UNKNOWN"
+    assert a.verdict.name == "UNKNOWN"
     word = "row" if rows == 1 else "rows"
     assert a.reasons[0] == f"Ci not available ({rows} {word}, at least 100 needed)"
 
@@ -82,7 +82,7 @@ def test_no_verdict_when_nothing_was_commanded(healthy):
     tr = _copy(healthy)
     tr.columns["mode"][:] = MODE_IDLE
     a = HR.analyse(tr, "idle", rul=False)
-    assert a.verdict == "UNKNOWN"
+    assert a.verdict.name == "UNKNOWN"
     assert "nothing was commanded" in a.reasons[0]
 
 

@@ -6,9 +6,10 @@ from __future__ import annotations
 import math
 
 from bench.hums.indexes import Indexes
-from bench.hums.live import LEVELS, LiveHums, PeriodResult
-from bench.hums.verdict import UNKNOWN, judge
+from bench.hums.live import LiveHums, PeriodResult
+from bench.hums.verdict import THESIS_MODEL, judge
 from bench.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
+from bench.verdict import Level, Verdict
 
 
 def ix(**kw) -> Indexes:
@@ -16,37 +17,36 @@ def ix(**kw) -> Indexes:
 
 
 def test_position_mode_rests_on_ci():
-    assert judge(ix(ci=0.99, cp=1.0), MODE_POSITION)[0] == "HEALTHY"
-    assert judge(ix(ci=0.90), MODE_POSITION)[0] == "DEGRADED"
-    assert judge(ix(ci=0.70), MODE_POSITION)[0] == "WARNING"
-    assert judge(ix(ci=0.40), MODE_POSITION)[0] == "FAILURE"
+    assert judge(ix(ci=0.99, cp=1.0), MODE_POSITION).name == "HEALTHY"
+    assert judge(ix(ci=0.90), MODE_POSITION).name == "DEGRADED"
+    assert judge(ix(ci=0.70), MODE_POSITION).name == "WARNING"
+    assert judge(ix(ci=0.40), MODE_POSITION).name == "FAILURE"
     # the harmonic Ci comes first when there is one
-    assert judge(ix(ci=0.99, ci_harmonic=0.70), MODE_POSITION)[0] == "WARNING"
+    assert judge(ix(ci=0.99, ci_harmonic=0.70), MODE_POSITION).name == "WARNING"
 
 
 def test_no_index_no_verdict():
-    level, reasons = judge(ix(cp=1.0), MODE_POSITION)           # Ci NaN
-    assert level == UNKNOWN and reasons[0].startswith("Ci ")
-    level, reasons = judge(ix(ci=0.99), MODE_SPEED)             # Cp NaN in speed mode
-    assert level == UNKNOWN and reasons[0].startswith("Cp ")
-    assert judge(ix(ci=0.99, cp=1.0), MODE_IDLE)[0] == UNKNOWN
+    v = judge(ix(cp=1.0), MODE_POSITION)                        # Ci NaN
+    assert v.level == Level.UNKNOWN and v.reasons[0].startswith("Ci ")
+    assert v.effect == "not judged" and v.reference == THESIS_MODEL
+    v = judge(ix(ci=0.99), MODE_SPEED)                          # Cp NaN in speed mode
+    assert v.level == Level.UNKNOWN and v.reasons[0].startswith("Cp ")
+    assert judge(ix(ci=0.99, cp=1.0), MODE_IDLE).level == Level.UNKNOWN
 
 
 def test_speed_mode_rests_on_cp_not_ci():
-    assert judge(ix(ci=0.40, cp=1.0), MODE_SPEED)[0] == "HEALTHY"
-    assert judge(ix(ci=0.99, cp=1.02), MODE_SPEED)[0] == "DEGRADED"
+    assert judge(ix(ci=0.40, cp=1.0), MODE_SPEED).name == "HEALTHY"
+    assert judge(ix(ci=0.99, cp=1.02), MODE_SPEED).name == "DEGRADED"
 
 
 def test_lost_motion_counts():
     assert judge(ix(ci=0.99, lost_motion_m=20e-6, nominal_lost_motion_m=0.0),
-                 MODE_POSITION)[0] == "DEGRADED"
+                 MODE_POSITION).name == "DEGRADED"
 
 
 def test_live_levels_name_the_verdicts():
-    assert LEVELS[:4] == ("HEALTHY", "DEGRADED", "WARNING", "FAILURE")
-    assert LEVELS[4] == UNKNOWN
-    r = PeriodResult(1, 0, 0.0, ix(), LEVELS.index(UNKNOWN))
-    assert r.row()["level"] == UNKNOWN
+    r = PeriodResult(1, 0, 0.0, ix(), Verdict.unknown(["nothing"]))
+    assert r.row()["level"] == "UNKNOWN" and r.level == Level.UNKNOWN
 
 
 def test_live_period_is_judged_by_the_report_verdict():
@@ -60,7 +60,7 @@ def test_live_period_is_judged_by_the_report_verdict():
             for k in range(hums._online.m)]
     out = hums._push(rows)
     assert len(out) == 1
-    assert LEVELS[out[0].level] == judge(out[0].indexes, MODE_POSITION)[0] == UNKNOWN
+    assert out[0].level == judge(out[0].indexes, MODE_POSITION).level == Level.UNKNOWN
 
 
 def test_watcher_prints_and_writes_the_same_ci():
@@ -68,9 +68,11 @@ def test_watcher_prints_and_writes_the_same_ci():
     broadband reading is ``ci_broadband`` (it printed ci_harmonic, and wrote the broadband
     value as ``ci``)."""
     from bench.hums.live import format_result
-    r = PeriodResult(1, 3, 1.5, ix(ci=0.7398, ci_harmonic=0.753, cp=1.0), 2)
-    assert "Ci  0.753" in format_result(r)
+    r = PeriodResult(1, 3, 1.5, ix(ci=0.7398, ci_harmonic=0.753, cp=1.0),
+                     Verdict(Level.WARNING, "Ci"))
+    assert "Ci  0.753" in format_result(r) and format_result(r).endswith("WARNING")
     row = r.row()
+    assert row["level"] == "WARNING"
     assert (row["ci"], row["ci_broadband"], row["ci_harmonic"]) == (0.753, 0.7398, 0.753)
 
 
@@ -105,11 +107,14 @@ def test_fused_backlash_is_graded_on_the_ci_levels_scale():
     backlash above it is DEGRADED; WARNING and FAILURE come at the backlash where the
     calibration sweep's Ci reaches 0.80 and 0.56."""
     healthy = ix(ci=0.99, ci_harmonic=0.99)
-    level, reasons = judge(healthy, MODE_POSITION, _fused(5.0))
-    assert level == "DEGRADED", reasons
+    v = judge(healthy, MODE_POSITION, _fused(5.0))
+    level, reasons = v.name, v.reasons
+    assert level == "DEGRADED" and v.effect == "fused backlash", reasons
     assert "detection level 0.98 um" in reasons[-1] and "warning backlash 43.5 um" in reasons[-1]
-    assert judge(healthy, MODE_POSITION, _fused(50.0))[0] == "WARNING"
-    level, reasons = judge(healthy, MODE_POSITION, _fused(95.0))
+    assert judge(healthy, MODE_POSITION, _fused(50.0)).name == "WARNING"
+    v = judge(healthy, MODE_POSITION, _fused(95.0))
+    level, reasons = v.name, v.reasons
     assert level == "FAILURE" and "failure backlash 90.0 um" in reasons[-1]
-    level, reasons = judge(healthy, MODE_POSITION, _fused(0.1, detected=False))
+    v = judge(healthy, MODE_POSITION, _fused(0.1, detected=False))
+    level, reasons = v.name, v.reasons
     assert level == "HEALTHY" and "below the detection level" in reasons[-1]

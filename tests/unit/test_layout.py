@@ -452,3 +452,80 @@ def test_one_table_reader():
                     and isinstance(n.value, ast.Name) and n.value.id == "np":
                 own.append(f"{rel}:{n.lineno}: np.load")
     assert not own, "\n".join(own)
+
+
+VERDICT_MODULE = "bench/verdict.py"
+"""The one verdict model: `Level` (the names and their one numeric code) and `Verdict`."""
+LEVEL_NAMES = ("HEALTHY", "DEGRADED", "WARNING", "FAILURE", "UNKNOWN")
+LEVEL_TABLE_NAMES = ("LEVELS", "LEVEL_NAMES", "LEVEL_CLASSES", "LEVEL_CODES", "VERDICTS")
+
+
+def _prose(tree: ast.AST) -> set[int]:
+    """ids of the string constants that are not vocabulary: docstrings, the names in
+    `__all__` (an exported name such as ``UNKNOWN = "unknown"``, the usage's serial), and
+    argparse metavars (``metavar="HEALTHY"``: healthy logs)."""
+    out: set[int] = set()
+    for n in ast.walk(tree):
+        if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = n.body
+            out |= {id(s.value) for s in body if isinstance(s, ast.Expr)
+                    and isinstance(s.value, ast.Constant)}
+        if isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant):
+            out.add(id(n.value))        # an attribute's docstring
+        if isinstance(n, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__"
+                                             for t in n.targets):
+            out |= {id(c) for c in ast.walk(n.value)}
+        if isinstance(n, ast.keyword) and n.arg == "metavar":
+            out.add(id(n.value))
+    return out
+
+
+def level_vocabulary(source: str) -> list[str]:
+    """Where `source` writes its own verdict vocabulary: a string that is a level's name
+    (``return "DEGRADED"``, ``v == "UNKNOWN"``, a list of them) or a level table assigned
+    (``LEVELS = ...``, ``LEVEL_CLASSES = (...)`` as a literal). Prose naming a level
+    (docstrings, help and page text) is not vocabulary."""
+    tree = ast.parse(source)
+    prose = _prose(tree)
+    out = []
+    for n in ast.walk(tree):
+        if (isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in prose
+                and n.value.strip() in LEVEL_NAMES):
+            out.append(f"{n.lineno}: the level name {n.value!r}")
+        targets = (n.targets if isinstance(n, ast.Assign)
+                   else [n.target] if isinstance(n, ast.AnnAssign) else [])
+        value = getattr(n, "value", None)
+        if (any(isinstance(t, ast.Name) and t.id.lstrip("_") in LEVEL_TABLE_NAMES
+                for t in targets)
+                and isinstance(value, (ast.List, ast.Tuple, ast.Dict, ast.Set, ast.Starred))):
+            out.append(f"{n.lineno}: a level table")
+    return out
+
+
+def test_the_verdict_vocabulary_is_defined_once():
+    """The level names and their numbers live in `bench.verdict` only: every other
+    product module reads `Level` / `Verdict` (a module that compares with "UNKNOWN",
+    returns "DEGRADED" or keeps a LEVELS list writes a second vocabulary)."""
+    where = []
+    for path in MODULES.values():
+        rel = path.relative_to(ROOT).as_posix()
+        if rel != VERDICT_MODULE:
+            where += [f"{rel}:{w}" for w in level_vocabulary(path.read_text())]
+    assert not where, "\n".join(where)
+    assert "class Level(enum.IntEnum)" in (ROOT / VERDICT_MODULE).read_text()
+
+
+def test_the_vocabulary_check_sees_the_old_copies():
+    """The check fails on the forms the tree had before `bench.verdict`: a LEVELS list,
+    a returned level name, a comparison with one; prose and metavars pass."""
+    old = ('UNKNOWN = "UNKNOWN"\nLEVELS = ["HEALTHY", "DEGRADED", "WARNING", "FAILURE"]\n'
+           'LEVELS = (*V.LEVELS, V.UNKNOWN)\n'
+           'def f(b):\n    """HEALTHY or DEGRADED."""\n'
+           '    return ("DEGRADED" if b else "HEALTHY"), []\n'
+           'ok = [a for a in x if a.verdict == "UNKNOWN"]\n')
+    found = level_vocabulary(old)
+    assert sorted(int(w.split(":")[0]) for w in found) == [1, 2, 2, 2, 2, 2, 3, 6, 6, 7], found
+    fine = ('"""Levels: HEALTHY, DEGRADED."""\n__all__ = ["UNKNOWN"]\n'
+            'p.add_argument("log", metavar="HEALTHY")\nx = f"last test {lv.name}: DEGRADED"\n'
+            'LEVEL_CLASSES = tuple(lv.name for lv in Level)\n')
+    assert level_vocabulary(fine) == []

@@ -42,7 +42,8 @@ def test_localised_transient_is_located(base):
     rng = np.random.default_rng(11)
     thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
     f = cycle_features(base.for_load(20), trapezoid(rng, bump_mm=95.0))
-    hit, effect, _ = judge(f, thr)
+    v = judge(f, thr)
+    hit, effect = v.flagged, v.effect
     assert hit and effect == "localised"
     assert abs(f.location_mm - 95.0) < 4.0
     assert abs(f.out_mm - f.in_mm) < 6.0
@@ -52,7 +53,8 @@ def test_level_shift_is_friction_like_not_localised(base):
     rng = np.random.default_rng(12)
     thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
     f = cycle_features(base.for_load(20), trapezoid(rng, level=0.2))
-    hit, effect, _ = judge(f, thr)
+    v = judge(f, thr)
+    hit, effect = v.flagged, v.effect
     assert hit and effect == "level"
     assert f.scores["localised"] < thr["localised"]
 
@@ -60,7 +62,7 @@ def test_level_shift_is_friction_like_not_localised(base):
 def test_healthy_cycle_is_not_flagged(base):
     rng = np.random.default_rng(13)
     thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
-    assert not judge(cycle_features(base.for_load(20), trapezoid(rng)), thr)[0]
+    assert not judge(cycle_features(base.for_load(20), trapezoid(rng)), thr).flagged
 
 
 def test_baseline_needs_cycles_and_a_load():
@@ -141,7 +143,8 @@ def test_dwell_transient_and_phase_index(base):
     c.current_a[d.start + 10: d.start + 14] -= 0.3
     f = cycle_features(base.for_load(20), c)
     assert f.scores["dwell"] > 2 * healthy.scores["dwell"] and f.scores["dwell"] > 8.0
-    hit, effect, _ = judge(f, {"localised": 8.0, "level": 1.5, "dwell": 7.0})
+    v = judge(f, {"localised": 8.0, "level": 1.5, "dwell": 7.0})
+    hit, effect = v.flagged, v.effect
     assert hit and effect == "dwell"
 
 
@@ -181,7 +184,8 @@ def test_a_lowered_level_is_drag_not_friction(base):
     rng = np.random.default_rng(18)
     thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
     low = cycle_features(base.for_load(20), trapezoid(rng, level=-0.2))
-    hit, effect, _ = judge(low, thr)
+    v = judge(low, thr)
+    hit, effect = v.flagged, v.effect
     assert hit and effect == "drag"
     from bench.rig.features import verdict
     text = verdict(base, low, thr)["verdict"]
@@ -189,7 +193,7 @@ def test_a_lowered_level_is_drag_not_friction(base):
     assert "also above threshold: level" not in text          # drag is the level feature
     assert verdict(base, low, thr)["fault"] == "backlash"
     high = cycle_features(base.for_load(20), trapezoid(rng, level=0.2))
-    assert judge(high, thr)[1] == "level"
+    assert judge(high, thr).effect == "level"
 
 
 def test_a_position_shift_in_every_phase_is_named_an_offset():
@@ -224,6 +228,6 @@ def test_a_position_shift_in_every_phase_is_named_an_offset():
     # a family's signature is named before a catch-all: the offset (backlash) before a
     # level that moved in one direction only; a level raised in both is friction's
     from bench.rig.naming import level_sign
-    named = judge(f, {"index": 10.0, "level": 1e-6})[1]
+    named = judge(f, {"index": 10.0, "level": 1e-6}).effect
     assert named == ("offset" if level_sign(f.level_out, f.level_in) == 0 else named)
     assert named in ("offset", "level", "drag")

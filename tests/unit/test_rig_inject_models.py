@@ -96,5 +96,5 @@ def _features(**scores: float):
 def test_judge_names_by_tier_and_ratio(scores, named):
     from bench.rig.features import FEATURES, judge
     thr = {k: 1.0 for k in FEATURES}
-    assert judge(_features(**scores), thr)[:2] == (True, named)
-    assert judge(_features(), thr)[:2] == (False, "none")
+    assert (v := judge(_features(**scores), thr)).flagged and v.effect == named
+    assert not (v := judge(_features(), thr)).flagged and v.effect == "none"

@@ -149,7 +149,7 @@ def test_a_verdict_against_two_runs_says_it_is_provisional():
     base = B.build([lagging(rng, r, 10 * r + g) for r in (1, 2) for g in range(5)])
     f = cycle_features(base.for_load(20), lagging(rng))
     v = rig_verdict(base, f, {"level": 100.0})
-    assert v.provisional and v.level == "HEALTHY"
+    assert v.provisional and v.level.name == "HEALTHY"
     assert "with a provisional baseline (2 healthy runs" in v.text
     d = v.to_dict()
     assert d["provisional"] and d["judged"] and not d["flagged"] and d["fault"] == ""
