@@ -44,6 +44,7 @@ import zlib
 from array import array
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from itertools import islice
 from pathlib import Path
 from typing import Any
 
@@ -58,9 +59,9 @@ MAX_LINE_BYTES = 1 << 20
 file read as text would otherwise be one line of its whole size)."""
 BAR_BYTES = 16 << 20
 """Tables at least this large show a progress bar while they are read."""
-FAST_BYTES = 16 << 20
-"""Text tables up to this size on disk (and 8x it as text) are parsed at once by pyarrow
-(`_arrow_delimited`); larger ones are streamed line by line."""
+FAST_BYTES = 32 << 20
+"""Text tables up to this size as text are parsed at once by pyarrow (`_arrow_delimited`,
+a peak of a few times this size); larger ones are streamed line by line."""
 # a table or trace held in memory: 8-byte values, and up to 3 copies alive at once (the
 # columns, the temporaries of the set-point functions, the table built to save it)
 ROW_COPIES = 3
@@ -291,13 +292,13 @@ def _arrow_delimited(path: Path, delimiter: str, columns: list[str] | None, text
         return None
     try:
         with (opener or open)(path, "rb") as fh:
-            data = fh.read(FAST_BYTES * 8 + 1)
+            data = b"".join(islice(iter(lambda: fh.read(1 << 20), b""), FAST_BYTES >> 20 | 1))
         data.decode("utf-8")
     except Exception:  # noqa: BLE001 - the line reader names what is wrong
         return None
     data = data.removeprefix(codecs.BOM_UTF8)
     d = re.escape(delimiter.encode())
-    if (len(data) > FAST_BYTES * 8 or b'"' in data or b"\r" in data
+    if (len(data) > FAST_BYTES or b'"' in data or b"\r" in data
             or (columns is not None
                 and re.search(rb"(?m)^(?:[ \t]|" + d + rb")+$", data))):
         return None
@@ -332,7 +333,6 @@ def _arrow_columns(tab: Any, wanted: list[str], text: bool, finite: bool,
     """`_arrow_delimited`'s numbers and text (None: the line reader must read it)."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
-
     out: dict[str, np.ndarray] = {}
     strings: dict[str, np.ndarray] = {}
     for c in wanted:

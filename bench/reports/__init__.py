@@ -158,7 +158,7 @@ def inline_code(text: Any) -> Markup:
 
 def badge(level: str) -> Markup:
     """A verdict level as its coloured badge (an unknown word: the UNKNOWN colour)."""
-    cls = level if level in LEVEL_CLASSES else "UNKNOWN"
+    cls = level if level in LEVEL_CLASSES else Level.UNKNOWN.name
     return Markup('<span class="v {}">{}</span>').format(cls, level)
 
 
