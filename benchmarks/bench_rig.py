@@ -15,7 +15,7 @@ own processes (PYTHONPATH=tree), one after the other, never at the same time.
    each judged once, as a new cycle is (nothing of it computed before). Goal: < 5 ms.
 2. The study of about 1000 cycles: `bench rig study` in a fresh process on 2 worker
    processes (`--workers 2`), calibrated on healthy runs 1-4 and held out 5-6, over the
-   healthy tables, backlash1, lackLubrication1 and spalling stages 1, 3, 5, 7 and 8 (985
+   healthy tables, backlash1, lackLubrication1 and spalling stages 1, 3, 5, 7 and 8 (925
    cycles): baseline, thresholds, every cycle scored, the cross-validation over the 15
    choices of 4 calibration runs (every fault cycle judged under each), the
    leave-runs-out validation of the classifiers, report and figures. Goal: < 2 min.
@@ -118,10 +118,15 @@ def main() -> int:
     ap.add_argument("--data", required=True, type=Path, help="the Cranfield tables' folder")
     ap.add_argument("--old", type=Path, help="a checkout of the code to compare with")
     ap.add_argument("--write", metavar="DOC", help="replace the section in this file")
+    ap.add_argument("--verdict-only", action="store_true",
+                    help="time the verdicts only (print them, write nothing)")
     args = ap.parse_args()
     trees = {"new": ROOT} | ({"old": args.old.resolve()} if args.old else {})
     load0 = _load()
     v = {k: verdict_times(t, args.data) for k, t in trees.items()}
+    if args.verdict_only:
+        print(json.dumps({"load": [load0, _load()], **v}))
+        return 0
     s = {k: study_time(t, args.data, SUBSET) for k, t in trees.items()}
     load1 = _load()
     n = s["new"][1]
