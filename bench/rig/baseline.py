@@ -33,7 +33,8 @@ import numpy as np
 
 from bench import BenchError
 from bench.gap.inputs import BASELINE_FORMAT
-from bench.rig.cycles import Cycle, ramps
+from bench.rig import kernels as K
+from bench.rig.cycles import Cycle
 from bench.rig.spread import MIN_RUNS, spread
 
 SIGNALS = ("current_a", "position_error_mm", "current_ref_a")
@@ -60,7 +61,8 @@ def standstill_current(cycle: Cycle) -> float:
     def median() -> float:
         dwell = [cycle.current_a[s.start:s.stop] for s in cycle.segments()
                  if s.direction == 0 and len(s)]
-        return float(np.median(np.concatenate(dwell))) if dwell else 0.0
+        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
+            else 0.0
     return float(cycle.memo("standstill_current", median))
 
 
@@ -70,7 +72,8 @@ def standstill_error(cycle: Cycle) -> float:
     def median() -> float:
         dwell = [cycle.position_error_mm[s.start:s.stop] for s in cycle.segments()
                  if s.direction == 0 and len(s)]
-        return float(np.median(np.concatenate(dwell))) if dwell else 0.0
+        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
+            else 0.0
     return float(cycle.memo("standstill_error", median))
 
 
@@ -260,19 +263,25 @@ def cycle_indexes(cycle: Cycle, referenced: bool = False) -> dict[str, dict[str,
     i, e = cycle.current_a, cycle.position_error_mm
     if referenced:
         i = i - standstill_current(cycle)
+    i, e = np.asarray(i, np.float64), np.asarray(e, np.float64)
     for seg in cycle.segments():
         s = slice(seg.start, seg.stop)
-        d = {"current_mean": float(np.mean(i[s])),
-             "current_rms": float(np.sqrt(np.mean(i[s] ** 2))),
-             "current_peak": float(np.max(np.abs(i[s]))),
-             "position_error_mean": float(np.mean(e[s])),
-             "position_error_peak": float(np.max(np.abs(e[s])))}
+        if not len(seg):        # `phases` cuts none; numpy's error if one were
+            np.max(i[s])
+        # np.mean, np.sqrt(np.mean(x ** 2)) and np.max(np.abs(x)), bit for bit (compiled)
+        d = {"current_mean": _mean(i[s]), "current_rms": math.sqrt(_mean(i[s] * i[s])),
+             "current_peak": float(K.absmax(i[s])), "position_error_mean": _mean(e[s]),
+             "position_error_peak": float(K.absmax(e[s]))}
         if seg.direction:
-            for part, sl in ramps(cycle.setpoint_mm, seg).items():
-                d[f"current_{part}"] = float(np.mean(i[sl])) if sl.stop > sl.start \
-                    else float("nan")
+            for part, sl in cycle.ramps(seg).items():
+                d[f"current_{part}"] = _mean(i[sl]) if sl.stop > sl.start else float("nan")
         out[seg.name] = d
     return out
+
+
+def _mean(x: np.ndarray) -> float:
+    """`np.mean` of a non-empty 1-D float64 array, bit for bit (`kernels.psum`)."""
+    return float(K.psum(x)) / len(x)
 
 
 def aligned(cycles: list[Cycle]) -> dict[str, tuple[int, list[np.ndarray]]]:
@@ -425,7 +434,9 @@ def residuals(lb: LoadBaseline, cycle: Cycle, sig: str = "current_a"
         if ps is None:
             continue
         m = min(len(seg), len(ps))
-        k = np.arange(seg.start, seg.start + m)
-        z = (x[k] - ps.mean[sig][:m]) / (ps.std[sig][:m] * infl)
-        out[seg.name] = (z, cycle.position_mm[k])
+        k = slice(seg.start, seg.start + m)
+        scale = lb.memo(f"residual_scale.{seg.name}.{sig}.{m}",
+                        lambda ps=ps, m=m: ps.std[sig][:m] * infl)
+        z = (x[k] - ps.mean[sig][:m]) / scale
+        out[seg.name] = (z, cycle.position_mm[k].copy())
     return out

@@ -71,8 +71,8 @@ def _amplitude(x: np.ndarray, y: np.ndarray, period: float) -> float:
     """The amplitude of y's component at `period` of x (least squares with a line)."""
     if len(x) < 6:
         return float("nan")
-    a = np.c_[np.cos(2 * np.pi * x / period), np.sin(2 * np.pi * x / period),
-              np.ones(len(x)), x - x.mean()]
+    a = np.column_stack((np.cos(2 * np.pi * x / period), np.sin(2 * np.pi * x / period),
+                         np.ones(len(x)), x - x.mean()))
     co = np.linalg.lstsq(a, y, rcond=None)[0]
     return float(math.hypot(co[0], co[1]))
 
@@ -116,12 +116,7 @@ def cycle_vector(c: Cycle, lb: B.LoadBaseline | None, lead_mm: float | None
                  ) -> dict[str, float]:
     """Every column of one cycle (module doc); the bench's cycle features only with a
     healthy baseline `lb`."""
-    def own() -> dict[str, float]:
-        d = {f"idx.{ph}.{k}": v for ph, x in B.phase_indexes(c, referenced=True).items()
-             for k, v in x.items()}
-        d.update({f"sig.{k}": v for k, v in summary(c, lead_mm).items()})
-        return d
-    out = dict(c.memo(f"classify.own.{lead_mm}", own))
+    out = dict(own_vector(c, lead_mm))
     if lb is not None:
         f = cycle_features(lb, c, lead_mm)
         out.update({f"feat.{k}": f.scores[k] for k in FEATURES})
@@ -129,6 +124,26 @@ def cycle_vector(c: Cycle, lb: B.LoadBaseline | None, lead_mm: float | None
                     "feat.reversal_signed": f.reversal_signed,
                     **{f"feat.takeup_{k}": v for k, v in f.takeup_z.items()}})
     return out
+
+
+def own_vector(c: Cycle, lead_mm: float | None) -> dict[str, float]:
+    """The columns of one cycle that need no baseline (its phase indexes and `summary`),
+    computed once per cycle."""
+    def own() -> dict[str, float]:
+        d = {f"idx.{ph}.{k}": v for ph, x in B.phase_indexes(c, referenced=True).items()
+             for k, v in x.items()}
+        d.update({f"sig.{k}": v for k, v in summary(c, lead_mm).items()})
+        return d
+    return c.memo(f"classify.own.{lead_mm}", own)  # type: ignore[no-any-return]
+
+
+def own_vectors(job: tuple[list[Cycle], float | None]) -> list[dict[str, float]]:
+    """`own_vector` of each of the job's cycles (a worker job)."""
+    cycles, lead_mm = job
+    return [own_vector(c, lead_mm) for c in cycles]
+
+
+OWN_PARTS = 8           # worker jobs the cycles' own columns are computed in, once
 
 
 @dataclass
@@ -390,7 +405,9 @@ def fold(job: tuple[Any, ...]) -> tuple[list[str], list[str]]:
     """One validation fold (a worker job): the bench's classifier and the plain forest
     trained on the fold's training runs, their classes for its test cycles."""
     import warnings
-    cycles, labels, groups, test, healthy, lead_mm, xp = job
+    cycles, labels, groups, test, healthy, lead_mm, xp, owns = job
+    for c, v in zip(cycles, owns or [], strict=False):    # computed once for every fold
+        c.memo(f"classify.own.{lead_mm}", lambda v=v: v)
     y = np.asarray(labels)
     train = np.setdiff1d(np.arange(len(y)), test)
     with warnings.catch_warnings():
@@ -407,12 +424,19 @@ def validate(data: Labelled, healthy: str, lead_mm: float | None, n_folds: int =
     """Leave-runs-out validation of the bench's classifier and, on the same folds, of the
     plain reference (a random forest on `plain_summary`): each fold's runs are
     classified by models trained on the other runs only. `run(fn, jobs)` maps the folds
-    (e.g. over workers; default: here, one after the other)."""
+    (e.g. over workers, each fold's cycles a copy: the cycles' own columns are then
+    computed once, in `OWN_PARTS` jobs, and sent with every fold; default: here, one
+    after the other)."""
     y = np.asarray(data.labels)
     xp = np.array([plain_summary(c) for c in data.cycles])
     groups = np.asarray(data.groups)
     folds = folds_of(data, n_folds, seed)
-    jobs = [(data.cycles, data.labels, data.groups, test, healthy, lead_mm, xp)
+    owns = None
+    if run is not None:
+        parts = [p for p in np.array_split(np.arange(len(y)), OWN_PARTS) if len(p)]
+        got = run(own_vectors, [([data.cycles[i] for i in p], lead_mm) for p in parts])
+        owns = [v for part in got for v in part]
+    jobs = [(data.cycles, data.labels, data.groups, test, healthy, lead_mm, xp, owns)
             for test in folds]
     if run is None:
         done = []

@@ -79,6 +79,11 @@ class Cycle:
         """`phases` of the cycle's set-point, computed once."""
         return self.memo("segments", lambda: phases(self.setpoint_mm))
 
+    def ramps(self, seg: Segment) -> dict[str, slice]:
+        """`ramps` of one of the cycle's segments, computed once."""
+        return self.memo(f"ramps.{seg.name}.{seg.start}.{seg.stop}",  # type: ignore[no-any-return]
+                         lambda: ramps(self.setpoint_mm, seg))
+
     @property
     def position_error_mm(self) -> np.ndarray:
         return self.setpoint_mm - self.position_mm
@@ -496,13 +501,15 @@ def phases(sp: np.ndarray) -> list[Segment]:
 def ramps(sp: np.ndarray, seg: Segment) -> dict[str, slice]:
     """A stroke's acceleration, constant-speed and deceleration parts (absolute sample
     slices; a ramp shorter than one sample step is empty)."""
-    v = np.abs(np.gradient(sp[seg.start:seg.stop])) if len(seg) > 1 else np.zeros(len(seg))
-    if not len(v):
+    if not len(seg):
         return {"accel": slice(seg.start, seg.start), "constant": slice(seg.start, seg.start),
                 "decel": slice(seg.start, seg.start)}
-    full = v >= RAMP_FRACTION * float(np.median(v))
-    idx = np.flatnonzero(full)
-    a, b = (int(idx[0]), int(idx[-1]) + 1) if len(idx) else (0, len(v))
+    from bench.rig.kernels import ramp_bounds  # compiled: imported where cycles are cut
+    # |np.gradient| of the stroke's set-point against RAMP_FRACTION of its median
+    a, b = 0, 1                                 # one sample: at full speed
+    if len(seg) > 1:
+        a, b = ramp_bounds(np.asarray(sp[seg.start:seg.stop], np.float64), RAMP_FRACTION)
+    a, b = int(a), int(b)
     return {"accel": slice(seg.start, seg.start + a),
             "constant": slice(seg.start + a, seg.start + b),
             "decel": slice(seg.start + b, seg.stop)}

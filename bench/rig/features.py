@@ -68,6 +68,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.rig import kernels as K
 from bench.rig.baseline import (
     Baseline,
     LoadBaseline,
@@ -76,12 +77,13 @@ from bench.rig.baseline import (
     residuals,
     standstill_error,
 )
-from bench.rig.cycles import Cycle, ramps
+from bench.rig.cycles import Cycle
 from bench.rig.offsets import is_offset, position_shifts, shift_text
 from bench.rig.verdict import RigVerdict, provisional_note
 from bench.verdict import Level, Verdict
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
+_SCALES = np.asarray(SCALES, dtype=np.int64)
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
 STROKE_CURRENT = "current_ref_a"   # the stroke features' current (against the standstill)
 FEATURES = ("localised", "level", "reversal", "takeup", "turn", "periodic", "dwell",
@@ -141,18 +143,15 @@ class CycleFeatures:
 
 
 def scan(z: np.ndarray) -> tuple[float, int, int]:
-    """The largest |window sum / sqrt(width)| over `SCALES`: (score, centre index, width)."""
-    best = (0.0, 0, 1)
-    zz = np.nan_to_num(z)
-    c = np.r_[0.0, np.cumsum(zz)]
-    for w in SCALES:
-        if w > len(zz):
-            break
-        s = (c[w:] - c[:-w]) / math.sqrt(w)
-        k = int(np.argmax(np.abs(s)))
-        if abs(s[k]) > best[0]:
-            best = (float(abs(s[k])), k + w // 2, w)
-    return best
+    """The largest |window sum / sqrt(width)| over `SCALES`: (score, centre index, width)
+    (NaN samples count 0; compiled: `kernels.scan`)."""
+    s, k, w = K.scan(np.asarray(z, dtype=np.float64), _SCALES)
+    return float(s), int(k), int(w)
+
+
+def _mean(x: np.ndarray) -> float:
+    """`np.mean` of a 1-D float64 array, bit for bit (`kernels.psum`); NaN when empty."""
+    return float(K.psum(x)) / len(x) if len(x) else float("nan")
 
 
 def _strokes(res: dict[str, tuple[np.ndarray, np.ndarray]]
@@ -163,7 +162,14 @@ def _strokes(res: dict[str, tuple[np.ndarray, np.ndarray]]
 def _matched(lb: LoadBaseline, z_in: np.ndarray) -> np.ndarray:
     """The in-stroke residual at the out-stroke's set-point positions (nearest aligned
     sample within half a set-point step; 0 where none)."""
-    sp_out, sp_in = lb.phases["out"].setpoint_mm, lb.phases["in"].setpoint_mm[:len(z_in)]
+    idx, ok = lb.memo(f"matched.{len(z_in)}", lambda: _match(lb, len(z_in)))
+    return np.where(ok, z_in[idx], 0.0)
+
+
+def _match(lb: LoadBaseline, n_in: int) -> tuple[np.ndarray, np.ndarray]:
+    """`_matched`'s picks from the baseline's set-points alone: (the in-stroke sample of
+    each out-stroke sample, whether it lies within half a set-point step)."""
+    sp_out, sp_in = lb.phases["out"].setpoint_mm, lb.phases["in"].setpoint_mm[:n_in]
     step = float(np.median(np.abs(np.diff(sp_out)))) if len(sp_out) > 1 else 1.0
     order = np.argsort(sp_in)
     j = np.clip(np.searchsorted(sp_in[order], sp_out), 0, len(order) - 1)
@@ -171,21 +177,20 @@ def _matched(lb: LoadBaseline, z_in: np.ndarray) -> np.ndarray:
     pick = np.where(np.abs(sp_in[order][j0] - sp_out) < np.abs(sp_in[order][j] - sp_out),
                     j0, j)
     idx = order[pick]
-    ok = np.abs(sp_in[idx] - sp_out) <= 0.5 * step + 1e-9
-    return np.where(ok, z_in[idx], 0.0)
+    return idx, np.abs(sp_in[idx] - sp_out) <= 0.5 * step + 1e-9
 
 
 def periodic(z: np.ndarray, pos: np.ndarray, lead_mm: float
              ) -> tuple[float, np.ndarray]:
     """(2 |sum z e^(-i 2 pi x / lead)|^2 / N over the stroke, the same over a sliding
     window of `PERIODIC_WINDOW` samples at each sample (NaN where it does not fit))."""
-    z = z - np.mean(z)
+    z = z - _mean(z)
     e = z * np.exp(-2j * np.pi * pos / lead_mm)
     whole = float(2.0 * abs(e.sum()) ** 2 / len(z)) if len(z) else float("nan")
     w = min(PERIODIC_WINDOW, len(z))
     local = np.full(len(z), np.nan)
     if w >= 3:
-        c = np.r_[0, np.cumsum(e)]
+        c = np.concatenate((np.zeros(1, dtype=e.dtype), np.cumsum(e)))
         vals = 2.0 * np.abs(c[w:] - c[:-w]) ** 2 / w
         local[w // 2: w // 2 + len(vals)] = vals
     return whole, local
@@ -206,7 +211,7 @@ def _periodic(res: dict[str, tuple[np.ndarray, np.ndarray]], lead_mm: float | No
                  if ok.sum() > 1 else np.nan)
 
     def at(prof: np.ndarray, pos: np.ndarray) -> float:
-        return float(pos[int(np.nanargmax(prof))]) if np.isfinite(prof).any() else nan
+        return float(pos[int(K.nanargmax(prof))]) if np.isfinite(prof).any() else nan
 
     return so + si, at(both, po), at(lo, po), at(li, pi)
 
@@ -234,7 +239,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
         z, pos = r
         std = lb.phases[name].std[sig][:len(z)]
         w = travel_start(lb, name, len(z))
-        levels[name] = float(np.mean(z[w:]))
+        levels[name] = _mean(z[w:])
         zt = zone_free(std[w:], z[w:])
         profiles[name] = (zt, pos[w:])
         masked[name] = np.r_[np.zeros(w), zt]
@@ -250,7 +255,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
         if name in side:
             side[name] = float(pos[min(k, len(pos) - 1)])
         if s > loc[0]:
-            step = float(np.median(np.abs(np.diff(pos)))) if len(pos) > 1 else nan
+            step = float(K.median(np.abs(np.diff(pos)))) if len(pos) > 1 else nan
             loc = (s, float(pos[min(k, len(pos) - 1)]), w * step, name)
     level = (float(np.nanmean([levels["out"], levels["in"]]))
              if np.isfinite([levels["out"], levels["in"]]).any() else nan)
@@ -298,7 +303,7 @@ def dwell_score(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = N
     for sig in ("current_a", "position_error_mm"):
         for name, (z, _) in _residuals(lb, cycle, sig, cache).items():
             if lb.phases[name].direction == 0 and len(z) >= 3:
-                s = scan(z - np.median(z))[0]
+                s = scan(z - K.median(z))[0]
                 best = s if not math.isfinite(best) else max(best, s)
     return best
 
@@ -329,12 +334,9 @@ def constant(std: np.ndarray, z: np.ndarray, start: int = 0) -> tuple[float, flo
     """A phase residual's weighted least-squares constant in the signal's own unit (over
     the baseline's inflated spread), from aligned sample `start` on: (constant, its
     standard error under the baseline's noise). z_k = c u_k + noise, u_k = 1 / spread_k."""
-    u = 1.0 / std[:len(z)]
-    zz, uu = z[start:], u[start:]
-    if not len(zz):
-        zz, uu = z, u
-    den = float(np.sum(uu * uu))
-    return float(np.sum(zz * uu) / den), 1.0 / math.sqrt(den)
+    c, se = K.constant(np.asarray(std, dtype=np.float64), np.asarray(z, dtype=np.float64),
+                       start)
+    return float(c), float(se)
 
 
 def travel_start(lb: LoadBaseline, stroke: str, n: int) -> int:
@@ -384,9 +386,7 @@ def _reversal(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = Non
     for n in ("out", "in"):
         if n not in res or n not in segs or not len(res[n][0]):
             return float("nan")
-        seg = segs[n]
-        start = cycle.memo(f"accel.{n}", lambda seg=seg: ramps(cycle.setpoint_mm, seg)[
-            "accel"].stop) - seg.start
+        start = cycle.ramps(segs[n])["accel"].stop - segs[n].start
         d[n] = constant(lb.phases[n].std[sig], res[n][0], start)
     return (d["out"][0] - d["in"][0]) / math.hypot(d["out"][1], d["in"][1])
 

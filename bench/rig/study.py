@@ -92,6 +92,11 @@ def condition_key(cond: str) -> tuple[str, int, str]:
     return (condition_family(cond), stage_number(cond) or 0, cond)
 
 
+CHUNK = 16
+"""Cycles per Dask task (a cycle's features take about 2 ms; a task costs a few ms of
+scheduling and the transfer of its load's baseline)."""
+
+
 def score_cycle(job: tuple[B.LoadBaseline, Cycle, float | None]) -> CycleResult:
     """One cycle against its load's baseline (a worker job)."""
     lb, cycle, lead = job
@@ -214,7 +219,7 @@ def _score(study: Study, todo: list[tuple[str, list[Cycle]]], base: B.Baseline,
             continue
         t0 = time.perf_counter()
         res = run_all(score_cycle, jobs, workers=workers, progress=progress, desc=name,
-                      unit="cycle", scheduler=scheduler)
+                      unit="cycle", scheduler=scheduler, chunk=CHUNK)
         study.wall_s[name] = time.perf_counter() - t0
         per: dict[float, list[CycleResult]] = {}
         for (lb, _, _), r in zip(jobs, res, strict=True):

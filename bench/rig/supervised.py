@@ -58,8 +58,10 @@ def run(todo: Sequence[tuple[str, list[Cycle]]], healthy: str, lead_mm: float | 
             from bench.workers import run_all
 
             def mapped(fn: Any, jobs: list[Any]) -> list[Any]:
+                own = fn is K.own_vectors
                 return run_all(fn, jobs, workers=workers, progress=progress,
-                               desc="classifier folds", unit="fold", scheduler=scheduler)
+                               desc="cycle summaries" if own else "classifier folds",
+                               unit="part" if own else "fold", scheduler=scheduler)
             v = K.validate(data, healthy, lead_mm, run=mapped)
         except BenchError as exc:
             out["validation"] = {"skipped": str(exc)}
