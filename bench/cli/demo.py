@@ -162,7 +162,11 @@ def run(args: argparse.Namespace) -> int:
                        Options(workers=2, progress=sys.stderr.isatty()))
         gap = res.json()
         print("  " + text(gap).replace("\n", "\n  "))
-        idx = gap_report(res, gap, out / "gap")
+        from bench.gap.result_json import gap_document, model_gap_verdict
+        doc = gap_document(str(logs[1]), "model",
+                           model_gap_verdict(gap, "thesis model (nominal values)"), gap,
+                           round(time.perf_counter() - t0, 3))
+        idx = gap_report(res, gap, out / "gap", doc)
         (out / "gap" / "diagnosis.json").write_text(json.dumps(_finite(gap), indent=1))
         print(f"  report: {idx} ({time.perf_counter() - t0:.1f} s)")
 

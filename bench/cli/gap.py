@@ -161,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"json: {args.json}")
     if args.report:
         from bench.gap.report import write_report
-        idx = write_report(res, js, Path(args.report))
+        idx = write_report(res, js, Path(args.report), doc_js)
         print(f"report: {idx}", file=sys.stderr if args.json == "-" else sys.stdout)
     return 0
 

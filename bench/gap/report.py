@@ -42,8 +42,9 @@ def _bars(ax, table: dict[str, dict[str, float]], keys: list[str], title: str) -
     ax.legend(fontsize=7)
 
 
-def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
-    """Write the figures and index.html into `out`; returns the index path."""
+def write_report(res: Any, js: dict[str, Any], out: Path, doc: dict[str, Any]) -> Path:
+    """Write the figures, index.html (from the diagnosis' `js`) and gap.json (`doc`, the
+    one `bench gap --json` document) into `out`; returns the index path."""
     out.mkdir(parents=True, exist_ok=True)
     loc = res.localisation
     p = res.problem
@@ -100,7 +101,7 @@ def write_report(res: Any, js: dict[str, Any], out: Path) -> Path:
                  "chosen effect"))
     if _fig_paths(loc, t, out):
         figs.append(("path_residuals.png", "Path residuals over time, regimes shaded"))
-    (out / "gap.json").write_text(json.dumps(js, indent=1))
+    (out / "gap.json").write_text(json.dumps(doc, indent=1))
     idx = out / "index.html"
     idx.write_text(_html(js, figs))
     return idx
