@@ -53,28 +53,29 @@ def signal(cycle: Cycle, name: str) -> np.ndarray:
     return cycle.position_error_mm
 
 
+def _dwell_median(cycle: Cycle, column: str, key: str) -> float:
+    """The median of the cycle's `column` over its dwells (0 without a dwell), memoised
+    as `key` on the cycle."""
+    def median() -> float:
+        values = getattr(cycle, column)
+        dwell = [values[s.start:s.stop] for s in cycle.segments() if s.direction == 0 and len(s)]
+        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
+            else 0.0
+    return float(cycle.memo(key, median))
+
+
 def standstill_current(cycle: Cycle) -> float:
     """The median current of the cycle's dwells (0 for a cycle without a dwell). The
     drive's current steps by itself (healthy Cranfield run 1 at -40 kgf: about 0.1 A in
     every phase, the dwell included, between two cycles, while a stroke less the dwell
     stays within 0.01 A), so the stroke features read the current against it."""
-    def median() -> float:
-        dwell = [cycle.current_a[s.start:s.stop] for s in cycle.segments()
-                 if s.direction == 0 and len(s)]
-        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
-            else 0.0
-    return float(cycle.memo("standstill_current", median))
+    return _dwell_median(cycle, "current_a", "standstill_current")
 
 
 def standstill_error(cycle: Cycle) -> float:
     """The median position error of the cycle's dwells (0 without a dwell): the position
     sensor's zero as the cycle sees it."""
-    def median() -> float:
-        dwell = [cycle.position_error_mm[s.start:s.stop] for s in cycle.segments()
-                 if s.direction == 0 and len(s)]
-        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
-            else 0.0
-    return float(cycle.memo("standstill_error", median))
+    return _dwell_median(cycle, "position_error_mm", "standstill_error")
 
 
 @dataclass
