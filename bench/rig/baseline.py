@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -331,14 +332,8 @@ def build_load(cycles: list[Cycle]) -> LoadBaseline:
         sp = np.mean([c.setpoint_mm[k] for c, k in zip(cycles, idx, strict=True)], axis=0)
         pos = np.mean([c.position_mm[k] for c, k in zip(cycles, idx, strict=True)], axis=0)
         ph[name] = PhaseStats(name, direction, sp, pos, mean, std, len(cycles))
-    per = [phase_indexes(c) for c in cycles]
-    indexes: dict[str, dict[str, tuple[float, float]]] = {}
-    for name in ph:
-        indexes[name] = {}
-        for key in per[0][name]:
-            vals = np.array([p[name][key] for p in per], float)
-            if np.isfinite(vals).all():
-                indexes[name][key] = (float(vals.mean()), float(vals.std(ddof=1)))
+    indexes = _per_index([phase_indexes(c) for c in cycles], ph,
+                         lambda vals: (float(vals.mean()), float(vals.std(ddof=1))))
     return LoadBaseline(cycles[0].load, sorted({c.run for c in cycles}),
                         [c.label for c in cycles], ph, indexes, ref_indexes(cycles, ph))
 
@@ -348,16 +343,26 @@ def ref_indexes(cycles: list[Cycle], names: Any) -> dict[str, dict[str, tuple[fl
     predictive spread of one cycle of a healthy run not among `cycles`' runs
     (`spread.spread`: within and between runs; with fewer than `spread.MIN_RUNS` runs the
     spread of independent cycles, provisional)."""
-    per = [phase_indexes(c, referenced=True) for c in cycles]
     runs = [c.run for c in cycles]
+
+    def stat(vals: np.ndarray) -> tuple[float, float]:
+        sp = spread(vals, runs)
+        return (sp.mean, math.sqrt(sp.predictive))
+    return _per_index([phase_indexes(c, referenced=True) for c in cycles], names, stat)
+
+
+def _per_index(per: list[dict[str, dict[str, float]]], names: Any,
+               stat: Callable[[np.ndarray], tuple[float, float]]
+               ) -> dict[str, dict[str, tuple[float, float]]]:
+    """Per phase in `names` and index: `stat` of the index over the cycles `per` (one
+    `phase_indexes` each); an index not finite in every cycle is left out."""
     out: dict[str, dict[str, tuple[float, float]]] = {}
     for name in names:
         out[name] = {}
         for key in per[0][name]:
             vals = np.array([p[name][key] for p in per], float)
             if np.isfinite(vals).all():
-                sp = spread(vals, runs)
-                out[name][key] = (sp.mean, math.sqrt(sp.predictive))
+                out[name][key] = stat(vals)
     return out
 
 
