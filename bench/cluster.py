@@ -22,6 +22,8 @@ import logging
 import os
 import sys
 import threading
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from bench import BenchError
@@ -40,6 +42,21 @@ SCHEDULER_HELP = ("run on the existing Dask cluster of this scheduler (e.g. "
                   "cluster of --workers processes on 127.0.0.1)")
 
 _shown: set[str] = set()           # dashboard links already printed by this process
+
+
+@contextmanager
+def environ_kept(keys: Iterable[str]) -> Iterator[None]:
+    """This process's environment variables `keys` put back as they were on leaving (set
+    again, or removed where they were not set)."""
+    saved = {k: os.environ.get(k) for k in keys}
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def dashboard_available() -> bool:
@@ -251,16 +268,9 @@ def _local_cluster(workers: int) -> Any:
     afterwards, so that processes this one starts later do not inherit them (a nanny
     that restarts a dead worker sets them again)."""
     from distributed import LocalCluster
-    saved = {k: os.environ.get(k) for k in PRE_SPAWN_VARS}
-    try:
+    with environ_kept(PRE_SPAWN_VARS):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                             host="127.0.0.1",
                             dashboard_address=DASHBOARD if dashboard_available() else None,
                             silence_logs=logging.CRITICAL,
                             env={k: "1" for k in THREAD_VARS})
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from dataclasses import fields
 from typing import Any, ClassVar, Self
 
 from bench import BenchError
 from plant_rt.params import ParameterError, ParamInfo, check_value
+from plant_rt.paramvalues import json_object, same_value
 
 _TYPES = {"float": float, "int": int, "bool": bool, "str": str}
 
@@ -71,13 +71,9 @@ class ParamSet:
 
     @classmethod
     def from_json(cls, text: str) -> Self:
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ParamSetError(f"{cls._group} parameters are not valid JSON: {exc}") from None
-        if not isinstance(data, dict):
-            raise ParamSetError(f"{cls._group} parameters must be a JSON object")
-        return cls.from_dict(data)
+        return cls.from_dict(json_object(text, ParamSetError,
+                                         f"{cls._group} parameters are not valid JSON",
+                                         f"{cls._group} parameters must be a JSON object"))
 
     def with_values(self, **values: Any) -> Self:
         """A copy with some parameters changed (validated)."""
@@ -89,8 +85,6 @@ class ParamSet:
         out = {}
         for k, va in a.items():
             vb = b.get(k)
-            same = va == vb or (isinstance(va, float) and isinstance(vb, float)
-                                and math.isnan(va) and math.isnan(vb))
-            if not same:
+            if not same_value(va, vb):
                 out[f"{self._group}.{k}"] = (va, vb)
         return out

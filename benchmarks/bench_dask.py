@@ -36,7 +36,7 @@ sys.path.insert(0, str(ROOT))
 from perfdoc import write_section  # noqa: E402
 
 from bench import machine_description  # noqa: E402
-from bench.cluster import THREAD_VARS, Engine  # noqa: E402
+from bench.cluster import THREAD_VARS, Engine, environ_kept  # noqa: E402
 from bench.gap import blind  # noqa: E402
 from bench.gap import diagnose as D  # noqa: E402
 from bench.hums import sweep as S  # noqa: E402
@@ -53,18 +53,11 @@ def _noop(x: Any = None) -> Any:
 
 
 def old_pool(workers: int, wait: bool = True) -> ProcessPoolExecutor:
-    saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    os.environ.update({k: "1" for k in THREAD_VARS})
-    try:
+    with environ_kept(THREAD_VARS):
+        os.environ.update({k: "1" for k in THREAD_VARS})
         pool = ProcessPoolExecutor(max_workers=workers,
                                    mp_context=multiprocessing.get_context("spawn"))
         ready = [pool.submit(_noop) for _ in range(workers)]
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
     pool._bench_ready = ready  # type: ignore[attr-defined]
     if wait:
         old_ensure_started(pool)

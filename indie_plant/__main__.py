@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import signal
 import sys
 from pathlib import Path
 
@@ -52,8 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    from ema_contract.drive import serve_process
     from ema_contract.frames import Frames, exclude_filters
-    from ema_contract.transport import close_bus, open_bus, pid_alive
+    from ema_contract.transport import open_bus
     from indie_plant.generate import Actuator
     from indie_plant.node import IndieNode
     act = Actuator(params, args.seed)
@@ -67,15 +66,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: cannot open the bus: {exc}", file=sys.stderr)
         return 1
     node = IndieNode(bus, act, args.node_id, args.load_n, args.load_hz)
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, lambda *_: node.stop())
-    try:
-        if args.ready_file:
-            args.ready_file.write_text(f"{os.getpid()}\n")
-        parent = args.parent_pid
-        node.serve(args.duration, (lambda: pid_alive(parent)) if parent else None)
-    finally:
-        close_bus(bus)
+    serve_process(node, args.ready_file, args.parent_pid, args.duration)
     return 0
 
 

@@ -26,20 +26,12 @@ import can
 from canopen.objectdictionary import ObjectDictionary
 from canopen.sdo.exceptions import SdoAbortedError
 
+from ema_contract.drive import DriveNode
 from ema_contract.frames import Frames
-from ema_contract.node import (
-    ABORT_READ_ONLY,
-    ABORT_VALUE_RANGE,
-    ERR_COMMUNICATION,
-    ERR_GENERIC,
-    TPDOS,
-    CanopenNode,
-    cia301_od,
-)
+from ema_contract.node import ABORT_VALUE_RANGE, TPDOS, cia301_od
 from ema_contract.states import ControlWord, NMTState
 from indie_plant.generate import Actuator
 
-STATUS_COMMAND_TIMEOUT, STATUS_DEMAND_CLAMPED, STATUS_ENABLED = 0x10, 0x20, 0x40
 WINDING_K = 293.15          # no thermal model: the winding sensor reads 20 C
 
 
@@ -48,8 +40,8 @@ def node_od(node_id: int) -> ObjectDictionary:
     return cia301_od(node_id, keep=(0x2200,))
 
 
-class IndieNode(CanopenNode):
-    """The node's bus side on `ema_contract.node.CanopenNode` (single-threaded: `serve()`
+class IndieNode(DriveNode):
+    """The node's bus side on `ema_contract.drive.DriveNode` (single-threaded: `serve()`
     reads the bus, SDO requests go to canopen's server, the rest to the hooks below)."""
 
     def __init__(self, bus: can.BusABC, actuator: Actuator, node_id: int | None = None,
@@ -77,14 +69,13 @@ class IndieNode(CanopenNode):
             self.pending = (0.0, 0, False)
         super().set_state(new)
 
-    def on_timers(self, now: float, nxt: float) -> float:
-        """The heartbeat consumer, on the wall clock in real time only (pace 0)."""
-        timeout_s = self.consumer_timeout_s()
-        if timeout_s > 0 and self.ecu_hb is not None and not self.timed_out \
-                and now - self.ecu_hb > timeout_s and self.pace == 0:
-            self.timed_out = True
-            self.emcy("heartbeat_lost", ERR_GENERIC | ERR_COMMUNICATION)
-        return nxt
+    @property
+    def period_s(self) -> float:
+        return self.act.period_s
+
+    def consumer_counts(self) -> bool:
+        """The heartbeat consumer counts the wall clock in real time only (pace 0)."""
+        return self.pace == 0
 
     def _on_rpdo(self, msg: can.Message) -> None:
         if self.state != NMTState.OPERATIONAL:
@@ -112,9 +103,7 @@ class IndieNode(CanopenNode):
         enabled = bool(control & ControlWord.ENABLE) and not self.timed_out
         s = self.act.sample()
         cpr = self.act.params.encoder_counts
-        status = (STATUS_ENABLED if enabled else 0) | (STATUS_DEMAND_CLAMPED if clamped else 0)
-        status |= STATUS_COMMAND_TIMEOUT if self.timed_out else 0
-        values = {"MotorCurrent": s[0], "StatusWord": status,
+        values = {"MotorCurrent": s[0], "StatusWord": self.status_word(enabled, clamped),
                   "EncoderAngle": round(s[1] * cpr / (2.0 * math.pi)),
                   "EncoderSpeed": s[2], "LvdtPosition": s[3],
                   "WindingTemperature": WINDING_K, "LoadForce": s[4]}
@@ -122,27 +111,15 @@ class IndieNode(CanopenNode):
             self.send(m)
         self.act.step(demand if enabled else 0.0, self.rig_load())
 
-    def emcy(self, label: str, register: int) -> None:
-        status = STATUS_COMMAND_TIMEOUT if self.timed_out else 0
-        self.send(self.frames.encode("EMA_EMCY", self.emcy_values(label, register, status)))
-
-    def sdo_read(self, index: int, subindex: int, od) -> int | None:  # noqa: ARG002
-        if index == 0x1001:
-            return ERR_GENERIC | ERR_COMMUNICATION if self.timed_out else 0
-        if index == 0x1006:
-            return int(round(self.act.period_s * 1e6))
+    def sdo_read(self, index: int, subindex: int, od) -> int | None:
         if (index, subindex) == (0x2200, 1):
             return self.pace
-        return None
+        return super().sdo_read(index, subindex, od)
 
     def sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:
-        raw = od.decode_raw(data)
-        if index == 0x1006 and raw != int(round(self.act.period_s * 1e6)):
-            raise SdoAbortedError(ABORT_VALUE_RANGE)
-        if 0x1400 <= index <= 0x1BFF:
-            raise SdoAbortedError(ABORT_READ_ONLY)
+        super().sdo_write(index, subindex, od, data)
         if index == 0x2200:
-            self._node_control(subindex, int(raw))
+            self._node_control(subindex, int(od.decode_raw(data)))
 
     def _node_control(self, sub: int, raw: int) -> None:
         """0x2200: sub 1 pace (0 real time, 1 lockstep: the consumer then counts nothing

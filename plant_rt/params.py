@@ -19,6 +19,8 @@ from collections import Counter
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, ClassVar
 
+from plant_rt.paramvalues import json_object, same_value
+
 
 class ParameterError(ValueError):
     """A plant parameter is unknown or has an invalid value."""
@@ -580,20 +582,13 @@ class PlantParams:
 
     @classmethod
     def from_json(cls, text: str) -> PlantParams:
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ParameterError(f"parameter file is not valid JSON: {exc}") from None
-        if not isinstance(data, dict):
-            raise ParameterError("parameter file must hold a JSON object")
-        return cls.from_dict(data)
+        return cls.from_dict(json_object(text, ParameterError, "parameter file is not valid JSON",
+                                         "parameter file must hold a JSON object"))
 
     def diff(self, other: PlantParams) -> dict[str, tuple[Any, Any]]:
         """Parameters that differ: name -> (self value, other value)."""
         a, b = self.flat(), other.flat()
-        return {k: (a[k], b[k]) for k in a if not (a[k] == b[k] or (
-            isinstance(a[k], float) and isinstance(b[k], float)
-            and math.isnan(a[k]) and math.isnan(b[k])))}
+        return {k: (a[k], b[k]) for k in a if not same_value(a[k], b[k])}
 
 
 THESIS = PlantParams()

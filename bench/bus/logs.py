@@ -1,12 +1,8 @@
 """Bus logs decoded into a `Trace` through the DBC: candump logs read tolerantly, and the
 other formats python-can reads (`bench.bus.logread.read_frames`).
 
-The format is ``candump -L`` (python-can's `CanutilsLogWriter`/`CanutilsLogReader`):
-``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` streams it line by line and,
-unlike `CanutilsLogReader` (which stops at the first bad line), reports each truncated
-or corrupted line with its number and keeps the rest; bad lines are counted and only the
-first ones kept (`LogIssues`), and a line is read MAX_LINE characters at most, so memory
-stays bounded whatever the file holds.
+A candump ``-L`` log is read line by line and a bad line is reported with its number and
+skipped (`bench.bus.logread.read_log`: how, and the bounds on memory).
 
 `trace_from_log` rebuilds the signal table: one row per SYNC (the control period), the
 TPDOs (sensors at that SYNC), the ECU's set-point frame and its RPDO (the demand it

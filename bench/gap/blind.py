@@ -72,9 +72,44 @@ class Truth:
     nominal: dict[str, float] = field(default_factory=dict)   # library param -> no-effect value
 
 
+# one-parameter effects: name -> (plant parameter, a random magnitude, its no-effect value);
+# the library parameter that should recover it has the plant parameter's name
+_SINGLE: dict[str, tuple[str, Callable[[np.random.Generator], float], float]] = {
+    "backlash": ("effects.backlash_m", lambda rng: rng.uniform(5e-6, 100e-6), 0.0),
+    "friction": ("effects.friction_scale", lambda rng: _lu(rng, 1.5, 4.0), 1.0),
+    "stiffness": ("screw.contact_stiffness_n_per_m", lambda rng: _lu(rng, 5e5, 2e7),
+                  NOMINAL.screw.contact_stiffness_n_per_m),
+    "preload": ("effects.preload_n", lambda rng: rng.uniform(500.0, 5000.0), 0.0),
+    "sensor_delay": ("effects.sensor_delay_s", lambda rng: float(rng.integers(1, 6)) * 1e-3,
+                     0.0),
+    "lvdt_gain": ("sensors.lvdt_gain", lambda rng: 1.0 + _pm(rng, 0.005, 0.05), 1.0),
+    "lvdt_offset": ("sensors.lvdt_offset_m", lambda rng: _pm(rng, 5e-6, 200e-6), 0.0),
+    "encoder_gain": ("sensors.encoder_gain", lambda rng: 1.0 + _pm(rng, 0.005, 0.05), 1.0),
+    "current_offset": ("sensors.current_offset_a", lambda rng: _pm(rng, 0.05, 0.5), 0.0),
+    "resistance": ("motor.resistance_ohm",
+                   lambda rng: NOMINAL.motor.resistance_ohm * _lu(rng, 1.5, 4.0),
+                   NOMINAL.motor.resistance_ohm),
+    "thermal_drift": ("motor.resistance_tempco_per_k", lambda rng: rng.uniform(0.002, 0.006),
+                      0.0),
+    "kt": ("motor.kt_nm_per_a",
+           lambda rng: NOMINAL.motor.kt_nm_per_a * (1.0 + _pm(rng, 0.02, 0.15)),
+           NOMINAL.motor.kt_nm_per_a),
+    "inertia": ("motor.inertia_kg_m2",
+                lambda rng: NOMINAL.motor.inertia_kg_m2 * (1.0 + _pm(rng, 0.05, 0.5)),
+                NOMINAL.motor.inertia_kg_m2),
+    "lead": ("screw.lead_m", lambda rng: NOMINAL.screw.lead_m * (1.0 + _pm(rng, 0.002, 0.02)),
+             NOMINAL.screw.lead_m),
+}
+
+
 def draw(name: str, rng: np.random.Generator) -> Truth:
     """A random magnitude of effect `name` (generator-side ranges)."""
-    for group in (_draw_mechanical, _draw_sensor, _draw_motor_screw):
+    if name in _SINGLE:
+        target, magnitude, nominal = _SINGLE[name]
+        v = magnitude(rng)
+        key = target.split(".")[1]
+        return Truth(name, {target: v}, expect={key: v}, nominal={key: nominal})
+    for group in (_draw_mechanical, _draw_sensor, _draw_outside):
         truth = group(name, rng)
         if truth is not None:
             return truth
@@ -82,16 +117,8 @@ def draw(name: str, rng: np.random.Generator) -> Truth:
 
 
 def _draw_mechanical(name: str, rng: np.random.Generator) -> Truth | None:
-    """Backlash, friction, viscous, Stribeck, stiffness, preload; None for another name."""
+    """Viscous friction and Stribeck (more than the one parameter); None for another name."""
     n = NOMINAL
-    if name == "backlash":
-        v = rng.uniform(5e-6, 100e-6)
-        return Truth(name, {"effects.backlash_m": v}, expect={"backlash_m": v},
-                     nominal={"backlash_m": 0.0})
-    if name == "friction":
-        v = _lu(rng, 1.5, 4.0)
-        return Truth(name, {"effects.friction_scale": v}, expect={"friction_scale": v},
-                     nominal={"friction_scale": 1.0})
     if name == "viscous":
         s = _lu(rng, 2e4, 4e5)
         return Truth(name, {"effects.viscous_scale": s},
@@ -103,24 +130,11 @@ def _draw_mechanical(name: str, rng: np.random.Generator) -> Truth | None:
                      expect={"stribeck_amplitude": a, "stribeck_velocity_rad_s": v},
                      nominal={"stribeck_amplitude": n.screw.stribeck_amplitude,
                               "stribeck_velocity_rad_s": n.screw.stribeck_velocity_rad_s})
-    if name == "stiffness":
-        v = _lu(rng, 5e5, 2e7)
-        return Truth(name, {"screw.contact_stiffness_n_per_m": v},
-                     expect={"contact_stiffness_n_per_m": v},
-                     nominal={"contact_stiffness_n_per_m": n.screw.contact_stiffness_n_per_m})
-    if name == "preload":
-        v = rng.uniform(500.0, 5000.0)
-        return Truth(name, {"effects.preload_n": v}, expect={"preload_n": v},
-                     nominal={"preload_n": 0.0})
     return None
 
 
 def _draw_sensor(name: str, rng: np.random.Generator) -> Truth | None:
-    """Sensor and log effects; None for another name."""
-    if name == "sensor_delay":
-        v = float(rng.integers(1, 6)) * 1e-3
-        return Truth(name, {"effects.sensor_delay_s": v}, expect={"sensor_delay_s": v},
-                     nominal={"sensor_delay_s": 0.0})
+    """The log-side effects; None for another name."""
     if name == "lvdt_lag":
         v = rng.uniform(1e-3, 10e-3)
         return Truth(name, log={"lvdt_lag_s": v}, expect={"lvdt_lag_s": v},
@@ -129,50 +143,11 @@ def _draw_sensor(name: str, rng: np.random.Generator) -> Truth | None:
         v = float(rng.integers(1, 5)) * 1e-3
         return Truth(name, log={"skew_s": v}, expect={"log_skew_s": v},
                      nominal={"log_skew_s": 0.0})
-    if name == "lvdt_gain":
-        v = 1.0 + _pm(rng, 0.005, 0.05)
-        return Truth(name, {"sensors.lvdt_gain": v}, expect={"lvdt_gain": v},
-                     nominal={"lvdt_gain": 1.0})
-    if name == "lvdt_offset":
-        v = _pm(rng, 5e-6, 200e-6)
-        return Truth(name, {"sensors.lvdt_offset_m": v}, expect={"lvdt_offset_m": v},
-                     nominal={"lvdt_offset_m": 0.0})
-    if name == "encoder_gain":
-        v = 1.0 + _pm(rng, 0.005, 0.05)
-        return Truth(name, {"sensors.encoder_gain": v}, expect={"encoder_gain": v},
-                     nominal={"encoder_gain": 1.0})
-    if name == "current_offset":
-        v = _pm(rng, 0.05, 0.5)
-        return Truth(name, {"sensors.current_offset_a": v}, expect={"current_offset_a": v},
-                     nominal={"current_offset_a": 0.0})
     return None
 
 
-def _draw_motor_screw(name: str, rng: np.random.Generator) -> Truth | None:
-    """Motor and screw constants and the effects outside the library; None for
-    another name."""
-    n = NOMINAL
-    if name == "resistance":
-        v = n.motor.resistance_ohm * _lu(rng, 1.5, 4.0)
-        return Truth(name, {"motor.resistance_ohm": v}, expect={"resistance_ohm": v},
-                     nominal={"resistance_ohm": n.motor.resistance_ohm})
-    if name == "thermal_drift":
-        v = rng.uniform(0.002, 0.006)
-        return Truth(name, {"motor.resistance_tempco_per_k": v},
-                     expect={"resistance_tempco_per_k": v},
-                     nominal={"resistance_tempco_per_k": 0.0})
-    if name == "kt":
-        v = n.motor.kt_nm_per_a * (1.0 + _pm(rng, 0.02, 0.15))
-        return Truth(name, {"motor.kt_nm_per_a": v}, expect={"kt_nm_per_a": v},
-                     nominal={"kt_nm_per_a": n.motor.kt_nm_per_a})
-    if name == "inertia":
-        v = n.motor.inertia_kg_m2 * (1.0 + _pm(rng, 0.05, 0.5))
-        return Truth(name, {"motor.inertia_kg_m2": v}, expect={"inertia_kg_m2": v},
-                     nominal={"inertia_kg_m2": n.motor.inertia_kg_m2})
-    if name == "lead":
-        v = n.screw.lead_m * (1.0 + _pm(rng, 0.002, 0.02))
-        return Truth(name, {"screw.lead_m": v}, expect={"lead_m": v},
-                     nominal={"lead_m": n.screw.lead_m})
+def _draw_outside(name: str, rng: np.random.Generator) -> Truth | None:
+    """The effects outside the library; None for another name."""
     if name == "external_load":        # outside the library: a force the load cell misses
         if rng.uniform() < 0.5:
             return Truth(name, log={"dist_sine_n": rng.uniform(200.0, 2000.0),

@@ -295,6 +295,19 @@ def _check_types(by_sig: dict[str, MapEntry], rows: Rows) -> None:
                                  f"{e.scale:g})")
 
 
+def _forward(t: np.ndarray, where: Rows, rows: np.ndarray | None, what: str, hint: str
+             ) -> np.ndarray:
+    """The steps of `t`; a BenchError at the first step back, naming its data row (`t`'s
+    sample k is data row `rows[k]`, or k without `rows`)."""
+    d = np.diff(t)
+    if np.any(d < 0):
+        k = int(np.argmax(d < 0)) + 1
+        row = k if rows is None else int(rows[k])
+        raise BenchError(f"{where.path}: time goes backwards in the table{what} at "
+                         f"{where.word} {int(where.numbers[row])} ({hint})")
+    return d
+
+
 def _native(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry], t: np.ndarray,
             source: str, kept: np.ndarray, where: Rows) -> Trace:
     """The trace at the table's own sample instants (`kept`: the rows that do not
@@ -302,12 +315,7 @@ def _native(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry], t: np.nd
     in stays NaN (its blocks listed as in the resampled case)."""
     if len(t) < 2:
         raise BenchError(f"{where.path}: the table has fewer than 2 rows with a time")
-    d = np.diff(t)
-    if np.any(d < 0):
-        k = int(np.argmax(d < 0))
-        raise BenchError(f"{where.path}: time goes backwards in the table at {where.word} "
-                         f"{int(where.numbers[k + 1])} "
-                         "(sort the table first, or split it: --split-by)")
+    _forward(t, where, None, "", "sort the table first, or split it: --split-by")
     rows = np.flatnonzero(kept)
     ts = t[rows]
     out: dict[str, np.ndarray] = {}
@@ -395,12 +403,7 @@ def _signal_series(sig: str, e: MapEntry, t: np.ndarray, y: np.ndarray,
     ts, ys = t[ok], y[ok]
     if len(ts) < 2:
         raise BenchError(f"column {e.column!r} ({sig}) has fewer than 2 values")
-    d = np.diff(ts)
-    if np.any(d < 0):
-        k = int(np.argmax(d < 0))
-        raise BenchError(f"{where.path}: time goes backwards in the table for {e.column!r} at "
-                         f"{where.word} {int(where.numbers[np.flatnonzero(ok)[k + 1]])} "
-                         "(sort the table first)")
+    d = _forward(ts, where, np.flatnonzero(ok), f" for {e.column!r}", "sort the table first")
     if np.any(d == 0):
         keep = np.concatenate([[True], d > 0])
         ts, ys = ts[keep], ys[keep]

@@ -31,6 +31,11 @@ def _periods(seconds: float, dt: float) -> int:
     return max(int(round(seconds / dt)), 0)
 
 
+def _delay_param(name: str) -> Param:
+    """A sensor delay in seconds, searched in whole steps of `DELAY_STEP_S`."""
+    return Param(name, "s", 0.0, DELAY_MAX_S, "delay", integer_step=DELAY_STEP_S)
+
+
 def late(y: np.ndarray, d: int) -> np.ndarray:
     """`y` read `d` samples late (its first sample repeated before the start)."""
     if d <= 0 or len(y) == 0:
@@ -46,27 +51,28 @@ class _Delay(Effect):
     def nominal(self, base: PlantParams) -> dict[str, float]:
         return {self.params[0].name: 0.0}
 
+    def loop_delays(self, theta: Mapping[str, float], dt: float) -> tuple[int, int]:
+        """(LVDT, encoder) periods late in the loop; a delay in the log alone has none."""
+        if self.where == "log":
+            return 0, 0
+        d = _periods(theta[self.params[0].name], dt)
+        return (d, 0) if self.sensor == "lvdt" else (0, d)
+
 
 class LvdtDelay(_Delay):
     name = "lvdt_delay"
     doc = ("transport delay of the LVDT alone, in the loop: the ECU reads an older position "
            "sample (whole SYNC periods)")
-    params = (Param("lvdt_delay_s", "s", 0.0, DELAY_MAX_S, "delay",
-                    integer_step=DELAY_STEP_S),)
-
-    def loop_delays(self, theta: Mapping[str, float], dt: float) -> tuple[int, int]:
-        return _periods(theta["lvdt_delay_s"], dt), 0
+    params = (_delay_param("lvdt_delay_s"),)
+    sensor = "lvdt"
 
 
 class EncoderDelay(_Delay):
     name = "encoder_delay"
     doc = ("transport delay of the encoder alone (angle and speed), in the loop: the ECU "
            "reads an older speed sample (whole SYNC periods)")
-    params = (Param("encoder_delay_s", "s", 0.0, DELAY_MAX_S, "delay",
-                    integer_step=DELAY_STEP_S),)
-
-    def loop_delays(self, theta: Mapping[str, float], dt: float) -> tuple[int, int]:
-        return 0, _periods(theta["encoder_delay_s"], dt)
+    params = (_delay_param("encoder_delay_s"),)
+    sensor = "encoder"
 
 
 class _LogDelay(_Delay):
@@ -87,8 +93,7 @@ class _LogDelay(_Delay):
 class LvdtDelayLog(_LogDelay):
     name = "lvdt_delay_log"
     doc = "the logged LVDT late, not the ECU's (the logger's channel; whole SYNC periods)"
-    params = (Param("lvdt_delay_log_s", "s", 0.0, DELAY_MAX_S, "delay",
-                    integer_step=DELAY_STEP_S),)
+    params = (_delay_param("lvdt_delay_log_s"),)
     columns = ("position_m",)
 
 
@@ -96,8 +101,7 @@ class EncoderDelayLog(_LogDelay):
     name = "encoder_delay_log"
     doc = ("the logged encoder angle and speed late, not the ECU's (the logger's channel; "
            "whole SYNC periods)")
-    params = (Param("encoder_delay_log_s", "s", 0.0, DELAY_MAX_S, "delay",
-                    integer_step=DELAY_STEP_S),)
+    params = (_delay_param("encoder_delay_log_s"),)
     columns = ("motor_angle_rad", "motor_speed_rad_s")
 
 
@@ -105,43 +109,51 @@ class CurrentDelayLog(_LogDelay):
     name = "current_delay_log"
     doc = ("the logged current late (its ADC or channel; the ECU does not read the current, "
            "so no loop sees it; whole SYNC periods)")
-    params = (Param("current_delay_log_s", "s", 0.0, DELAY_MAX_S, "delay",
-                    integer_step=DELAY_STEP_S),)
+    params = (_delay_param("current_delay_log_s"),)
     columns = ("current_a",)
 
 
-class CurrentOffsetLog(Effect):
+class _CurrentLog(Effect):
+    """An error of the logged current alone: `exact` is the parameter's no-error value."""
+    where = "log"
+    exact: ClassVar[float] = 0.0
+
+    def nominal(self, base: PlantParams) -> dict[str, float]:
+        return {self.params[0].name: self.exact}
+
+    @staticmethod
+    def apply(current: np.ndarray, value: float) -> np.ndarray:
+        raise NotImplementedError
+
+    def post(self, cols: dict[str, np.ndarray], theta: Mapping[str, float],
+             dt: float) -> dict[str, np.ndarray]:
+        out = dict(cols)
+        out["current_a"] = self.apply(cols["current_a"], theta[self.params[0].name])
+        return out
+
+
+class CurrentOffsetLog(_CurrentLog):
     name = "current_offset_log"
     doc = ("offset of the logged current alone (the logger's current sensor, not the "
            "drive's): the drive regulates the true current")
-    where = "log"
     params = (Param("current_offset_log_a", "A", -2.0, 2.0, "offset"),)
+    exact = 0.0
 
-    def nominal(self, base: PlantParams) -> dict[str, float]:
-        return {"current_offset_log_a": 0.0}
-
-    def post(self, cols: dict[str, np.ndarray], theta: Mapping[str, float],
-             dt: float) -> dict[str, np.ndarray]:
-        out = dict(cols)
-        out["current_a"] = cols["current_a"] + theta["current_offset_log_a"]
-        return out
+    @staticmethod
+    def apply(current: np.ndarray, value: float) -> np.ndarray:
+        return current + value
 
 
-class CurrentGainLog(Effect):
+class CurrentGainLog(_CurrentLog):
     name = "current_gain_log"
     doc = ("gain error of the logged current alone (the logger's sensor; in the drive's own "
            "loop a current gain is a torque-constant error, `kt`)")
-    where = "log"
     params = (Param("current_gain_log", "-", 0.8, 1.25, "gain (1 = exact)"),)
+    exact = 1.0
 
-    def nominal(self, base: PlantParams) -> dict[str, float]:
-        return {"current_gain_log": 1.0}
-
-    def post(self, cols: dict[str, np.ndarray], theta: Mapping[str, float],
-             dt: float) -> dict[str, np.ndarray]:
-        out = dict(cols)
-        out["current_a"] = cols["current_a"] * theta["current_gain_log"]
-        return out
+    @staticmethod
+    def apply(current: np.ndarray, value: float) -> np.ndarray:
+        return current * value
 
 
 BUILTIN: tuple[type[Effect], ...] = (LvdtDelay, EncoderDelay, LvdtDelayLog, EncoderDelayLog,

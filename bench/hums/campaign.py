@@ -25,7 +25,7 @@ from bench import BenchError, machine_description
 from bench.hums import monitor as M
 from bench.hums.calibration import calibrate, healthy_params
 from bench.hums.fusion import Calibration, FusedPredictor, causal_median, fused_backlash
-from bench.hums.metrics import score_run
+from bench.hums.metrics import LAMBDA_ROWS, score_run, summarise_scores
 from bench.hums.records import RunRecord, simulate_record, true_failure_time
 from bench.hums.rul import N_BOOT, WARNING, Prediction, thesis_predict, thesis_profile
 from bench.jsonsafe import json_safe
@@ -206,26 +206,8 @@ def _summary(scores: list[RunScore], healthy: dict[str, dict[str, float]]
         rs = [s.per_method[mth] for s in scores if not s.per_method[mth].get("censored")]
         if not rs:
             continue
-
-        def med(key: str, rs: list[dict[str, Any]] = rs) -> float:
-            v = np.array([r[key] for r in rs], dtype=float)
-            return float(np.nanmedian(v)) if np.isfinite(v).any() else math.nan
-
-        def frac(key: str, rs: list[dict[str, Any]] = rs) -> float:
-            return float(np.mean([bool(r.get(key)) for r in rs]))
-
         out[mth] = {
-            "runs": float(len(rs)),
-            "warned_runs": float(np.mean([math.isfinite(r["t_warning_s"]) for r in rs])),
-            "warning_life_frac_median": med("warning_life_frac"),
-            "ph_life_frac_median": med("ph_life_frac"),
-            "stable_ph_life_frac_median": med("stable_ph_life_frac"),
-            "ph_before_half_life": float(np.mean([r["ph_life_frac"] >= 0.5 for r in rs])),
-            "alpha_lambda_0.5": frac("alpha_lambda_0.5"),
-            "alpha_lambda_0.7": frac("alpha_lambda_0.7"),
-            "alpha_lambda_0.9": frac("alpha_lambda_0.9"),
-            "ra_0.5_median": med("ra_0.5"), "ra_0.7_median": med("ra_0.7"),
-            "ra_0.9_median": med("ra_0.9"),
+            **summarise_scores(rs),
             "false_alarm_period_rate": healthy[mth]["period_rate"],
             "false_alarm_run_rate": healthy[mth]["run_rate"],
         }
@@ -289,12 +271,7 @@ def campaign_markdown(res: CampaignResult) -> str:
              "within alpha / life, median", "{:.0%}"),
             ("ph_before_half_life", "runs with a correct RUL band before 50 % of life",
              "{:.0%}"),
-            ("alpha_lambda_0.5", "alpha-lambda met at 50 % of life", "{:.0%}"),
-            ("alpha_lambda_0.7", "alpha-lambda met at 70 % of life", "{:.0%}"),
-            ("alpha_lambda_0.9", "alpha-lambda met at 90 % of life", "{:.0%}"),
-            ("ra_0.5_median", "relative accuracy at 50 %, median", "{:.2f}"),
-            ("ra_0.7_median", "relative accuracy at 70 %, median", "{:.2f}"),
-            ("ra_0.9_median", "relative accuracy at 90 %, median", "{:.2f}"),
+            *LAMBDA_ROWS,
             ("false_alarm_period_rate", "false alarms, share of healthy periods", "{:.2%}"),
             ("false_alarm_run_rate", "false alarms, share of healthy runs", "{:.0%}")]
     for k, label, f in keys:

@@ -81,3 +81,32 @@ def score_run(preds: list[Prediction], t_warn: float, t_f: float, alpha: float =
         out[f"ra_{key}"] = 1.0 - abs(true_rul - p.rul_s) / true_rul if math.isfinite(
             p.rul_s) else 0.0
     return out
+
+
+LAMBDAS = ("0.5", "0.7", "0.9")
+"""The fractions of life `score_run` scores by default, as its keys spell them."""
+
+LAMBDA_ROWS = [(f"alpha_lambda_{lam}", f"alpha-lambda met at {lam[2]}0 % of life",
+                "{:.0%}") for lam in LAMBDAS] + \
+              [(f"ra_{lam}_median", f"relative accuracy at {lam[2]}0 %, median", "{:.2f}")
+               for lam in LAMBDAS]
+"""Report rows (key, label, format) of `summarise_scores`' alpha-lambda and RA entries."""
+
+
+def summarise_scores(rs: list[dict[str, Any]]) -> dict[str, float]:
+    """Medians and shares over runs scored by `score_run` (at the default lambdas): the
+    count, warned runs, warning time and horizons over life, runs with a horizon before
+    half life, alpha-lambda met and the relative accuracy's median at each lambda."""
+    def med(key: str) -> float:
+        v = np.array([r.get(key, math.nan) for r in rs], dtype=float)
+        return float(np.nanmedian(v)) if np.isfinite(v).any() else math.nan
+
+    return {"runs": float(len(rs)),
+            "warned_runs": float(np.mean([math.isfinite(r["t_warning_s"]) for r in rs])),
+            "warning_life_frac_median": med("warning_life_frac"),
+            "ph_life_frac_median": med("ph_life_frac"),
+            "stable_ph_life_frac_median": med("stable_ph_life_frac"),
+            "ph_before_half_life": float(np.mean([r["ph_life_frac"] >= 0.5 for r in rs])),
+            **{f"alpha_lambda_{lam}": float(np.mean([bool(r.get(f"alpha_lambda_{lam}"))
+                                                      for r in rs])) for lam in LAMBDAS},
+            **{f"ra_{lam}_median": med(f"ra_{lam}") for lam in LAMBDAS}}

@@ -31,7 +31,7 @@ import numpy as np
 
 from bench import BenchError, machine_description
 from bench.hums import usage_campaign as U
-from bench.hums.metrics import score_run
+from bench.hums.metrics import LAMBDA_ROWS, score_run, summarise_scores
 from bench.hums.prognosis import (
     PrognosisCalibration,
     WearPrognoser,
@@ -264,18 +264,7 @@ def summarise(runs: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
         if not rs:
             continue
 
-        def med(key: str, rs: list[dict[str, Any]] = rs) -> float:
-            v = np.array([x.get(key, math.nan) for x in rs], dtype=float)
-            return float(np.nanmedian(v)) if np.isfinite(v).any() else math.nan
-        out[m] = {"runs": float(len(rs)),
-                  "ph_before_half_life": float(np.mean([x["ph_life_frac"] >= 0.5 for x in rs])),
-                  "ph_life_frac_median": med("ph_life_frac"),
-                  "stable_ph_life_frac_median": med("stable_ph_life_frac"),
-                  **{f"alpha_lambda_{lam}": float(np.mean([bool(x.get(
-                      f"alpha_lambda_{lam}")) for x in rs])) for lam in ("0.5", "0.7", "0.9")},
-                  **{f"ra_{lam}_median": med(f"ra_{lam}") for lam in ("0.5", "0.7", "0.9")},
-                  "warning_life_frac_median": med("warning_life_frac"),
-                  "warned_runs": float(np.mean([math.isfinite(x["t_warning_s"]) for x in rs]))}
+        out[m] = summarise_scores(rs)
     out["all"] = {"actuators": float(len(runs)), "failed": float(len(ok)),
                   "life_days_median": float(np.median([r["t_failure"] for r in ok]))
                   if ok else math.nan,
@@ -349,12 +338,7 @@ _ROWS = [("ph_before_half_life", "correct RUL band (alpha 0.2) before 50 % of li
          ("ph_life_frac_median", "prognostic horizon / life, median (progpy)", "{:.0%}"),
          ("stable_ph_life_frac_median", "horizon from which every prediction stays within "
           "alpha / life, median", "{:.0%}"),
-         ("alpha_lambda_0.5", "alpha-lambda met at 50 % of life", "{:.0%}"),
-         ("alpha_lambda_0.7", "alpha-lambda met at 70 % of life", "{:.0%}"),
-         ("alpha_lambda_0.9", "alpha-lambda met at 90 % of life", "{:.0%}"),
-         ("ra_0.5_median", "relative accuracy at 50 %, median", "{:.2f}"),
-         ("ra_0.7_median", "relative accuracy at 70 %, median", "{:.2f}"),
-         ("ra_0.9_median", "relative accuracy at 90 %, median", "{:.2f}"),
+         *LAMBDA_ROWS,
          ("warned_runs", "actuators warned before failure", "{:.0%}"),
          ("warning_life_frac_median", "warning time / life, median", "{:.0%}")]
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -53,28 +54,29 @@ def signal(cycle: Cycle, name: str) -> np.ndarray:
     return cycle.position_error_mm
 
 
+def _dwell_median(cycle: Cycle, column: str, key: str) -> float:
+    """The median of the cycle's `column` over its dwells (0 without a dwell), memoised
+    as `key` on the cycle."""
+    def median() -> float:
+        values = getattr(cycle, column)
+        dwell = [values[s.start:s.stop] for s in cycle.segments() if s.direction == 0 and len(s)]
+        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
+            else 0.0
+    return float(cycle.memo(key, median))
+
+
 def standstill_current(cycle: Cycle) -> float:
     """The median current of the cycle's dwells (0 for a cycle without a dwell). The
     drive's current steps by itself (healthy Cranfield run 1 at -40 kgf: about 0.1 A in
     every phase, the dwell included, between two cycles, while a stroke less the dwell
     stays within 0.01 A), so the stroke features read the current against it."""
-    def median() -> float:
-        dwell = [cycle.current_a[s.start:s.stop] for s in cycle.segments()
-                 if s.direction == 0 and len(s)]
-        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
-            else 0.0
-    return float(cycle.memo("standstill_current", median))
+    return _dwell_median(cycle, "current_a", "standstill_current")
 
 
 def standstill_error(cycle: Cycle) -> float:
     """The median position error of the cycle's dwells (0 without a dwell): the position
     sensor's zero as the cycle sees it."""
-    def median() -> float:
-        dwell = [cycle.position_error_mm[s.start:s.stop] for s in cycle.segments()
-                 if s.direction == 0 and len(s)]
-        return float(K.median(np.asarray(np.concatenate(dwell), np.float64))) if dwell \
-            else 0.0
-    return float(cycle.memo("standstill_error", median))
+    return _dwell_median(cycle, "position_error_mm", "standstill_error")
 
 
 @dataclass
@@ -330,14 +332,8 @@ def build_load(cycles: list[Cycle]) -> LoadBaseline:
         sp = np.mean([c.setpoint_mm[k] for c, k in zip(cycles, idx, strict=True)], axis=0)
         pos = np.mean([c.position_mm[k] for c, k in zip(cycles, idx, strict=True)], axis=0)
         ph[name] = PhaseStats(name, direction, sp, pos, mean, std, len(cycles))
-    per = [phase_indexes(c) for c in cycles]
-    indexes: dict[str, dict[str, tuple[float, float]]] = {}
-    for name in ph:
-        indexes[name] = {}
-        for key in per[0][name]:
-            vals = np.array([p[name][key] for p in per], float)
-            if np.isfinite(vals).all():
-                indexes[name][key] = (float(vals.mean()), float(vals.std(ddof=1)))
+    indexes = _per_index([phase_indexes(c) for c in cycles], ph,
+                         lambda vals: (float(vals.mean()), float(vals.std(ddof=1))))
     return LoadBaseline(cycles[0].load, sorted({c.run for c in cycles}),
                         [c.label for c in cycles], ph, indexes, ref_indexes(cycles, ph))
 
@@ -347,16 +343,26 @@ def ref_indexes(cycles: list[Cycle], names: Any) -> dict[str, dict[str, tuple[fl
     predictive spread of one cycle of a healthy run not among `cycles`' runs
     (`spread.spread`: within and between runs; with fewer than `spread.MIN_RUNS` runs the
     spread of independent cycles, provisional)."""
-    per = [phase_indexes(c, referenced=True) for c in cycles]
     runs = [c.run for c in cycles]
+
+    def stat(vals: np.ndarray) -> tuple[float, float]:
+        sp = spread(vals, runs)
+        return (sp.mean, math.sqrt(sp.predictive))
+    return _per_index([phase_indexes(c, referenced=True) for c in cycles], names, stat)
+
+
+def _per_index(per: list[dict[str, dict[str, float]]], names: Any,
+               stat: Callable[[np.ndarray], tuple[float, float]]
+               ) -> dict[str, dict[str, tuple[float, float]]]:
+    """Per phase in `names` and index: `stat` of the index over the cycles `per` (one
+    `phase_indexes` each); an index not finite in every cycle is left out."""
     out: dict[str, dict[str, tuple[float, float]]] = {}
     for name in names:
         out[name] = {}
         for key in per[0][name]:
             vals = np.array([p[name][key] for p in per], float)
             if np.isfinite(vals).all():
-                sp = spread(vals, runs)
-                out[name][key] = (sp.mean, math.sqrt(sp.predictive))
+                out[name][key] = stat(vals)
     return out
 
 

@@ -7,6 +7,7 @@ the same split (`bench rig study`; the blocks `report.document` adds)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 from bench.reports import Block, Heading, Paragraph, Table
@@ -69,6 +70,21 @@ def _pooled(row: dict[str, Any], cond: str) -> dict[str, Any] | None:
     return (r or {}).get("pooled")
 
 
+def _pooled_cells(sm: dict[str, Any], loads: list[str], cond: str, need: str,
+                  cell: Callable[[dict[str, Any]], str]) -> list[str]:
+    """One fault table's cells, a load each: `cell` of its pooled result, "-" where
+    that has no `need` (no cycle judged, none flagged)."""
+    cells = []
+    for load in loads:
+        p = _pooled(sm["loads"][load], cond)
+        cells.append(cell(p) if p and p[need] else "-")
+    return cells
+
+
+def _family_rates(per_family: dict[str, Any], num: str, den: str) -> str:
+    return "; ".join(f"{k} {_rate(v[num], v[den], v['rate_95'])}" for k, v in per_family.items())
+
+
 def detection_blocks(sm: dict[str, Any], conds: list[str]) -> list[Block]:
     loads = list(sm["loads"])
     table = _table(["table"] + [f"load {k}" for k in loads])
@@ -77,21 +93,16 @@ def detection_blocks(sm: dict[str, Any], conds: list[str]) -> list[Block]:
            "Per fault table and load, pooled over the same splits (each cycle judged under "
            "every choice of calibration runs; no fault cycle enters a threshold): the bench, "
            "then the plain z-score:"), table]
+    def cell(p: dict[str, Any]) -> str:
+        return (f"{pct(p['flagged'] / p['judged'])} "
+                f"({ci(clopper_pearson(p['flagged'], p['judged']))}); "
+                f"z-score {pct(p['zscore_flagged'] / p['judged'])}")
+
     for cond in conds:
-        cells = []
-        for load in loads:
-            p = _pooled(sm["loads"][load], cond)
-            if not p or not p["judged"]:
-                cells.append("-")
-                continue
-            cells.append(f"{pct(p['flagged'] / p['judged'])} "
-                         f"({ci(clopper_pearson(p['flagged'], p['judged']))}); "
-                         f"z-score {pct(p['zscore_flagged'] / p['judged'])}")
-        table.rows.append([cond] + cells)
+        table.rows.append([cond] + _pooled_cells(sm, loads, cond, "judged", cell))
     g = sm.get("goals", {}).get("detected") or {}
     if g.get("judged"):
-        fam = "; ".join(f"{k} {_rate(v['flagged'], v['judged'], v['rate_95'])}"
-                        for k, v in (g.get("per_family") or {}).items())
+        fam = _family_rates(g.get("per_family") or {}, "flagged", "judged")
         out.append(Paragraph(f"All fault cycles: {_rate(g['flagged'], g['judged'], g['rate_95'])} "
                              f"detected; per family: {fam}; the plain z-score "
                              f"{pct(g['zscore_rate'])}."))
@@ -146,20 +157,15 @@ def naming_blocks(sm: dict[str, Any], conds: list[str]) -> list[Block]:
            "'friction or backlash' counts as not right) and the names given:"), table]
     for cond in conds:
         exp = naming.expected_fault(table_label(cond))
-        cells = []
-        for load in loads:
-            p = _pooled(sm["loads"][load], cond)
-            if not p or not p["flagged"]:
-                cells.append("-")
-                continue
+
+        def cell(p: dict[str, Any], exp: str | None = exp) -> str:
             s = naming_summary(p["faults"], exp)
             right = f"{pct(s['rate'])} ({ci(s['rate_95'])}); " if exp else ""
-            cells.append(right + _counts(p["faults"]))
-        table.rows.append([cond, exp or "-"] + cells)
+            return right + _counts(p["faults"])
+        table.rows.append([cond, exp or "-"] + _pooled_cells(sm, loads, cond, "flagged", cell))
     g = sm.get("goals", {}).get("named") or {}
     if g.get("flagged"):
-        fam = "; ".join(f"{k} {_rate(v['right'], v['flagged'], v['rate_95'])}"
-                        for k, v in g["per_family"].items())
+        fam = _family_rates(g["per_family"], "right", "flagged")
         out.append(Paragraph(f"All flagged fault cycles: "
                              f"{_rate(g['right'], g['flagged'], g['rate_95'])} named right; "
                              f"per family: {fam}."))

@@ -29,8 +29,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import signal
 import sys
 import time
 from collections.abc import Callable
@@ -39,24 +37,13 @@ from typing import Protocol
 
 import can
 import can.cli
-from canopen.sdo.exceptions import SdoAbortedError
 
+from ema_contract.drive import DriveNode
 from ema_contract.frames import Frames, exclude_filters
-from ema_contract.node import (
-    ABORT_READ_ONLY,
-    ABORT_VALUE_RANGE,
-    ERR_COMMUNICATION,
-    ERR_GENERIC,
-    TPDOS,
-    CanopenNode,
-    cia301_od,
-)
+from ema_contract.node import TPDOS, cia301_od
 from ema_contract.states import ControlWord, NMTState
 
 TWO_PI = 2.0 * math.pi
-STATUS_COMMAND_TIMEOUT = 0x10       # TPDO1 StatusWord bits (dbc/ema.dbc comment)
-STATUS_DEMAND_CLAMPED = 0x20
-STATUS_ENABLED = 0x40
 
 
 # -- physics ------------------------------------------------------------------------------
@@ -102,10 +89,10 @@ class PlantPhysics:
 
 
 # -- bus ----------------------------------------------------------------------------------
-class MinimalNode(CanopenNode):
+class MinimalNode(DriveNode):
     """A CiA 301 node with the DBC's PDOs, driving `physics` (see module docstring), on
-    `ema_contract.node.CanopenNode`: NMT, heartbeat producer, SDO server, SYNC dispatch
-    and the loop are the base's; this class adds the consumer, RPDO1, TPDOs and EMCY.
+    `ema_contract.drive.DriveNode`: NMT, heartbeat producer and consumer, SDO server, EMCY,
+    SYNC dispatch and the loop are the base's; this class adds RPDO1 and the TPDOs.
 
     Single-threaded: `serve()` reads the bus, hands SDO requests to canopen's server and
     the other frames to the hooks below, and produces the heartbeat."""
@@ -133,14 +120,9 @@ class MinimalNode(CanopenNode):
             self.pending = self.held = (0.0, 0, False)
         super().set_state(new)
 
-    def on_timers(self, now: float, nxt: float) -> float:
-        """The heartbeat consumer: the ECU lost, demand 0 until an NMT reset."""
-        timeout_s = self.consumer_timeout_s()
-        if timeout_s > 0 and self.ecu_hb is not None and not self.timed_out:
-            if now - self.ecu_hb > timeout_s:
-                self.timed_out = True
-                self.emcy("heartbeat_lost", ERR_GENERIC | ERR_COMMUNICATION)
-        return nxt
+    @property
+    def period_s(self) -> float:
+        return self.physics.period_s
 
     # -- process data -----------------------------------------------------------------------
     def _on_rpdo(self, msg: can.Message) -> None:
@@ -165,35 +147,16 @@ class MinimalNode(CanopenNode):
         demand, control, clamped = self.held
         enabled = bool(control & ControlWord.ENABLE) and not self.timed_out
         values, status = self.physics.sample()
-        status |= (STATUS_ENABLED if enabled else 0) | (STATUS_DEMAND_CLAMPED if clamped else 0)
-        status |= STATUS_COMMAND_TIMEOUT if self.timed_out else 0
+        status |= self.status_word(enabled, clamped)
         for m in self.pdo_frames({**values, "StatusWord": status}, TPDOS):
             self.send(m)
         self.physics.step(demand if enabled else 0.0)
 
-    def emcy(self, label: str, register: int) -> None:
-        status = STATUS_COMMAND_TIMEOUT if self.timed_out else 0
-        self.send(self.frames.encode("EMA_EMCY", self.emcy_values(label, register, status)))
-
-    # -- SDO ----------------------------------------------------------------------------------
-    def sdo_read(self, index: int, subindex: int, od) -> int | None:  # noqa: ARG002
-        if index == 0x1001:
-            return ERR_GENERIC | ERR_COMMUNICATION if self.timed_out else 0
-        if index == 0x1006:
-            return int(round(self.physics.period_s * 1e6))
-        return None
-
-    def sdo_write(self, index: int, subindex: int, od, data: bytes) -> None:  # noqa: ARG002
-        raw = od.decode_raw(data)
-        if index == 0x1006 and raw != int(round(self.physics.period_s * 1e6)):
-            raise SdoAbortedError(ABORT_VALUE_RANGE)   # the period is the physics'
-        if 0x1400 <= index <= 0x1BFF:
-            raise SdoAbortedError(ABORT_READ_ONLY)     # static PDOs: those of the DBC
-
 
 # -- process ------------------------------------------------------------------------------
 def main(argv: list[str] | None = None) -> int:
-    from ema_contract.transport import close_bus, open_bus, pid_alive
+    from ema_contract.drive import serve_process
+    from ema_contract.transport import open_bus
     from plant_rt.params import PlantParams
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     can.cli.add_bus_arguments(p)
@@ -213,15 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     setpoint = Frames(args.node_id).cob["ECU_Setpoint"]   # for loggers, not for the drive
     bus = open_bus(cfg, receive_own_messages=False, can_filters=exclude_filters([setpoint]))
     node = MinimalNode(bus, physics, args.node_id, identity=not args.no_identity)
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, lambda *_: node.stop())
-    try:
-        if args.ready_file:
-            args.ready_file.write_text(f"{os.getpid()}\n")
-        parent = args.parent_pid
-        node.serve(args.duration, (lambda: pid_alive(parent)) if parent else None)
-    finally:
-        close_bus(bus)
+    serve_process(node, args.ready_file, args.parent_pid, args.duration)
     return 0
 
 
