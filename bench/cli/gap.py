@@ -18,13 +18,12 @@ if TYPE_CHECKING:
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
-        "gap", help="diagnose the gap between a log and the nominal model",
-        description="Re-simulate a logged run from its set-points, localise the residual "
-                    "(signal, path, regime, frequency band), fit a library of candidate "
-                    "effects (least squares, ranked by BIC, forward selection of pairs) and "
-                    "measure how far the best one shrinks the gap on held-out data. The "
-                    "fits use the plant's fast mode (averaged PWM, massless balls).")
+    p = opt.add_command(
+        subparsers, "gap", "diagnose the gap between a log and the nominal model", """
+        Re-simulate a logged run from its set-points, localise the residual (signal, path,
+        regime, frequency band), fit a library of candidate effects (least squares, ranked by
+        BIC, forward selection of pairs) and measure how far the best one shrinks the gap on
+        held-out data. The fits use the plant's fast mode (averaged PWM, massless balls).""")
     p.add_argument("log", nargs="?", metavar="REAL",
                    help="bus log (.log candump, .asc, .blf, .trc, .mf4) or trace "
                         "(.npz/.csv/.parquet) of the run")

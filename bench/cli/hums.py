@@ -23,9 +23,9 @@ from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("hums", help="health and usage monitoring (thesis chapter 6)",
-                       description="Monitoring model, HUMS indexes, degradation sweep, RUL "
-                       "prediction and reports (thesis chapter 6, rows H1-H6, R1-R2).")
+    p = opt.add_command(sub, "hums", "health and usage monitoring (thesis chapter 6)", """
+        Monitoring model, HUMS indexes, degradation sweep, RUL prediction and reports (thesis
+        chapter 6, rows H1-H6, R1-R2).""")
     s = p.add_subparsers(title="hums commands", dest="hums_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
     _add_thesis_commands(s)
@@ -46,17 +46,16 @@ def _common(q: argparse.ArgumentParser, workers: bool = True) -> None:
 def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     """fit, sweep, rul and campaign: the thesis' chapter 6 runs."""
     common = _common
-    q = s.add_parser("fit", help="H1: fit the monitoring model's position gain",
-                     description="Fit the monitoring model's position P gain to a nominal "
-                     "high-fidelity run of the 2 Hz sine by Nelder-Mead from 20 (thesis "
-                     "units), as thesis section 6.1 does.")
+    q = opt.add_command(s, "fit", "H1: fit the monitoring model's position gain", """
+        Fit the monitoring model's position P gain to a nominal high-fidelity run of the 2 Hz
+        sine by Nelder-Mead from 20 (thesis units), as thesis section 6.1 does.""")
     common(q, workers=False)
     q.set_defaults(func=run_fit)
 
-    q = s.add_parser("sweep", help="H1-H6: 11-point degradation sweep",
-                     description="Backlash 0-100 um and friction x1-x4 in 11 points, for the "
-                     "open-loop velocity step (H2), velocity cosine (H3) and closed-loop "
-                     "sine (H4/H5), without and/or with sensor noise (H6).")
+    q = opt.add_command(s, "sweep", "H1-H6: 11-point degradation sweep", """
+        Backlash 0-100 um and friction x1-x4 in 11 points, for the open-loop velocity step (H2),
+        velocity cosine (H3) and closed-loop sine (H4/H5), without and/or with sensor noise
+        (H6).""")
     q.add_argument("--noise", choices=["on", "off", "both"], default="both",
                    help="sensor noise (default: %(default)s)")
     q.add_argument("--points", type=int, default=11, help="degradation points (default 11)")
@@ -66,11 +65,10 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     common(q)
     q.set_defaults(func=run_sweep)
 
-    q = s.add_parser("rul", help="R1-R2: the 120 s run-to-failure run",
-                     description="The H4 sine for 120 s with preload decaying linearly and "
-                     "backlash and friction growing exponentially; the thesis' cubic RUL "
-                     "(threshold 0.93, warning 0.80, failure 0.56) with a bootstrap band, "
-                     "and the fused predictor.")
+    q = opt.add_command(s, "rul", "R1-R2: the 120 s run-to-failure run", """
+        The H4 sine for 120 s with preload decaying linearly and backlash and friction growing
+        exponentially; the thesis' cubic RUL (threshold 0.93, warning 0.80, failure 0.56) with a
+        bootstrap band, and the fused predictor.""")
     q.add_argument("--noise", action="store_true", help="sensor noise on (the true failure "
                    "time then comes from a noise-free twin run)")
     q.add_argument("--no-fused", action="store_true",
@@ -80,12 +78,11 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     common(q)
     q.set_defaults(func=run_rul)
 
-    q = s.add_parser("campaign", help="randomised run-to-failure campaign, prognostic metrics",
-                     description="N run-to-failure runs with randomised schedule (duration, "
-                     "growth rates, start preload, preload decay) and noise seeds, each with "
-                     "a noise-free twin for its true failure time, plus healthy runs for "
-                     "false alarms; scored with progpy (prognostic horizon, alpha-lambda "
-                     "with alpha = 0.2, relative accuracy).")
+    q = opt.add_command(s, "campaign", "randomised run-to-failure campaign, prognostic metrics", """
+        N run-to-failure runs with randomised schedule (duration, growth rates, start preload,
+        preload decay) and noise seeds, each with a noise-free twin for its true failure time,
+        plus healthy runs for false alarms; scored with progpy (prognostic horizon, alpha-lambda
+        with alpha = 0.2, relative accuracy).""")
     q.add_argument("--runs", type=int, default=None,
                    help="run-to-failure runs (default 20; with --usage: 50 actuators)")
     q.add_argument("--healthy", type=int, default=None,
@@ -115,25 +112,21 @@ def _add_usage_options(q: argparse.ArgumentParser) -> None:
 
 
 def _add_report(s: argparse._SubParsersAction) -> None:
-    q = s.add_parser("report", help="HTML health report of logs",
-                     description="A self-contained HTML report (figures, indexes, verdict, "
-                     "RUL with band) of candump logs (decoded through the DBC) or trace "
-                     "files (.npz, .csv, .parquet). Short gaps in a log (lost SYNCs, missing "
-                     "frames, NaN rows: up to 5 samples in a row, 2 %% in all) are bridged "
-                     "and reported; longer ones make the indexes that need the signal 'not "
-                     "available'. A log whose verdict index (Ci in position mode, Cp in "
-                     "speed mode) is not available, that is shorter than 0.1 s or in which "
-                     "nothing was commanded gets the verdict UNKNOWN. Exit status: 0 when "
-                     "every log has a verdict, 3 when one has none (UNKNOWN; the report is "
-                     "still written), 2 on bad input. A log the thesis' monitoring model cannot take (no "
-                     "ECU mode or speed set-point, e.g. a rig's table at 25 Hz imported with "
-                     "`bench import`) gets the model-free indexes, and with --nominal or "
-                     "--baseline the calibrated model's indexes or the healthy baseline's "
-                     "features and verdict; what it cannot support is listed as not available. "
-                     "Judged against the calibrated model, its verdict needs every signal the "
-                     "calibration's healthy logs were scored on (position, and current when "
-                     "they had it) and at least 5 position samples: without one the verdict "
-                     "is UNKNOWN (exit 3).")
+    q = opt.add_command(s, "report", "HTML health report of logs", """
+        A self-contained HTML report (figures, indexes, verdict, RUL with band) of candump logs
+        (decoded through the DBC) or trace files (.npz, .csv, .parquet). Short gaps in a log
+        (lost SYNCs, missing frames, NaN rows: up to 5 samples in a row, 2 %% in all) are
+        bridged and reported; longer ones make the indexes that need the signal 'not available'.
+        A log whose verdict index (Ci in position mode, Cp in speed mode) is not available, that
+        is shorter than 0.1 s or in which nothing was commanded gets the verdict UNKNOWN. Exit
+        status: 0 when every log has a verdict, 3 when one has none (UNKNOWN; the report is
+        still written), 2 on bad input. A log the thesis' monitoring model cannot take (no ECU
+        mode or speed set-point, e.g. a rig's table at 25 Hz imported with `bench import`) gets
+        the model-free indexes, and with --nominal or --baseline the calibrated model's indexes
+        or the healthy baseline's features and verdict; what it cannot support is listed as not
+        available. Judged against the calibrated model, its verdict needs every signal the
+        calibration's healthy logs were scored on (position, and current when they had it) and
+        at least 5 position samples: without one the verdict is UNKNOWN (exit 3).""")
     q.add_argument("logs", nargs="+", metavar="LOG", help="bus log (.log, .asc, .blf, .trc, .mf4) or trace file")
     opt.add_out(q, "output directory (default: %(default)s)", default="hums-report")
     q.add_argument("--period", type=float, default=None, metavar="S",
@@ -154,15 +147,13 @@ def _add_report(s: argparse._SubParsersAction) -> None:
 
 
 def _add_watch(s: argparse._SubParsersAction) -> None:
-    q = s.add_parser("watch", help="live indexes per command period, listening to the bus",
-                     description="The HUMS as a passive bus client: decodes the ECU's "
-                     "set-points and the actuator's PDOs through the DBC, runs the monitoring "
-                     "model alongside and prints (and writes with --out) Cp, Ci, peak ratio "
-                     "and lost motion of every command period, with the verdict `bench hums "
-                     "report` gives that period (the same rows, lost SYNCs, duplicates and "
-                     "short gaps handled alike). Start it, then `bench run` on the same bus (e.g. "
-                     "after `bench up`). Stops on Ctrl-C, --duration, or --idle seconds "
-                     "without SYNC once a run was seen.")
+    q = opt.add_command(s, "watch", "live indexes per command period, listening to the bus", """
+        The HUMS as a passive bus client: decodes the ECU's set-points and the actuator's PDOs
+        through the DBC, runs the monitoring model alongside and prints (and writes with --out)
+        Cp, Ci, peak ratio and lost motion of every command period, with the verdict `bench hums
+        report` gives that period (the same rows, lost SYNCs, duplicates and short gaps handled
+        alike). Start it, then `bench run` on the same bus (e.g. after `bench up`). Stops on
+        Ctrl-C, --duration, or --idle seconds without SYNC once a run was seen.""")
     q.add_argument("--period", type=float, default=0.5, metavar="S",
                    help="command period of the profile (default: %(default)s s, the 2 Hz "
                         "sine)")
