@@ -44,13 +44,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "under the controller it identified (unless the log's metadata names "
                         "one); a calibration of another actuator (--actuator) takes the "
                         "generic model's path")
-    p.add_argument("--baseline", metavar="BASE.json",
-                   help="judge the log against this healthy baseline (bench rig baseline, or "
-                        "the one `bench calibrate --actuator` wrote beside its calibration)")
-    p.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
-                   help="with a calibration of another actuator (--nominal): the model when it "
-                        "reaches the noise floor on held-out healthy logs, else the healthy "
-                        "baseline the calibration wrote (auto, default); or force one")
+    opt.add_baseline(p)
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference: absolute (zero at nut zero, the bench's "
                         "plant) or relative (start of the log)")

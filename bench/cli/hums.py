@@ -16,7 +16,9 @@ import argparse
 import json
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from bench import BenchError, interrupts
 from bench.cli import options as opt
@@ -137,12 +139,7 @@ def _add_report(s: argparse._SubParsersAction) -> None:
                    help="another actuator's calibration (bench calibrate --actuator): its "
                         "calibrated model is the monitoring model, or its healthy baseline "
                         "when the model does not reach the noise floor (docs/real-data.md)")
-    q.add_argument("--baseline", metavar="BASE.json",
-                   help="judge against this healthy baseline (bench rig baseline, or the one "
-                        "bench calibrate --actuator wrote)")
-    q.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
-                   help="with --nominal: the model when it reaches the noise floor, else its "
-                        "healthy baseline (auto, default); or force one")
+    opt.add_baseline(q)
     q.set_defaults(func=run_report)
 
 
@@ -216,6 +213,43 @@ def _doc_dir(doc: str | None) -> Path | None:
     return Path(doc).parent if doc else None
 
 
+def _write_figures(args: argparse.Namespace, figures: Callable[[str], list[Path]]
+                   ) -> list[Path]:
+    """--figures: the run's PNG figures (`figures(folder)`), each path printed."""
+    paths = figures(args.figures) if args.figures else []
+    for p in paths:
+        print(f"wrote {p}")
+    return paths
+
+
+def _write_doc(args: argparse.Namespace, section: str,
+               markdown: Callable[[list[Path], Path | None], str], paths: list[Path]) -> None:
+    """--doc: its generated `section` rewritten with `markdown(figures, doc folder)`."""
+    if args.doc:
+        from bench.hums.table import replace_section
+        replace_section(args.doc, section, markdown(paths, _doc_dir(args.doc)))
+        print(f"updated {args.doc}")
+
+
+def _write_outputs(args: argparse.Namespace, figures: Callable[[str], list[Path]], data: Any,
+                   section: str, markdown: Callable[[list[Path], Path | None], str]) -> None:
+    """What a run writes when asked, in this order: its figures, its JSON, its section
+    of --doc."""
+    paths = _write_figures(args, figures)
+    _write_json(args.json, data)
+    _write_doc(args, section, markdown, paths)
+
+
+def _with_links(text: str) -> Callable[[list[Path], Path | None], str]:
+    """A --doc section: `text`, then links to the figures."""
+    def markdown(paths: list[Path], doc_dir: Path | None) -> str:
+        from bench.hums.table import figure_links
+        if not paths:
+            return text
+        return text + "\n" + "\n".join(figure_links(paths, doc_dir)) + "\n"
+    return markdown
+
+
 def run_fit(args: argparse.Namespace) -> int:
     from bench.hums import monitor as M
     params = _params(args)
@@ -236,7 +270,6 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def run_sweep(args: argparse.Namespace) -> int:
     from bench.hums import sweep as S
-    from bench.hums.table import replace_section
     from bench.thesis_rows import check
     _check_args(args, "sweep")
     res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
@@ -244,13 +277,8 @@ def run_sweep(args: argparse.Namespace) -> int:
     rows = S.rows(res)
     _print_rows(rows)
     print(f"{len(res.points)} plant runs in {res.elapsed_s:.1f} s")
-    paths = S.figures(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    _write_json(args.json, [r.to_json() for r in rows])
-    if args.doc:
-        replace_section(args.doc, "sweep", S.markdown(res, paths, _doc_dir(args.doc)))
-        print(f"updated {args.doc}")
+    _write_outputs(args, lambda folder: S.figures(res, folder), [r.to_json() for r in rows],
+                   "sweep", lambda paths, doc_dir: S.markdown(res, paths, doc_dir))
     missing = check(rows)
     if missing:
         import sys
@@ -262,7 +290,6 @@ def run_sweep(args: argparse.Namespace) -> int:
 
 def run_rul(args: argparse.Namespace) -> int:
     from bench.hums import rul_run as R
-    from bench.hums.table import replace_section
     _check_args(args, "rul-noise" if args.noise else "rul")
     from bench.workers import session
     with session(args.workers, args.scheduler):     # one cluster: the runs, calibration
@@ -271,14 +298,9 @@ def run_rul(args: argparse.Namespace) -> int:
     rows = R.rows(res)
     _print_rows(rows)
     print(f"done in {res.elapsed_s:.1f} s")
-    paths = R.figures(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    _write_json(args.json, [r.to_json() for r in rows])
-    if args.doc:
-        name = "rul-noise" if args.noise else "rul"
-        replace_section(args.doc, name, R.markdown(res, paths, _doc_dir(args.doc)))
-        print(f"updated {args.doc}")
+    _write_outputs(args, lambda folder: R.figures(res, folder), [r.to_json() for r in rows],
+                   "rul-noise" if args.noise else "rul",
+                   lambda paths, doc_dir: R.markdown(res, paths, doc_dir))
     return 0
 
 
@@ -297,12 +319,8 @@ def run_campaign(args: argparse.Namespace) -> int:
                              args.workers, scheduler=args.scheduler)
     text = R.campaign_markdown(res)
     print(text)
-    paths = R.campaign_figure(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    _write_json(args.json, R.campaign_json(res))
-    if args.doc:
-        _doc_section(args.doc, "campaign", text, paths)
+    _write_outputs(args, lambda folder: R.campaign_figure(res, folder), R.campaign_json(res),
+                   "campaign", _with_links(text))
     return 0
 
 
@@ -318,16 +336,6 @@ def _check_campaign_outputs(args: argparse.Namespace) -> None:
     else:
         args.calibration_out = args.calibration_out or str(default_calibration_path())
     _check_args(args, "usage-campaign" if args.usage else "campaign")
-
-
-def _doc_section(doc: str, name: str, text: str, paths: list[Path]) -> None:
-    """Replace section `name` of `doc` with `text` and links to the figures `paths`."""
-    from bench.hums.table import figure_links, replace_section
-    body = text
-    if paths:
-        body += "\n" + "\n".join(figure_links(paths, _doc_dir(doc))) + "\n"
-    replace_section(doc, name, body)
-    print(f"updated {doc}")
 
 
 def _run_usage_campaign(args: argparse.Namespace) -> int:
@@ -349,11 +357,8 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
     _write_json(args.json, PC.to_json(res))
     if args.trends_out:
         print(f"wrote {PC.write_trends(res, args.trends_out)}")
-    paths = PC.figure(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    if args.doc:
-        _doc_section(args.doc, "usage-campaign", text, paths)
+    paths = _write_figures(args, lambda folder: PC.figure(res, folder))
+    _write_doc(args, "usage-campaign", _with_links(text), paths)
     return 0
 
 

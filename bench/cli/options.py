@@ -97,6 +97,21 @@ def add_doc(parser: argparse.ArgumentParser, help: str) -> None:  # noqa: A002
     parser.add_argument("--doc", metavar="PATH", help=help)
 
 
+def add_baseline(parser: argparse.ArgumentParser) -> None:
+    """`--baseline BASE.json` and `--against`: judge a log against a healthy baseline, and
+    with a calibration of another actuator (`--nominal`), whether its model or its
+    baseline judges."""
+    parser.add_argument("--baseline", metavar="BASE.json",
+                        help="judge against this healthy baseline (`bench rig baseline`, or "
+                             "the one `bench calibrate --actuator` wrote beside its "
+                             "calibration)")
+    parser.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
+                        help="with a calibration of another actuator (--nominal): the model "
+                             "when it reaches the noise floor on held-out healthy logs, else "
+                             "the healthy baseline the calibration wrote (auto, default); or "
+                             "force one")
+
+
 def node_id_arg(text: str) -> int:
     """A CANopen node id as given on the command line (0x10, 16)."""
     return int(text, 0)
@@ -122,6 +137,6 @@ def add_bus(parser: argparse.ArgumentParser) -> None:
     add_bus_arguments(parser)
 
 
-__all__ = ["DEFAULT_WORKERS", "WORKERS_HELP", "add_bus", "add_command", "add_doc", "add_figures",
+__all__ = ["DEFAULT_WORKERS", "WORKERS_HELP", "add_baseline", "add_bus", "add_command", "add_doc", "add_figures",
            "add_json", "add_node_id", "add_out", "add_output", "add_scheduler", "add_seed",
            "add_serial", "add_set", "add_workers", "node_id_arg"]
