@@ -1,6 +1,7 @@
 """Inputs several integration tests build alike: the Cranfield sample's tables imported
-one trace per cycle (`import_cycles`), its healthy baseline (`cranfield_baseline`), and a
-healthy and a worn noisy 2 Hz sine (`sine_logs`)."""
+one trace per cycle (`import_cycles`), its healthy baseline (`cranfield_baseline`), both
+in one folder (`cranfield_folder`), and a healthy and a worn noisy 2 Hz sine
+(`sine_logs`)."""
 
 from __future__ import annotations
 
@@ -26,6 +27,15 @@ def cranfield_baseline(out: Path) -> Path:
     assert main(["rig", "baseline", str(SAMPLE / HEALTHY), "--runs", "1,2", "--actuator",
                  "cranfield", "--out", str(out)]) == 0
     return out
+
+
+def cranfield_folder(d: Path) -> Path:
+    """`d` with the healthy table's cycles in n/, the spalling table's in s/ and the
+    healthy baseline of runs 1 and 2 as base.json."""
+    import_cycles(HEALTHY, d / "n")
+    import_cycles(SPALLING, d / "s")
+    cranfield_baseline(d / "base.json")
+    return d
 
 
 def sine_logs(d: Path) -> Path:

@@ -12,7 +12,7 @@ import math
 
 import pytest
 from page_tables import numbers, shows, summary
-from sample_data import HEALTHY, SAMPLE, SPALLING, cranfield_baseline, import_cycles, sine_logs
+from sample_data import SAMPLE, cranfield_folder, sine_logs
 
 from bench.cli import main
 
@@ -47,11 +47,7 @@ def test_hums_report(sim_logs, tmp_path):
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rig")
-    import_cycles(HEALTHY, d / "n")
-    import_cycles(SPALLING, d / "s")
-    cranfield_baseline(d / "base.json")
-    return d
+    return cranfield_folder(tmp_path_factory.mktemp("rig"))
 
 
 def test_rig_hums_report(rig, tmp_path):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sample_data import HEALTHY, SPALLING, cranfield_baseline, import_cycles
+from sample_data import cranfield_folder
 
 from bench import BenchError
 from bench.bus.logs import load_trace
@@ -29,11 +29,7 @@ FIT = [f"load=40_run={r}_group={g}.parquet" for r, gs in ((1, (51, 52, 53)), (2,
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rigreport")
-    import_cycles(HEALTHY, d / "n")
-    import_cycles(SPALLING, d / "s")
-    cranfield_baseline(d / "base.json")
-    return d
+    return cranfield_folder(tmp_path_factory.mktemp("rigreport"))
 
 
 @pytest.fixture(scope="module")
