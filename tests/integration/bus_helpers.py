@@ -195,3 +195,29 @@ def thread_hub():
         yield h
     finally:
         kill()
+
+
+NODE_START_TIMEOUT_S = 90.0    # a first start may compile the plant (numba, cached on disk)
+
+
+def start_node(name: str, module: list[str], cfg: dict, state: Path, *args: str) -> Child:
+    """A node process (`python MODULE -i ... -c ... --ready-file ... ARGS`, this process its
+    parent) on `cfg`, its stderr in STATE/NAME-*.log; waits (bounded) until it is on the
+    bus, and says why not from its log."""
+    ready = state / f"{name}-{time.monotonic_ns()}.ready"
+    log = ready.with_suffix(".log")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    cmd = [sys.executable, *module, "-i", cfg["interface"], "-c", str(cfg["channel"]),
+           "--ready-file", str(ready), "--parent-pid", str(os.getpid()), *args]
+    with log.open("w") as err:
+        proc = subprocess.Popen(cmd, env=env, cwd=str(ROOT), stdout=subprocess.DEVNULL,
+                                stderr=err, stdin=subprocess.DEVNULL, start_new_session=True)
+    child = Child(f"{name}-node", proc, proc.pid, log)
+    end = time.monotonic() + NODE_START_TIMEOUT_S
+    while not ready.exists():
+        if proc.poll() is not None or time.monotonic() > end:
+            child.stop()
+            raise AssertionError(f"{name} node did not start: {log.read_text()[-2000:]}")
+        time.sleep(0.05)
+    return child
