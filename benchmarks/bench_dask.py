@@ -29,14 +29,15 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from perfdoc import write_section  # noqa: E402
+from perfdoc import publish  # noqa: E402
 
 from bench import machine_description  # noqa: E402
-from bench.cluster import THREAD_VARS, Engine, environ_kept  # noqa: E402
+from bench.cluster import THREAD_VARS, Engine  # noqa: E402
 from bench.gap import blind  # noqa: E402
 from bench.gap import diagnose as D  # noqa: E402
 from bench.hums import sweep as S  # noqa: E402
@@ -53,8 +54,7 @@ def _noop(x: Any = None) -> Any:
 
 
 def old_pool(workers: int, wait: bool = True) -> ProcessPoolExecutor:
-    with environ_kept(THREAD_VARS):
-        os.environ.update({k: "1" for k in THREAD_VARS})
+    with mock.patch.dict(os.environ, {k: "1" for k in THREAD_VARS}):   # put back after
         pool = ProcessPoolExecutor(max_workers=workers,
                                    mp_context=multiprocessing.get_context("spawn"))
         ready = [pool.submit(_noop) for _ in range(workers)]
@@ -241,9 +241,7 @@ def main() -> None:
     before = loadavg()
     out = measure(a.repeats)
     md = markdown(out, a.repeats, (before, loadavg()))
-    print(md)
-    if a.write:
-        write_section(Path(a.write), md)
+    publish(md, a.write)
 
 
 if __name__ == "__main__":

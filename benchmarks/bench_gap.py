@@ -25,7 +25,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-from perfdoc import write_section  # noqa: E402
+from perfdoc import publish  # noqa: E402
 
 SECTION = "## Gap diagnosis: a 10 s log"
 CASES = ("one effect: backlash 30 um", "two effects: friction x3 + encoder gain 1.03",
@@ -145,9 +145,7 @@ def main() -> None:
     before = loadavg()
     res = run(trees, a.repeats, a.workers)
     md = markdown(res, trees, a.workers, a.repeats, (before, loadavg()))
-    print(md)
-    if a.write:
-        write_section(Path(a.write), md)
+    publish(md, a.write)
 
 
 if __name__ == "__main__":

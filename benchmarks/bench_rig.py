@@ -41,7 +41,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from perfdoc import write_section  # noqa: E402
+from perfdoc import publish  # noqa: E402
 
 SECTION = "## Real rigs (bench rig)"
 SUBSET = ("normal_runs1-4", "normal_runs5-6", "backlash1_runs1-5",
@@ -166,9 +166,7 @@ def main() -> int:
         "start, the cross-validation over the 15 choices of 4 calibration runs (each "
         "fault cycle judged under every one) and the leave-runs-out validation of the "
         "classifiers (5 folds).", ""])
-    print(text)
-    if args.write:
-        write_section(args.write, text)
+    publish(text, args.write)
     return 0
 
 

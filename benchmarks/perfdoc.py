@@ -19,3 +19,10 @@ def write_section(path: str | Path, text: str) -> None:
     else:
         new = old.rstrip("\n") + "\n\n" + body
     path.write_text(new)
+
+
+def publish(text: str, path: str | Path | None) -> None:
+    """Print a benchmark's section, and with a path (`--write`) put it there too."""
+    print(text)
+    if path:
+        write_section(path, text)

@@ -18,16 +18,14 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     from bench.gap.calibrate import DEFAULT
     from bench.gap.library import FRICTION_SPLITS
     thesis, rig = controller_choices()
-    p = subparsers.add_parser(
-        "calibrate", help="fit the nominal model to a healthy log",
-        description="Fit the nominal model's uncertain parameters (inertia, friction level, "
-                    "torque constant, lead, sensor gains, current offset) to a healthy log "
-                    "by closed-loop least squares with a prior tolerance on each (fast plant "
-                    "mode). The output is used by `bench gap --nominal`. With --actuator "
-                    "DESC (a JSON/TOML description, or a shipped name: cranfield): identify "
-                    "what the description leaves unknown from one or more healthy logs with "
-                    "the generic nut-level model, at the logs' own sample instants, and "
-                    "report the RMS per signal of each --holdout log against its noise floor.")
+    p = opt.add_command(subparsers, "calibrate", "fit the nominal model to a healthy log", """
+        Fit the nominal model's uncertain parameters (inertia, friction level, torque constant,
+        lead, sensor gains, current offset) to a healthy log by closed-loop least squares with a
+        prior tolerance on each (fast plant mode). The output is used by `bench gap --nominal`.
+        With --actuator DESC (a JSON/TOML description, or a shipped name: cranfield): identify
+        what the description leaves unknown from one or more healthy logs with the generic
+        nut-level model, at the logs' own sample instants, and report the RMS per signal of each
+        --holdout log against its noise floor.""")
     p.add_argument("log", metavar="HEALTHY", nargs="+",
                    help="candump log (.log) or trace of a healthy run (several with --actuator)")
     p.add_argument("--actuator", metavar="DESC",

@@ -18,11 +18,12 @@ from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("fleet", help="fleet store: ingest logs, status, report, export, "
-                       "synthetic fleet",
-                       description="Many actuators' ground-test logs in one DuckDB store: "
-                       "health indexes, verdict and usage per run; status, HTML report, "
-                       "Parquet export; a synthetic fleet generator (docs/fleet.md).")
+    p = opt.add_command(
+        sub, "fleet",
+        "fleet store: ingest logs, status, report, export, synthetic fleet", """
+        Many actuators' ground-test logs in one DuckDB store: health indexes, verdict and usage
+        per run; status, HTML report, Parquet export; a synthetic fleet generator
+        (docs/fleet.md).""")
     s = p.add_subparsers(title="fleet commands", dest="fleet_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
 
@@ -37,11 +38,10 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
         opt.add_scheduler(q, "a Dask scheduler address to send the work to (default: "
                           "$BENCH_DASK_SCHEDULER, else a LocalCluster on 127.0.0.1)")
 
-    q = s.add_parser("ingest", help="ingest logs into the store",
-                     description="Read candump logs and trace tables (files, directories "
-                     "searched recursively, globs), grade each run with the HUMS and store "
-                     "it keyed by actuator, run time and log digest. Idempotent (a log "
-                     "already stored is skipped) and resumable (interrupted: run it again).")
+    q = opt.add_command(s, "ingest", "ingest logs into the store", """
+        Read candump logs and trace tables (files, directories searched recursively, globs),
+        grade each run with the HUMS and store it keyed by actuator, run time and log digest.
+        Idempotent (a log already stored is skipped) and resumable (interrupted: run it again).""")
     q.add_argument("paths", nargs="+", metavar="PATH")
     db(q)
     pool(q)
@@ -50,9 +50,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                    "log's directory)")
     q.set_defaults(func=run_ingest)
 
-    q = s.add_parser("status", help="one line per actuator",
-                     description="Per actuator: last test, level, Ci trend per day, RUL "
-                     "with its band, usage consumed.")
+    q = opt.add_command(s, "status", "one line per actuator", """
+        Per actuator: last test, level, Ci trend per day, RUL with its band, usage consumed.""")
     db(q)
     q.add_argument("--sort", choices=["id", "urgency"], default="id",
                    help="order of the lines (default: %(default)s)")
@@ -64,24 +63,23 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                    "8601, UTC; a date alone is the end of that day)")
     q.set_defaults(func=run_status)
 
-    q = s.add_parser("report", help="HTML report: what to inspect this week, per actuator",
-                     description="Static HTML with PNG figures: an overview (actuators to "
-                     "inspect this week, why, most urgent first) and one page per actuator.")
+    q = opt.add_command(s, "report", "HTML report: what to inspect this week, per actuator", """
+        Static HTML with PNG figures: an overview (actuators to inspect this week, why, most
+        urgent first) and one page per actuator.""")
     db(q)
     opt.add_out(q, "output folder", required=True)
     q.set_defaults(func=run_report)
 
-    q = s.add_parser("export", help="every table as Parquet",
-                     description="Write runs.parquet, failures.parquet and meta.parquet.")
+    q = opt.add_command(s, "export", "every table as Parquet", """
+        Write runs.parquet, failures.parquet and meta.parquet.""")
     db(q)
     opt.add_out(q, "output folder", required=True)
     q.set_defaults(func=run_export)
 
-    q = s.add_parser("synth", help="a synthetic fleet of ground-test logs",
-                     description="N actuators x D days of daily ground tests (the thesis' "
-                     "2 Hz sine), each actuator with its own wear (driven by its own "
-                     "flights by default), simulated "
-                     "in-process and written as candump logs in OUT/<actuator>/.")
+    q = opt.add_command(s, "synth", "a synthetic fleet of ground-test logs", """
+        N actuators x D days of daily ground tests (the thesis' 2 Hz sine), each actuator with
+        its own wear (driven by its own flights by default), simulated in-process and written as
+        candump logs in OUT/<actuator>/.""")
     q.add_argument("--actuators", type=int, required=True, metavar="N")
     q.add_argument("--days", type=int, required=True, metavar="D")
     opt.add_out(q, "output folder", required=True)

@@ -18,13 +18,12 @@ if TYPE_CHECKING:
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
-        "gap", help="diagnose the gap between a log and the nominal model",
-        description="Re-simulate a logged run from its set-points, localise the residual "
-                    "(signal, path, regime, frequency band), fit a library of candidate "
-                    "effects (least squares, ranked by BIC, forward selection of pairs) and "
-                    "measure how far the best one shrinks the gap on held-out data. The "
-                    "fits use the plant's fast mode (averaged PWM, massless balls).")
+    p = opt.add_command(
+        subparsers, "gap", "diagnose the gap between a log and the nominal model", """
+        Re-simulate a logged run from its set-points, localise the residual (signal, path,
+        regime, frequency band), fit a library of candidate effects (least squares, ranked by
+        BIC, forward selection of pairs) and measure how far the best one shrinks the gap on
+        held-out data. The fits use the plant's fast mode (averaged PWM, massless balls).""")
     p.add_argument("log", nargs="?", metavar="REAL",
                    help="bus log (.log candump, .asc, .blf, .trc, .mf4) or trace "
                         "(.npz/.csv/.parquet) of the run")
@@ -45,13 +44,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "under the controller it identified (unless the log's metadata names "
                         "one); a calibration of another actuator (--actuator) takes the "
                         "generic model's path")
-    p.add_argument("--baseline", metavar="BASE.json",
-                   help="judge the log against this healthy baseline (bench rig baseline, or "
-                        "the one `bench calibrate --actuator` wrote beside its calibration)")
-    p.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
-                   help="with a calibration of another actuator (--nominal): the model when it "
-                        "reaches the noise floor on held-out healthy logs, else the healthy "
-                        "baseline the calibration wrote (auto, default); or force one")
+    opt.add_baseline(p)
     p.add_argument("--encoder", choices=("absolute", "relative"), default="absolute",
                    help="encoder angle reference: absolute (zero at nut zero, the bench's "
                         "plant) or relative (start of the log)")

@@ -11,15 +11,14 @@ from bench.cli import options as opt
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
-        "gap-bench", help="blind check of the gap diagnosis on generated logs",
-        description="Generate logs with the plant in-process (bench.harness, full fidelity: "
-                    "switching PWM, dynamic balls; sensor noise on) with zero, one or two "
-                    "effects at random magnitudes the diagnosis is not told, plus sensor-side "
-                    "effects applied to the logged columns and out-of-library effects; run "
-                    "the diagnosis (fast mode) on the measured columns only; score top-1 "
-                    "attribution, pair recovery, parameter error, held-out shrink and false "
-                    "attribution on nominal logs. Uses both cores.")
+    p = opt.add_command(
+        subparsers, "gap-bench", "blind check of the gap diagnosis on generated logs", """
+        Generate logs with the plant in-process (bench.harness, full fidelity: switching PWM,
+        dynamic balls; sensor noise on) with zero, one or two effects at random magnitudes the
+        diagnosis is not told, plus sensor-side effects applied to the logged columns and
+        out-of-library effects; run the diagnosis (fast mode) on the measured columns only;
+        score top-1 attribution, pair recovery, parameter error, held-out shrink and false
+        attribution on nominal logs. Uses both cores.""")
     p.add_argument("--cases", type=int, default=40, metavar="N", help="number of logs (40)")
     opt.add_seed(p, 2025, "case seed", metavar="S")
     opt.add_workers(p, default=opt.DEFAULT_WORKERS)   # recorded in the results: literal

@@ -16,16 +16,18 @@ import argparse
 import json
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from bench import BenchError, interrupts
 from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("hums", help="health and usage monitoring (thesis chapter 6)",
-                       description="Monitoring model, HUMS indexes, degradation sweep, RUL "
-                       "prediction and reports (thesis chapter 6, rows H1-H6, R1-R2).")
+    p = opt.add_command(sub, "hums", "health and usage monitoring (thesis chapter 6)", """
+        Monitoring model, HUMS indexes, degradation sweep, RUL prediction and reports (thesis
+        chapter 6, rows H1-H6, R1-R2).""")
     s = p.add_subparsers(title="hums commands", dest="hums_command", metavar="COMMAND")
     p.set_defaults(func=lambda a: _no_sub(p))
     _add_thesis_commands(s)
@@ -46,17 +48,16 @@ def _common(q: argparse.ArgumentParser, workers: bool = True) -> None:
 def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     """fit, sweep, rul and campaign: the thesis' chapter 6 runs."""
     common = _common
-    q = s.add_parser("fit", help="H1: fit the monitoring model's position gain",
-                     description="Fit the monitoring model's position P gain to a nominal "
-                     "high-fidelity run of the 2 Hz sine by Nelder-Mead from 20 (thesis "
-                     "units), as thesis section 6.1 does.")
+    q = opt.add_command(s, "fit", "H1: fit the monitoring model's position gain", """
+        Fit the monitoring model's position P gain to a nominal high-fidelity run of the 2 Hz
+        sine by Nelder-Mead from 20 (thesis units), as thesis section 6.1 does.""")
     common(q, workers=False)
     q.set_defaults(func=run_fit)
 
-    q = s.add_parser("sweep", help="H1-H6: 11-point degradation sweep",
-                     description="Backlash 0-100 um and friction x1-x4 in 11 points, for the "
-                     "open-loop velocity step (H2), velocity cosine (H3) and closed-loop "
-                     "sine (H4/H5), without and/or with sensor noise (H6).")
+    q = opt.add_command(s, "sweep", "H1-H6: 11-point degradation sweep", """
+        Backlash 0-100 um and friction x1-x4 in 11 points, for the open-loop velocity step (H2),
+        velocity cosine (H3) and closed-loop sine (H4/H5), without and/or with sensor noise
+        (H6).""")
     q.add_argument("--noise", choices=["on", "off", "both"], default="both",
                    help="sensor noise (default: %(default)s)")
     q.add_argument("--points", type=int, default=11, help="degradation points (default 11)")
@@ -66,11 +67,10 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     common(q)
     q.set_defaults(func=run_sweep)
 
-    q = s.add_parser("rul", help="R1-R2: the 120 s run-to-failure run",
-                     description="The H4 sine for 120 s with preload decaying linearly and "
-                     "backlash and friction growing exponentially; the thesis' cubic RUL "
-                     "(threshold 0.93, warning 0.80, failure 0.56) with a bootstrap band, "
-                     "and the fused predictor.")
+    q = opt.add_command(s, "rul", "R1-R2: the 120 s run-to-failure run", """
+        The H4 sine for 120 s with preload decaying linearly and backlash and friction growing
+        exponentially; the thesis' cubic RUL (threshold 0.93, warning 0.80, failure 0.56) with a
+        bootstrap band, and the fused predictor.""")
     q.add_argument("--noise", action="store_true", help="sensor noise on (the true failure "
                    "time then comes from a noise-free twin run)")
     q.add_argument("--no-fused", action="store_true",
@@ -80,12 +80,11 @@ def _add_thesis_commands(s: argparse._SubParsersAction) -> None:
     common(q)
     q.set_defaults(func=run_rul)
 
-    q = s.add_parser("campaign", help="randomised run-to-failure campaign, prognostic metrics",
-                     description="N run-to-failure runs with randomised schedule (duration, "
-                     "growth rates, start preload, preload decay) and noise seeds, each with "
-                     "a noise-free twin for its true failure time, plus healthy runs for "
-                     "false alarms; scored with progpy (prognostic horizon, alpha-lambda "
-                     "with alpha = 0.2, relative accuracy).")
+    q = opt.add_command(s, "campaign", "randomised run-to-failure campaign, prognostic metrics", """
+        N run-to-failure runs with randomised schedule (duration, growth rates, start preload,
+        preload decay) and noise seeds, each with a noise-free twin for its true failure time,
+        plus healthy runs for false alarms; scored with progpy (prognostic horizon, alpha-lambda
+        with alpha = 0.2, relative accuracy).""")
     q.add_argument("--runs", type=int, default=None,
                    help="run-to-failure runs (default 20; with --usage: 50 actuators)")
     q.add_argument("--healthy", type=int, default=None,
@@ -115,25 +114,21 @@ def _add_usage_options(q: argparse.ArgumentParser) -> None:
 
 
 def _add_report(s: argparse._SubParsersAction) -> None:
-    q = s.add_parser("report", help="HTML health report of logs",
-                     description="A self-contained HTML report (figures, indexes, verdict, "
-                     "RUL with band) of candump logs (decoded through the DBC) or trace "
-                     "files (.npz, .csv, .parquet). Short gaps in a log (lost SYNCs, missing "
-                     "frames, NaN rows: up to 5 samples in a row, 2 %% in all) are bridged "
-                     "and reported; longer ones make the indexes that need the signal 'not "
-                     "available'. A log whose verdict index (Ci in position mode, Cp in "
-                     "speed mode) is not available, that is shorter than 0.1 s or in which "
-                     "nothing was commanded gets the verdict UNKNOWN. Exit status: 0 when "
-                     "every log has a verdict, 3 when one has none (UNKNOWN; the report is "
-                     "still written), 2 on bad input. A log the thesis' monitoring model cannot take (no "
-                     "ECU mode or speed set-point, e.g. a rig's table at 25 Hz imported with "
-                     "`bench import`) gets the model-free indexes, and with --nominal or "
-                     "--baseline the calibrated model's indexes or the healthy baseline's "
-                     "features and verdict; what it cannot support is listed as not available. "
-                     "Judged against the calibrated model, its verdict needs every signal the "
-                     "calibration's healthy logs were scored on (position, and current when "
-                     "they had it) and at least 5 position samples: without one the verdict "
-                     "is UNKNOWN (exit 3).")
+    q = opt.add_command(s, "report", "HTML health report of logs", """
+        A self-contained HTML report (figures, indexes, verdict, RUL with band) of candump logs
+        (decoded through the DBC) or trace files (.npz, .csv, .parquet). Short gaps in a log
+        (lost SYNCs, missing frames, NaN rows: up to 5 samples in a row, 2 %% in all) are
+        bridged and reported; longer ones make the indexes that need the signal 'not available'.
+        A log whose verdict index (Ci in position mode, Cp in speed mode) is not available, that
+        is shorter than 0.1 s or in which nothing was commanded gets the verdict UNKNOWN. Exit
+        status: 0 when every log has a verdict, 3 when one has none (UNKNOWN; the report is
+        still written), 2 on bad input. A log the thesis' monitoring model cannot take (no ECU
+        mode or speed set-point, e.g. a rig's table at 25 Hz imported with `bench import`) gets
+        the model-free indexes, and with --nominal or --baseline the calibrated model's indexes
+        or the healthy baseline's features and verdict; what it cannot support is listed as not
+        available. Judged against the calibrated model, its verdict needs every signal the
+        calibration's healthy logs were scored on (position, and current when they had it) and
+        at least 5 position samples: without one the verdict is UNKNOWN (exit 3).""")
     q.add_argument("logs", nargs="+", metavar="LOG", help="bus log (.log, .asc, .blf, .trc, .mf4) or trace file")
     opt.add_out(q, "output directory (default: %(default)s)", default="hums-report")
     q.add_argument("--period", type=float, default=None, metavar="S",
@@ -144,25 +139,18 @@ def _add_report(s: argparse._SubParsersAction) -> None:
                    help="another actuator's calibration (bench calibrate --actuator): its "
                         "calibrated model is the monitoring model, or its healthy baseline "
                         "when the model does not reach the noise floor (docs/real-data.md)")
-    q.add_argument("--baseline", metavar="BASE.json",
-                   help="judge against this healthy baseline (bench rig baseline, or the one "
-                        "bench calibrate --actuator wrote)")
-    q.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
-                   help="with --nominal: the model when it reaches the noise floor, else its "
-                        "healthy baseline (auto, default); or force one")
+    opt.add_baseline(q)
     q.set_defaults(func=run_report)
 
 
 def _add_watch(s: argparse._SubParsersAction) -> None:
-    q = s.add_parser("watch", help="live indexes per command period, listening to the bus",
-                     description="The HUMS as a passive bus client: decodes the ECU's "
-                     "set-points and the actuator's PDOs through the DBC, runs the monitoring "
-                     "model alongside and prints (and writes with --out) Cp, Ci, peak ratio "
-                     "and lost motion of every command period, with the verdict `bench hums "
-                     "report` gives that period (the same rows, lost SYNCs, duplicates and "
-                     "short gaps handled alike). Start it, then `bench run` on the same bus (e.g. "
-                     "after `bench up`). Stops on Ctrl-C, --duration, or --idle seconds "
-                     "without SYNC once a run was seen.")
+    q = opt.add_command(s, "watch", "live indexes per command period, listening to the bus", """
+        The HUMS as a passive bus client: decodes the ECU's set-points and the actuator's PDOs
+        through the DBC, runs the monitoring model alongside and prints (and writes with --out)
+        Cp, Ci, peak ratio and lost motion of every command period, with the verdict `bench hums
+        report` gives that period (the same rows, lost SYNCs, duplicates and short gaps handled
+        alike). Start it, then `bench run` on the same bus (e.g. after `bench up`). Stops on
+        Ctrl-C, --duration, or --idle seconds without SYNC once a run was seen.""")
     q.add_argument("--period", type=float, default=0.5, metavar="S",
                    help="command period of the profile (default: %(default)s s, the 2 Hz "
                         "sine)")
@@ -225,6 +213,43 @@ def _doc_dir(doc: str | None) -> Path | None:
     return Path(doc).parent if doc else None
 
 
+def _write_figures(args: argparse.Namespace, figures: Callable[[str], list[Path]]
+                   ) -> list[Path]:
+    """--figures: the run's PNG figures (`figures(folder)`), each path printed."""
+    paths = figures(args.figures) if args.figures else []
+    for p in paths:
+        print(f"wrote {p}")
+    return paths
+
+
+def _write_doc(args: argparse.Namespace, section: str,
+               markdown: Callable[[list[Path], Path | None], str], paths: list[Path]) -> None:
+    """--doc: its generated `section` rewritten with `markdown(figures, doc folder)`."""
+    if args.doc:
+        from bench.hums.table import replace_section
+        replace_section(args.doc, section, markdown(paths, _doc_dir(args.doc)))
+        print(f"updated {args.doc}")
+
+
+def _write_outputs(args: argparse.Namespace, figures: Callable[[str], list[Path]], data: Any,
+                   section: str, markdown: Callable[[list[Path], Path | None], str]) -> None:
+    """What a run writes when asked, in this order: its figures, its JSON, its section
+    of --doc."""
+    paths = _write_figures(args, figures)
+    _write_json(args.json, data)
+    _write_doc(args, section, markdown, paths)
+
+
+def _with_links(text: str) -> Callable[[list[Path], Path | None], str]:
+    """A --doc section: `text`, then links to the figures."""
+    def markdown(paths: list[Path], doc_dir: Path | None) -> str:
+        from bench.hums.table import figure_links
+        if not paths:
+            return text
+        return text + "\n" + "\n".join(figure_links(paths, doc_dir)) + "\n"
+    return markdown
+
+
 def run_fit(args: argparse.Namespace) -> int:
     from bench.hums import monitor as M
     params = _params(args)
@@ -245,7 +270,6 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def run_sweep(args: argparse.Namespace) -> int:
     from bench.hums import sweep as S
-    from bench.hums.table import replace_section
     from bench.thesis_rows import check
     _check_args(args, "sweep")
     res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
@@ -253,13 +277,8 @@ def run_sweep(args: argparse.Namespace) -> int:
     rows = S.rows(res)
     _print_rows(rows)
     print(f"{len(res.points)} plant runs in {res.elapsed_s:.1f} s")
-    paths = S.figures(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    _write_json(args.json, [r.to_json() for r in rows])
-    if args.doc:
-        replace_section(args.doc, "sweep", S.markdown(res, paths, _doc_dir(args.doc)))
-        print(f"updated {args.doc}")
+    _write_outputs(args, lambda folder: S.figures(res, folder), [r.to_json() for r in rows],
+                   "sweep", lambda paths, doc_dir: S.markdown(res, paths, doc_dir))
     missing = check(rows)
     if missing:
         import sys
@@ -271,7 +290,6 @@ def run_sweep(args: argparse.Namespace) -> int:
 
 def run_rul(args: argparse.Namespace) -> int:
     from bench.hums import rul_run as R
-    from bench.hums.table import replace_section
     _check_args(args, "rul-noise" if args.noise else "rul")
     from bench.workers import session
     with session(args.workers, args.scheduler):     # one cluster: the runs, calibration
@@ -280,14 +298,9 @@ def run_rul(args: argparse.Namespace) -> int:
     rows = R.rows(res)
     _print_rows(rows)
     print(f"done in {res.elapsed_s:.1f} s")
-    paths = R.figures(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    _write_json(args.json, [r.to_json() for r in rows])
-    if args.doc:
-        name = "rul-noise" if args.noise else "rul"
-        replace_section(args.doc, name, R.markdown(res, paths, _doc_dir(args.doc)))
-        print(f"updated {args.doc}")
+    _write_outputs(args, lambda folder: R.figures(res, folder), [r.to_json() for r in rows],
+                   "rul-noise" if args.noise else "rul",
+                   lambda paths, doc_dir: R.markdown(res, paths, doc_dir))
     return 0
 
 
@@ -306,12 +319,8 @@ def run_campaign(args: argparse.Namespace) -> int:
                              args.workers, scheduler=args.scheduler)
     text = R.campaign_markdown(res)
     print(text)
-    paths = R.campaign_figure(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    _write_json(args.json, R.campaign_json(res))
-    if args.doc:
-        _doc_section(args.doc, "campaign", text, paths)
+    _write_outputs(args, lambda folder: R.campaign_figure(res, folder), R.campaign_json(res),
+                   "campaign", _with_links(text))
     return 0
 
 
@@ -327,16 +336,6 @@ def _check_campaign_outputs(args: argparse.Namespace) -> None:
     else:
         args.calibration_out = args.calibration_out or str(default_calibration_path())
     _check_args(args, "usage-campaign" if args.usage else "campaign")
-
-
-def _doc_section(doc: str, name: str, text: str, paths: list[Path]) -> None:
-    """Replace section `name` of `doc` with `text` and links to the figures `paths`."""
-    from bench.hums.table import figure_links, replace_section
-    body = text
-    if paths:
-        body += "\n" + "\n".join(figure_links(paths, _doc_dir(doc))) + "\n"
-    replace_section(doc, name, body)
-    print(f"updated {doc}")
 
 
 def _run_usage_campaign(args: argparse.Namespace) -> int:
@@ -358,11 +357,8 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
     _write_json(args.json, PC.to_json(res))
     if args.trends_out:
         print(f"wrote {PC.write_trends(res, args.trends_out)}")
-    paths = PC.figure(res, args.figures) if args.figures else []
-    for p in paths:
-        print(f"wrote {p}")
-    if args.doc:
-        _doc_section(args.doc, "usage-campaign", text, paths)
+    paths = _write_figures(args, lambda folder: PC.figure(res, folder))
+    _write_doc(args, "usage-campaign", _with_links(text), paths)
     return 0
 
 

@@ -15,15 +15,13 @@ from bench.cli import options as opt
 
 
 def add_prognose(s: argparse._SubParsersAction) -> None:
-    q = s.add_parser("prognose", help="RUL distribution per actuator from health trends",
-                     description="RUL per actuator from a CSV of health-index tests over "
-                     "time (docs/hums.md). Its own trend (the default): any index in its "
-                     "unit, times as days or dates; a healthy reference from the first "
-                     "tests, a detection of change, and with a failure threshold a RUL band "
-                     "per test from a degradation model fitted to the trend, beside a "
-                     "z-score and an exponential extrapolation on the same tests. With a "
-                     "calibration of `bench hums campaign --usage` whose curves the trends' "
-                     "index names match: the campaign's particle filter instead.")
+    q = opt.add_command(s, "prognose", "RUL distribution per actuator from health trends", """
+        RUL per actuator from a CSV of health-index tests over time (docs/hums.md). Its own
+        trend (the default): any index in its unit, times as days or dates; a healthy reference
+        from the first tests, a detection of change, and with a failure threshold a RUL band per
+        test from a degradation model fitted to the trend, beside a z-score and an exponential
+        extrapolation on the same tests. With a calibration of `bench hums campaign --usage`
+        whose curves the trends' index names match: the campaign's particle filter instead.""")
     q.add_argument("--trends", required=True, metavar="FILE.csv",
                    help="the trends: a time (or date) column and one column per index, or "
                    "the long form time, actuator, index, value (optional unit)")

@@ -18,19 +18,16 @@ FORMATS = ("parquet", "npz", "csv")
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
-        "import", help="import a CSV/Parquet table from another rig",
-        description="Map a table's columns to the bench's signals (column, unit, scale, "
-                    "optional 'minus' column) and save a trace (.npz/.csv/.parquet) at the "
-                    "table's own sample instants (nothing interpolated), or resampled to a "
-                    "SYNC period with --sync-period. --split-by cuts a table holding many "
-                    "runs into one trace per run, named after its keys. "
-                    "Map: JSON list of {signal, column, unit, scale[, wrap, minus]} or "
-                    "object signal -> column/entry, or CSV with header "
-                    "signal,column,unit,scale[,wrap,minus]. "
-                    "Signals: t_s, setpoint_position_m, setpoint_speed_rad_s, mode, "
-                    "current_demand_a, current_a, motor_speed_rad_s, motor_angle_rad, "
-                    "position_m, load_force_n (load cell). Units: " + units.summary() + ".")
+    p = opt.add_command(subparsers, "import", "import a CSV/Parquet table from another rig", """
+        Map a table's columns to the bench's signals (column, unit, scale, optional 'minus'
+        column) and save a trace (.npz/.csv/.parquet) at the table's own sample instants
+        (nothing interpolated), or resampled to a SYNC period with --sync-period. --split-by
+        cuts a table holding many runs into one trace per run, named after its keys. Map: JSON
+        list of {signal, column, unit, scale[, wrap, minus]} or object signal -> column/entry,
+        or CSV with header signal,column,unit,scale[,wrap,minus]. Signals: t_s,
+        setpoint_position_m, setpoint_speed_rad_s, mode, current_demand_a, current_a,
+        motor_speed_rad_s, motor_angle_rad, position_m, load_force_n (load cell). Units:
+        """ + units.summary() + ".")
     p.add_argument("table", metavar="TABLE",
                    help="CSV (also .csv.xz/.gz/.bz2) or Parquet table")
     p.add_argument("--map", required=True, metavar="MAP", help="column map (.json or .csv)")

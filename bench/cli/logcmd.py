@@ -15,12 +15,11 @@ from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("log", help="record the bus to a log (candump -L by default)",
-                       description="Record every frame on the bus (any bus python-can opens; "
-                       "by default the loopback hub of `bench up` or vcan0) to a log, until "
-                       "Ctrl-C, --duration or --count. The suffix picks the format, as "
-                       "python-can's can.Logger does: .log candump -L (default), .asc and "
-                       ".blf (Vector), .trc (PEAK), .mf4 (ASAM MDF4).")
+    p = opt.add_command(sub, "log", "record the bus to a log (candump -L by default)", """
+        Record every frame on the bus (any bus python-can opens; by default the loopback hub of
+        `bench up` or vcan0) to a log, until Ctrl-C, --duration or --count. The suffix picks the
+        format, as python-can's can.Logger does: .log candump -L (default), .asc and .blf
+        (Vector), .trc (PEAK), .mf4 (ASAM MDF4).""")
     p.add_argument("file", metavar="FILE.log", help="log to write (.log, .asc, .blf, .trc, "
                    ".mf4)")
     p.add_argument("--max-bytes", type=int, default=0, metavar="N",

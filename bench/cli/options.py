@@ -1,7 +1,9 @@
 """The command-line options several `bench` commands share, each defined once, as
 python-can's `can/cli.py` (`add_bus_arguments`) does for the bus flags: a command adds
 them with `add_workers(parser)`, `add_out(parser, ...)`, `add_bus(parser)` ..., and
-gives only what differs (its default, its help line) as arguments.
+gives only what differs (its default, its help line) as arguments. A command itself is
+added with `add_command(sub, name, help, description)`, its description a paragraph of
+prose.
 
 Worker processes (`--workers`): the one default is `None`, resolved where the work starts
 (`bench.workers`, `bench.cluster.default_workers`): 2 local worker processes, or 1 on a
@@ -20,9 +22,19 @@ Only argparse is imported here: light commands (`bench decode`) pay nothing for 
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 DEFAULT_WORKERS = 2
 WORKERS_HELP = "worker processes (default: 2, or 1 on a one-core machine)"
+
+
+def add_command(sub: argparse._SubParsersAction, name: str, help: str,  # noqa: A002
+                description: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """A command (or sub-command) `name` under `sub`: its one-line `help` in its parent's
+    list, and its `description` written as a paragraph of prose (a triple-quoted block),
+    joined here into the one line argparse re-wraps to the terminal anyway."""
+    return sub.add_parser(name, help=help, description=" ".join(description.split()),
+                          **kwargs)
 
 
 def add_workers(parser: argparse.ArgumentParser, default: int | None = None,
@@ -85,6 +97,21 @@ def add_doc(parser: argparse.ArgumentParser, help: str) -> None:  # noqa: A002
     parser.add_argument("--doc", metavar="PATH", help=help)
 
 
+def add_baseline(parser: argparse.ArgumentParser) -> None:
+    """`--baseline BASE.json` and `--against`: judge a log against a healthy baseline, and
+    with a calibration of another actuator (`--nominal`), whether its model or its
+    baseline judges."""
+    parser.add_argument("--baseline", metavar="BASE.json",
+                        help="judge against this healthy baseline (`bench rig baseline`, or "
+                             "the one `bench calibrate --actuator` wrote beside its "
+                             "calibration)")
+    parser.add_argument("--against", choices=("auto", "model", "baseline"), default="auto",
+                        help="with a calibration of another actuator (--nominal): the model "
+                             "when it reaches the noise floor on held-out healthy logs, else "
+                             "the healthy baseline the calibration wrote (auto, default); or "
+                             "force one")
+
+
 def node_id_arg(text: str) -> int:
     """A CANopen node id as given on the command line (0x10, 16)."""
     return int(text, 0)
@@ -110,6 +137,6 @@ def add_bus(parser: argparse.ArgumentParser) -> None:
     add_bus_arguments(parser)
 
 
-__all__ = ["DEFAULT_WORKERS", "WORKERS_HELP", "add_bus", "add_doc", "add_figures",
+__all__ = ["DEFAULT_WORKERS", "WORKERS_HELP", "add_baseline", "add_bus", "add_command", "add_doc", "add_figures",
            "add_json", "add_node_id", "add_out", "add_output", "add_scheduler", "add_seed",
            "add_serial", "add_set", "add_workers", "node_id_arg"]

@@ -53,15 +53,15 @@ DESCRIPTIONS = {
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
-        "rig", help="baselines, fault signatures and populations of a real rig's runs",
-        description="For a rig no physics model fits: a baseline from several healthy runs "
-                    "aligned by set-point phase (per phase, direction and load), "
-                    "position-locked, position-periodic and direction-split features "
-                    "against it, thresholds from held-out healthy runs, detection and "
-                    "false-alarm rates per condition. Tables: CSV (plain or .xz/.gz/.bz2) "
-                    "or Parquet with set_point, position_error (mm), current (A), load, "
-                    "run, group (one motion cycle), time; or `bench import` traces (.npz/.parquet).")
+    p = opt.add_command(
+        subparsers, "rig",
+        "baselines, fault signatures and populations of a real rig's runs", """
+        For a rig no physics model fits: a baseline from several healthy runs aligned by
+        set-point phase (per phase, direction and load), position-locked, position-periodic and
+        direction-split features against it, thresholds from held-out healthy runs, detection
+        and false-alarm rates per condition. Tables: CSV (plain or .xz/.gz/.bz2) or Parquet with
+        set_point, position_error (mm), current (A), load, run, group (one motion cycle), time;
+        or `bench import` traces (.npz/.parquet).""")
     sub = p.add_subparsers(dest="rig_command", metavar="ACTION")
     b = sub.add_parser("baseline", help="build a healthy baseline and its thresholds",
                        description=DESCRIPTIONS["baseline"])

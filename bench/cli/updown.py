@@ -13,11 +13,10 @@ from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    up = sub.add_parser("up", help="start the loopback bus and the plant in the background",
-                        description="Start the loopback CAN hub (when no bus is configured and "
-                        "there is no vcan0) and the plant node in the background; their pids "
-                        "and logs are kept in the state directory ($BENCH_STATE_DIR, "
-                        "$XDG_RUNTIME_DIR/ema-bench or ./.bench).")
+    up = opt.add_command(sub, "up", "start the loopback bus and the plant in the background", """
+        Start the loopback CAN hub (when no bus is configured and there is no vcan0) and the
+        plant node in the background; their pids and logs are kept in the state directory
+        ($BENCH_STATE_DIR, $XDG_RUNTIME_DIR/ema-bench or ./.bench).""")
     up.add_argument("--pace", choices=["realtime", "sync"], default="realtime",
                     help="the plant's pacer at start (a run may switch it; default: "
                          "%(default)s)")
@@ -30,18 +29,17 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     opt.add_bus(up)
     up.set_defaults(func=cmd_up)
 
-    st = sub.add_parser("status", help="show the plant node's state, counters and parameters",
-                        description="Read the actuator node's NMT state, status word, counters "
-                        "and parameters by SDO. Answers within about 2 s when no plant is "
-                        "there.")
+    st = opt.add_command(sub, "status", "show the plant node's state, counters and parameters", """
+        Read the actuator node's NMT state, status word, counters and parameters by SDO. Answers
+        within about 2 s when no plant is there.""")
     st.add_argument("--all", action="store_true",
                     help="list every parameter (default: only those not at their default)")
     opt.add_node_id(st)
     opt.add_bus(st)
     st.set_defaults(func=cmd_status)
 
-    dn = sub.add_parser("down", help="stop the background plant and loopback bus",
-                        description="Stop what `bench up` started (plant, then hub).")
+    dn = opt.add_command(sub, "down", "stop the background plant and loopback bus", """
+        Stop what `bench up` started (plant, then hub).""")
     dn.set_defaults(func=cmd_down)
 
 

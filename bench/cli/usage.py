@@ -16,15 +16,15 @@ from bench.cli import options as opt
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "usage", help="usage monitoring: travel, reversals, cycles, load spectrum, life used",
-        description="The usage of each run from its candump log or saved trace: nut travel "
-        "and screw revolutions, reversals, rainflow-counted position and load cycles (ASTM "
-        "E1049), the load spectrum, the equivalent dynamic axial load F_m and the rating "
-        "life consumed against the screw's dynamic load rating C_a (ISO 3408-5, "
-        "Palmgren-Miner), time at winding temperature, I2t and time per motion regime; "
-        "accumulated per actuator by the serial number the ECU read from object 0x1018 "
-        "(docs/usage.md).")
+    p = opt.add_command(
+        sub, "usage",
+        "usage monitoring: travel, reversals, cycles, load spectrum, life used", """
+        The usage of each run from its candump log or saved trace: nut travel and screw
+        revolutions, reversals, rainflow-counted position and load cycles (ASTM E1049), the load
+        spectrum, the equivalent dynamic axial load F_m and the rating life consumed against the
+        screw's dynamic load rating C_a (ISO 3408-5, Palmgren-Miner), time at winding
+        temperature, I2t and time per motion regime; accumulated per actuator by the serial
+        number the ECU read from object 0x1018 (docs/usage.md).""")
     p.add_argument("files", nargs="+", metavar="LOG_OR_TRACE",
                    help="candump .log ('-': candump -L on standard input), or a trace "
                         "saved by bench run --save (.npz, .csv, .parquet)")

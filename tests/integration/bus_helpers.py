@@ -4,6 +4,7 @@ it, processes always stopped, every wait bounded."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import subprocess
@@ -137,3 +138,86 @@ def wait_line(proc, needle: str, timeout: float) -> str:
         if proc.poll() is not None:
             break
     raise AssertionError(f"no {needle!r} from the watcher within {timeout} s: {seen}")
+
+
+def watch_a_run(env: BusEnv, watch_flags: list[str], profile, values: dict, log_path: Path):
+    """`bench hums watch --idle 2 WATCH_FLAGS` on `env`'s bus while one lockstep run of
+    `profile` (plant `values`, logged to `log_path`) goes over it: the run's trace, and the
+    watcher's exit status, standard output and standard error."""
+    from bench.ecu import run_over_bus
+    proc = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "2", *watch_flags,
+                 *env.flags, env=env.env)
+    try:
+        wait_line(proc, "listening", 60)
+        tr = run_over_bus(profile, values=values, pace="sync", settings=env.cfg,
+                          log_path=log_path)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return tr, proc.returncode, out, err
+
+
+def sdo_client(bus: can.BusABC, poll_s: float = 0.05):
+    """The actuator (node 0x10, the contract's object dictionary) as a canopen remote
+    node on `bus`, the network's notifier polling every `poll_s` s, SDO timeout 1 s:
+    (network, node)."""
+    import canopen
+
+    from ema_contract.frames import load_od
+    network = canopen.Network(bus)
+    network.notifier = can.Notifier(network.bus, network.listeners, timeout=poll_s)
+    node = canopen.RemoteNode(0x10, load_od())
+    network.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 1.0
+    return network, node
+
+
+@contextlib.contextmanager
+def thread_hub():
+    """A loopback hub served in a thread of this process, with its `url` and `kill()`:
+    every connection dropped at once, as a killed hub does (again at the end)."""
+    import threading
+
+    from bench.bus.selecthub import SelectHub
+    h = SelectHub()
+    stop = threading.Event()
+    th = threading.Thread(target=h.serve, args=(stop,), daemon=True)
+    th.start()
+
+    def kill() -> None:
+        stop.set()
+        th.join(5)
+
+    h.kill = kill
+    h.url = f"ws://127.0.0.1:{h.port}/"
+    try:
+        yield h
+    finally:
+        kill()
+
+
+NODE_START_TIMEOUT_S = 90.0    # a first start may compile the plant (numba, cached on disk)
+
+
+def start_node(name: str, module: list[str], cfg: dict, state: Path, *args: str) -> Child:
+    """A node process (`python MODULE -i ... -c ... --ready-file ... ARGS`, this process its
+    parent) on `cfg`, its stderr in STATE/NAME-*.log; waits (bounded) until it is on the
+    bus, and says why not from its log."""
+    ready = state / f"{name}-{time.monotonic_ns()}.ready"
+    log = ready.with_suffix(".log")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    cmd = [sys.executable, *module, "-i", cfg["interface"], "-c", str(cfg["channel"]),
+           "--ready-file", str(ready), "--parent-pid", str(os.getpid()), *args]
+    with log.open("w") as err:
+        proc = subprocess.Popen(cmd, env=env, cwd=str(ROOT), stdout=subprocess.DEVNULL,
+                                stderr=err, stdin=subprocess.DEVNULL, start_new_session=True)
+    child = Child(f"{name}-node", proc, proc.pid, log)
+    end = time.monotonic() + NODE_START_TIMEOUT_S
+    while not ready.exists():
+        if proc.poll() is not None or time.monotonic() > end:
+            child.stop()
+            raise AssertionError(f"{name} node did not start: {log.read_text()[-2000:]}")
+        time.sleep(0.05)
+    return child

@@ -10,11 +10,20 @@ import time
 import can
 import canopen
 import pytest
-from bus_helpers import BUS_KINDS, Collector, bench, make_env, module_bus_env, spawn, wait_until
+from bus_helpers import (
+    BUS_KINDS,
+    Collector,
+    bench,
+    make_env,
+    module_bus_env,
+    sdo_client,
+    spawn,
+    wait_until,
+)
 
 from bench.bus.logs import read_log, trace_from_log
 from bench.trace import Trace
-from ema_contract.frames import Frames, load_od
+from ema_contract.frames import Frames
 from ema_contract.states import NMTCommand, NMTState, StatusWord
 from ema_contract.transport import close_bus
 
@@ -25,12 +34,7 @@ def bus_env(request, tmp_path_factory):
 
 
 def remote_node(env):
-    network = canopen.Network(env.bus())
-    network.notifier = can.Notifier(network.bus, network.listeners, timeout=0.05)
-    node = canopen.RemoteNode(0x10, load_od())
-    network.add_node(node)
-    node.sdo.RESPONSE_TIMEOUT = 1.0
-    return network, node
+    return sdo_client(env.bus())
 
 
 def close(network):

@@ -9,15 +9,13 @@ from html.parser import HTMLParser
 
 import numpy as np
 import pytest
+from sample_data import sine_logs
 
 from bench.bus.logs import load_trace
 from bench.cli import main
-from bench.harness import simulate
 from bench.hums import fusion as F
 from bench.hums import report as HR
 from bench.hums.rul import Prediction
-from bench.profiles import make_profile
-from plant_rt.params import PlantParams
 
 
 class _Tables(HTMLParser):
@@ -50,12 +48,7 @@ class _Tables(HTMLParser):
 def noisy_logs(tmp_path_factory):
     """Two noisy 2 Hz sines, healthy and worn: the broadband Ci reads ~0.07-0.1 below
     the judged one, so a page that shows the wrong one fails."""
-    d = tmp_path_factory.mktemp("logs")
-    for name, vals in (("healthy", {}), ("worn", {"effects.backlash_m": 50e-6,
-                                                  "effects.friction_scale": 2.5})):
-        p = PlantParams().with_dict({**vals, "sensors.noise": True, "sensors.noise_seed": 3})
-        simulate(make_profile("sine", cycles=3), p).measured().save(d / f"{name}.npz")
-    return d
+    return sine_logs(tmp_path_factory.mktemp("logs"))
 
 
 def test_summary_table_matches_the_json_and_the_command_line(noisy_logs, tmp_path, capsys):

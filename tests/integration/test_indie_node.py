@@ -5,40 +5,16 @@ signals the actuator's own sensors give (an independent "real")."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-import time
-
 import numpy as np
 import pytest
-from bus_helpers import ROOT, bench, make_env
+from bus_helpers import bench, make_env, start_node
 
 from bench.bus.logs import trace_from_log
 from bench.bus.procs import Child
 
-START_TIMEOUT_S = 90.0
-
 
 def start_indie(cfg: dict, state, *args: str) -> Child:
-    ready = state / f"indie-{time.monotonic_ns()}.ready"
-    log = ready.with_suffix(".log")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    cmd = [sys.executable, "-m", "indie_plant", "-i", cfg["interface"], "-c",
-           str(cfg["channel"]), "--ready-file", str(ready), "--parent-pid", str(os.getpid()),
-           *args]
-    with log.open("w") as err:
-        proc = subprocess.Popen(cmd, env=env, cwd=str(ROOT), stdout=subprocess.DEVNULL,
-                                stderr=err, stdin=subprocess.DEVNULL, start_new_session=True)
-    child = Child("indie-node", proc, proc.pid, log)
-    end = time.monotonic() + START_TIMEOUT_S
-    while not ready.exists():
-        if proc.poll() is not None or time.monotonic() > end:
-            child.stop()
-            raise AssertionError(f"indie node did not start: {log.read_text()[-2000:]}")
-        time.sleep(0.05)
-    return child
+    return start_node("indie", ["-m", "indie_plant"], cfg, state, *args)
 
 
 @pytest.fixture(scope="module")

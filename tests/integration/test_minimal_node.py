@@ -8,9 +8,7 @@ object, and the nut must follow the set-point within a generous bound."""
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
 import time
 from collections import Counter
 from pathlib import Path
@@ -19,7 +17,7 @@ import can
 import canopen
 import numpy as np
 import pytest
-from bus_helpers import ROOT, bench, make_env
+from bus_helpers import bench, make_env, start_node
 from canopen.sdo.exceptions import SdoAbortedError
 
 from bench import BenchError
@@ -33,7 +31,6 @@ from ema_contract.frames import eds_path
 from plant_rt.params import PlantParams
 
 NODE = Path(__file__).resolve().parent / "minimal_node.py"
-START_TIMEOUT_S = 90.0    # first start may compile the plant (numba, cached on disk)
 OPTIONAL = ["0x2000", "0x2001", "0x2002", "0x2003", "0x2004", "0x2005", "0x2006", "0x2007",
             "0x2008", "0x2100", "0x2200"]
 QUANT = {"position_m": 1e-8, "current_a": 1e-4, "motor_speed_rad_s": 1e-4,
@@ -102,23 +99,7 @@ def closed_loop_mismatch(log: Path, profile) -> tuple[float, dict[str, float], i
 
 def start_minimal_node(cfg: dict, state: Path, *args: str) -> Child:
     """The test double as its own process on `cfg`; waits (bounded) until it is on the bus."""
-    ready = state / f"minimal-{time.monotonic_ns()}.ready"
-    log = ready.with_suffix(".log")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    cmd = [sys.executable, str(NODE), "-i", cfg["interface"], "-c", str(cfg["channel"]),
-           "--ready-file", str(ready), "--parent-pid", str(os.getpid()), *args]
-    with log.open("w") as err:
-        proc = subprocess.Popen(cmd, env=env, cwd=str(ROOT), stdout=subprocess.DEVNULL,
-                                stderr=err, stdin=subprocess.DEVNULL, start_new_session=True)
-    child = Child("minimal-node", proc, proc.pid, log)
-    end = time.monotonic() + START_TIMEOUT_S
-    while not ready.exists():
-        if proc.poll() is not None or time.monotonic() > end:
-            child.stop()
-            raise AssertionError(f"minimal node did not start: {log.read_text()[-2000:]}")
-        time.sleep(0.05)
-    return child
+    return start_node("minimal", [str(NODE)], cfg, state, *args)
 
 
 @pytest.fixture(scope="module")

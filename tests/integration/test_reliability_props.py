@@ -22,6 +22,7 @@ from pathlib import Path
 import can
 import numpy as np
 import pytest
+from cli_errors import stub_steps
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from log_frames import run, write_log
@@ -363,18 +364,12 @@ COMMANDS = {
 def no_long_work(monkeypatch):
     """The long steps end the command at once (what is tested is what comes before)."""
     from bench import BenchError
-
-    def stop(*a, **k):
-        raise BenchError("reached the work")
-    import bench.fleet.synth
-    import bench.gap.calibrate
-    import bench.gap.diagnose
-    import bench.gap.rigcal
-    import bench.usage.figure
-    for mod, name in ((bench.gap.calibrate, "calibrate"), (bench.gap.diagnose, "diagnose"),
-                      (bench.gap.rigcal, "calibrate_rig"), (bench.fleet.synth, "draw_fleet"),
-                      (bench.usage.figure, "save_usage_figure")):
-        monkeypatch.setattr(mod, name, stop)
+    stub_steps(monkeypatch, (("bench.gap.calibrate", "calibrate"),
+                             ("bench.gap.diagnose", "diagnose"),
+                             ("bench.gap.rigcal", "calibrate_rig"),
+                             ("bench.fleet.synth", "draw_fleet"),
+                             ("bench.usage.figure", "save_usage_figure")),
+               BenchError("reached the work"))
 
 
 @settings(PROPS, max_examples=40)

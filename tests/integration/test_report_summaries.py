@@ -9,19 +9,12 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import pytest
 from page_tables import numbers, shows, summary
+from sample_data import SAMPLE, cranfield_folder, sine_logs
 
 from bench.cli import main
-from bench.harness import simulate
-from bench.profiles import make_profile
-from plant_rt.params import PlantParams
-
-ROOT = Path(__file__).resolve().parents[2]
-SAMPLE = ROOT / "tests" / "data" / "cranfield_sample"
-MAP = ROOT / "bench" / "actuators" / "cranfield_map.json"
 
 
 def _one_number(cell: str) -> str:
@@ -32,12 +25,7 @@ def _one_number(cell: str) -> str:
 
 @pytest.fixture(scope="module")
 def sim_logs(tmp_path_factory):
-    d = tmp_path_factory.mktemp("logs")
-    for name, vals in (("healthy", {}), ("worn", {"effects.backlash_m": 50e-6,
-                                                  "effects.friction_scale": 2.5})):
-        p = PlantParams().with_dict({**vals, "sensors.noise": True, "sensors.noise_seed": 3})
-        simulate(make_profile("sine", cycles=3), p).measured().save(d / f"{name}.npz")
-    return d
+    return sine_logs(tmp_path_factory.mktemp("logs"))
 
 
 def test_hums_report(sim_logs, tmp_path):
@@ -59,14 +47,7 @@ def test_hums_report(sim_logs, tmp_path):
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rig")
-    for table, sub in (("normal_load40_runs1-4.csv.xz", "n"),
-                       ("spalling5_load40_runs1-2.csv.xz", "s")):
-        assert main(["import", str(SAMPLE / table), "--map", str(MAP), "--split-by",
-                     "load,run,group", "-o", str(d / sub)]) == 0
-    assert main(["rig", "baseline", str(SAMPLE / "normal_load40_runs1-4.csv.xz"), "--runs",
-                 "1,2", "--actuator", "cranfield", "--out", str(d / "base.json")]) == 0
-    return d
+    return cranfield_folder(tmp_path_factory.mktemp("rig"))
 
 
 def test_rig_hums_report(rig, tmp_path):

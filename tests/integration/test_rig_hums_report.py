@@ -12,15 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sample_data import cranfield_folder
 
 from bench import BenchError
 from bench.bus.logs import load_trace
 from bench.cli import main
 from bench.rig import fallback as FB
 
-ROOT = Path(__file__).resolve().parents[2]
-SAMPLE = ROOT / "tests" / "data" / "cranfield_sample"
-MAP = ROOT / "bench" / "actuators" / "cranfield_map.json"
 SPALL = "load=40_run=1_group=51.parquet"      # spalling stage 5, run 1, first cycle
 HELD = "load=40_run=3_group=61.parquet"       # healthy run 3: never in a baseline here
 # calibration logs: three cycles of healthy runs 1 and 2 (a baseline needs 3 cycles a
@@ -31,15 +29,7 @@ FIT = [f"load=40_run={r}_group={g}.parquet" for r, gs in ((1, (51, 52, 53)), (2,
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rigreport")
-    for table, sub in (("normal_load40_runs1-4.csv.xz", "n"), ("spalling5_load40_runs1-2.csv.xz",
-                                                               "s")):
-        assert main(["import", str(SAMPLE / table), "--map", str(MAP), "--split-by",
-                     "load,run,group", "-o", str(d / sub)]) == 0
-    base = d / "base.json"
-    assert main(["rig", "baseline", str(SAMPLE / "normal_load40_runs1-4.csv.xz"), "--runs",
-                 "1,2", "--actuator", "cranfield", "--out", str(base)]) == 0
-    return d
+    return cranfield_folder(tmp_path_factory.mktemp("rigreport"))
 
 
 @pytest.fixture(scope="module")

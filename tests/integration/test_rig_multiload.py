@@ -8,17 +8,14 @@ same cycles relabelled 20 kgf."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from sample_data import HEALTHY, SPALLING, import_cycles
 
 from bench.cli import main
 from bench.trace import Trace
 
-ROOT = Path(__file__).resolve().parents[2]
-SAMPLE = ROOT / "tests" / "data" / "cranfield_sample"
-MAP = ROOT / "bench" / "actuators" / "cranfield_map.json"
 FIT = [f"load=40_run={r}_group={g}.parquet" for r, gs in ((1, (51, 52, 53)), (2, (56, 57, 58)))
        for g in gs]
 KGF = 9.80665
@@ -27,10 +24,8 @@ KGF = 9.80665
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     d = tmp_path_factory.mktemp("multiload")
-    for table, sub in (("normal_load40_runs1-4.csv.xz", "n"),
-                       ("spalling5_load40_runs1-2.csv.xz", "s")):
-        assert main(["import", str(SAMPLE / table), "--map", str(MAP), "--split-by",
-                     "load,run,group", "-o", str(d / sub)]) == 0
+    import_cycles(HEALTHY, d / "n")
+    import_cycles(SPALLING, d / "s")
     paths = []
     for f in FIT:                      # the healthy cycles at 40 kgf and again at 20 kgf
         tr = Trace.load(d / "n" / f)

@@ -11,14 +11,12 @@ import shutil
 from pathlib import Path
 
 import pytest
+from sample_data import SAMPLE, import_cycles
 
 from bench.cli import main
 from bench.rig.features import assess
 from bench.rig.study import run_study
 
-ROOT = Path(__file__).resolve().parents[2]
-SAMPLE = ROOT / "tests" / "data" / "cranfield_sample"
-MAP = ROOT / "bench" / "actuators" / "cranfield_map.json"
 TABLES = ("normal_load40_runs1-4.csv.xz", "spalling5_load40_runs1-2.csv.xz")
 
 
@@ -28,8 +26,7 @@ def study(tmp_path_factory):
     (d / "tables").mkdir()
     for t in TABLES:
         shutil.copy(SAMPLE / t, d / "tables" / t)
-        assert main(["import", str(SAMPLE / t), "--map", str(MAP), "--split-by",
-                     "load,run,group", "-o", str(d / t.split("_")[0])]) == 0
+        import_cycles(t, d / t.split("_")[0])
     st = run_study(d / "tables", [1, 2], [3, 4], workers=1, progress=False, lead_mm=5.0,
                    supervised=False)
     st.baseline.save(d / "baseline.json")     # as `bench rig study` writes it

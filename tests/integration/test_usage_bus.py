@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 
 import pytest
-from bus_helpers import make_env, spawn, wait_line
+from bus_helpers import make_env, watch_a_run
 from test_minimal_node import start_minimal_node
 
 from bench.bus.logs import read_log, trace_from_log
@@ -34,18 +33,9 @@ def test_serial_in_the_log_and_live_usage_equals_the_log(serial_env, tmp_path, c
     log, live_json = tmp_path / "run.log", tmp_path / "live.json"
     values = {"load.kind": "sine", "load.amplitude_n": 3000.0, "load.frequency_hz": 3.0,
               "sensors.noise": True, "sensors.noise_seed": 3}
-    watcher = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "2",
-                    "--usage", str(live_json), "-i", serial_env.cfg["interface"],
-                    "-c", str(serial_env.cfg["channel"]), env=serial_env.env)
-    try:
-        wait_line(watcher, "listening", 60)
-        tr = run_over_bus(make_profile("sine", cycles=3), values=values, pace="sync",
-                          settings=serial_env.cfg, log_path=log)
-        w_out, w_err = watcher.communicate(timeout=60)
-    finally:
-        if watcher.poll() is None:
-            watcher.kill()
-    assert watcher.returncode == 0, w_err
+    tr, rc, w_out, w_err = watch_a_run(serial_env, ["--usage", str(live_json)],
+                                       make_profile("sine", cycles=3), values, log)
+    assert rc == 0, w_err
     assert "usage run 1" in w_out and str(SERIAL) in w_out
     assert tr.meta["node"]["identity"]["serial"] == SERIAL
     assert tr.meta["actuator_serial"] == str(SERIAL)

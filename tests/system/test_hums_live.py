@@ -11,10 +11,9 @@ import sys
 
 import numpy as np
 import pytest
-from bus_helpers import BUS_KINDS, ROOT, module_bus_env, spawn, wait_line
+from bus_helpers import BUS_KINDS, ROOT, module_bus_env, watch_a_run
 
 from bench.bus.logs import read_log, trace_from_log
-from bench.ecu import run_over_bus
 from bench.hums import monitor as M
 from bench.hums.indexes import period_indexes
 from bench.hums.live import LiveHums
@@ -30,20 +29,11 @@ def bus_env(request, tmp_path_factory):
 
 def test_watch_reports_every_period_like_the_log(bus_env, tmp_path):
     out = tmp_path / "live.csv"
-    proc = spawn(sys.executable, "-m", "bench", "hums", "watch", "--idle", "2",
-                 "--out", str(out), *bus_env.flags, env=bus_env.env)
-    try:
-        wait_line(proc, "listening", 60)
-        values = {"effects.backlash_m": 50e-6, "sensors.noise": True,
-                  "sensors.noise_seed": 5}
-        log = tmp_path / "run.log"
-        run_over_bus(make_profile("sine", cycles=4), values=values, pace="sync",
-                     settings=bus_env.cfg, log_path=log)
-        stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, stderr
+    values = {"effects.backlash_m": 50e-6, "sensors.noise": True, "sensors.noise_seed": 5}
+    log = tmp_path / "run.log"
+    _, rc, stdout, stderr = watch_a_run(bus_env, ["--out", str(out)],
+                                        make_profile("sine", cycles=4), values, log)
+    assert rc == 0, stderr
     assert "4 command periods over 1 run(s)" in stderr
     with open(out) as f:
         live = list(csv.DictReader(f))

@@ -32,16 +32,14 @@ def one_line_error(r: subprocess.CompletedProcess, start: str) -> None:
     assert len(err.splitlines()) == 1 and "Traceback" not in err, err
 
 
+DURATION = "--duration must be a finite number of seconds > 0"
 PLANT = [sys.executable, "-m", "plant_rt"]
 BENCH_PLANT = [sys.executable, "-m", "bench", "plant"]
 
 
 @pytest.mark.parametrize("cmd", [PLANT, BENCH_PLANT], ids=["plant_rt", "bench-plant"])
 @pytest.mark.parametrize("flags,message", [
-    (["--duration", "nan"], "--duration must be a finite number of seconds > 0"),
-    (["--duration", "inf"], "--duration must be a finite number of seconds > 0"),
-    (["--duration", "-1"], "--duration must be a finite number of seconds > 0"),
-    (["--duration", "0"], "--duration must be a finite number of seconds > 0"),
+    *((["--duration", v], DURATION) for v in ("nan", "inf", "-1", "0")),
     (["--spin-us", "-5"], "--spin-us must be within 0..1000 us"),
     (["--parent-pid", "0"], "--parent-pid must be a process id > 0"),
 ])
@@ -50,9 +48,7 @@ def test_plant_refuses_bad_numbers(tmp_path, cmd, flags, message):
 
 
 @pytest.mark.parametrize("flags,message", [
-    (["--duration", "nan"], "--duration must be a finite number of seconds > 0"),
-    (["--duration", "inf"], "--duration must be a finite number of seconds > 0"),
-    (["--duration", "-2"], "--duration must be a finite number of seconds > 0"),
+    *((["--duration", v], DURATION) for v in ("nan", "inf", "-2")),
     (["--count", "0"], "--count must be >= 1 frame"),
     (["--count", "-3"], "--count must be >= 1 frame"),
 ])

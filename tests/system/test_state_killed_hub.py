@@ -38,34 +38,32 @@ def hub(tmp_path, monkeypatch):
     h.stop()
 
 
-def test_bench_log_when_the_hub_is_killed(hub, tmp_path):
+def _killed_under(hub, tmp_path, args: tuple[str, ...], ready: str, timeout: float):
+    """Start `python -m ARGS` on the hub's bus, kill the hub once `ready` is printed:
+    the exit status and the standard error."""
     env = {**os.environ, "BENCH_STATE_DIR": str(tmp_path / "state")}
-    p = spawn(sys.executable, "-m", "bench", "log", str(tmp_path / "x.log"), "-i", "remote",
-              "-c", hub.info["url"], "--duration", "60", env=env)
+    p = spawn(sys.executable, "-m", *args, "-i", "remote", "-c", hub.info["url"], env=env)
     try:
-        _wait_for_line(p.stderr, "recording", 60)
+        _wait_for_line(p.stderr, ready, timeout)
         hub.proc.kill()
         out, err = p.communicate(timeout=30)
     finally:
         p.kill()
         p.wait(5)
-    assert p.returncode == 2, err
+    return p.returncode, err
+
+
+def test_bench_log_when_the_hub_is_killed(hub, tmp_path):
+    rc, err = _killed_under(hub, tmp_path, ("bench", "log", str(tmp_path / "x.log"),
+                                            "--duration", "60"), "recording", 60)
+    assert rc == 2, err
     assert err.strip().startswith("error: the bus failed after 0 frames"), err
     assert len(err.strip().splitlines()) == 1, err
     assert not any(n in err for n in NOISE), err
 
 
 def test_plant_when_the_hub_is_killed(hub, tmp_path):
-    env = {**os.environ, "BENCH_STATE_DIR": str(tmp_path / "state")}
-    p = spawn(sys.executable, "-m", "plant_rt", "--pace", "sync", "-i", "remote",
-              "-c", hub.info["url"], env=env)
-    try:
-        _wait_for_line(p.stderr, "plant: node", 120)
-        hub.proc.kill()
-        out, err = p.communicate(timeout=30)
-    finally:
-        p.kill()
-        p.wait(5)
-    assert p.returncode != 0, err
+    rc, err = _killed_under(hub, tmp_path, ("plant_rt", "--pace", "sync"), "plant: node", 120)
+    assert rc != 0, err
     assert err.strip().startswith("error:"), err
     assert not any(n in err for n in NOISE), err

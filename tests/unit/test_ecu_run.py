@@ -15,12 +15,13 @@ import can
 import canopen
 import numpy as np
 import pytest
+from bus_helpers import sdo_client as bus_sdo_client
 
 from bench import BenchError
 from bench.bus.logs import trace_from_log
 from bench.ecu import Ecu, run_over_bus
 from bench.profiles import make_profile
-from ema_contract.frames import Frames, load_od
+from ema_contract.frames import Frames
 from ema_contract.states import NMTCommand, NMTState, Pace, StatusWord
 from ema_contract.transport import close_bus
 from plant_rt.model import Plant
@@ -101,12 +102,7 @@ def prepared(rig: Rig, **kw) -> tuple[Ecu, PlantParams]:
 
 
 def sdo_client(rig: Rig) -> tuple[canopen.Network, canopen.RemoteNode]:
-    net = canopen.Network(rig.bus())
-    net.notifier = can.Notifier(net.bus, net.listeners, timeout=0.02)
-    node = canopen.RemoteNode(0x10, load_od())
-    net.add_node(node)
-    node.sdo.RESPONSE_TIMEOUT = 1.0
-    return net, node
+    return bus_sdo_client(rig.bus(), poll_s=0.02)
 
 
 # -- item 1: a plant condition that changes its behaviour is never a success ---------------

@@ -74,20 +74,13 @@ def test_monitor_stays_stuck_below_breakaway():
 
 
 def test_gap_interface_and_chunking_are_consistent():
-    from dataclasses import dataclass
-
-    @dataclass
-    class Drive:
-        t: np.ndarray
-        sp_pos: np.ndarray
-        sp_spd: np.ndarray
-        mode: np.ndarray
-        x0_m: float = 0.0
+    from bench.gap.resim import Drive
 
     prof = make_profile("sine")
     whole = M.simulate_monitor(prof, 1.8e5)
     t = whole.t
-    d = Drive(t, whole["setpoint_position_m"], whole["setpoint_speed_rad_s"], whole["mode"])
+    d = Drive(t, whole["setpoint_position_m"], whole["setpoint_speed_rad_s"], whole["mode"],
+              demand=np.full(len(t), np.nan), x0_m=0.0)
     cols = M.closed_loop(PlantParams(), d, position_kp_rad_s_per_m=1.8e5)
     np.testing.assert_allclose(cols["current_a"], whole["current_a"], rtol=0, atol=0)
     mon = M.Monitor(M.MonitorParams.from_plant(), 1.8e5)

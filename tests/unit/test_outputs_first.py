@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from cli_errors import stub_steps
 
 from bench import BenchError
 from bench.cli import main
@@ -22,27 +23,15 @@ STARTED = "the work started"
 @pytest.fixture
 def stub_work(monkeypatch, tmp_path):
     """The long steps of reproduce, hums and fleet synth raise BenchError(STARTED)."""
-    import bench.fleet.synth
-    import bench.hums.campaign
-    import bench.hums.monitor
-    import bench.hums.prognosis_campaign
-    import bench.hums.prognosis_trends
-    import bench.hums.rul_run
-    import bench.hums.sweep
-    import bench.hums.trend_io
-    import bench.reproduce
-
-    def started(*a, **k):
-        raise BenchError(STARTED)
-    for mod, name in ((bench.reproduce, "run"), (bench.hums.monitor, "fitted"),
-                      (bench.hums.sweep, "run"), (bench.hums.rul_run, "run_rul"),
-                      (bench.hums.campaign, "run_campaign"),
-                      (bench.hums.prognosis_campaign, "run_usage_campaign"),
-                      (bench.hums.prognosis_trends, "load_calibration"),
-                      (bench.hums.prognosis_trends, "prognose_trends"),
-                      (bench.hums.trend_io, "read_table"),
-                      (bench.fleet.synth, "synth")):
-        monkeypatch.setattr(mod, name, started)
+    stub_steps(monkeypatch, (("bench.reproduce", "run"), ("bench.hums.monitor", "fitted"),
+                             ("bench.hums.sweep", "run"), ("bench.hums.rul_run", "run_rul"),
+                             ("bench.hums.campaign", "run_campaign"),
+                             ("bench.hums.prognosis_campaign", "run_usage_campaign"),
+                             ("bench.hums.prognosis_trends", "load_calibration"),
+                             ("bench.hums.prognosis_trends", "prognose_trends"),
+                             ("bench.hums.trend_io", "read_table"),
+                             ("bench.fleet.synth", "synth")),
+               BenchError(STARTED))
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))    # the default cal path
     monkeypatch.chdir(tmp_path)              # reproduce's default --out and --figures
 

@@ -24,14 +24,23 @@ def _one_line(exc: pytest.ExceptionInfo[BenchError]) -> str:
     return text
 
 
-def test_an_unknown_table_suffix_is_one_line_naming_the_known_ones(tmp_path):
-    path = tmp_path / "t.xlsx"
-    path.write_text("a,b\n1,2\n")
+@pytest.mark.parametrize(("read", "name", "content", "kind", "known"), [
+    (read_table, "t.xlsx", "a,b\n1,2\n", "table", TABLE_READERS),
+    (load_trace, "run.mdf", "x", "log", LOG_READERS),
+])
+def test_an_unknown_suffix_is_one_line_naming_the_known_ones(tmp_path, read, name, content,
+                                                            kind, known):
+    path = tmp_path / name
+    path.write_text(content)
     with pytest.raises(BenchError) as exc:
-        read_table(path)
+        read(path)
     text = _one_line(exc)
-    assert "unknown table format '.xlsx'" in text
-    assert all(s in text for s in TABLE_READERS), text
+    assert f"unknown {kind} format '{path.suffix}'" in text
+    assert all(s in text for s in known), text
+
+
+def test_an_unknown_table_suffix_names_the_formats_the_caller_reads(tmp_path):
+    (tmp_path / "t.xlsx").write_text("a,b\n1,2\n")
     with pytest.raises(BenchError) as exc:
         read_table(tmp_path / "t.xlsx", formats=(".csv", ".parquet"))
     assert "(use .csv, .parquet;" in _one_line(exc)
@@ -63,16 +72,6 @@ def test_every_trace_format_reads_back_through_the_registry(tmp_path):
 
 def test_the_log_registry_covers_the_bus_logs_and_the_traces():
     assert set(LOG_READERS) == set(LOG_FORMATS) | set(TRACE_FORMATS)
-
-
-def test_an_unknown_log_suffix_is_one_line_naming_the_known_ones(tmp_path):
-    path = tmp_path / "run.mdf"
-    path.write_text("x")
-    with pytest.raises(BenchError) as exc:
-        load_trace(path)
-    text = _one_line(exc)
-    assert "unknown log format '.mdf'" in text
-    assert all(s in text for s in LOG_READERS), text
 
 
 def test_measured_drops_the_truth_and_keeps_what_a_log_carries(tmp_path):

@@ -38,31 +38,30 @@ def test_phases_and_ramps():
     assert r["accel"].stop > r["accel"].start and r["constant"].stop > r["constant"].start
 
 
+THRESHOLDS = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
+
+
+def _judged(base, seed: int, **shape):
+    """The features and verdict of one generated 20 kgf trapezoid cycle."""
+    f = cycle_features(base.for_load(20), trapezoid(np.random.default_rng(seed), **shape))
+    return f, judge(f, THRESHOLDS)
+
+
 def test_localised_transient_is_located(base):
-    rng = np.random.default_rng(11)
-    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
-    f = cycle_features(base.for_load(20), trapezoid(rng, bump_mm=95.0))
-    v = judge(f, thr)
-    hit, effect = v.flagged, v.effect
-    assert hit and effect == "localised"
+    f, v = _judged(base, 11, bump_mm=95.0)
+    assert v.flagged and v.effect == "localised"
     assert abs(f.location_mm - 95.0) < 4.0
     assert abs(f.out_mm - f.in_mm) < 6.0
 
 
 def test_level_shift_is_friction_like_not_localised(base):
-    rng = np.random.default_rng(12)
-    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
-    f = cycle_features(base.for_load(20), trapezoid(rng, level=0.2))
-    v = judge(f, thr)
-    hit, effect = v.flagged, v.effect
-    assert hit and effect == "level"
-    assert f.scores["localised"] < thr["localised"]
+    f, v = _judged(base, 12, level=0.2)
+    assert v.flagged and v.effect == "level"
+    assert f.scores["localised"] < THRESHOLDS["localised"]
 
 
 def test_healthy_cycle_is_not_flagged(base):
-    rng = np.random.default_rng(13)
-    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
-    assert not judge(cycle_features(base.for_load(20), trapezoid(rng)), thr).flagged
+    assert not _judged(base, 13)[1].flagged
 
 
 def test_baseline_needs_cycles_and_a_load():
@@ -182,7 +181,7 @@ def test_a_lowered_level_is_drag_not_friction(base):
     """Friction raises the current in both directions; a current lowered in
     both directions is named drag lowered."""
     rng = np.random.default_rng(18)
-    thr = {"localised": 6.0, "level": 1.5, "reversal": 3.0}
+    thr = THRESHOLDS
     low = cycle_features(base.for_load(20), trapezoid(rng, level=-0.2))
     v = judge(low, thr)
     hit, effect = v.flagged, v.effect

@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from cli_errors import stub_steps
 
 from bench.cli import main
 
@@ -16,18 +17,13 @@ ROFS = "/proc/bench-state-test"          # a directory no one can create files i
 @pytest.fixture
 def no_long_work(monkeypatch):
     """Any of the long steps starting fails the test."""
-    def boom(*a, **k):
-        raise AssertionError("the long work started before the output path was checked")
-    import bench.bus
-    import bench.gap.calibrate
-    import bench.gap.diagnose
-    import bench.gap.importer
-    import bench.gap.inputs
-    for mod, name in ((bench.gap.inputs, "load_log"), (bench.gap.calibrate, "calibrate"),
-                      (bench.gap.diagnose, "diagnose"), (bench.gap.importer, "read_map"),
-                      (bench.gap.importer, "import_table"), (bench.bus, "find_bus"),
-                      (bench.bus, "connect")):
-        monkeypatch.setattr(mod, name, boom)
+    stub_steps(monkeypatch, (("bench.gap.inputs", "load_log"),
+                             ("bench.gap.calibrate", "calibrate"),
+                             ("bench.gap.diagnose", "diagnose"),
+                             ("bench.gap.importer", "read_map"),
+                             ("bench.gap.importer", "import_table"), ("bench.bus", "find_bus"),
+                             ("bench.bus", "connect")),
+               AssertionError("the long work started before the output path was checked"))
 
 
 def one_line(capsys, rc: int, start: str) -> None:

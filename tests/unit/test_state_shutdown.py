@@ -8,31 +8,19 @@ from __future__ import annotations
 import gc
 import logging
 import sys
-import threading
 import time
 
 import pytest
+from bus_helpers import thread_hub
 
-from bench.bus.selecthub import SelectHub
 from ema_contract import transport as T
 
 
 @pytest.fixture
 def hub():
     """A hub in a thread; `kill()` drops every connection at once, as a killed hub does."""
-    h = SelectHub()
-    stop = threading.Event()
-    th = threading.Thread(target=h.serve, args=(stop,), daemon=True)
-    th.start()
-
-    def kill() -> None:
-        stop.set()
-        th.join(5)
-
-    h.kill = kill
-    h.url = f"ws://127.0.0.1:{h.port}/"
-    yield h
-    kill()
+    with thread_hub() as h:
+        yield h
 
 
 @pytest.fixture

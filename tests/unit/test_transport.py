@@ -6,13 +6,12 @@ from __future__ import annotations
 import os
 import socket
 import tempfile
-import threading
 import time
 
 import can
 import pytest
+from bus_helpers import thread_hub
 
-from bench.bus.selecthub import SelectHub
 from ema_contract import transport as T
 
 
@@ -76,13 +75,8 @@ def test_vcan0_then_hub(clean_env, monkeypatch):
 
 @pytest.fixture
 def hub():
-    h = SelectHub()
-    stop = threading.Event()
-    th = threading.Thread(target=h.serve, args=(stop,), daemon=True)
-    th.start()
-    yield f"ws://127.0.0.1:{h.port}/"
-    stop.set()
-    th.join(5)
+    with thread_hub() as h:
+        yield h.url
 
 
 def _bus(url, **kw):
