@@ -8,10 +8,10 @@ level    code meaning
 ======== ==== ====================================================================
 UNKNOWN   -1  not judged: what it rests on is missing (the first reason says what)
 HEALTHY    0  judged, nothing above its threshold
-DEGRADED   1  a deviation no longer negligible (Ci below 0.93; a rig log outside
-              its healthy baseline or calibrated model)
-WARNING    2  Ci below 0.80 or the fused backlash above its warning level; a rig
-              cycle outside its healthy baseline (the rig has no failure level)
+DEGRADED   1  a deviation no longer negligible (Ci below 0.93; a rig cycle or log
+              outside its healthy baseline, a rig log outside its calibrated model)
+WARNING    2  Ci below 0.80 or the fused backlash above its warning level (a rig
+              baseline has no warning or failure level)
 FAILURE    3  Ci below 0.56 or the fused backlash above its failure level
 ======== ==== ====================================================================
 

@@ -397,7 +397,7 @@ def _localisation(trace: Trace, holdout: Trace | None, p: Any, h: Any, frac: flo
     the held-out gap before any fit: (loc, held-out energy, held-out excess)."""
     sig, raw, sm = significant
     nominal_sim = p.info["nominal"]
-    f0 = LZ.fundamental_hz(p, trace.meta.get("fundamental_hz") if trace.meta else None)
+    f0 = LZ.command_fundamental(p, trace.meta.get("fundamental_hz") if trace.meta else None)
     log_cols = {c: np.asarray(trace[c], float) for c in
                 ("current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")}
     if "current_demand_a" in trace:

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d, uniform_filter1d
 from scipy.signal import get_window
 
+from bench import estimators as E
 from bench.gap import resim as R
 from bench.gap.problem import Problem
 
@@ -85,16 +86,16 @@ def regimes(p: Problem) -> np.ndarray:
     # scales from the measured motion (a set-point step has an unbounded derivative)
     vmax = max(float(np.percentile(np.abs(v_meas), 99.5)), 1e-9)
     v_sp = np.clip(v_sp, -2 * vmax, 2 * vmax)
-    v_thr = max(0.02 * vmax, 3.0 * p.noise_sigma.get("motor_speed_rad_s", 0.0) * travel / 3)
+    v_thr = max(E.MOVING_FRACTION * vmax, 3.0 * p.noise_sigma.get("motor_speed_rad_s", 0.0) * travel / 3)
     a_meas = np.gradient(_smooth(v_meas, 9), dt)
     amax = max(float(np.percentile(np.abs(a_meas), 99.5)), 1e-12)
-    accel = np.abs(a_meas) > 0.1 * amax
-    moving = (np.abs(v_meas) > v_thr) | (np.abs(v_sp) > v_thr)
+    accel = E.motion_regimes(a_meas, (0.1 * amax,)) > 0
+    moving = (E.motion_direction(v_meas, v_thr) != 0) | (E.motion_direction(v_sp, v_thr) != 0)
     # reversals: sign changes of a velocity that is clearly non-zero on both sides
     rev = np.zeros(n, bool)
     half = max(1, int(round(0.025 / dt)))
     for v in (v_meas, v_sp):
-        s = np.where(np.abs(v) > v_thr, np.sign(v), 0.0)
+        s = E.motion_direction(v, v_thr)
         idx = np.flatnonzero(s)
         if len(idx) > 1:
             flips = idx[1:][(s[idx[1:]] != s[idx[:-1]]) & (idx[1:] - idx[:-1] < int(0.3 / dt))]
@@ -121,24 +122,17 @@ def regimes(p: Problem) -> np.ndarray:
     return out
 
 
-def fundamental_hz(p: Problem, meta_hz: float | None = None) -> float:
-    """The command fundamental: given (metadata or --fundamental), else the strongest line
-    of the set-point velocity spectrum (nut velocity, position or speed mode)."""
-    if meta_hz is not None and math.isfinite(meta_hz) and meta_hz > 0:
-        return float(meta_hz)
+def command_fundamental(p: Problem, meta_hz: float | None = None) -> float:
+    """The fundamental the bands are in multiples of (`estimators.fundamental_hz`): given
+    (metadata or --fundamental), else the strongest line of the set-point velocity
+    spectrum (nut velocity, position or speed mode), clipped to its 99th percentile."""
+    f0 = E.fundamental_hz(meta_hz)
+    if math.isfinite(f0):
+        return f0
     d = p.drive
     # the set-point velocity: its lines are the oscillations, steps only add a flat floor
     sp = np.where(d.mode == 2, d.sp_spd * p.travel, np.gradient(d.sp_pos, p.dt))
-    sp = np.clip(sp, -np.percentile(np.abs(sp), 99), np.percentile(np.abs(sp), 99))
-    sp = sp - sp.mean()
-    if not np.any(sp):
-        return float("nan")
-    f = np.fft.rfftfreq(len(sp), p.dt)
-    a = np.abs(np.fft.rfft(sp * get_window("hann", len(sp), fftbins=False)))
-    keep = f > 2.0 / (len(sp) * p.dt)
-    if not keep.any():
-        return float("nan")
-    return float(f[keep][np.argmax(a[keep])])
+    return E.fundamental_hz((), sp, p.dt, clip_percentile=99)
 
 
 def band_shares(r: np.ndarray, dt: float, f0: float) -> dict[str, float]:

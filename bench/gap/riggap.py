@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from bench import BenchError
+from bench import estimators as E
 from bench.actuator import Actuator, from_dict
 from bench.gap import rigcal as RC
 from bench.gap import rigmodel as RM
@@ -111,7 +112,7 @@ def _regimes(tr: Trace) -> dict[str, np.ndarray]:
     t = tr.t
     sp = np.nan_to_num(tr["setpoint_position_m"])
     v = np.gradient(sp, t)
-    moving = np.abs(v) > 0.02 * max(float(np.max(np.abs(v))), 1e-12)
+    moving = E.motion_direction(v, E.moving_threshold(v)) != 0
     edge = np.zeros(len(t), bool)
     for k in np.flatnonzero(np.diff(moving.astype(int)) != 0):
         edge |= np.abs(t - t[k]) <= 0.2

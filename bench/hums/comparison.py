@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench import estimators as E
 from bench.hums.formulas import (
     CURRENT_SIGNALS,
     LOST_MOTION_SIGNALS,
@@ -77,16 +78,6 @@ class Indexes:
         return d
 
 
-def fundamental_hz(trace: Trace, f0: float | None) -> float:
-    if f0 is not None:
-        return float(f0)
-    v = trace.meta.get("fundamental_hz")
-    try:
-        return float(v) if v is not None else math.nan
-    except (TypeError, ValueError):
-        return math.nan
-
-
 def check_aligned(real: Trace, nominal: Trace) -> None:
     if len(real) != len(nominal):
         raise BenchError(f"real and nominal traces differ in length ({len(real)} vs "
@@ -126,7 +117,7 @@ def compare(real: Trace, nominal: Trace, f0_hz: float | None = None,
         out.peak_ratio = peak_ratio(i_n, i)
         out.current_rms_a = float(np.sqrt(np.mean(i * i)))
         out.nominal_current_rms_a = float(np.sqrt(np.mean(i_n * i_n)))
-        f0 = fundamental_hz(real, f0_hz)
+        f0 = E.fundamental_hz((f0_hz, real.meta.get("fundamental_hz")))
         if math.isfinite(f0) and f0 > 0 and f0 * len(real) * real.dt >= 1.0 - 1e-9:
             out.ci_harmonic = ci_harmonic(i_n, i, int(round(1.0 / (f0 * real.dt))))
             out.harmonics_a = harmonic_amplitudes(i, real.dt, f0, n_harmonics, window).tolist()

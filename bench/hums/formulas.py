@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from bench import BenchError
+from bench import estimators as E
 
 POSITION_SIGNALS = ("position_m",)
 CURRENT_SIGNALS = ("current_a",)
@@ -119,7 +120,8 @@ def lost_motion_from(d: np.ndarray, speed: np.ndarray, speed_fraction: float = 0
     pk = float(np.max(np.abs(speed))) if len(speed) else 0.0
     if not pk > 0:
         return math.nan
-    fwd, back = speed > speed_fraction * pk, speed < -speed_fraction * pk
+    way = E.motion_direction(speed, speed_fraction * pk)
+    fwd, back = way > 0, way < 0
     if fwd.sum() < 5 or back.sum() < 5:
         return math.nan
     return float(np.median(d[fwd]) - np.median(d[back]))

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.hums.comparison import Indexes, check_aligned, fundamental_hz, has_signals
+from bench.estimators import fundamental_hz
+from bench.hums.comparison import Indexes, check_aligned, has_signals
 from bench.hums.formulas import (
     CURRENT_SIGNALS,
     LOST_MOTION_SIGNALS,
@@ -47,7 +48,7 @@ def period_indexes(real: Trace, nominal: Trace, period_s: float | None = None,
     check_aligned(real, nominal)
     real.require(CURRENT_SIGNALS + POSITION_SIGNALS, "the per-period HUMS indexes")
     if period_s is None:
-        f0 = fundamental_hz(real, None)
+        f0 = fundamental_hz(real.meta.get("fundamental_hz"))
         if not (math.isfinite(f0) and f0 > 0):
             raise BenchError("per-period indexes need the command period: pass period_s "
                              "or a trace with fundamental_hz metadata")

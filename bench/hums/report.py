@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench import estimators as E
 from bench.hums import indexes as I
 from bench.hums import monitor as M
 from bench.hums.verdict import index_record, judge, judged_ci
@@ -33,31 +34,18 @@ from plant_rt.params import PlantParams
 MIN_PERIODS_FOR_TREND = 6
 
 
-def command_frequency(trace: Trace) -> float:
-    """The command frequency (Hz): the trace's metadata, else the strongest line of the
-    set-point spectrum (NaN for a non-periodic command such as a step)."""
-    v = trace.meta.get("fundamental_hz")
-    try:
-        f0 = float(v) if v is not None else math.nan
-    except (TypeError, ValueError):
-        f0 = math.nan
-    if math.isfinite(f0) and f0 > 0:
+def command_period_hz(trace: Trace) -> float:
+    """The command's frequency (Hz) as a period (`estimators.fundamental_hz`, periodic):
+    the trace's metadata, else the strongest line of the set-point spectrum (position or
+    speed, by the log's mode; NaN for a non-periodic command such as a step)."""
+    f0 = E.fundamental_hz(trace.meta.get("fundamental_hz"))
+    if math.isfinite(f0):
         return f0
     mode = _mode(trace)
     col = "setpoint_position_m" if mode == MODE_POSITION else "setpoint_speed_rad_s"
     if col not in trace or len(trace) < 64:
         return math.nan
-    y = np.nan_to_num(trace[col])
-    if np.ptp(y) == 0:
-        return math.nan
-    f, a = I.amplitude_spectrum(y, trace.dt)
-    k = int(np.argmax(a[1:]) + 1)
-    # a periodic command puts most of its variance in that line
-    if a[k] ** 2 / 2 < 0.5 * np.var(y) or f[k] * len(trace) * trace.dt < 2:
-        return math.nan
-    # refine to the nearest whole number of samples per period
-    per = round(1.0 / (f[k] * trace.dt))
-    return 1.0 / (per * trace.dt)
+    return E.fundamental_hz((), np.nan_to_num(trace[col]), trace.dt, periodic=True)
 
 
 def _mode(trace: Trace) -> int:
@@ -157,7 +145,7 @@ def analyse(trace: Trace, name: str, params: PlantParams | None = None,
     fit, _ = M.fitted(params)
     kp = fit.gain_rad_s_per_m
     nom = M.nominal_for(meas, kp, M.MonitorParams.from_plant(params))
-    f0 = 1.0 / period_s if period_s else command_frequency(meas)
+    f0 = 1.0 / period_s if period_s else command_period_hz(meas)
     meas.meta["fundamental_hz"] = f0
     ix = I.compare(meas, nom, f0_hz=f0 if math.isfinite(f0) else None, need=())
     I.mark_unavailable(ix, blocked, M.NOMINAL_DRIVE)

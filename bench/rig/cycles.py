@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench import estimators as E
 from bench.tables import COMPRESSED, file_suffixes, read_table
 
 # the signals a cycle needs and the Cranfield table's column for each
@@ -466,8 +467,7 @@ def direction_labels(sp: np.ndarray) -> np.ndarray:
     d = np.diff(sp)
     if not len(d):
         return np.zeros(len(sp), int)
-    tol = max(MOVING_FRACTION * float(np.max(np.abs(d))), 1e-12)
-    lab = np.where(d > tol, 1, np.where(d < -tol, -1, 0))
+    lab = E.motion_direction(d, E.moving_threshold(d, MOVING_FRACTION))
     return np.r_[lab, lab[-1]].astype(int)
 
 

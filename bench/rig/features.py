@@ -482,10 +482,10 @@ def assess(f: CycleFeatures, thresholds: dict[str, float]) -> Judgement:
 
 
 def judge(f: CycleFeatures, thresholds: dict[str, float], reference: str = "") -> Verdict:
-    """`assess` as a verdict: WARNING with the signature named when flagged, else
+    """`assess` as a verdict: DEGRADED with the signature named when flagged, else
     HEALTHY; judged against `reference` (the baseline the thresholds come from)."""
     j = assess(f, thresholds)
-    return Verdict(Level.WARNING if j.flagged else Level.HEALTHY, j.effect, tuple(j.reasons),
+    return Verdict(Level.DEGRADED if j.flagged else Level.HEALTHY, j.effect, tuple(j.reasons),
                    reference)
 
 
@@ -524,7 +524,7 @@ def rig_verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]
             text += "; also above threshold: " + ", ".join(others)
     if prov:
         text += f"; {provisional_note(len(set(lb.runs)))}"
-    return RigVerdict(level=Level.WARNING if j.flagged else Level.HEALTHY, effect=j.effect,
+    return RigVerdict(level=Level.DEGRADED if j.flagged else Level.HEALTHY, effect=j.effect,
                       reasons=tuple(j.reasons), reference=base.describe(f.load),
                       cycle=f.label, fault=j.fault, text=text, provisional=prov,
                       location_mm=where)

@@ -6,8 +6,10 @@ them build it with `features.verdict`, so one cycle gets one verdict wherever it
 
 It is a `bench.verdict.Verdict` (level, effect, reasons, reference: the baseline it was
 judged against) with the cycle's label. Its level: HEALTHY (judged and nothing above
-its threshold), WARNING (a deviation from the healthy baseline) or UNKNOWN (not judged,
-e.g. an incomplete cycle); the rig has no failure threshold of its own, so never FAILURE.
+its threshold), DEGRADED (a deviation from the healthy baseline: past its threshold, the
+level a log with such a cycle gets too) or UNKNOWN (not judged, e.g. an incomplete
+cycle); the baseline has no warning or failure level of its own, so never WARNING or
+FAILURE.
 It adds the fault family the signature points to (`naming.FAULTS`); where a located
 effect is; the text; whether the baseline is provisional (fewer than 3 healthy runs:
 too few to estimate the spread between runs); and, when a supervised model classified
@@ -39,10 +41,6 @@ class RigVerdict(Verdict):
     def baseline(self) -> str:
         """The baseline it was judged against (the verdict's reference)."""
         return self.reference
-
-    @property
-    def flagged(self) -> bool:
-        return self.level == Level.WARNING
 
     def to_dict(self) -> dict[str, Any]:
         """The verdict as the JSON of `bench rig assess --json` and of the gap and HUMS

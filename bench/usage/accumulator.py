@@ -22,6 +22,7 @@ import numpy as np
 import rainflow
 
 from bench import BenchError
+from bench.estimators import motion_regimes
 from bench.trace import Trace
 from bench.usage import hysteresis as H
 from bench.usage import life
@@ -72,6 +73,9 @@ class UsageAccumulator:
         self.geo = geometry
         self.settings = settings or UsageSettings()
         s = self.settings
+        if not s.dwell_speed_m_s <= s.fast_speed_m_s:
+            raise BenchError(f"usage: dwell_speed_m_s {s.dwell_speed_m_s:g} is above "
+                             f"fast_speed_m_s {s.fast_speed_m_s:g}: a dwell slower than fast")
         h = dict(hysteresis or H.of_settings(s))
         self.screw = Tracker(h["reversal"].used / geometry.lead_m)   # in revolutions
         self.position = Tracker(h["position"].used)
@@ -152,11 +156,10 @@ class UsageAccumulator:
     def _regimes(self, motor_speed: np.ndarray, adrev: np.ndarray) -> None:
         s, st = self.s, self.settings
         v = np.abs(motor_speed) * (self.geo.ratio * self.geo.lead_m / TWO_PI)
-        fin = np.isfinite(v)
-        dwell = fin & (v < st.dwell_speed_m_s)
-        fast = fin & (v >= st.fast_speed_m_s)
-        slow = fin & ~dwell & ~fast
-        s.time_unknown_regime_s += float((~fin).sum()) * self.dt
+        # a speed at an edge is in the regime above it: dwell below dwell_speed_m_s
+        reg = motion_regimes(v, (st.dwell_speed_m_s, st.fast_speed_m_s), at_edge="upper")
+        dwell, slow, fast = reg == 0, reg == 1, reg == 2
+        s.time_unknown_regime_s += float((reg < 0).sum()) * self.dt
         for name, m in (("dwell", dwell), ("slow", slow), ("fast", fast)):
             setattr(s, f"{name}_s", getattr(s, f"{name}_s") + float(m.sum()) * self.dt)
             setattr(s, f"revolutions_{name}",

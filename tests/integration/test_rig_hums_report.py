@@ -271,3 +271,27 @@ def test_gap_json_has_one_schema_against_the_model_and_the_baseline(data, calibr
     assert "healthy baseline" in b["reference"] and m["ranking"] and b["ranking"] is None
     assert b["verdicts"] and m["verdicts"] is None
     assert b["verdict"]["level"] == "DEGRADED" and b["verdict"]["effect"] == "periodic"
+
+
+def test_a_flagged_cycle_and_its_log_carry_one_level(data, tmp_path, capsys):
+    """A deviation from the healthy baseline is DEGRADED (past the threshold; the rig
+    baseline has no warning or failure level) for the cycle in `bench rig assess --json`,
+    and for the cycle and its log in `bench gap --json` and `bench hums report`."""
+    log, base = data / "s" / SPALL, data / "base.json"
+    assess = tmp_path / "assess.json"
+    assert main(["rig", "assess", str(log), "--baseline", str(base), "--json", str(assess),
+                 "-q"]) == 0
+    cycle = json.loads(assess.read_text())
+    assert [c["flagged"] for c in cycle] == [True]
+    gap = tmp_path / "gap.json"
+    assert main(["gap", str(log), "--baseline", str(base), "--json", str(gap), "-q"]) == 0
+    g = json.loads(gap.read_text())
+    code, rep, page = _report([log, "--baseline", base], tmp_path / "r")
+    assert code == 0
+    levels = {"rig assess cycle": cycle[0]["level"], "gap cycle": g["verdicts"][0]["level"],
+              "gap log": g["verdict"]["level"], "report cycle": rep["baseline"]["verdicts"][0]["level"],
+              "report log": rep["verdict"]}
+    assert set(levels.values()) == {"DEGRADED"}, levels
+    assert "WARNING" not in gap.read_text()
+    assert (tmp_path / "r" / "summary.txt").read_text().startswith(SPALL + ": DEGRADED")
+    capsys.readouterr()

@@ -57,7 +57,7 @@ def test_the_study_and_bench_gap_give_each_cycle_one_verdict(study, cond, tmp_pa
         gap = _gap(d, cond, f.run, f.group, tmp_path)
         assert (gap["flagged"], gap["effect"], gap["fault"]) == (
             mine.flagged, mine.effect, mine.fault), f.label
-        assert gap["level"] == ("WARNING" if mine.flagged else "HEALTHY"), f.label
+        assert gap["level"] == ("DEGRADED" if mine.flagged else "HEALTHY"), f.label
         flagged += mine.flagged
     if cond.startswith("spalling"):
         assert flagged >= 8          # the spall is found: the comparison is not vacuous

@@ -529,3 +529,80 @@ def test_the_vocabulary_check_sees_the_old_copies():
             'p.add_argument("log", metavar="HEALTHY")\nx = f"last test {lv.name}: DEGRADED"\n'
             'LEVEL_CLASSES = tuple(lv.name for lv in Level)\n')
     assert level_vocabulary(fine) == []
+
+
+ESTIMATORS_MODULE = "bench/estimators.py"
+SPECTRA = {"rfft", "fft", "amplitude_spectrum"}
+MOTION_WORDS = re.compile(r"regime|dwell|moving|direction", re.IGNORECASE)
+SPEED_NAMES = re.compile(r"speed|v_thr|vmax|^tol$")
+ORDER_OPS = (ast.Gt, ast.Lt, ast.GtE, ast.LtE)
+
+
+def _called(node: ast.AST) -> set[str]:
+    return {c.func.attr if isinstance(c.func, ast.Attribute) else getattr(c.func, "id", "")
+            for c in ast.walk(node) if isinstance(c, ast.Call)}
+
+
+def _speed_operand(node: ast.AST) -> bool:
+    """|a signal| (np.abs of a name) or a name / attribute that is a speed threshold."""
+    if isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "abs" \
+            and len(node.args) == 1 and isinstance(node.args[0], ast.Name):
+        return True
+    return any(SPEED_NAMES.search(n.id if isinstance(n, ast.Name) else n.attr)
+               for n in ast.walk(node) if isinstance(n, (ast.Name, ast.Attribute)))
+
+
+def estimator_copies(source: str) -> list[str]:
+    """Lines of `source` that estimate the command's fundamental or split samples into
+    motion regimes themselves: a function named `fundamental_hz` / `command_frequency`,
+    one that takes the argmax of a spectrum and speaks of the fundamental, or one
+    speaking of regimes, dwell, motion or direction that compares a speed with a
+    threshold (|v| > x, v < dwell_speed, d > tol)."""
+    out = []
+    for f in ast.walk(ast.parse(source)):
+        if not isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        doc = ast.get_docstring(f) or ""
+        if f.name in ("fundamental_hz", "command_frequency"):
+            out.append(f"{f.lineno}: {f.name}: a fundamental of its own")
+        elif "argmax" in _called(f) and _called(f) & SPECTRA and re.search(
+                r"fundamental|command frequency", f.name + " " + doc, re.IGNORECASE):
+            out.append(f"{f.lineno}: {f.name}: the strongest spectral line, its own way")
+        if MOTION_WORDS.search(f.name + " " + doc):
+            for c in ast.walk(f):
+                if isinstance(c, ast.Compare) and any(isinstance(o, ORDER_OPS) for o in c.ops) \
+                        and any(_speed_operand(x) for x in (c.left, *c.comparators)):
+                    out.append(f"{c.lineno}: {f.name}: a speed against a threshold")
+    return out
+
+
+def test_the_fundamental_and_the_regimes_are_estimated_once():
+    """The command's fundamental and the motion regimes come from `bench.estimators`
+    (`fundamental_hz`, `motion_regimes` / `motion_direction`) only."""
+    where = []
+    for path in MODULES.values():
+        rel = path.relative_to(ROOT).as_posix()
+        if rel.startswith("bench/") and rel != ESTIMATORS_MODULE:
+            where += [f"{rel}:{w}" for w in estimator_copies(path.read_text())]
+    assert not where, "\n".join(where)
+    src = (ROOT / ESTIMATORS_MODULE).read_text()
+    assert all(f"def {f}(" in src for f in ("fundamental_hz", "motion_regimes", "noise_floor"))
+
+
+def test_the_estimator_check_sees_the_old_copies():
+    """The check fails on the forms the tree had before `bench.estimators` held them."""
+    old = ('def fundamental_hz(trace, f0):\n    return f0\n'
+           'def command_frequency(trace):\n    return 1.0\n'
+           'def band_f0(p):\n    """The command fundamental."""\n'
+           '    a = np.abs(np.fft.rfft(p))\n    return np.argmax(a)\n'
+           'def _regimes(tr):\n    moving = np.abs(v) > 0.02 * m\n    return moving\n'
+           'def direction_labels(sp):\n    return np.where(d > tol, 1, np.where(d < -tol, -1, 0))\n'
+           'def _speeds(self, v):\n    """Dwell, slow and fast time."""\n'
+           '    dwell = fin & (v < st.dwell_speed_m_s)\n')
+    found = estimator_copies(old)
+    assert sorted(int(w.split(":")[0]) for w in found) == [1, 3, 5, 10, 13, 13, 16], found
+    fine = ('def regimes(p):\n    """Motion regimes."""\n'
+            '    edge = np.abs(t - t[k]) <= 0.2\n    return E.motion_direction(v, thr) != 0\n'
+            'def peak(x):\n    """The strongest line of a residual."""\n'
+            '    return np.argmax(np.fft.rfft(x))\n')
+    assert estimator_copies(fine) == []

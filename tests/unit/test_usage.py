@@ -196,3 +196,11 @@ def test_what_a_run_lacks_is_nan_not_zero_and_stays_so_when_accumulated():
                                           "life_consumed", "fm_n", "l10_rev"))
     assert pos.not_available["life_consumed"] == "needs motor_angle_rad"
     assert d["load_cycles"] == 0.0 and d["position_cycles"] == 0.0     # measured: none
+
+
+def test_a_dwell_speed_above_the_fast_speed_is_refused():
+    """dwell_speed_m_s above fast_speed_m_s counted a sample between them as both dwell
+    and fast; it is refused, and a speed at an edge goes to the regime above it."""
+    with pytest.raises(BenchError, match="dwell_speed_m_s 0.02 is above fast_speed_m_s 0.01"):
+        UsageAccumulator(DT, Geometry.of(P0, UsageSettings()),
+                         UsageSettings(dwell_speed_m_s=0.02, fast_speed_m_s=0.01))

@@ -54,12 +54,12 @@ def test_verdict_is_frozen_and_has_one_json_shape():
 
 def test_the_rig_verdict_is_the_one_verdict_with_its_cycle():
     from bench.rig.verdict import RigVerdict
-    v = RigVerdict(level=Level.WARNING, effect="periodic", reasons=("periodic 9 vs 3",),
+    v = RigVerdict(level=Level.DEGRADED, effect="periodic", reasons=("periodic 9 vs 3",),
                    reference="baseline b.json, load 40 kgf", cycle="run 3 cycle 2",
                    fault="spall")
     assert isinstance(v, Verdict) and v.flagged and v.baseline == v.reference
     d = v.to_dict()
-    assert d["level"] == "WARNING" and d["baseline"] == "baseline b.json, load 40 kgf"
+    assert d["level"] == "DEGRADED" and d["baseline"] == "baseline b.json, load 40 kgf"
     assert set(v.to_json()) == {"level", "code", "effect", "reasons", "reference"}
 
 
