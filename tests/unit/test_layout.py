@@ -390,7 +390,7 @@ def test_the_layout_checks_see_the_sources():
     assert not any(rel.startswith(REPORTS) for rel in SOURCES)
 
 
-UNITS_MODULE = "bench/units.py"
+UNITS_MODULE = "bench/signals/units.py"
 FORCE_FACTORS = (9.80665, 4.4482216152605)       # kgf and lbf in newtons
 
 
@@ -401,7 +401,7 @@ def _bench_trees() -> list[tuple[str, ast.AST]]:
 
 
 def test_one_units_table():
-    """Unit factors live in `bench.units` only: no kgf/lbf factor as a number, and no
+    """Unit factors live in `bench.signals.units` only: no kgf/lbf factor as a number, and no
     table keyed by a force unit, in another module."""
     own = []
     for rel, tree in _bench_trees():
@@ -419,7 +419,7 @@ def test_one_units_table():
 
 def test_one_thesis_row_and_one_table_writer():
     """The thesis-vs-project `Row` and its markdown table are written once, in
-    `bench.thesis_rows`."""
+    `bench.core.thesis_rows`."""
     rows, writers = [], []
     for rel, tree in _bench_trees():
         for n in ast.walk(tree):
@@ -428,16 +428,16 @@ def test_one_thesis_row_and_one_table_writer():
             if isinstance(n, ast.Constant) and isinstance(n.value, str) \
                     and n.value.startswith("| id | quantity | unit | thesis"):
                 writers.append(f"{rel}:{n.lineno}")
-    assert len(rows) == 1 and rows[0].startswith("bench/thesis_rows.py:"), rows
-    assert len(writers) == 1 and writers[0].startswith("bench/thesis_rows.py:"), writers
+    assert len(rows) == 1 and rows[0].startswith("bench/core/thesis_rows.py:"), rows
+    assert len(writers) == 1 and writers[0].startswith("bench/core/thesis_rows.py:"), writers
 
 
 def test_one_table_reader():
-    """A table file is opened by `bench.tables` only: no other module parses CSV with
+    """A table file is opened by `bench.signals.tables` only: no other module parses CSV with
     pyarrow or opens Parquet or .npz files itself."""
     own = []
     for rel, tree in _bench_trees():
-        if rel == "bench/tables.py":
+        if rel == "bench/signals/tables.py":
             continue
         for n in ast.walk(tree):
             if isinstance(n, (ast.Import, ast.ImportFrom)):
@@ -454,7 +454,7 @@ def test_one_table_reader():
     assert not own, "\n".join(own)
 
 
-VERDICT_MODULE = "bench/verdict.py"
+VERDICT_MODULE = "bench/core/verdict.py"
 """The one verdict model: `Level` (the names and their one numeric code) and `Verdict`."""
 LEVEL_NAMES = ("HEALTHY", "DEGRADED", "WARNING", "FAILURE", "UNKNOWN")
 LEVEL_TABLE_NAMES = ("LEVELS", "LEVEL_NAMES", "LEVEL_CLASSES", "LEVEL_CODES", "VERDICTS")
@@ -503,7 +503,7 @@ def level_vocabulary(source: str) -> list[str]:
 
 
 def test_the_verdict_vocabulary_is_defined_once():
-    """The level names and their numbers live in `bench.verdict` only: every other
+    """The level names and their numbers live in `bench.core.verdict` only: every other
     product module reads `Level` / `Verdict` (a module that compares with "UNKNOWN",
     returns "DEGRADED" or keeps a LEVELS list writes a second vocabulary)."""
     where = []
@@ -516,7 +516,7 @@ def test_the_verdict_vocabulary_is_defined_once():
 
 
 def test_the_vocabulary_check_sees_the_old_copies():
-    """The check fails on the forms the tree had before `bench.verdict`: a LEVELS list,
+    """The check fails on the forms the tree had before `bench.core.verdict`: a LEVELS list,
     a returned level name, a comparison with one; prose and metavars pass."""
     old = ('UNKNOWN = "UNKNOWN"\nLEVELS = ["HEALTHY", "DEGRADED", "WARNING", "FAILURE"]\n'
            'LEVELS = (*V.LEVELS, V.UNKNOWN)\n'
@@ -531,7 +531,7 @@ def test_the_vocabulary_check_sees_the_old_copies():
     assert level_vocabulary(fine) == []
 
 
-ESTIMATORS_MODULE = "bench/estimators.py"
+ESTIMATORS_MODULE = "bench/signals/estimators.py"
 SPECTRA = {"rfft", "fft", "amplitude_spectrum"}
 MOTION_WORDS = re.compile(r"regime|dwell|moving|direction", re.IGNORECASE)
 SPEED_NAMES = re.compile(r"speed|v_thr|vmax|^tol$")
@@ -577,7 +577,7 @@ def estimator_copies(source: str) -> list[str]:
 
 
 def test_the_fundamental_and_the_regimes_are_estimated_once():
-    """The command's fundamental and the motion regimes come from `bench.estimators`
+    """The command's fundamental and the motion regimes come from `bench.signals.estimators`
     (`fundamental_hz`, `motion_regimes` / `motion_direction`) only."""
     where = []
     for path in MODULES.values():
@@ -590,7 +590,7 @@ def test_the_fundamental_and_the_regimes_are_estimated_once():
 
 
 def test_the_estimator_check_sees_the_old_copies():
-    """The check fails on the forms the tree had before `bench.estimators` held them."""
+    """The check fails on the forms the tree had before `bench.signals.estimators` held them."""
     old = ('def fundamental_hz(trace, f0):\n    return f0\n'
            'def command_frequency(trace):\n    return 1.0\n'
            'def band_f0(p):\n    """The command fundamental."""\n'
