@@ -134,7 +134,7 @@ def bus_run(pace: str, seconds: float, server: str = "select", spin_us: int = 20
 def _bus_run(pace: str, seconds: float, server: str, spin_us: int) -> dict:
     from bench.bus.procs import start_hub, start_plant
     from bench.ecu import run_over_bus
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
 
     hub = start_hub(persistent=False, server=server)
     cfg = {"interface": "remote", "channel": hub.info["url"]}

@@ -5,8 +5,8 @@
 Side by side in one run, interleaved (old, Dask, old, Dask, ...) so both see the same
 load, 2 workers each:
 - start + close of the engine: the old pool (a `concurrent.futures.ProcessPoolExecutor` of
-  2 spawned single-threaded processes, the one `bench.workers` had before Dask; a
-  reference copy is below) and `bench.cluster.Engine` (a `distributed.LocalCluster` of 2
+  2 spawned single-threaded processes, the one `bench.runtime.workers` had before Dask; a
+  reference copy is below) and `bench.runtime.cluster.Engine` (a `distributed.LocalCluster` of 2
   single-threaded worker processes, scheduler and dashboard on 127.0.0.1);
 - overhead per task: 200 jobs that do nothing on an engine already started (wall / jobs);
 - one gap diagnosis (the 10 s "backlash 30 um" log of bench_gap.py, whole library), whose
@@ -37,17 +37,17 @@ sys.path.insert(0, str(ROOT))
 from perfdoc import publish  # noqa: E402
 
 from bench import machine_description  # noqa: E402
-from bench.cluster import THREAD_VARS, Engine  # noqa: E402
 from bench.gap import blind  # noqa: E402
 from bench.gap import diagnose as D  # noqa: E402
 from bench.hums import sweep as S  # noqa: E402
-from bench.workers import run_all, session  # noqa: E402
+from bench.runtime.cluster import THREAD_VARS, Engine  # noqa: E402
+from bench.runtime.workers import run_all, session  # noqa: E402
 
 SECTION = "## Dask engine"
 N_TASKS = 200
 
 
-# --- the old pool (reference copy of bench/workers.py before Dask) ------------------
+# --- the old pool (reference copy of bench/runtime/workers.py before Dask) ------------------
 
 def _noop(x: Any = None) -> Any:
     return x

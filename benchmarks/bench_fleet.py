@@ -13,7 +13,7 @@ The 10,000-run store for the status timing is built from the measured store by c
 its runs under new digests and actuator ids (a status reads only the stored rows).
 
 Every stage, and the in-process cost measurement, runs with one BLAS/OpenMP/numba thread
-(`bench.cluster.THREAD_VARS` = 1, as the Dask workers run): one worker is one core, also
+(`bench.runtime.cluster.THREAD_VARS` = 1, as the Dask workers run): one worker is one core, also
 for the 1-worker ingest, which runs in the CLI's own process (with OpenBLAS' default two
 threads the HUMS analysis of a log spends ~4x the CPU spinning, and the 1-worker row
 would measure a worker on two cores).
@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from perfdoc import write_section  # noqa: E402
 
-from bench.cluster import THREAD_VARS  # noqa: E402  (imports neither numpy nor dask)
+from bench.runtime.cluster import THREAD_VARS  # noqa: E402  (imports neither numpy nor dask)
 
 for _var in THREAD_VARS:             # before numpy is imported: one thread per process
     os.environ[_var] = "1"
@@ -130,8 +130,8 @@ def synth_cost(n: int = 10) -> dict[str, float]:
     """CPU time per log of `bench.fleet.synth._job` (simulate + write_candump) and of
     write_candump alone in this process, after one warm-up log."""
     from bench.fleet import synth as S
-    from bench.harness import simulate
-    from bench.profiles import sine
+    from bench.profiles.catalog import sine
+    from bench.sim.harness import simulate
     from plant_rt.params import PlantParams
     act = S.draw_fleet(1, n, 0)[0]
     with tempfile.TemporaryDirectory(prefix="bench-fleet-cost-") as tmp:
@@ -299,7 +299,7 @@ lines, {r['log_bytes'] / n / 1e3:.0f} kB.
 | `fleet status`, {r['actuators']} actuators | {n} runs | {r['status_s']:.2f} | | |
 | `fleet status`, {r['status_runs']} runs | {r['status_runs']} runs | {r['status_big_s']:.2f} | | |
 
-Workers: the Dask LocalCluster of `bench.workers.run_all` (1 worker: in-process), the
+Workers: the Dask LocalCluster of `bench.runtime.workers.run_all` (1 worker: in-process), the
 logs sent {r.get('chunk_note', 'several per task')}; one BLAS thread per process.
 Speed-up of the second worker: {s2 / s1:.2f} x ({s2 / s1 / 2:.2f} per worker). Both
 times include the workers' start (spawn, imports, numba compilation, the monitoring

@@ -4,7 +4,7 @@ tree side by side with another (a checkout of an earlier commit).
     python benchmarks/bench_gap.py [--baseline DIR] [--write docs/performance.md]
                                    [--repeats 2] [--workers 2]
 
-Logs: the diagnosis manoeuvre (bench.maneuvers.excitation, 10 s at 1 kHz) generated
+Logs: the diagnosis manoeuvre (bench.profiles.maneuvers.excitation, 10 s at 1 kHz) generated
 at full fidelity (switching PWM, dynamic balls) with sensor noise, (a) with one effect
 (backlash 30 um), (b) with two (friction x3 + encoder gain 1.03), (c) nominal. Each tree
 diagnoses them in its own subprocess (PYTHONPATH set to the tree, its own numba cache

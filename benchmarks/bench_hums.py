@@ -53,8 +53,8 @@ PARTS = """
 import time, json
 import numpy as np
 from bench.hums import monitor as M, indexes as I, fusion as R
-from bench.harness import simulate
-from bench.profiles import make_profile
+from bench.sim.harness import simulate
+from bench.profiles.catalog import make_profile
 from plant_rt.params import PlantParams
 fit, _ = M.fitted()
 kp = fit.gain_rad_s_per_m

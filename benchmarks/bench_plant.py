@@ -34,8 +34,8 @@ sys.path.insert(0, str(ROOT))
 import perfdoc  # noqa: E402
 
 from bench import machine_description  # noqa: E402
-from bench.harness import simulate  # noqa: E402
-from bench.profiles import make_profile, sine  # noqa: E402
+from bench.profiles.catalog import make_profile, sine  # noqa: E402
+from bench.sim.harness import simulate  # noqa: E402
 from plant_rt import kernel as K  # noqa: E402
 from plant_rt.model import Plant  # noqa: E402
 from plant_rt.params import PlantParams  # noqa: E402
@@ -196,7 +196,7 @@ def solve_ivp_peer(sim_s: float = 0.5) -> list[dict]:
 def memory_120s() -> float:
     """Peak RSS (MB) of a fresh process that runs the 120 s RUL run and keeps its trace."""
     code = (f"import resource, sys, tracemalloc; sys.path.insert(0, {str(ROOT)!r})\n"
-            "from bench.harness import simulate\nfrom bench.profiles import rul\n"
+            "from bench.sim.harness import simulate\nfrom bench.profiles.catalog import rul\n"
             "from plant_rt.params import PlantParams\n"
             "simulate(rul(duration_s=0.1), PlantParams())\n"
             "base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"

@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 from bench import BenchError  # noqa: E402
 from bench.bus.procs import start_hub, start_plant  # noqa: E402
 from bench.ecu import run_over_bus  # noqa: E402
-from bench.profiles import make_profile  # noqa: E402
+from bench.profiles.catalog import make_profile  # noqa: E402
 from ema_contract.transport import close_bus, open_bus  # noqa: E402
 
 

@@ -168,7 +168,7 @@ def one_run(periods: int, log: Path, disturbed: bool, flood_rate: float) -> dict
     from bench.bus.logs import trace_from_log  # noqa: F401  (imported before the clock)
     from bench.bus.procs import start_hub, start_plant
     from bench.ecu import run_over_bus
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
 
     hub = start_hub(persistent=False)
     url = hub.info["url"]

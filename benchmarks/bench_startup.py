@@ -9,7 +9,7 @@ interleaved (A, B, A, B, ...) so both see the same load, a fresh interpreter eac
 - the plant node's imports (`plant_rt.node`) as `python -m plant_rt` has them (python-can's
   eager import of asammdf, its MF4 log support, refused: the node writes no log file)
   against the same imports with asammdf loaded (before);
-- the ECU's imports (`bench.ecu.master` with `bench.flight`) without scipy.signal (now:
+- the ECU's imports (`bench.ecu.master` with `bench.profiles.flight`) without scipy.signal (now:
   imported where a turbulence is drawn) against the same plus `scipy.signal` (before);
 - the loopback hub's process as `bench up` starts it (`python -m bench.bus.hub`, asammdf
   refused: the hub writes no log) against the same module run
@@ -47,9 +47,9 @@ EMPTY_STATE = ("import os, sys, tempfile; _d = tempfile.TemporaryDirectory(); "
 PAIRS = (
     ("plant node imports (`plant_rt.node`)",
      REFUSE + "import plant_rt.node", "import plant_rt.node"),
-    ("ECU imports (`bench.ecu.master`, `bench.flight`)",
-     "import bench.ecu.master, bench.flight",
-     "import bench.ecu.master, bench.flight, scipy.signal"),
+    ("ECU imports (`bench.ecu.master`, `bench.profiles.flight`)",
+     "import bench.ecu.master, bench.profiles.flight",
+     "import bench.ecu.master, bench.profiles.flight, scipy.signal"),
     ("loopback hub process (`python -m bench.bus.hub --help`)",
      ["-m", "bench.bus.hub", "--help"],
      "import runpy, sys; sys.argv = ['hub', '--help']; "

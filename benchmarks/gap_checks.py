@@ -31,8 +31,8 @@ def intervals(seed_list: list[int]) -> list[dict]:
     from bench.gap.fit import fit
     from bench.gap.problem import build
     from bench.gap.refine import refine
-    from bench.harness import simulate
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
+    from bench.sim.harness import simulate
     from plant_rt.params import PlantParams
     prof = make_profile("sine", cycles=10)
     rows = []
@@ -57,8 +57,8 @@ def intervals(seed_list: list[int]) -> list[dict]:
 def offset(seed_list: list[int]) -> list[dict]:
     from bench.gap.diagnose import Options, diagnose
     from bench.gap.result_json import chosen_entry
-    from bench.harness import simulate
-    from bench.maneuvers import excitation
+    from bench.profiles.maneuvers import excitation
+    from bench.sim.harness import simulate
     from plant_rt.params import PlantParams
     rows = []
     for s in seed_list:

@@ -2,7 +2,7 @@
 compiled module, so a changed kernel can never run from a stale cache.
 
 numba's own cache (``cache=True``) checks only the file that holds the function it
-caches. A compiled loop in `bench.loop` inlines `plant_rt.kernel.advance`; after the
+caches. A compiled loop in `bench.sim.loop` inlines `plant_rt.kernel.advance`; after the
 kernel changes (an upgrade, a checkout, a merge) numba still loads the old loop from
 ``__pycache__`` and the plant runs old physics with no warning (seen on this
 repository: the Archard wear state stayed 0.0 until the cache files were deleted). Here

@@ -1,5 +1,5 @@
 """Parameter values read from JSON and compared: what the plant's `PlantParams` and the
-bench's parameter sets (`bench.paramset`) do alike."""
+bench's parameter sets (`bench.core.paramset`) do alike."""
 
 from __future__ import annotations
 

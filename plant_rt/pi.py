@@ -3,7 +3,7 @@
 Three loops use it with their own gains and limits: the drive's current PI in the plant
 (`plant_rt.kernel.advance`: error in A, output the set voltage in V, limit the DC bus
 V_a), the same current PI in the monitoring model (`bench.hums.monitor`), and the ECU's
-speed PI (`bench.control.controller_step`: error in rad/s, output the current demand in
+speed PI (`bench.sim.control.controller_step`: error in rad/s, output the current demand in
 A, limit i_max).
 """
 

@@ -60,8 +60,8 @@ from bench.bus.rows import (
     trace_columns,
 )
 from bench.bus.sdo import SdoTracker, sdo_values, serial_of
-from bench.tables import TRACE_FORMATS
-from bench.trace import Trace
+from bench.signals.tables import TRACE_FORMATS
+from bench.signals.trace import Trace
 from ema_contract.frames import Frames, load_od
 from ema_contract.states import Pace
 from plant_rt.paramobjects import ParamObjects
@@ -340,7 +340,7 @@ class _Counted:
 
 
 TABLE_SUFFIXES = TRACE_FORMATS
-"""The trace tables a log may also be (`bench.tables.TRACE_FORMATS`)."""
+"""The trace tables a log may also be (`bench.signals.tables.TRACE_FORMATS`)."""
 LOG_INTEGRITY = ("sync_gaps", "sync_recovered", "missing_frames", "duplicate_frames",
                  "replaced_frames", "out_of_order", "sorted_by_time", "nan_blocks")
 """Metadata kept from a decoded log or an imported table: what it lost or repeated."""
@@ -361,7 +361,7 @@ LOG_READERS: dict[str, Callable[[str | Path, str | None], Trace]] = {
     **{s: _decoded for s in LOG_FORMATS}, **{s: _table for s in TABLE_SUFFIXES}}
 """Log suffix -> its loader, as python-can's ``can.io.MESSAGE_READERS``: a bus log of
 LOG_FORMATS decoded through the DBC (python-can's readers underneath, candump ``.log``
-by the tolerant line reader), or a trace table (`bench.trace.Trace.load`)."""
+by the tolerant line reader), or a trace table (`bench.signals.trace.Trace.load`)."""
 
 
 def known_logs() -> str:

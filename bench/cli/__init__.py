@@ -29,13 +29,13 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "status": ("updown", "show the plant node's state, counters and parameters"),
     "down": ("updown", "stop the background plant and loopback bus"),
     "run": ("run", "run a profile against the plant over the CAN bus (the ECU)"),
-    "log": ("logcmd", "record the bus to a log (candump -L by default)"),
+    "log": ("log", "record the bus to a log (candump -L by default)"),
     "replay": ("replay", "play a bus log onto the bus (like canplayer)"),
     "decode": ("decode", "decode a bus log into a signal table (CSV/Parquet)"),
     "hums": ("hums", "health and usage monitoring (thesis chapter 6)"),
     "usage": ("usage", "usage monitoring: travel, reversals, cycles, load spectrum, life used"),
     "gap": ("gap", "diagnose the gap between a log and the nominal model"),
-    "gap-bench": ("gapbench", "blind check of the gap diagnosis on generated logs"),
+    "gap-bench": ("gap_bench", "blind check of the gap diagnosis on generated logs"),
     "calibrate": ("calibrate", "fit the nominal model to a healthy log"),
     "import": ("importcmd", "import a CSV/Parquet table from another rig"),
     "fleet": ("fleet", "fleet store: ingest logs, status, report, export, synthetic fleet"),
@@ -94,7 +94,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from bench import interrupts
+    from bench.runtime import interrupts
     with interrupts.counting():     # a Ctrl-C that an import swallows is still seen
         rc = _main(argv)
     try:
@@ -113,7 +113,7 @@ def _main(argv: list[str] | None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    from bench.filenames import one_line
+    from bench.core.filenames import one_line
     try:
         rc = _run(args)
     except BenchError as exc:
@@ -148,9 +148,9 @@ def _main(argv: list[str] | None) -> int:
 def _run(args: argparse.Namespace) -> int | None:
     """The command, once its outputs are checked against its inputs (none is one of them,
     `bench.cli.outputs.check_io`) and with its inputs guarded while it runs
-    (`bench.filenames.protect`: a file named from data that would be one is refused)."""
+    (`bench.core.filenames.protect`: a file named from data that would be one is refused)."""
     from bench.cli.outputs import check_io, inputs
-    from bench.filenames import protect
+    from bench.core.filenames import protect
     check_io(args)
     with protect(inputs(args)):
         return args.func(args)

@@ -72,9 +72,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
 
 def controller_choices() -> tuple[tuple[str, ...], tuple[str, ...]]:
     """--controller's values on the thesis plant's path (`bench.gap.calibrate.CONTROLLERS`,
-    the first the default) and on the --actuator path (`bench.gap.rigcal.METHODS`)."""
+    the first the default) and on the --actuator path (`bench.rig.rigcal.METHODS`)."""
     from bench.gap.calibrate import CONTROLLERS
-    from bench.gap.rigcal import METHODS
+    from bench.rig.rigcal import METHODS
     return tuple(CONTROLLERS), tuple(METHODS)
 
 
@@ -239,11 +239,11 @@ def _actuator(args: argparse.Namespace) -> int:
     """Another actuator: calibrate, score the held-out logs and, when no model of the
     family reaches the noise floor on them, build the healthy baseline from the
     calibration logs beside the calibration (bench.rig.fallback)."""
-    from bench.actuator import load
     from bench.gap.inputs import load_log
     from bench.gap.needs import availability
-    from bench.gap.rigcal import calibrate_rig
+    from bench.rig.actuator import load
     from bench.rig.fallback import baseline_for_calibration
+    from bench.rig.rigcal import calibrate_rig
     act = load(args.actuator)
     healthy = [load_log(p) for p in args.log]
     held = [load_log(p) for p in args.holdout]
@@ -282,5 +282,5 @@ def _actuator(args: argparse.Namespace) -> int:
 
 
 def _fit_summary(cal: dict[str, Any]) -> dict[str, dict[str, float]]:
-    from bench.gap.rigcal import summary
+    from bench.rig.rigcal import summary
     return summary(cal["fit_scores"])

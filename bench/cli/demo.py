@@ -67,12 +67,12 @@ def _shown(values: dict[str, Any]) -> list[str]:
 def _run_case(name: str, values: dict[str, Any], cycles: float, out: Path,
               args: argparse.Namespace, say) -> Path:
     # the imports below are heavy (numba): made when the demo runs, not at `bench --help`
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
     from plant_rt.params import PlantParams
     profile = make_profile("sine", cycles=cycles)
     params = PlantParams().with_dict(values)
     if args.in_process:
-        from bench.harness import simulate
+        from bench.sim.harness import simulate
         trace = simulate(profile, params)
         path = out / f"{name}.npz"
         trace.save(path)

@@ -118,7 +118,7 @@ def run_ingest(args: argparse.Namespace) -> int:
     rate = (res.stored + res.failed) / res.elapsed_s if res.elapsed_s > 0 else 0.0
     print(f"{res.files} files: {res.skipped} already stored, {res.stored} runs stored, "
           f"{res.failed} failed, in {res.elapsed_s:.1f} s ({rate:.2f} logs/s) -> {_db(args)}")
-    from bench.filenames import one_line
+    from bench.core.filenames import one_line
     for path, err in res.failures[:20]:
         print(f"  failed: {one_line(path)}: {one_line(err)}", file=sys.stderr)
     if len(res.failures) > 20:

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 from bench.cli import options as opt
 
 if TYPE_CHECKING:
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
 
 
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
@@ -258,9 +258,9 @@ def _attach_controller(args: argparse.Namespace, data: dict[str, Any] | None, lo
 
 def _is_rig(args: argparse.Namespace, data: dict[str, Any] | None) -> bool:
     """Whether --nominal (`data`, its object) is another actuator's generic calibration
-    (bench.gap.riggap) or a healthy baseline is given."""
+    (bench.rig.riggap) or a healthy baseline is given."""
     from bench import BenchError
-    from bench.gap.riggap import is_rig_doc
+    from bench.rig.riggap import is_rig_doc
     rig = data is not None and is_rig_doc(data)
     if not rig and (args.baseline or args.against != "auto"):
         if args.nominal:
@@ -290,13 +290,13 @@ def _thesis_log(args: argparse.Namespace) -> Trace:
 
 
 def _rig(args: argparse.Namespace, data: dict[str, Any] | None) -> int:
-    """The log against another actuator's generic calibration (bench.gap.riggap), or
+    """The log against another actuator's generic calibration (bench.rig.riggap), or
     against the healthy baseline when the calibration's model does not reach the noise
     floor or a baseline is given (bench.rig.fallback)."""
     from bench import BenchError
     from bench.gap.inputs import load_log
-    from bench.gap.riggap import CANDIDATES, calibration_of, diagnose_rig, text
     from bench.rig import fallback as FB
+    from bench.rig.riggap import CANDIDATES, calibration_of, diagnose_rig, text
     if args.friction_split not in (None, "model"):
         raise BenchError("--friction-split is for the thesis plant's model; a rig's "
                          "calibration has its own friction law")
@@ -335,9 +335,9 @@ def _rig_baseline(args: argparse.Namespace, ref: object) -> int:
     except BenchError as exc:
         raise BenchError(f"{args.log}: the gap against the healthy baseline not available: "
                          f"{exc}") from None
+    from bench.core.verdict import Verdict
     from bench.gap.result_json import gap_document
     from bench.rig.verdict import baseline_verdict
-    from bench.verdict import Verdict
     line = ref.line(FB.loads_judged(res))
     v = baseline_verdict(res, line) or Verdict.unknown(
         [f"the healthy baseline gave no verdict ({res['notes'][-1] if res['notes'] else ''})"],

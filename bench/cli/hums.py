@@ -20,8 +20,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench import BenchError, interrupts
+from bench import BenchError
 from bench.cli import options as opt
+from bench.runtime import interrupts
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -269,8 +270,8 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def run_sweep(args: argparse.Namespace) -> int:
+    from bench.core.thesis_rows import check
     from bench.hums import sweep as S
-    from bench.thesis_rows import check
     _check_args(args, "sweep")
     res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
                 scheduler=args.scheduler)
@@ -291,7 +292,7 @@ def run_sweep(args: argparse.Namespace) -> int:
 def run_rul(args: argparse.Namespace) -> int:
     from bench.hums import rul_run as R
     _check_args(args, "rul-noise" if args.noise else "rul")
-    from bench.workers import session
+    from bench.runtime.workers import session
     with session(args.workers, args.scheduler):     # one cluster: the runs, calibration
         res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
                         workers=args.workers, scheduler=args.scheduler)
@@ -313,7 +314,7 @@ def run_campaign(args: argparse.Namespace) -> int:
     args.healthy = 10 if args.healthy is None else args.healthy
     if args.runs < 1 or args.healthy < 0:
         raise BenchError("--runs must be >= 1 and --healthy >= 0")
-    from bench.workers import session
+    from bench.runtime.workers import session
     with session(args.workers, args.scheduler):     # one cluster: calibration, runs
         res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args),
                              args.workers, scheduler=args.scheduler)
@@ -344,7 +345,7 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
     nh = 5 if args.healthy is None else args.healthy
     if n < 1 or nh < 0 or args.max_days < 2:
         raise BenchError("--runs must be >= 1, --healthy >= 0 and --max-days >= 2")
-    from bench.workers import session
+    from bench.runtime.workers import session
     with session(args.workers, args.scheduler):     # one cluster: simulation, prognosis
         res = PC.run_usage_campaign(n, n_healthy=nh, seed=args.seed, params=_params(args),
                                     workers=args.workers, max_days=args.max_days)

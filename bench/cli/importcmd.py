@@ -8,11 +8,11 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bench import units
 from bench.cli import options as opt
+from bench.signals import units
 
 if TYPE_CHECKING:
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
 
 FORMATS = ("parquet", "npz", "csv")
 
@@ -49,7 +49,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     from bench.cli.outputs import check_output_file
-    from bench.filenames import check_not_input
+    from bench.core.filenames import check_not_input
     from bench.gap.importer import import_table, read_map
     if args.source_rate is not None and not (math.isfinite(args.source_rate)
                                              and args.source_rate > 0):
@@ -114,10 +114,10 @@ def _split(args: argparse.Namespace) -> int:
 
 def _split_paths(outdir: Path, stems: list[str], fmt: str) -> list[Path]:
     """The split traces' files in `outdir`, named from their keys through
-    `bench.filenames.data_file` (inside `outdir`, none of them an input), checked all
+    `bench.core.filenames.data_file` (inside `outdir`, none of them an input), checked all
     before the first is written; BenchError if two would be one file."""
     from bench import BenchError
-    from bench.filenames import data_file
+    from bench.core.filenames import data_file
     paths = [data_file(outdir, stem, f".{fmt}") for stem in stems]
     seen: dict[Path, str] = {}
     for stem, path in zip(stems, paths, strict=True):

@@ -6,7 +6,7 @@ added with `add_command(sub, name, help, description)`, its description a paragr
 prose.
 
 Worker processes (`--workers`): the one default is `None`, resolved where the work starts
-(`bench.workers`, `bench.cluster.default_workers`): 2 local worker processes, or 1 on a
+(`bench.runtime.workers`, `bench.runtime.cluster.default_workers`): 2 local worker processes, or 1 on a
 one-core machine, and 2 tasks at a time on a Dask scheduler. Two because the bench's
 timings and its reference results come from a 2-core machine: one process per core, and
 a local cluster never starts more processes than the cores this process may use. Two
@@ -46,9 +46,9 @@ def add_workers(parser: argparse.ArgumentParser, default: int | None = None,
 
 
 def add_scheduler(parser: argparse.ArgumentParser, help: str | None = None) -> None:  # noqa: A002
-    """`--scheduler ADDRESS`: an existing Dask cluster (`bench.cluster`)."""
+    """`--scheduler ADDRESS`: an existing Dask cluster (`bench.runtime.cluster`)."""
     if help is None:
-        from bench.cluster import SCHEDULER_HELP
+        from bench.runtime.cluster import SCHEDULER_HELP
         help = SCHEDULER_HELP
     parser.add_argument("--scheduler", metavar="ADDRESS", default=None, help=help)
 

@@ -17,7 +17,7 @@ command's inputs and outputs by option name, it refuses an output that resolves 
 of the command's inputs (the same file, also through a link or another name: samefile),
 a fixed-name file an output directory would get that is an input (``fleet export --out``
 into the store's folder when the store is ``runs.parquet``), an output directory that is
-an input file, and two outputs at one path; `inputs` gives the files `bench.filenames.protect`
+an input file, and two outputs at one path; `inputs` gives the files `bench.core.filenames.protect`
 then guards while the command runs (files named from data, e.g. ``import --split-by``,
 are checked as they are named).
 """
@@ -235,7 +235,7 @@ def _same(a: str, b: str) -> bool:
 def check_io(args: Namespace) -> None:
     """Before the command runs: no output of `args` resolves to one of its inputs, and
     no two outputs to one path (BenchError naming the options; module docstring); a
-    ``--workers`` count the machine cannot run (`bench.cluster.check_workers`) and a
+    ``--workers`` count the machine cannot run (`bench.runtime.cluster.check_workers`) and a
     ``--scheduler`` that is no address are refused too."""
     _check_pool(args)
     io = IO_TABLE.get(command_name(args))
@@ -264,9 +264,9 @@ def check_io(args: Namespace) -> None:
 
 def _check_pool(args: Namespace) -> None:
     """`--workers` and `--scheduler`, for every command that has them: a scheduler must
-    answer as one (`bench.cluster.probe_scheduler`) before anything is written."""
+    answer as one (`bench.runtime.cluster.probe_scheduler`) before anything is written."""
     if getattr(args, "workers", None) is not None or getattr(args, "scheduler", None):
-        from bench.cluster import check_workers, probe_scheduler, scheduler_address
+        from bench.runtime.cluster import check_workers, probe_scheduler, scheduler_address
         addr = scheduler_address(getattr(args, "scheduler", None))
         if addr is not None:
             probe_scheduler(addr)

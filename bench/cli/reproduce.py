@@ -55,7 +55,7 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 
 def _page(res, elapsed: float, figures: list[Path], page: Path, command: str) -> str:
-    from bench import reproduce as R
+    from bench.studies import reproduce as R
     text = R.markdown(res, machine_description(), command)
     text += f"\nWall time of the run: {elapsed:.1f} s.\n"
     if figures:
@@ -67,7 +67,7 @@ def _page(res, elapsed: float, figures: list[Path], page: Path, command: str) ->
 
 
 def run(args: argparse.Namespace) -> int:
-    from bench import reproduce as R
+    from bench.studies import reproduce as R
     from plant_rt.params import ParameterError, PlantParams
     try:
         params = PlantParams().with_assignments(args.set)
@@ -108,7 +108,7 @@ COLUMNS = (("id", 4), ("quantity", 44), ("unit", 6), ("thesis", 14), ("project",
 def terminal_table(rows) -> str:
     """The rows as a table for the terminal: a header with units, every value whole
     (long cells wrap onto the next lines)."""
-    from bench.reproduce import value_text as fmt
+    from bench.studies.reproduce import value_text as fmt
     head = "  ".join(f"{name:<{w}}" if k < 3 else f"{name:>{w}}"
                      for k, (name, w) in enumerate(COLUMNS))
     lines = [head, "  ".join("-" * w for _, w in COLUMNS)]

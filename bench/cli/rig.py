@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.cli import options as opt
-from bench.units import FORCE
+from bench.signals.units import FORCE
 
 DESCRIPTIONS = {
     "baseline": "A healthy baseline from the given healthy runs: per load, set-point "
@@ -187,7 +187,7 @@ def runs_list(text: str | None, flag: str) -> list[int] | None:
 def _check(args: argparse.Namespace) -> None:
     from bench import BenchError
     if getattr(args, "actuator", None) and getattr(args, "rig_command", "") != "classify":
-        from bench.actuator import load
+        from bench.rig.actuator import load
         desc = load(args.actuator)
         sign = desc.get("load_sign")      # the side a loaded play sits on (rig inject)
         args.load_sign = 1.0 if sign is None else float(sign)
@@ -354,7 +354,7 @@ def _study(args: argparse.Namespace) -> int:
     cal = runs_list(args.calibrate_runs, "--calibrate-runs") or []
     hold = runs_list(args.holdout_runs, "--holdout-runs") or []
     only = [x.strip() for x in args.only.split(",")] if args.only else None
-    from bench.workers import session
+    from bench.runtime.workers import session
     with session(args.workers, args.scheduler):     # one cluster for every condition
         study = run_study(args.directory, cal, hold, args.healthy, args.workers,
                           args.alpha, progress=sys.stderr.isatty(), conditions=only,

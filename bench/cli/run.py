@@ -17,7 +17,7 @@ from bench.cli import options as opt
 
 def _profile_flags() -> dict[str, str]:
     """Profile keyword -> flag, for every keyword of every profile except duration_s."""
-    from bench.profiles import PROFILES
+    from bench.profiles.catalog import PROFILES
     out: dict[str, str] = {}
     for factory in PROFILES.values():
         for name in inspect.signature(factory).parameters:
@@ -27,7 +27,7 @@ def _profile_flags() -> dict[str, str]:
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
-    from bench.profiles import PROFILES, profile_args
+    from bench.profiles.catalog import PROFILES, profile_args
     lines = []
     for name in PROFILES:
         args = ", ".join(f"{k}={v:g}" if isinstance(v, (int, float)) and v is not None
@@ -144,8 +144,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _checked_profile(args: argparse.Namespace):
     """The run's profile, after every flag and output path is checked (BenchError)."""
-    from bench.profiles import make_profile, profile_args
-    from bench.trace import check_save_path, probe_output
+    from bench.profiles.catalog import make_profile, profile_args
+    from bench.signals.trace import check_save_path, probe_output
 
     kwargs = {k[3:]: v for k, v in vars(args).items() if k.startswith("pf_") and v is not None}
     if args.duration is not None:

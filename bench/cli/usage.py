@@ -67,7 +67,7 @@ def _check(args: argparse.Namespace) -> None:
 
 def _settings(args: argparse.Namespace, cls):
     """The usage settings: --preload, --preload-n, then every --set NAME=VALUE."""
-    from bench.trace import is_number
+    from bench.signals.trace import is_number
     values: dict = {"preload_mode": args.preload,
                     "preload_n": -1.0 if args.preload_n is None else args.preload_n}
     known = {i.leaf: i for i in cls.infos()}
@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from bench.bus.logs import load_trace
-    from bench.filenames import distinct_labels
+    from bench.core.filenames import distinct_labels
     from bench.usage import UsageSettings, accumulate, usage_of_trace
     from bench.usage.accumulator import trace_params
     from bench.usage.table import format_table, notes
@@ -127,9 +127,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _plots(directory: str, runs, per_actuator) -> None:
     """A figure per run (`runs`: (label, stem, (file, summary))) and per actuator, each
-    named through `bench.filenames.data_file` (``STEM_usage.png``, ``actuator_S_usage.png``:
+    named through `bench.core.filenames.data_file` (``STEM_usage.png``, ``actuator_S_usage.png``:
     inside `directory`, distinct for distinct runs and serial numbers)."""
-    from bench.filenames import data_file
+    from bench.core.filenames import data_file
     from bench.usage.figure import save_usage_figure
     out = Path(directory)
     figures = [(data_file(out, f"{stem}_usage", ".png"), s,

@@ -2,9 +2,9 @@
 
 It holds a python-can bus and nothing of the plant but what the bus carries: NMT, SYNC
 production, its own heartbeat, SDO (canopen `RemoteNode` from `dbc/ema.eds`) and the
-PDOs of `dbc/ema.dbc` (cantools). The same `bench.control.Controller` as the in-process
+PDOs of `dbc/ema.dbc` (cantools). The same `bench.sim.control.Controller` as the in-process
 harness computes the current demand, so a lockstep bus run reproduces
-`bench.harness.simulate` within the DBC quantisation.
+`bench.sim.harness.simulate` within the DBC quantisation.
 
 Per control period k (CiA 301 synchronous PDOs):
 

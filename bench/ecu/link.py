@@ -22,7 +22,7 @@ from bench.ecu.nodeinfo import NodeInfo
 from bench.ecu.rowtap import RowTap
 from bench.ecu.sdoclient import SDO_ATTEMPTS, SDO_TIMEOUT_S, EcuRemoteNode
 from bench.ecu.signals import StopSignal
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from ema_contract.frames import FrameError, Frames, load_od
 from ema_contract.states import NMTCommand, NMTState, Pace
 from plant_rt.paramobjects import ParamObjects

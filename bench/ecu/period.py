@@ -18,12 +18,12 @@ from typing import Any
 import can
 import numpy as np
 
-from bench.control import Controller, ControllerParams
 from bench.ecu.errors import FAILING_BITS, BusLost, Interrupted, _at
 from bench.ecu.rowtap import RowTap
 from bench.ecu.signals import StopSignal
-from bench.profiles import Profile
-from bench.trace import Trace
+from bench.profiles.catalog import Profile
+from bench.signals.trace import Trace
+from bench.sim.control import Controller, ControllerParams
 from ema_contract.frames import FrameError
 from ema_contract.states import ControlWord, Pace, StatusWord
 from plant_rt.pacing import RealtimePacer

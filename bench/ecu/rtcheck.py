@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.control import MODE_IDLE, Controller, ControllerParams
+from bench.sim.control import MODE_IDLE, Controller, ControllerParams
 from plant_rt.pacing import RealtimePacer
 
 CALIBRATION_S = 0.2

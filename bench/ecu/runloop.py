@@ -12,7 +12,6 @@ from typing import Any
 from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 
 from bench import BenchError
-from bench.control import MODE_IDLE, Controller, ControllerParams
 from bench.ecu.claim import EcuClaim
 from bench.ecu.errors import (
     FAILING_BITS,
@@ -26,8 +25,9 @@ from bench.ecu.errors import (
 )
 from bench.ecu.period import EcuStats, PeriodSteps
 from bench.ecu.signals import StopSignal
-from bench.profiles import Profile
-from bench.trace import Trace, max_rows
+from bench.profiles.catalog import Profile
+from bench.signals.trace import Trace, max_rows
+from bench.sim.control import MODE_IDLE, Controller, ControllerParams
 from ema_contract.states import NMTCommand, Pace
 from plant_rt.params import PlantParams
 
@@ -218,8 +218,8 @@ RUN_COLUMNS = 16     # float64 columns of a bus run (Ecu.run): 3 set-point, 13 o
 def run_periods(duration_s: float, period_s: float) -> int:
     """The SYNC periods of a run of `duration_s`; BenchError, before anything starts, when
     that is less than one period or more than the trace can hold in memory (the ECU
-    keeps the whole trace in memory: `bench.trace.max_rows`)."""
-    from bench.trace import ROW_COPIES, memory_available
+    keeps the whole trace in memory: `bench.signals.trace.max_rows`)."""
+    from bench.signals.trace import ROW_COPIES, memory_available
     n = int(round(duration_s / period_s))
     if n < 1:
         raise BenchError(f"a run of {duration_s:g} s is shorter than one SYNC period "

@@ -9,15 +9,15 @@ from typing import Any
 
 from bench import BenchError
 from bench.bus.logwrite import log_format
-from bench.control import ControllerParams
 from bench.ecu.errors import PlantLost
 from bench.ecu.master import Ecu
 from bench.ecu.nodeinfo import NodeInfo
 from bench.ecu.rtcheck import RealtimeCheck, realtime_check
 from bench.ecu.runloop import run_periods
 from bench.ecu.signals import StopSignal
-from bench.profiles import Profile
-from bench.trace import Trace, probe_output
+from bench.profiles.catalog import Profile
+from bench.signals.trace import Trace, probe_output
+from bench.sim.control import ControllerParams
 from ema_contract.states import Pace
 from plant_rt.params import ParameterError, PlantParams, check_value, resolve
 

@@ -7,8 +7,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from bench import interrupts
 from bench.ecu.errors import Interrupted
+from bench.runtime import interrupts
 
 
 class StopSignal:

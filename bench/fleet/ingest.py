@@ -5,7 +5,7 @@ allowed); a PATH that is neither a file nor a directory (a FIFO, ``/dev/null``) 
 refused. Each file is keyed by the digest of its content (`digest`: sha256 of its lines
 in a canonical form for the text formats, of its bytes for the others): digests already
 in the store are skipped before any work, so the same log twice is stored once, under
-whatever name, with whatever line ends or blank lines. The rest are analysed on the worker pool (`bench.workers.run_all`):
+whatever name, with whatever line ends or blank lines. The rest are analysed on the worker pool (`bench.runtime.workers.run_all`):
 decoded (`bench.bus.logs.load_trace`: candump through the DBC, or a trace table) and
 graded by the HUMS report's own analysis (`bench.hums.report.analyse`: the indexes of
 eq. 6.4-6.7 against the monitoring model driven by the log's set-points, and the verdict
@@ -47,7 +47,7 @@ import numpy as np
 
 from bench import BenchError
 from bench.bus.logs import TABLE_SUFFIXES
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 LOG_SUFFIXES = (".log", *TABLE_SUFFIXES)
 """What `bench.bus.logs.load_trace` reads: candump logs and the trace table formats."""
@@ -377,9 +377,9 @@ def chunk_size(n_jobs: int, workers: int | None) -> int:
 def run_jobs(fn: Any, jobs: list[Any], workers: int | None, progress: bool,
              scheduler: str | None, on_result: Any = None, desc: str = "fleet ingest",
              unit: str = "log", label: Any = None) -> list[Any]:
-    """`bench.workers.run_all` (Dask: a LocalCluster on 127.0.0.1 of `workers` processes,
+    """`bench.runtime.workers.run_all` (Dask: a LocalCluster on 127.0.0.1 of `workers` processes,
     or the cluster at `scheduler`), with `on_result` called as each job finishes; the
     jobs go to the workers `chunk_size` at a time; `label(job)` names a job that fails."""
-    from bench.workers import run_all
+    from bench.runtime.workers import run_all
     return run_all(fn, jobs, workers, progress, desc=desc, unit=unit, on_result=on_result,
                    scheduler=scheduler, chunk=chunk_size(len(jobs), workers), label=label)

@@ -9,7 +9,7 @@ threshold, 0.80 warning, 0.56 failure), with the RUL's failure-time band when th
 one; Cp and the lost motion; the usage (docs/usage.md); the
 alerts (tests whose verdict is not HEALTHY) with links to the logs behind them.
 Figures are drawn with matplotlib's Figure API: the fleet's into ``DIR/figures``, each
-actuator's beside its page. An actuator's files are named by `bench.filenames.data_file`
+actuator's beside its page. An actuator's files are named by `bench.core.filenames.data_file`
 (one bounded name per id, distinct ids distinct files).
 """
 
@@ -25,6 +25,8 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.core.jsonsafe import json_safe
+from bench.core.verdict import Level
 from bench.fleet.schema import USAGE_COLUMNS
 from bench.fleet.status import (
     DAY_S,
@@ -38,8 +40,6 @@ from bench.fleet.status import (
     usage_text,
 )
 from bench.hums import rul as R
-from bench.jsonsafe import json_safe
-from bench.verdict import Level
 
 INSPECT_RUL_DAYS = 14.0
 """Inspect this week when the RUL's band starts within this many days."""
@@ -77,7 +77,7 @@ def write_report(store: Any, out_dir: str | Path) -> Path:
         (out / "actuators").mkdir(exist_ok=True)
     except OSError as exc:
         raise BenchError(f"{out}: cannot create the report directory: {exc}") from None
-    from bench.filenames import data_file
+    from bench.core.filenames import data_file
     rows = sorted(fleet_status(store), key=urgency)
     if not rows:
         raise BenchError(f"{store.path}: the fleet store has no runs yet")
@@ -98,9 +98,9 @@ def write_report(store: Any, out_dir: str | Path) -> Path:
 
 
 def _slug(ident: str) -> str:
-    """The actuator's file name stem (`bench.filenames.safe_name`: one name, bounded,
+    """The actuator's file name stem (`bench.core.filenames.safe_name`: one name, bounded,
     distinct ids give distinct names)."""
-    from bench.filenames import safe_name
+    from bench.core.filenames import safe_name
     return safe_name(ident)
 
 
@@ -222,7 +222,7 @@ def _usage_table(sub: dict[str, np.ndarray]) -> Any:
 def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) -> str:
     from urllib.parse import quote
 
-    from bench.filenames import data_file
+    from bench.core.filenames import data_file
     from bench.reports import (
         Document,
         Figure,

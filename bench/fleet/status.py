@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.core.verdict import Level
 from bench.hums import rul as R
 from bench.hums.verdict import judged_ci
-from bench.verdict import Level
 
 DAY_S = 86400.0
 N_TREND = 10
@@ -58,7 +58,7 @@ class ActuatorStatus:
 
     @property
     def level(self) -> Level:
-        """The last test's level (`bench.verdict.Level`: its code is -1 for UNKNOWN)."""
+        """The last test's level (`bench.core.verdict.Level`: its code is -1 for UNKNOWN)."""
         return Level.parse(self.verdict)
 
 
@@ -231,7 +231,7 @@ HEADER = ("actuator", "tests", "last test (UTC)", "level", "Ci", "trend Ci/day",
 
 def format_table(rows: list[ActuatorStatus]) -> str:
     """The status lines, one per actuator, with a header."""
-    from bench.filenames import one_line
+    from bench.core.filenames import one_line
     body = [(one_line(st.ident), str(st.tests),
              dt.datetime.fromtimestamp(st.last_time_s, dt.UTC).strftime(
                  "%Y-%m-%d %H:%M"), st.verdict,

@@ -30,7 +30,7 @@ of two rules (`wear=`):
 
 The ground test each day is the thesis' health-check sine (H4: 0.5 mm, 2 Hz,
 GROUND_TEST_CYCLES periods, position loop, no load) with sensor noise, simulated
-in-process (`bench.harness.simulate`, the bench's own closed loop; no bus) and written as
+in-process (`bench.sim.harness.simulate`, the bench's own closed loop; no bus) and written as
 a candump log through the DBC, the frames a lockstep bus run logs (NMT start, then per
 SYNC period: SYNC, set-point, TPDO1-3, RPDO1), so an ingest of the synthetic fleet reads
 logs by the same path as a real rig's. Candump rather than trace tables: the fleet's real
@@ -56,7 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from bench import BenchError
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from ema_contract.frames import Frames
 from ema_contract.states import ControlWord, NMTCommand, StatusWord
 
@@ -120,8 +120,8 @@ def flight_life_table(grid: tuple[float, ...] | None = None) -> dict[float, floa
     """Life consumed (fraction of L10, Palmgren-Miner) by one simulated flight at each
     severity of `grid`: the `flight` profile under the aero load, usage by `bench.usage`.
     Simulated once per severity per process (cached); `grid` defaults to SEVERITY_GRID."""
-    from bench.harness import simulate
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
+    from bench.sim.harness import simulate
     from bench.usage import usage_of_trace
     from plant_rt.params import PlantParams
     grid = SEVERITY_GRID if grid is None else grid
@@ -220,8 +220,8 @@ def wear_at(act: Actuator, day: int) -> dict[str, float]:
 
 def _job(job: tuple[str, dict[str, float], int, float, str]) -> str:
     """Worker: one ground test simulated and written as a candump log."""
-    from bench.harness import simulate
-    from bench.profiles import sine
+    from bench.profiles.catalog import sine
+    from bench.sim.harness import simulate
     from plant_rt.params import PlantParams
     path, wear, noise_seed, t0, _ = job
     p = PlantParams().with_dict({**wear, "sensors.noise": True,
@@ -281,7 +281,7 @@ def check_size(n: int, days: int, out_dir: str | Path) -> None:
     (MEMORY_PER_LOG each) in half the memory available now."""
     import shutil
 
-    from bench.trace import memory_available
+    from bench.signals.trace import memory_available
     logs = n * days
     base = Path(out_dir).absolute()
     while not base.exists() and base != base.parent:
@@ -317,7 +317,7 @@ def synth(n: int, days: int, out_dir: str | Path, seed: int = 0, workers: int | 
     if n < 1 or days < 1:
         raise BenchError("the synthetic fleet needs at least one actuator and one day")
     check_size(n, days, out_dir)
-    from bench.cluster import probe_scheduler, scheduler_address
+    from bench.runtime.cluster import probe_scheduler, scheduler_address
     addr = scheduler_address(scheduler)
     if addr is not None:
         probe_scheduler(addr)

@@ -6,7 +6,7 @@ candidate effects fitted by least squares, ranked by BIC, pairs by forward selec
 how far it shrinks on held-out data. See docs/gap.md.
 
     from bench.gap.diagnose import Options, diagnose
-    result = diagnose(trace)            # bench.trace.Trace of a logged run
+    result = diagnose(trace)            # bench.signals.trace.Trace of a logged run
     result.json()                       # {"localisation", "ranking", "verdict"}
 
 Modules: `resim` (re-simulation of a logged run and of single paths), `problem` (floors,

@@ -1,6 +1,6 @@
 """Blind check of the gap diagnosis (`bench gap-bench`).
 
-Logs are generated in-process by `bench.harness.simulate` (the bench's own closed loop,
+Logs are generated in-process by `bench.sim.harness.simulate` (the bench's own closed loop,
 the same frames a lockstep bus run gives) at FULL fidelity (switching PWM, dynamic
 balls) with sensor noise on, while the diagnosis re-simulates in the fast mode: the
 "real" plant is not the model the diagnosis fits. Each case is one of
@@ -12,7 +12,7 @@ balls) with sensor noise on, while the diagnosis re-simulates in the fast mode: 
               does not see, or a position-periodic current-sensor error applied to the
               logged current)
 
-Every log is the diagnosis maneuver (`bench.maneuvers.excitation`, with its axial sine
+Every log is the diagnosis maneuver (`bench.profiles.maneuvers.excitation`, with its axial sine
 load measured by the load cell). Effects act in the plant (parameters, inside the loop)
 or, for sensor-side effects, on the logged columns after the run (a first-order LVDT lag,
 a time skew of the measurements). Their magnitudes are drawn here from physical ranges
@@ -38,10 +38,10 @@ from typing import Any
 import numpy as np
 
 from bench.gap.diagnose import Options, diagnose
-from bench.harness import simulate
-from bench.maneuvers import excitation
-from bench.trace import MEASURED, Trace
-from bench.workers import run_all
+from bench.profiles.maneuvers import excitation
+from bench.runtime.workers import run_all
+from bench.signals.trace import MEASURED, Trace
+from bench.sim.harness import simulate
 from plant_rt.model import viscous_friction
 from plant_rt.params import PlantParams
 

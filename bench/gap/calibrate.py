@@ -45,7 +45,7 @@ from bench.gap.effects import Effect, Param
 from bench.gap.fit import fit
 from bench.gap.inputs import Calibration
 from bench.gap.problem import Problem, build, with_rate
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from plant_rt.params import PlantParams, resolve
 
 

@@ -11,7 +11,7 @@ The structure is the usual one of a servo drive, stated here as data (`Cascade`)
   current limit;
 - a sample time of a whole number of SYNC periods: the law runs at every `every`-th SYNC
   and its demand is held in between; the drive applies a demand one period later, as
-  over the bus (`bench.loop`).
+  over the bus (`bench.sim.loop`).
 
 `bench.gap.calibrate.fit_cascade` fits the gains and the speed limit by closed-loop
 least squares on a healthy log, for each position sensor and sample time, and keeps the
@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.loop import kernel_advance, kernel_measure, kernel_truth, no_prepare, run_loop
+from bench.sim.loop import kernel_advance, kernel_measure, kernel_truth, no_prepare, run_loop
 from plant_rt import kernel as K
 from plant_rt.jit import njit
 from plant_rt.pi import clamped_pi

@@ -2,7 +2,7 @@
 `lvdt_delay` and `encoder_delay`, `bench.gap.sensors`).
 
 The plant's own `effects.sensor_delay_s` delays both position sensors by the same whole
-SYNC periods (`bench.loop`: the controller reads measurement row k - ndelay). A transport
+SYNC periods (`bench.sim.loop`: the controller reads measurement row k - ndelay). A transport
 delay of one sensor alone (an LVDT conditioner behind a slow bus, an encoder read through
 a second drive) is another loop: the position loop reads an older sample than the speed
 loop. Here the controller part reads the LVDT `dl` rows and the encoder `de` rows further
@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.control import controller_step
 from bench.gap.cascade import cascade_rows
-from bench.loop import (
+from bench.sim.control import controller_step
+from bench.sim.loop import (
     R_MODE,
     R_POS,
     R_SPD,
@@ -43,7 +43,7 @@ def _rows(kvec, kd):  # pragma: no cover - compiled
 
 @njit(inline="always", error_model="numpy")
 def ecu_split_control(c, kvec, ref, kk, meas, kd):  # pragma: no cover - compiled
-    """The ECU's cascade (`bench.loop.ecu_control`) on an LVDT and an encoder delayed
+    """The ECU's cascade (`bench.sim.loop.ecu_control`) on an LVDT and an encoder delayed
     apart."""
     kl, ke = _rows(kvec, kd)
     return controller_step(c, kvec, ref[kk, R_POS], ref[kk, R_SPD], ref[kk, R_MODE],
@@ -86,7 +86,7 @@ def with_delays(kvec: np.ndarray, lvdt_periods: int, encoder_periods: int) -> np
 
 def split_columns(meas: np.ndarray, dem: np.ndarray, ndelay: int, lvdt_periods: int,
                   encoder_periods: int) -> dict[str, np.ndarray]:
-    """`bench.loop.measured_columns` with the LVDT `lvdt_periods` and the encoder (angle
+    """`bench.sim.loop.measured_columns` with the LVDT `lvdt_periods` and the encoder (angle
     and speed) `encoder_periods` further behind the model's own delay `ndelay`."""
     n = len(dem)
     out = {"current_a": meas[:n, K.M_CUR].copy(), "current_demand_a": dem}

@@ -45,8 +45,8 @@ from bench.gap.library import FRICTION_SPLITS
 from bench.gap.problem import Problem, build, fill_gaps
 from bench.gap.refine import refine
 from bench.gap.scores import excess, shrink_pct
-from bench.trace import Trace
-from bench.workers import ensure_started, make_pool
+from bench.runtime.workers import ensure_started, make_pool
+from bench.signals.trace import Trace
 from plant_rt.params import PlantParams
 
 SIGNIFICANT = 1.5       # smoothed residual energy / floor above which a gap is significant

@@ -33,7 +33,7 @@ from bench.gap import indiebench as IB
 from bench.gap.blind import Case, Truth, score, summarise
 from bench.gap.calibrate import reference_of
 from bench.gap.diagnose import Options, diagnose
-from bench.workers import run_all
+from bench.runtime.workers import run_all
 from indie_plant.params import IndieParams
 
 PHYSICS = {"friction_ripple": 0.15, "seal_friction_n": 40.0, "current_filter_s": 3e-4}

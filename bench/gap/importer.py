@@ -2,7 +2,7 @@
 
 Many rigs do not log CAN. A CSV or Parquet table (CSV also .xz/.gz/.bz2-compressed) at
 any fixed or varying sample rate, with a column map, becomes the bench's signal table
-(`bench.trace.Trace`), ready for `bench gap`, `bench calibrate` and the HUMS.
+(`bench.signals.trace.Trace`), ready for `bench gap`, `bench calibrate` and the HUMS.
 
 The map (JSON or CSV) gives, per bench signal: the source column, its unit and an
 optional scale (for angles an optional wrap period in raw values to unwrap; ``minus``: a
@@ -50,9 +50,9 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
-from bench.trace import Trace
-from bench.units import UNITS
+from bench.signals.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
+from bench.signals.trace import Trace
+from bench.signals.units import UNITS
 
 __all__ = ["COMPRESSED", "FINITE", "MapEntry", "Rows", "build_trace", "import_table",
            "map_columns", "read_map", "read_rows", "read_table", "split_table"]
@@ -277,7 +277,7 @@ def _values(raw: dict[str, np.ndarray], e: MapEntry, rows: Rows) -> np.ndarray:
 
 
 def _check_types(by_sig: dict[str, MapEntry], rows: Rows) -> None:
-    """A timestamp or duration column (Parquet; read in seconds, `bench.tables`)
+    """A timestamp or duration column (Parquet; read in seconds, `bench.signals.tables`)
     maps only to the time t_s, with unit s and scale 1: any other use is a BenchError
     naming the column."""
     for sig, e in by_sig.items():

@@ -34,13 +34,13 @@ from typing import Any
 
 import numpy as np
 
-from bench.control import ControllerParams
 from bench.gap.blind import Case, Truth, score, summarise
 from bench.gap.calibrate import calibrate, default_names, heldout_significance, reference_of
 from bench.gap.diagnose import Options, diagnose
-from bench.maneuvers import LOAD_HZ, excitation
-from bench.trace import Trace
-from bench.workers import run_all
+from bench.profiles.maneuvers import LOAD_HZ, excitation
+from bench.runtime.workers import run_all
+from bench.signals.trace import Trace
+from bench.sim.control import ControllerParams
 from indie_plant.controller import Cascade
 from indie_plant.generate import simulate as indie_simulate
 from indie_plant.params import IndieParams

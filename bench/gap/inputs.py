@@ -2,7 +2,7 @@
 
 - ``*.log`` (candump log format): decoded through the DBC by
   `bench.bus.logs.trace_from_log` (the bus's log decoder);
-- ``*.npz`` / ``*.csv`` / ``*.parquet``: a `bench.trace.Trace` file (e.g. from
+- ``*.npz`` / ``*.csv`` / ``*.parquet``: a `bench.signals.trace.Trace` file (e.g. from
   `bench import` or a saved run).
 Both through the one log loader, `bench.bus.logs.load_trace`: only measured columns are
 kept (simulation truth is dropped), and metadata is reduced to what a real log could
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import BenchError
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from plant_rt.params import ParameterError, PlantParams
 
 BASELINE_FORMAT = "bench-rig-baseline/1"

@@ -29,9 +29,9 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d, uniform_filter1d
 from scipy.signal import get_window
 
-from bench import estimators as E
 from bench.gap import resim as R
 from bench.gap.problem import Problem
+from bench.signals import estimators as E
 
 REGIMES = ("reversal", "load_change", "acceleration", "cruise", "dwell")
 LOAD_RATE_N_PER_S = 5000.0   # load cell rate above which a sample is in a load change

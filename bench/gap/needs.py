@@ -4,7 +4,7 @@ index, report section and calibration, and what a given log can therefore suppor
 A declaration is a tuple of signals; ``"a|b"`` means either one. Consumers built on the
 thesis plant's or the monitoring model's re-simulation also need samples at the SYNC
 period (`SYNC_RATE`): their models advance one SYNC period per logged sample. The
-generic model (`bench.gap.rigmodel`) runs at its own step and is sampled at the log's
+generic model (`bench.sim.rigmodel`) runs at its own step and is sampled at the log's
 instants, so its consumers take any rate.
 
 `availability(trace)` says, per consumer, ``None`` (available) or the reason it is not
@@ -21,7 +21,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from bench.hums.formulas import CURRENT_SIGNALS, LOST_MOTION_SIGNALS, POSITION_SIGNALS
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 PLANT_RESIM = ("t_s", "mode", "current_a", "motor_speed_rad_s", "motor_angle_rad",
                "position_m")
@@ -54,7 +54,7 @@ NEEDS: dict[str, tuple[str, ...]] = {
     "gap effect: stiffness, preload, lead, lvdt_gain, lvdt_lag, lvdt_offset":
         PLANT_RESIM + (SYNC_RATE,),
     "gap effect: encoder_gain, sensor_delay, log_skew": PLANT_RESIM + (SYNC_RATE,),
-    # the gap against a generic calibration (bench.gap.riggap), any rate
+    # the gap against a generic calibration (bench.rig.riggap), any rate
     "rig gap: localisation (signal, regime, direction, position)":
         ("setpoint_position_m", "position_m"),
     "rig gap: ranking (friction, force gain, inertia, controller, localised)":

@@ -23,12 +23,12 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from bench import BenchError
-from bench.estimators import noise_floor
 from bench.gap import resim as R
 from bench.gap.autocorr import corr_length
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect
-from bench.trace import MODE_POSITION, MODE_SPEED, Trace
+from bench.signals.estimators import noise_floor
+from bench.signals.trace import MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
 
 NEEDED = ("t_s", "mode", "current_a", "motor_speed_rad_s", "motor_angle_rad", "position_m")
@@ -184,7 +184,7 @@ class Problem:
 def noise_std(y: np.ndarray) -> float:
     """White-noise standard deviation of `y` from its second difference (robust MAD):
     var(d2 y) = 6 sigma^2 for white noise; smooth motion barely contributes at 1 kHz.
-    The one estimator of the bench (`bench.estimators.noise_floor`), 0.0 below 10
+    The one estimator of the bench (`bench.signals.estimators.noise_floor`), 0.0 below 10
     finite samples (a fit's weight, where the floor's NaN would poison the cost)."""
     y = np.asarray(y, float)
     y = y[np.isfinite(y)]

@@ -3,7 +3,7 @@
 Everything here is driven by logged signals only (never by simulation truth):
 
 - `closed_loop`: the bench's own loop (set-point -> ECU -> plant, the compiled
-  `bench.loop.ecu_on_plant` that `bench.harness` runs), driven by the logged set-points
+  `bench.sim.loop.ecu_on_plant` that `bench.sim.harness` runs), driven by the logged set-points
   and mode, and by the logged axial load when the log has a load cell. The ECU demand
   computed at SYNC k is applied by the drive during period k+1, exactly as over the bus.
   With `Drive.cascade` set, an identified generic cascade (`bench.gap.cascade`) takes
@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.control import NC as CTRL_NC
-from bench.control import ControllerParams
 from bench.gap import delays as D
 from bench.gap.cascade import NGC, Cascade, cascade_on_plant
-from bench.loop import (
+from bench.sim.control import NC as CTRL_NC
+from bench.sim.control import ControllerParams
+from bench.sim.loop import (
     NT,
     delay_periods,
     ecu_on_plant,
@@ -96,7 +96,7 @@ RESIMS = ("closed-loop", "measured-current")
 controller, the measured current driving the plant (measured-current, `current_driven`)."""
 RESTART_S = 0.5
 """measured-current: the mechanics re-start from the measured state this often (s), the
-generic rig model's segment (`bench.gap.rigmodel.current_driven`)."""
+generic rig model's segment (`bench.sim.rigmodel.current_driven`)."""
 CURRENT_PASSES = 3
 """measured-current: the demand is corrected by the model current's error against the
 measured one and the run repeated (iterative learning), this many runs in all: a PI
@@ -104,7 +104,7 @@ current loop lags a ramping back-EMF by ke (dw/dt) / ki (~1.5 A at full accelera
 which the measured current already holds."""
 RESTART_FIT_S = 0.002
 """measured-current: the re-start angle and speed come from a straight line fitted to the
-measured encoder angle over +- this (s) (`bench.gap.rigmodel.restart_state`): a few
+measured encoder angle over +- this (s) (`bench.sim.rigmodel.restart_state`): a few
 periods, so a re-start at the onset of a step does not take the step's speed."""
 
 
@@ -157,7 +157,7 @@ def _run(entry: Callable[..., int], params: PlantParams, drive: Drive, n: int, a
          noise: np.ndarray, ref: np.ndarray, kvec: np.ndarray, cstate: np.ndarray,
          ndelay: int, final: dict[str, np.ndarray] | None = None
          ) -> tuple[np.ndarray, np.ndarray]:
-    """Run `entry` (a `bench.loop` entry point) on the plant at rest at the log's start;
+    """Run `entry` (a `bench.sim.loop` entry point) on the plant at rest at the log's start;
     after a non-finite state the remaining periods are NaN. Returns (meas, demand);
     `final`, when given, receives the plant's last state (``final["x"]``)."""
     plant = initial_plant(params, _x0_true(params, drive))
@@ -274,7 +274,7 @@ def resync(x, p, aux, kk):  # pragma: no cover - compiled
 @njit(cache=True, error_model="numpy")
 def table_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                    diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
-    """The logged demand (`bench.loop.table_control`) on the full plant, re-synchronised
+    """The logged demand (`bench.sim.loop.table_control`) on the full plant, re-synchronised
     where aux says so."""
     return run_loop(resync, kernel_measure, kernel_truth, kernel_advance, table_control,
                     x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
@@ -386,13 +386,13 @@ def current_driven(params: PlantParams, drive: Drive, n: int | None = None,
     loop, so its residual is the mechanics' and sensors' gap over half a second. The
     current is an input here: its residual only shows the drive's tracking.
     Returns the columns of `closed_loop` (current_demand_a: the replayed demand)."""
-    from bench.gap.rigmodel import restart_state
+    from bench.sim.rigmodel import restart_state
     n = len(drive.t) if n is None else min(n, len(drive.t))
     if drive.current_meas is None or drive.angle_meas is None:
         raise ValueError("a measured-current re-simulation needs the logged current_a and "
                          "motor_angle_rad")
     cur = np.nan_to_num(np.asarray(drive.current_meas[:n], float))
-    # the table's row k is applied over period k + 1 (bench.loop): the current at k + 2
+    # the table's row k is applied over period k + 1 (bench.sim.loop): the current at k + 2
     table = np.append(cur[2:], np.full(min(2, n), cur[-1])).reshape(n, 1)
     nd = delay_periods(params)
     dt = params.sim.sync_period_s

@@ -9,11 +9,11 @@ from typing import Any
 
 import numpy as np
 
+from bench.core.verdict import Level, Verdict
 from bench.gap import effects as E
 from bench.gap import families as F
 from bench.gap.problem import Problem
 from bench.gap.scores import excess, shrink_pct
-from bench.verdict import Level, Verdict
 
 
 def gap_summary(p: Problem, energies: dict[str, float]) -> dict[str, Any]:
@@ -101,7 +101,7 @@ GAP_KEYS = (
     "phase_indexes", "notes",
 )
 """The top-level keys of `bench gap --json`, whatever the log was judged against: the
-keys a path has no value for are null. `verdict` is `bench.verdict.Verdict.to_json()`;
+keys a path has no value for are null. `verdict` is `bench.core.verdict.Verdict.to_json()`;
 `against` is "model" or "baseline"; `reference` says what exactly."""
 
 

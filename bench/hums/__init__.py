@@ -23,7 +23,7 @@
   `bench.hums.campaign`: the run-to-failure campaign, its table, JSON and figure.
 - `bench.hums.report`: self-contained HTML report of one or more logs.
 
-Every computation reads a `bench.trace.Trace` (in-process run, live bus run, decoded
+Every computation reads a `bench.signals.trace.Trace` (in-process run, live bus run, decoded
 candump log or imported table) and only its measured columns; simulation truth columns
 are used for ground truth in studies, never by the monitor.
 """

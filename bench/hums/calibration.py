@@ -8,7 +8,7 @@
 - Noise of each estimate, fusion weights, warning level and fit floor: noisy healthy runs
   (no backlash, friction +-10 %, a held preload of 0-3 kN).
 
-The runs go to the worker pool (`bench.workers.run_all`).
+The runs go to the worker pool (`bench.runtime.workers.run_all`).
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.harness import simulate
 from bench.hums import monitor as M
 from bench.hums.fusion import (
     FEATURES,
@@ -33,8 +32,9 @@ from bench.hums.fusion import (
 from bench.hums.records import RunRecord, record_from_trace, simulate_record
 from bench.hums.rul import FAILURE
 from bench.hums.sweep import degraded
-from bench.profiles import make_profile
-from bench.workers import run_all
+from bench.profiles.catalog import make_profile
+from bench.runtime.workers import run_all
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 CALIBRATION_VERSION = 3     # part of the report's cache key: bump when calibrate() changes

@@ -7,7 +7,7 @@ preload decay; `CAMPAIGN_RANGES`) and noise seed, and has a noise-free twin for 
 failure time (Ci, eq. 6.6, below 0.56). Healthy runs (no backlash, friction +-10 %,
 preload held) measure false alarms. Methods: the thesis' cubic on Ci and on Ci over 15
 harmonics (`bench.hums.rul`), the fused predictor (`bench.hums.fusion`); metrics
-`bench.hums.metrics`. The runs go to the worker pool (`bench.workers.run_all`), longest
+`bench.hums.metrics`. The runs go to the worker pool (`bench.runtime.workers.run_all`), longest
 first.
 """
 
@@ -22,14 +22,14 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError, machine_description
+from bench.core.jsonsafe import json_safe
 from bench.hums import monitor as M
 from bench.hums.calibration import calibrate, healthy_params
 from bench.hums.fusion import Calibration, FusedPredictor, causal_median, fused_backlash
 from bench.hums.metrics import LAMBDA_ROWS, score_run, summarise_scores
 from bench.hums.records import RunRecord, simulate_record, true_failure_time
 from bench.hums.rul import N_BOOT, WARNING, Prediction, thesis_predict, thesis_profile
-from bench.jsonsafe import json_safe
-from bench.workers import run_all
+from bench.runtime.workers import run_all
 from plant_rt.params import PlantParams
 
 CAMPAIGN_RANGES = {

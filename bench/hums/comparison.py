@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench import estimators as E
 from bench.hums.formulas import (
     CURRENT_SIGNALS,
     LOST_MOTION_SIGNALS,
@@ -25,7 +24,8 @@ from bench.hums.formulas import (
 )
 from bench.hums.motion import Kinematics, motion_signals
 from bench.hums.spectra import N_HARMONICS, harmonic_amplitudes
-from bench.trace import Trace
+from bench.signals import estimators as E
+from bench.signals.trace import Trace
 
 
 def distortion(harmonics_a) -> float:

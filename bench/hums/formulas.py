@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from bench import BenchError
-from bench import estimators as E
+from bench.signals import estimators as E
 
 POSITION_SIGNALS = ("position_m",)
 CURRENT_SIGNALS = ("current_a",)

@@ -10,7 +10,7 @@ import numpy as np
 
 from bench.hums.comparison import Indexes
 from bench.hums.formulas import CURRENT_SIGNALS, LOST_MOTION_SIGNALS, POSITION_SIGNALS
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 BRIDGE_MAX_SAMPLES = 5
 """Longest run of missing samples (lost SYNCs, missing frames, NaN rows) that is bridged

@@ -22,10 +22,10 @@ import numpy as np
 
 from bench import BenchError
 from bench.bus.rows import RowAssembler
+from bench.core.verdict import Level, Verdict
 from bench.hums import indexes as I
 from bench.hums import verdict as V
 from bench.hums.indexes import Indexes, OnlineHums
-from bench.verdict import Level, Verdict
 from ema_contract.frames import Frames, load_od
 from plant_rt.params import PlantParams
 

@@ -8,8 +8,8 @@ What it keeps from the plant (`plant_rt`, chapter 5), with the same parameter va
   torque demodulation filter tau_h (eq. 5.4) and the reducer C_m = eta T_M / tau (eq. 5.7);
 - the sensors (eq. 5.1-5.2): LVDT and encoder second order, current sensor first order,
   encoder angle quantised to the same counts, so its outputs are the measured columns;
-- the ECU controller (`bench.control.controller_step`, same speed PI gains) at the SYNC
-  rate in the bench's one closed loop (`bench.loop`, as the harness): the demand computed
+- the ECU controller (`bench.sim.control.controller_step`, same speed PI gains) at the SYNC
+  rate in the bench's one closed loop (`bench.sim.loop`, as the harness): the demand computed
   at SYNC k is applied by the drive during period k+1.
 
 What it replaces: the whole screw (balls, contacts, backlash, preload, double nut) by a
@@ -43,12 +43,12 @@ from typing import Any, ClassVar
 import numpy as np
 
 from bench import BenchError
-from bench.control import NC as CTRL_NC
-from bench.control import THESIS_SET_GAIN_V_PER_M, ControllerParams
-from bench.loop import ecu_control, ecu_reference, no_columns, no_prepare, run_chunks, run_loop
-from bench.paramset import ParamSet
-from bench.profiles import Profile
-from bench.trace import Trace
+from bench.core.paramset import ParamSet
+from bench.profiles.catalog import Profile
+from bench.signals.trace import Trace
+from bench.sim.control import NC as CTRL_NC
+from bench.sim.control import THESIS_SET_GAIN_V_PER_M, ControllerParams
+from bench.sim.loop import ecu_control, ecu_reference, no_columns, no_prepare, run_chunks, run_loop
 from plant_rt import kernel as K
 from plant_rt.jit import njit
 from plant_rt.model import current_ki, equivalent_inertia, static_friction, viscous_friction
@@ -78,7 +78,7 @@ _NOMINAL = PlantParams()
 @dataclass(frozen=True)
 class ThesisMonitorGains(ParamSet):
     """The monitoring model's position gains the thesis prints (thesis units, (rad/s)/V,
-    with K_SET = 285.7 V/m: `bench.control.THESIS_SET_GAIN_V_PER_M`)."""
+    with K_SET = 285.7 V/m: `bench.sim.control.THESIS_SET_GAIN_V_PER_M`)."""
     _group: ClassVar[str] = "monitor_gains"
     start_thesis_units: float = P(20.0, "(rad/s)/V", 0.0, 1e5,
                                   "the first attempt of the thesis' fminsearch",
@@ -97,7 +97,7 @@ THESIS_FITTED_GAIN = THESIS_GAINS.fitted_thesis_units
 @dataclass(frozen=True)
 class MonitorParams(ParamSet):
     """Parameters of the monitoring model (SI, thesis symbols in the docs), with units,
-    ranges and sources as the plant's (`bench.paramset`).
+    ranges and sources as the plant's (`bench.core.paramset`).
 
     Build it from a plant parameter set with `from_plant`, so the nominal values are the
     plant's tables 5.1-5.4; only `friction_factor` (eq. 6.1's 2) and the integration step
@@ -260,7 +260,7 @@ def monitor_advance(x: np.ndarray, q: np.ndarray, idem: float) -> None:
         x[S_T] += dt
 
 
-# --- the monitor's parts for the one closed loop (bench.loop) ---------------------------
+# --- the monitor's parts for the one closed loop (bench.sim.loop) ---------------------------
 
 @njit(inline="always", error_model="numpy")
 def monitor_measure(x, q, s, noise, kk, m):  # pragma: no cover - compiled
@@ -292,7 +292,7 @@ def monitor_step(x, q, u, kk, applied, noise, diag, k):  # pragma: no cover - co
 @njit(cache=True, error_model="numpy")
 def ecu_on_monitor(x, q, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                    diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
-    """The ECU (`bench.loop.ecu_control`) on the monitoring model, with the bus timing."""
+    """The ECU (`bench.sim.loop.ecu_control`) on the monitoring model, with the bus timing."""
     return run_loop(no_prepare, monitor_measure, monitor_truth, monitor_step, ecu_control,
                     x, q, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                     diag_out, truth_out, applied, k0)
@@ -337,7 +337,7 @@ class Monitor:
 
     def run(self, sp_pos: np.ndarray, sp_spd: np.ndarray, mode: np.ndarray,
             noise: np.ndarray | None = None) -> np.ndarray:
-        """Advance len(sp_pos) periods with the ECU in the loop (`bench.loop`'s timing: the
+        """Advance len(sp_pos) periods with the ECU in the loop (`bench.sim.loop`'s timing: the
         demand of SYNC k applied over period k + 1, carried across calls).
 
         Returns (n, 6) rows (current_a, motor_speed_rad_s, motor_angle_rad, position_m,
@@ -370,7 +370,7 @@ def simulate_monitor(profile: Profile, position_kp_rad_s_per_m: float | None = N
                      mparams: MonitorParams | None = None,
                      cparams: ControllerParams | None = None,
                      duration_s: float | None = None) -> Trace:
-    """The nominal trace of `profile` (same column names as `bench.harness.simulate`)."""
+    """The nominal trace of `profile` (same column names as `bench.sim.harness.simulate`)."""
     mparams = mparams or MonitorParams.from_plant()
     ts = mparams.sync_period_s
     n = int(round((profile.duration_s if duration_s is None else duration_s) / ts))
@@ -522,14 +522,14 @@ def fit_gain(real: Trace, mparams: MonitorParams | None = None,
 
 def h1_profile() -> Profile:
     """The fit's maneuver: the thesis' fig. 6.2 sine (+-0.5 mm, 2 Hz, four periods)."""
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
     return make_profile("sine")
 
 
 @lru_cache(maxsize=8)
 def _fitted_cached(params_json: str, cparams_items: tuple[tuple[str, float], ...]
                    ) -> tuple[GainFit, Trace]:
-    from bench.harness import simulate
+    from bench.sim.harness import simulate
     params = PlantParams.from_json(params_json)
     cparams = ControllerParams(**dict(cparams_items))
     real = simulate(h1_profile(), params, cparams)

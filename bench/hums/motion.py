@@ -18,16 +18,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from bench.core.paramset import ParamSet
 from bench.hums.formulas import LOST_MOTION_SIGNALS, lost_motion_from, stall_time_from
-from bench.paramset import ParamSet
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from plant_rt.params import P
 
 
 @dataclass(frozen=True)
 class Kinematics(ParamSet):
     """Nominal screw kinematics and LVDT dynamics used by lost motion (from PlantParams),
-    with units, ranges and sources as the plant's (`bench.paramset`)."""
+    with units, ranges and sources as the plant's (`bench.core.paramset`)."""
     _group: ClassVar[str] = "kinematics"
     travel_per_motor_rad_m: float = P(0.25 * 5e-3 / (2 * math.pi), "m/rad", 1e-9, 1.0,
                                       "nut travel per motor radian, tau p / 2 pi",

@@ -10,7 +10,6 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.estimators import fundamental_hz
 from bench.hums.comparison import Indexes, check_aligned, has_signals
 from bench.hums.formulas import (
     CURRENT_SIGNALS,
@@ -27,7 +26,8 @@ from bench.hums.formulas import (
 )
 from bench.hums.motion import Kinematics, MotionStream, motion_signals
 from bench.hums.spectra import N_HARMONICS, harmonic_amplitudes
-from bench.trace import Trace
+from bench.signals.estimators import fundamental_hz
+from bench.signals.trace import Trace
 
 
 def _slice(trace: Trace, sl: slice) -> Trace:

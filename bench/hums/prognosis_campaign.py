@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError, machine_description
+from bench.core.jsonsafe import json_safe
 from bench.hums import usage_campaign as U
 from bench.hums.metrics import LAMBDA_ROWS, score_run, summarise_scores
 from bench.hums.prognosis import (
@@ -38,7 +39,6 @@ from bench.hums.prognosis import (
     index_wear,
 )
 from bench.hums.rul import FAILURE, Prediction
-from bench.jsonsafe import json_safe
 from plant_rt.params import PlantParams
 
 CAL_SWEEP_SEED = 9990
@@ -202,7 +202,7 @@ def run_usage_campaign(n: int = 50, n_cal: int = 8, n_healthy: int = 5,
                        ) -> UsageCampaignResult:
     """Simulate, calibrate, prognose and score (module docstring)."""
     from bench.hums import monitor as M
-    from bench.workers import run_all
+    from bench.runtime.workers import run_all
     if n < 1 or n_cal < 2:
         raise BenchError("the usage campaign needs >= 1 judged and >= 2 calibration "
                          "actuators")

@@ -76,12 +76,12 @@ def prognose_trends(path: str | Path | Table, cal: PrognosisCalibration, seed: i
                     workers: int | None = 1, progress: bool = False
                     ) -> tuple[dict[str, list[RulEstimate]], list[str]]:
     """Every actuator of a trends CSV (or a read table): its estimates, and the index
-    names skipped. `workers`: `bench.workers.run_all`'s (None: in this process below
+    names skipped. `workers`: `bench.runtime.workers.run_all`'s (None: in this process below
     2,000 ground tests, else its default; each actuator's filter has its own seed, so
     the numbers do not depend on it); `progress`: a tqdm bar in actuators."""
     from tqdm import tqdm
 
-    from bench.workers import run_all
+    from bench.runtime.workers import run_all
     data = from_table(path) if isinstance(path, Table) else read_trends(path)
     skipped = sorted({k for ts in data.values() for d in ts.values() for k in d
                       if k not in cal.curves and k != EXPOSURE})

@@ -19,11 +19,11 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.harness import simulate
 from bench.hums import indexes as I
 from bench.hums import monitor as M
 from bench.hums.rul import FAILURE
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 

@@ -2,7 +2,7 @@
 
 A log is a candump ``.log`` decoded through the DBC (`bench.bus.logs.trace_from_log`,
 when that module is installed) or a trace table (``.npz``, ``.csv``, ``.parquet``,
-`bench.trace.Trace.load`). The report compares each log with the monitoring model
+`bench.signals.trace.Trace.load`). The report compares each log with the monitoring model
 driven by the log's own set-points and gives, for a reader who never ran the bench:
 what was run, the indexes with their healthy ranges, a verdict, the per-period trend
 and, for long periodic logs, the fused backlash estimate and the RUL with its band.
@@ -22,13 +22,13 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench import estimators as E
+from bench.core.jsonsafe import json_safe
+from bench.core.verdict import Verdict
 from bench.hums import indexes as I
 from bench.hums import monitor as M
 from bench.hums.verdict import index_record, judge, judged_ci
-from bench.jsonsafe import json_safe
-from bench.trace import MEASURED, MODE_POSITION, MODE_SPEED, Trace
-from bench.verdict import Verdict
+from bench.signals import estimators as E
+from bench.signals.trace import MEASURED, MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
 
 MIN_PERIODS_FOR_TREND = 6
@@ -477,7 +477,7 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
     if not paths:
         raise BenchError("give at least one log")
     from bench.bus.logs import load_trace
-    from bench.filenames import distinct_labels
+    from bench.core.filenames import distinct_labels
     analyses = []
     for p, label in zip(paths, distinct_labels(paths), strict=True):
         tr = load_trace(p)

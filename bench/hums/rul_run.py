@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 
 from bench import machine_description
+from bench.core.thesis_rows import Row
+from bench.core.thesis_rows import markdown as table
 from bench.hums import monitor as M
 from bench.hums.calibration import calibrate
 from bench.hums.fusion import Calibration, FusedPredictor, FusedResult
@@ -43,9 +45,7 @@ from bench.hums.rul import (
     thesis_profile,
 )
 from bench.hums.table import figure_links
-from bench.thesis_rows import Row
-from bench.thesis_rows import markdown as table
-from bench.workers import run_all
+from bench.runtime.workers import run_all
 from plant_rt.params import PlantParams
 
 THESIS_RUL_S, THESIS_T_PRED_S = 13.5, 118.0

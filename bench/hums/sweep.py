@@ -9,9 +9,9 @@ torques and forces x(1 + 3 d) (section 5.7.4); no external load, no preload (sec
     H4  closed loop, nut position sine +-0.5 mm, 2 Hz, four periods (also H5's spectra)
 
 each without and with sensor noise (H6). Every point runs the high-fidelity plant
-(`bench.harness.simulate`: 10 kHz switching PWM, dynamic balls) and compares its
+(`bench.sim.harness.simulate`: 10 kHz switching PWM, dynamic balls) and compares its
 measured columns with the monitoring model's nominal (`bench.hums.monitor`, position gain
-fitted by Nelder-Mead: row H1). Points run on both cores (`bench.workers.run_all`).
+fitted by Nelder-Mead: row H1). Points run on both cores (`bench.runtime.workers.run_all`).
 """
 
 from __future__ import annotations
@@ -25,14 +25,14 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError, machine_description
-from bench.harness import simulate
+from bench.core.thesis_rows import Row
+from bench.core.thesis_rows import markdown as table
 from bench.hums import indexes as I
 from bench.hums import monitor as M
 from bench.hums.table import figure_links
-from bench.profiles import make_profile
-from bench.thesis_rows import Row
-from bench.thesis_rows import markdown as table
-from bench.workers import run_all
+from bench.profiles.catalog import make_profile
+from bench.runtime.workers import run_all
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 MANEUVERS: dict[str, str] = {"H2": "velocity-step", "H3": "velocity-cosine", "H4": "sine"}

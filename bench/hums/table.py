@@ -1,5 +1,5 @@
 """Generated doc sections: a page's text between markers replaced, figure links (the rows
-themselves and their table: `bench.thesis_rows`)."""
+themselves and their table: `bench.core.thesis_rows`)."""
 
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ trend's own path is given; the trend's own otherwise, with a note saying why.
 `on_result` and dropped, so memory stays that of one chunk whatever the number of
 tests), in this process (the default: ~1 ms of CPU per test, less than what starting
 Dask workers costs below ~10^5 tests) or on `--workers` Dask workers
-(`bench.workers.run_all`), with one tqdm bar in tests.
+(`bench.runtime.workers.run_all`), with one tqdm bar in tests.
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ def run(trends: list[Trend], settings: Settings, on_result: Callable[[TrendResul
     """Every trend's prognosis, handed to `on_result` in file order (module docstring)."""
     from tqdm import tqdm
 
-    from bench.workers import run_all, session
+    from bench.runtime.workers import run_all, session
     total = sum(len(tr.t) for tr in trends)
     n = 1 if workers is None else workers
     bar = tqdm(total=total, unit="test", desc="prognosis", disable=not progress,

@@ -40,12 +40,12 @@ from typing import Any
 
 import numpy as np
 
-from bench.harness import simulate
 from bench.hums import monitor as M
 from bench.hums.periods import as_table, period_indexes
 from bench.hums.prognosis import exposure_of_usage
 from bench.hums.rul import FAILURE
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 ACCELERATION = 30000.0       # time compression of wear during a simulated flight
@@ -173,7 +173,7 @@ def run_jobs(jobs: list[tuple[str, dict[str, Any]]], workers: int | None, progre
              ) -> list[dict[str, Any]]:
     """Every job (("days" | "sweep", job)) on the worker pool, longest first; results in
     job order."""
-    from bench.workers import run_all
+    from bench.runtime.workers import run_all
     cost = [0.5 if kind == "sweep" else (j.get("max_days", MAX_DAYS) * 0.2 if j.get("healthy")
             else 30.0 / float(j["severity"])) for kind, j in jobs]
     order = sorted(range(len(jobs)), key=lambda k: -cost[k])

@@ -1,5 +1,5 @@
 """The verdict of a stretch of a run against the thesis' monitoring model (a
-`bench.verdict.Verdict`: HEALTHY / DEGRADED / WARNING / FAILURE / UNKNOWN) from its
+`bench.core.verdict.Verdict`: HEALTHY / DEGRADED / WARNING / FAILURE / UNKNOWN) from its
 indexes, the ECU's mode and (long logs) the fused backlash estimate. One function,
 `judge`, for the HUMS report (`bench.hums.report.verdict`, a whole log) and the live
 watcher (`bench.hums.live`, one command period).
@@ -17,9 +17,9 @@ from typing import Any, overload
 
 import numpy as np
 
+from bench.core.verdict import Level, Verdict
 from bench.hums.indexes import Indexes
-from bench.trace import MODE_POSITION, MODE_SPEED
-from bench.verdict import Level, Verdict
+from bench.signals.trace import MODE_POSITION, MODE_SPEED
 
 THESIS_MODEL = "thesis model"
 """The reference of every `judge` verdict: the thesis' monitoring model and its levels."""

@@ -27,10 +27,10 @@ from typing import Any
 import jinja2
 from markupsafe import Markup, escape
 
-from bench.verdict import Level
+from bench.core.verdict import Level
 
 LEVEL_CLASSES = tuple(lv.name for lv in sorted(Level, key=lambda lv: (lv < 0, lv)))
-"""Verdict levels the stylesheet colours (class ``v LEVEL``): `bench.verdict.Level`'s
+"""Verdict levels the stylesheet colours (class ``v LEVEL``): `bench.core.verdict.Level`'s
 names, HEALTHY to FAILURE then UNKNOWN."""
 
 

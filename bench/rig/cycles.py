@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench import estimators as E
-from bench.tables import COMPRESSED, file_suffixes, read_table
+from bench.signals import estimators as E
+from bench.signals.tables import COMPRESSED, file_suffixes, read_table
 
 # the signals a cycle needs and the Cranfield table's column for each
 DEFAULT_COLUMNS: dict[str, str] = {
@@ -141,7 +141,7 @@ def condition_family(condition: str) -> str:
 def read_columns(path: str | Path, text: dict[str, np.ndarray] | None = None
                  ) -> dict[str, np.ndarray]:
     """Every numeric column of a CSV (plain or xz/gz/bz2) or Parquet table
-    (`bench.tables.read_table`); a column that is not all numbers (the Cranfield table's
+    (`bench.signals.tables.read_table`); a column that is not all numbers (the Cranfield table's
     text column `profile`, or a number column with a text cell) is left out, or put in
     `text` (when given) as its cells' strings (None for a blank cell)."""
     tab = read_table(path, formats=RIG_FORMATS, text=True)
@@ -401,13 +401,13 @@ def unreadable(cyc: Cycle) -> str:
 
 def _trace_cycles(path: Path, skipped: list[str] | None = None) -> list[Cycle]:
     """Cycles of a `bench import` trace file (metres -> mm), split by set-point."""
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     return cycles_from_trace(Trace.load(path), condition_name(path), skipped=skipped)
 
 
 def cycles_from_trace(tr: Any, name: str, run: int | None = None,
                       skipped: list[str] | None = None) -> list[Cycle]:
-    """Cycles of a trace (`bench.trace.Trace`, metres -> mm): one per `group` key of a
+    """Cycles of a trace (`bench.signals.trace.Trace`, metres -> mm): one per `group` key of a
     `bench import --split-by` trace, else split where an out-stroke starts. The load and
     the run come from the split keys (the table's own units), else the metadata, else
     the median logged load (N, 3 significant digits) and `run`."""

@@ -27,14 +27,14 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.core.verdict import Level
 from bench.rig import baseline as B
 from bench.rig import population as P
 from bench.rig.cycles import Cycle, cycle_numbers, cycles_from_trace, load_unit, phases
 from bench.rig.features import cycle_features, verdict
-from bench.units import convert
-from bench.verdict import Level
+from bench.signals.units import convert
 
-FLOOR_FACTOR = 2.0       # as bench.gap.rigcal.FLOOR_FACTOR (the calibration carries its own)
+FLOOR_FACTOR = 2.0       # as bench.rig.rigcal.FLOOR_FACTOR (the calibration carries its own)
 AGAINST = ("auto", "model", "baseline")
 LOAD_TOLERANCE = 0.05    # a log's load matches a baseline load within 5 %
 
@@ -123,7 +123,7 @@ the screw's lead, enables the position-periodic feature."""
         cal["baseline_not_available"] = "the calibration went to stdout (give -o FILE.json)"
         return ["no healthy baseline written: the calibration went to stdout (give -o "
                 "FILE.json to write one beside it)"]
-    from bench.filenames import check_not_input
+    from bench.core.filenames import check_not_input
     check_not_input(baseline_path(cal_output), "-o")     # beside the calibration
     out = base.save(baseline_path(cal_output))
     cal["baseline"] = {"file": out.name, "sources": base.sources,

@@ -68,6 +68,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.core.verdict import Level, Verdict
 from bench.rig import kernels as K
 from bench.rig.baseline import (
     Baseline,
@@ -80,7 +81,6 @@ from bench.rig.baseline import (
 from bench.rig.cycles import Cycle
 from bench.rig.offsets import is_offset, position_shifts, shift_text
 from bench.rig.verdict import RigVerdict, provisional_note
-from bench.verdict import Level, Verdict
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
 _SCALES = np.asarray(SCALES, dtype=np.int64)

@@ -10,7 +10,7 @@ Each section declares the signals it needs (`SECTIONS`, read through
   RMS, and current RMS and peak, per direction of the set-point (extend, retract, dwell);
 - with a calibration of `bench calibrate --actuator` (`--nominal CAL.json`): the
   calibrated generic model is the monitoring model: Cp, Ci, mean position error and
-  peak-current ratio (eq. 6.4-6.7, `bench.gap.riggap.indexes`) and the RMS residual of
+  peak-current ratio (eq. 6.4-6.7, `bench.rig.riggap.indexes`) and the RMS residual of
   each signal against the log's noise floor and the calibration's healthy threshold;
 - with a healthy baseline (`--baseline BASE.json`, or the one the calibration wrote
   when its model does not reach the noise floor): the phase indexes against the
@@ -31,12 +31,12 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.core.verdict import Verdict
 from bench.gap import needs as N
 from bench.rig import fallback as FB
 from bench.rig.cycles import direction_labels
 from bench.rig.verdict import baseline_verdict, model_verdict
-from bench.trace import Trace
-from bench.verdict import Verdict
+from bench.signals.trace import Trace
 
 MODEL_FREE = "model-free indexes: position error per direction"
 MODEL_FREE_I = "model-free indexes: current per direction"
@@ -137,7 +137,7 @@ def _sections(trace: Trace, ref: FB.Reference, rig: bool) -> dict[str, str | Non
         out[MODEL_CP] = out[MODEL_CP] or why
         out[MODEL_CI] = out[MODEL_CI] or why
     else:
-        from bench.gap.rigcal import too_short
+        from bench.rig.rigcal import too_short
         short = too_short(trace)
         if short:
             out[MODEL_CP] = out[MODEL_CP] or f"not available: {short}"
@@ -174,8 +174,8 @@ def analyse_rig(trace: Trace, name: str, ref: FB.Reference,
 
 
 def _model(a: RigAnalysis, ref: FB.Reference) -> None:
-    from bench.actuator import from_dict
-    from bench.gap import riggap as RG
+    from bench.rig import riggap as RG
+    from bench.rig.actuator import from_dict
     cal = ref.calibration
     assert cal is not None
     act = from_dict(cal["actuator_description"], ref.cal_path)
@@ -251,7 +251,7 @@ def summary_text(a: RigAnalysis) -> str:
 def calibration_file(nominal: str) -> dict[str, Any]:
     """A calibration of `bench calibrate --actuator` (BenchError otherwise)."""
     from bench.gap.inputs import BaselineAsNominal, read_nominal
-    from bench.gap.riggap import calibration_of, is_rig_doc
+    from bench.rig.riggap import calibration_of, is_rig_doc
     if not Path(nominal).exists():
         raise BenchError(f"no such calibration: {nominal}")
     try:

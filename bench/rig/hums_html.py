@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.jsonsafe import json_safe
+from bench.core.jsonsafe import json_safe
 from bench.reports import (
     Block,
     Bullets,
@@ -214,13 +214,13 @@ GAP_SHARES = ("start_stop", "cruise", "dwell", "extend", "retract")
 
 
 def _gap(a: H.RigAnalysis) -> list[Block]:
-    """`bench gap`'s diagnosis against the calibrated model (`bench.gap.riggap`): per
+    """`bench gap`'s diagnosis against the calibrated model (`bench.rig.riggap`): per
     signal the RMS against its threshold and where its excess lies, the candidates
     ranked, the verdict."""
     g = a.gap
     if g is None:
         return []
-    from bench.gap.riggap import judged_text
+    from bench.rig.riggap import judged_text
     loc = g["localisation"]
     floor = (a.model or {}).get("noise_floor") or {}
     rows = []
@@ -345,7 +345,7 @@ def write_rig_report(paths: list[str], out_dir: str | Path, nominal: str | None 
     cal = H.calibration_file(nominal) if nominal is not None else None
     ref = FB.choose(cal, nominal, baseline, against)
     from bench.bus.logs import load_trace
-    from bench.filenames import distinct_labels
+    from bench.core.filenames import distinct_labels
     analyses = [H.analyse_rig(load_trace(p), label, ref)
                 for p, label in zip(paths, distinct_labels(paths), strict=True)]
     return write_files(analyses, out_dir), analyses
@@ -372,7 +372,7 @@ def write_gap_report(trace: Any, name: str, ref: FB.Reference, out_dir: str | Pa
                      assessed: dict[str, Any] | None = None) -> Path:
     """`bench gap --report DIR` on a rig's log: the report page of `bench hums report`
     (`analyse_rig` against the same reference) with the gap's diagnosis against the
-    calibrated model (`gap`, `bench.gap.riggap.diagnose_rig`) or the baseline's
+    calibrated model (`gap`, `bench.rig.riggap.diagnose_rig`) or the baseline's
     (`assessed`, `fallback.assess`) it already made, as ``index.html``."""
     a = H.analyse_rig(trace, name, ref, assessed)
     a.gap = gap

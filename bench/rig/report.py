@@ -334,7 +334,7 @@ def _cost_blocks(sm: dict[str, Any]) -> list[Block]:
     return [Heading("Cost"), Paragraph(
         f"Cost: one cycle's features and verdict {1e3 * c['cycle_s_median']:.2f} ms median, "
         f"{1e3 * c['cycle_s_max']:.0f} ms max (in a worker, {c['cycles']} cycles); wall time "
-        "per condition over `bench.workers.run_all` (the start of the two Dask workers, once "
+        "per condition over `bench.runtime.workers.run_all` (the start of the two Dask workers, once "
         "per study, is in the first condition's):"), table]
 
 

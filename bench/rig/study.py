@@ -2,7 +2,7 @@
 from the healthy calibration runs, then every other cycle scored, per condition and load:
 false-alarm rate on the held-out healthy runs, detection rate per fault stage, the
 effect named, where a localised effect lies, the plain z-score reference at the same
-false-alarm rate, and the cost. The per-cycle work runs over `bench.workers.run_all`.
+false-alarm rate, and the cost. The per-cycle work runs over `bench.runtime.workers.run_all`.
 """
 
 from __future__ import annotations
@@ -207,7 +207,7 @@ def _score(study: Study, todo: list[tuple[str, list[Cycle]]], base: B.Baseline,
            progress: bool, scheduler: str | None) -> None:
     """Every condition's cycles scored over `run_all`, per load; cycles at a load without
     thresholds listed in `study.unscored`."""
-    from bench.workers import run_all
+    from bench.runtime.workers import run_all
     for name, cycles in todo:
         jobs = [(base.for_load(c.load), c, lead_mm) for c in cycles if c.load in cals]
         skipped = sorted({c.load for c in cycles if c.load not in cals})
@@ -235,7 +235,7 @@ def _cross_validate(study: Study, healthy: list[Cycle], faults: list[tuple[str, 
     condition judged under every split of its load: the healthy false-alarm rate and
     every fault condition's detection rate under every choice of `k` healthy
     calibration runs."""
-    from bench.workers import run_all
+    from bench.runtime.workers import run_all
     t0 = time.perf_counter()
     mine = {load: [c for c in healthy if c.load == load] for load in study.loads}
     jobs = P.split_jobs([c for c in healthy if c.load in mine], k, alpha, lead_mm)

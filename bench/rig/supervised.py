@@ -55,7 +55,7 @@ def run(todo: Sequence[tuple[str, list[Cycle]]], healthy: str, lead_mm: float | 
         t0 = time.perf_counter()
         try:
             K.check_classes(data, healthy)
-            from bench.workers import run_all
+            from bench.runtime.workers import run_all
 
             def mapped(fn: Any, jobs: list[Any]) -> list[Any]:
                 own = fn is K.own_vectors

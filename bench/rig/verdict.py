@@ -4,7 +4,7 @@ The same verdict reaches `bench rig assess`, `bench rig study`, and `bench gap` 
 `bench hums report` of a rig log judged against a baseline (`fallback.assess`): all of
 them build it with `features.verdict`, so one cycle gets one verdict wherever it is read.
 
-It is a `bench.verdict.Verdict` (level, effect, reasons, reference: the baseline it was
+It is a `bench.core.verdict.Verdict` (level, effect, reasons, reference: the baseline it was
 judged against) with the cycle's label. Its level: HEALTHY (judged and nothing above
 its threshold), DEGRADED (a deviation from the healthy baseline: past its threshold, the
 level a log with such a cycle gets too) or UNKNOWN (not judged, e.g. an incomplete
@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from bench.verdict import Level, Verdict
+from bench.core.verdict import Level, Verdict
 
 PROVISIONAL = "with a provisional baseline"
 

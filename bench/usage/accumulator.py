@@ -22,8 +22,8 @@ import numpy as np
 import rainflow
 
 from bench import BenchError
-from bench.estimators import motion_regimes
-from bench.trace import Trace
+from bench.signals.estimators import motion_regimes
+from bench.signals.trace import Trace
 from bench.usage import hysteresis as H
 from bench.usage import life
 from bench.usage.settings import (

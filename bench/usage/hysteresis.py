@@ -6,7 +6,7 @@ noisier (the Cranfield rig's linear potentiometer at 25 Hz: about 0.3 mm), and t
 rainflow counts its noise as cycles. So a counter takes the larger of its setting and a
 factor (`usage.position_noise_factor`, 10) x the log's own noise of its signal: a noise
 peak of 5 sigma each way does not close a cycle, the rationale of the default. The noise
-is the white-noise sigma the rig calibration uses (`bench.estimators.noise_floor`: the
+is the white-noise sigma the rig calibration uses (`bench.signals.estimators.noise_floor`: the
 robust spread of the second differences / sqrt 6), from the log's measured samples; a
 smooth motion's second differences are small except where it accelerates, and the
 median-based spread ignores those few samples.
@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.estimators import noise_floor
+from bench.signals.estimators import noise_floor
 from bench.usage.settings import UsageSettings
 
 COUNTERS = {"reversal": ("motor_angle_rad", "reversal_hysteresis_m", "m"),

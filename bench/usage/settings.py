@@ -25,7 +25,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from bench.paramset import ParamSet
+from bench.core.paramset import ParamSet
 from plant_rt.params import P
 
 PRELOAD_MODES = ("none", "double-nut")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "tests" / "data" / "cranfield_sample"
-MAP = ROOT / "bench" / "actuators" / "cranfield_map.json"
+MAP = ROOT / "bench" / "rig" / "actuators" / "cranfield_map.json"
 HEALTHY = "normal_load40_runs1-4.csv.xz"
 SPALLING = "spalling5_load40_runs1-2.csv.xz"
 
@@ -41,8 +41,8 @@ def cranfield_folder(d: Path) -> Path:
 def sine_logs(d: Path) -> Path:
     """healthy.npz and worn.npz (backlash 50 um, friction x2.5) in `d`: 3 cycles of the
     2 Hz sine, sensor noise on (seed 3), the measured columns only."""
-    from bench.harness import simulate
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
+    from bench.sim.harness import simulate
     from plant_rt.params import PlantParams
     for name, vals in (("healthy", {}), ("worn", {"effects.backlash_m": 50e-6,
                                                   "effects.friction_scale": 2.5})):

@@ -22,7 +22,7 @@ from bus_helpers import (
 )
 
 from bench.bus.logs import read_log, trace_from_log
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from ema_contract.frames import Frames
 from ema_contract.states import NMTCommand, NMTState, StatusWord
 from ema_contract.transport import close_bus

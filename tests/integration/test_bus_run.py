@@ -18,9 +18,9 @@ from canopen.sdo.exceptions import SdoAbortedError
 
 from bench.bus.logs import trace_from_log
 from bench.ecu import run_over_bus
-from bench.harness import simulate
-from bench.profiles import make_profile
-from bench.trace import Trace
+from bench.profiles.catalog import make_profile
+from bench.signals.trace import Trace
+from bench.sim.harness import simulate
 from ema_contract.frames import dbc_path, eds_path, load_od
 from ema_contract.states import NMTCommand
 from plant_rt.params import PARAMS, PlantParams

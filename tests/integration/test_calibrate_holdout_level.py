@@ -10,8 +10,8 @@ import pytest
 
 from bench.cli import main
 from bench.gap.resim import FAST
-from bench.harness import simulate
-from bench.maneuvers import compact
+from bench.profiles.maneuvers import compact
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 

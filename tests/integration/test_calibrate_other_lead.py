@@ -11,8 +11,8 @@ import json
 import pytest
 
 from bench.gap.blind import MEASURED, excitation
-from bench.harness import simulate
-from bench.trace import Trace
+from bench.signals.trace import Trace
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 

@@ -9,8 +9,8 @@ import sys
 CODE = """
 import sys
 import numpy as np
-from bench.freqresp import FreqResponse
-from bench.reproduce import Result, figures
+from bench.sim.freqresp import FreqResponse
+from bench.studies.reproduce import Result, figures
 f = np.geomspace(1, 100, 20)
 res = Result(responses={"x": FreqResponse("x", f, 1 / (1 + 1j * f / 10))})
 names = [p.name for p in figures(res, sys.argv[1])]

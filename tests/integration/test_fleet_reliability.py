@@ -192,7 +192,7 @@ def test_a_fleet_beyond_the_disk_or_memory_is_refused_up_front(tmp_path, capsys,
     with pytest.raises(BenchError, match="free"):
         S.check_size(n, 1000, out)
     S.check_size(2, 3, out)
-    import bench.trace as T
+    import bench.signals.trace as T
     monkeypatch.setattr(T, "memory_available", lambda: 10 * S.MEMORY_PER_LOG)
     with pytest.raises(BenchError, match="memory"):
         S.check_size(5, 5, out)

@@ -8,8 +8,8 @@ import pytest
 from bus_helpers import BUS_KINDS, module_bus_env
 
 from bench.ecu import run_over_bus
-from bench.harness import simulate
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 # DBC quanta, and how many of them the bus run may differ by. The ECU computes from

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.freqresp import FreqResponse, lockin
+from bench.sim.freqresp import FreqResponse, lockin
 
 
 def test_lockin_reads_amplitude_and_phase():

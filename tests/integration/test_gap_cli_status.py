@@ -4,8 +4,8 @@ progress bar instead of breaking it (a bare print to stderr split the bar in two
 from __future__ import annotations
 
 from bench.gap.resim import FAST
-from bench.harness import simulate
-from bench.maneuvers import compact
+from bench.profiles.maneuvers import compact
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 

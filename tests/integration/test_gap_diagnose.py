@@ -12,9 +12,9 @@ from bench import BenchError
 from bench.gap.diagnose import Options, diagnose
 from bench.gap.resim import FAST
 from bench.gap.result_json import chosen_entry
-from bench.harness import simulate
-from bench.maneuvers import compact
-from bench.trace import Trace
+from bench.profiles.maneuvers import compact
+from bench.signals.trace import Trace
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 SET = ["backlash", "friction", "kt", "sensor_delay", "lvdt_lag", "encoder_gain"]
@@ -131,7 +131,7 @@ def test_log_without_setpoint_is_refused():
 def test_log_with_too_little_motion_is_refused():
     p = PlantParams().with_dict({**FAST, "sensors.noise": True})
     prof = compact()
-    from bench.profiles import Profile
+    from bench.profiles.catalog import Profile
     still = Profile("still", prof.mode, 1.0, lambda t: 1e-6 * np.sin(t), prof.speed)
     with pytest.raises(BenchError, match="too little motion.*travelled"):
         diagnose(simulate(still, p).measured(), options=OPTS)

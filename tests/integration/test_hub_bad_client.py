@@ -13,7 +13,7 @@ import numpy as np
 from bus_helpers import make_env
 
 from bench.ecu import run_over_bus
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "unit"))
 from test_hub_events import (  # noqa: E402

@@ -24,9 +24,9 @@ from bench import BenchError
 from bench.bus.logs import trace_from_log
 from bench.bus.procs import Child
 from bench.ecu import run_over_bus
-from bench.harness import simulate
-from bench.profiles import make_profile
-from bench.trace import Trace
+from bench.profiles.catalog import make_profile
+from bench.signals.trace import Trace
+from bench.sim.harness import simulate
 from ema_contract.frames import eds_path
 from plant_rt.params import PlantParams
 
@@ -51,8 +51,8 @@ def closed_loop_mismatch(log: Path, profile) -> tuple[float, dict[str, float], i
     in order) against the node's physics (`plant_rt.model.Plant`) at that SYNC, driven
     by the demand it had latched, the last RPDO1 before the SYNC. Returns the largest
     demand mismatch (A), the largest mismatch of each TPDO signal and the RPDOs seen."""
-    from bench.control import Controller, ControllerParams
     from bench.ecu.period import float32_limit
+    from bench.sim.control import Controller, ControllerParams
     from ema_contract.frames import Frames
     from plant_rt.model import Plant
     params = PlantParams()

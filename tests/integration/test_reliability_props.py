@@ -198,7 +198,7 @@ def test_a_csv_table_imports_to_its_own_values_or_is_one_line(capsys, header, ro
                          str(out / "t.npz")], inp, out, capsys)
         if rc:
             return
-        from bench.trace import Trace
+        from bench.signals.trace import Trace
         tr = Trace.load(out / "t.npz")
         assert np.all(np.diff(tr.t) > 0) and not np.isinf(tr["position_m"]).any()
         given_pos = {float(p) * 1e-3 for _, p, _ in rows if p.strip() and _num(p)}
@@ -241,7 +241,7 @@ def test_a_parquet_table_imports_or_is_one_line(capsys, time_kind, pos_kind, n, 
         rc, _, _ = call(["import", str(inp / "t.parquet"), "--map", str(inp / "m.json"), "-o",
                          str(out / "t.csv")], inp, out, capsys)
         if rc == 0:
-            from bench.trace import Trace
+            from bench.signals.trace import Trace
             tr = Trace.load(out / "t.csv")
             assert time_kind in ("float", "int", "timestamp", "duration")
             assert np.all(np.diff(tr.t) > 0)
@@ -366,7 +366,7 @@ def no_long_work(monkeypatch):
     from bench import BenchError
     stub_steps(monkeypatch, (("bench.gap.calibrate", "calibrate"),
                              ("bench.gap.diagnose", "diagnose"),
-                             ("bench.gap.rigcal", "calibrate_rig"),
+                             ("bench.rig.rigcal", "calibrate_rig"),
                              ("bench.fleet.synth", "draw_fleet"),
                              ("bench.usage.figure", "save_usage_figure")),
                BenchError("reached the work"))

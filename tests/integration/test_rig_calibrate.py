@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.actuator import from_dict
 from bench.cli import main
-from bench.gap import rigcal as RC
-from bench.gap import rigmodel as RM
-from bench.trace import Trace
+from bench.rig import rigcal as RC
+from bench.rig.actuator import from_dict
+from bench.signals.trace import Trace
+from bench.sim import rigmodel as RM
 
 TRUE = {**RM.EXTRA, "mass_kg": 400.0, "force_per_a_n": 1500.0, "coulomb_n": 120.0,
         "viscous_n_s_per_m": 1500.0, "current_offset_a": 0.1, "kp_1_s": 12.0,
@@ -180,7 +180,7 @@ def test_a_log_too_short_for_a_noise_floor_is_refused():
 def test_the_gap_on_a_log_without_current_ranks_no_current_effect_and_says_so():
     # current_offset was ranked (and fitted) on a log without current, and the
     # "no significant gap" did not say current was not judged
-    from bench.gap import riggap as RG
+    from bench.rig import riggap as RG
     cal = RC.calibrate_rig([synthetic(1, 200.0)], from_dict(DESCRIBED))
     log = synthetic(3, 0.0)
     del log.columns["current_a"]

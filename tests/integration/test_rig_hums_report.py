@@ -159,7 +159,7 @@ def test_a_log_of_several_cycles_with_its_load_in_newtons(data, calibrated, tmp_
     """Three cycles in one trace, no split keys: cycles from the set-point, the logged load
     (N) converted to the kgf of the baseline `bench calibrate` wrote (its logs' import map
     gives the unit)."""
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     parts = [Trace.load(data / "s" / f"load=40_run=1_group={g}.parquet") for g in (51, 52, 53)]
     cols = {k: np.concatenate([t[k] for t in parts])
             for k in ("setpoint_position_m", "position_m", "current_a", "load_force_n")}
@@ -175,7 +175,7 @@ def test_a_log_of_several_cycles_with_its_load_in_newtons(data, calibrated, tmp_
 
 def rig_log(path: Path, seconds: float = 13.0, current: bool = True) -> Path:
     """A 25 Hz rig table: a 20 -> 140 mm trapezoid, position lagging, current."""
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     t = np.arange(int(round(seconds / 0.04))) * 0.04
     sp = np.interp(t, [0, 0.3, 5.3, 8.3, 13.3], [0.02, 0.02, 0.14, 0.14, 0.02])
     cols = {"t_s": t, "setpoint_position_m": sp, "position_m": np.roll(sp, 2)}
@@ -200,14 +200,14 @@ def rig_calibration(path: Path, scored: tuple[str, ...] = ("position_m", "curren
     """A calibration of `bench calibrate --actuator` (a DC drive, the generic model's
     values of tests/integration/test_rig_calibrate.py) that reaches the noise floor on
     healthy logs scored on `scored`."""
-    from bench.gap.rigmodel import EXTRA
+    from bench.sim.rigmodel import EXTRA
     vals = {**EXTRA, "mass_kg": 400.0, "force_per_a_n": 1500.0, "coulomb_n": 120.0,
             "viscous_n_s_per_m": 1500.0, "current_offset_a": 0.1, "kp_1_s": 12.0,
             "kv_a_s_per_m": 60.0, "ki_a_per_m": 900.0, "feedforward": 0.8,
             "current_limit_a": 4.0, "current_tau_s": 0.0}
     score = {s: {"rms": 1.0, "noise_floor": 1.0, "ratio": 1.0} for s in scored}
     path.write_text(json.dumps({
-        "model": "generic nut-level model (bench.gap.rigmodel)", "actuator": "dc",
+        "model": "generic nut-level model (bench.sim.rigmodel)", "actuator": "dc",
         "actuator_description": {"name": "dc", "motor_kind": "dc_current_loop"},
         "method": "fit-gains", "sample_period_s": 1e-3, "values": vals,
         "fit_logs": ["h1"], "fit_scores": [score], "holdout_summary": {},

@@ -14,7 +14,7 @@ import pytest
 from sample_data import HEALTHY, SPALLING, import_cycles
 
 from bench.cli import main
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 FIT = [f"load=40_run={r}_group={g}.parquet" for r, gs in ((1, (51, 52, 53)), (2, (56, 57, 58)))
        for g in gs]

@@ -130,7 +130,7 @@ def test_imported_traces_give_the_same_baseline(tmp_path, sample):
     the table itself."""
     from bench.cli import main
     assert main(["import", str(SAMPLE / "normal_load40_runs1-4.csv.xz"), "--map",
-                 str(Path(__file__).resolve().parents[2] / "bench" / "actuators"
+                 str(Path(__file__).resolve().parents[2] / "bench" / "rig" / "actuators"
                      / "cranfield_map.json"),
                  "--split-by", "load,run,group", "-o", str(tmp_path)]) == 0
     cycles = [c for p in sorted(tmp_path.glob("*.parquet")) for c in read_cycles(p)]
@@ -146,9 +146,9 @@ def test_rig_baseline_knows_its_load_unit(tmp_path, capsys):
     log whose load is logged in N (no split key) was never matched to it. Now the traces'
     unit is recorded, a rig table's comes from --load-unit, and they must agree."""
     from bench.cli import main
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     table = SAMPLE / "normal_load40_runs1-4.csv.xz"
-    cmap = Path(__file__).resolve().parents[2] / "bench" / "actuators" / "cranfield_map.json"
+    cmap = Path(__file__).resolve().parents[2] / "bench" / "rig" / "actuators" / "cranfield_map.json"
     assert main(["import", str(table), "--map", str(cmap), "--split-by", "load,run,group",
                  "-o", str(tmp_path / "tr")]) == 0
     traces = sorted((tmp_path / "tr").glob("load=40_run=[12]_*.parquet"))
@@ -192,7 +192,7 @@ def test_rig_assess_matches_a_load_in_newtons_as_gap_does(tmp_path, capsys, kgf_
     judged it at 40 kgf, `bench rig assess` refused it ("no thresholds for load 392"),
     converting no unit. Both now match the load the same way (fallback.match_load)."""
     from bench.cli import main
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     c = sample[2][0]                                    # a held-out cycle of run 3
     meta = {"split": {"load": 392.0, "run": 3, "group": c.group},
             "map": [{"signal": "load_force_n", "column": "load", "unit": "N"}]}

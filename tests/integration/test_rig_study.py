@@ -211,7 +211,7 @@ def test_imported_partial_and_gappy_cycles_in_the_gap_against_a_baseline(tmp_pat
                  "--out", str(base)]) == 0
     tr = tmp_path / "tr"
     assert main(["import", str(_damaged(tmp_path)), "--map",
-                 str(Path(__file__).resolve().parents[2] / "bench" / "actuators"
+                 str(Path(__file__).resolve().parents[2] / "bench" / "rig" / "actuators"
                      / "cranfield_map.json"), "--split-by", "load,run,group",
                  "-o", str(tr)]) == 0
     capsys.readouterr()

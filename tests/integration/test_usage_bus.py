@@ -15,7 +15,7 @@ from bench.bus.logs import read_log, trace_from_log
 from bench.cli import main as bench_main
 from bench.ecu import run_over_bus
 from bench.hums.live import LiveHums
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
 from bench.usage import usage_of_trace
 
 SERIAL = 305419896      # 0x12345678

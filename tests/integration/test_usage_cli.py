@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 DT = 1e-3
 

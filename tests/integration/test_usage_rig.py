@@ -20,7 +20,7 @@ from bench.usage import UsageSettings, usage_of_trace
 
 ROOT = Path(__file__).resolve().parents[2]
 TABLE = ROOT / "tests" / "data" / "cranfield_sample" / "normal_load40_runs1-4.csv.xz"
-MAP = ROOT / "bench" / "actuators" / "cranfield_map.json"
+MAP = ROOT / "bench" / "rig" / "actuators" / "cranfield_map.json"
 CYCLE = "load=40_run=1_group=51.parquet"
 RUN = "load=40_run=1.parquet"
 

@@ -1,4 +1,4 @@
-"""`bench.workers.run_all(chunk=N)` on a real LocalCluster (127.0.0.1): several jobs per
+"""`bench.runtime.workers.run_all(chunk=N)` on a real LocalCluster (127.0.0.1): several jobs per
 Dask task (the fleet's short logs), results still in job order and reported one by one,
 a failing job named by its own index, and a worker killed mid-run costing only the
 chunks it held."""
@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 
 from bench import BenchError
-from bench.cluster import Engine
 from bench.fleet.ingest import CHUNK_LOGS, chunk_size
-from bench.workers import run_all
+from bench.runtime.cluster import Engine
+from bench.runtime.workers import run_all
 
 _DIR: dict[str, str] = {}
 
@@ -75,7 +75,7 @@ def test_chunks_keep_order_report_each_job_and_survive_a_killed_worker(tmp_path,
         assert got == [x * x for x in range(n)] and sorted(seen) == got
         # the bar is drawn from the scheduler's progress reports (Dask's ProgressBar on
         # the client's event loop), not by the loop that collects the results
-        monkeypatch.setattr("bench.workers.tqdm", _Bar)
+        monkeypatch.setattr("bench.runtime.workers.tqdm", _Bar)
         got = run_all(_square, range(10), progress=True, initializer=_set,
                       initargs=(str(tmp_path / "a"),), scheduler=addr, chunk=3)
         bar = _Bar.made[-1]

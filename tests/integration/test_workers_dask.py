@@ -1,4 +1,4 @@
-"""The Dask engine of `bench.workers.run_all` on real LocalClusters (127.0.0.1): job
+"""The Dask engine of `bench.runtime.workers.run_all` on real LocalClusters (127.0.0.1): job
 order, the initializer in every worker, retries, errors naming the job, and a worker
 process killed mid-run costing only its tasks (results complete and equal to a serial
 run). Bounded: small jobs, fixed inputs, the whole file in ~10-20 s."""
@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.cluster import PRE_SPAWN_VARS, THREAD_VARS, Engine
-from bench.workers import ensure_started, make_pool, run_all
+from bench.runtime.cluster import PRE_SPAWN_VARS, THREAD_VARS, Engine
+from bench.runtime.workers import ensure_started, make_pool, run_all
 
 _STATE: dict[str, str] = {}
 
@@ -166,7 +166,7 @@ sys.modules["bokeh"] = None          # `import bokeh` fails in every process of 
 """
 _RUN = """
 import sys
-from bench.workers import run_all
+from bench.runtime.workers import run_all
 if __name__ == "__main__":
     print(run_all(abs, [-1, -2, -3], workers=2, progress=True))
     print("bokeh" in sys.modules and sys.modules["bokeh"] is not None)

@@ -15,7 +15,7 @@ import pytest
 from bus_helpers import Collector, bench, make_env, spawn, wait_until
 
 from bench.bus.logs import read_log, trace_from_log
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from ema_contract.frames import load_od
 from ema_contract.states import NMTCommand, NMTState, StatusWord
 from ema_contract.transport import close_bus

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from bench.gap.resim import FAST
-from bench.harness import simulate
-from bench.maneuvers import compact
+from bench.profiles.maneuvers import compact
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 
@@ -60,7 +60,7 @@ def test_import_calibrate_gap(logs):
               str(logs / "healthy.npz"))
     assert r.returncode == 0, r.stderr
     assert "4000 samples" in r.stdout
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     imported = Trace.load(logs / "healthy.npz")
     assert np.max(np.abs(imported["load_force_n"])) > 1900.0     # the 2 kN load, in N
     r = bench("calibrate", str(logs / "healthy.npz"), "--params",

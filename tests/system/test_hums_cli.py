@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.harness import simulate
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 
@@ -66,7 +66,7 @@ def logs(tmp_path_factory):
     tr.meta.pop("fundamental_hz", None)
     tr.save(d / "healthy.csv")     # CSV keeps no metadata: f0 from the set-point spectrum
     cols = {k: v for k, v in tr.columns.items() if k not in ("current_a", "position_m")}
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     Trace(cols).save(d / "no_sensors.npz")
     (d / "bus.log").write_text("(0.000000) vcan0 181#0000000000000000\n")
     (d / "notes.txt").write_text("hello\n")

@@ -18,7 +18,7 @@ from bench.hums import monitor as M
 from bench.hums.indexes import period_indexes
 from bench.hums.live import LiveHums
 from bench.hums.verdict import judged_ci
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
 from plant_rt.params import PlantParams
 
 

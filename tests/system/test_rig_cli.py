@@ -23,7 +23,7 @@ def test_import_calibrate_gap_hums_report(tmp_path):
     for table, out in (("normal_load40_runs1-4.csv.xz", "n"), ("spalling5_load40_runs1-2.csv.xz",
                                                                "s")):
         r = bench("import", str(SAMPLE / table), "--map",
-                  str(ROOT / "bench" / "actuators" / "cranfield_map.json"),
+                  str(ROOT / "bench" / "rig" / "actuators" / "cranfield_map.json"),
                   "--split-by", "load,run,group", "-o", out, cwd=tmp_path)
         assert r.returncode == 0, r.stderr
     fit = [f"n/load=40_run={r}_group={g}.parquet" for r, gs in ((1, (51, 52, 53)),

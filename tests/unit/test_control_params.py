@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.control import ControllerParams, position_gain_for_bandwidth
+from bench.sim.control import ControllerParams, position_gain_for_bandwidth
 from plant_rt.params import THESIS, ParameterError
 
 

@@ -7,8 +7,8 @@ import numpy as np
 from bench.gap import resim as R
 from bench.gap.diagnose import excess, heldout_level
 from bench.gap.problem import build
-from bench.harness import simulate
-from bench.maneuvers import excitation
+from bench.profiles.maneuvers import excitation
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 BASE = PlantParams().with_dict(R.FAST)

@@ -10,7 +10,7 @@ import pytest
 
 from bench import BenchError
 from bench.cli import main
-from bench.profiles import PROFILES, make_profile
+from bench.profiles.catalog import PROFILES, make_profile
 
 # keywords that must be > 0 (a frequency, a count of cycles, a length of time)
 POSITIVE = ("frequency_hz", "f0_hz", "f1_hz", "cycles", "duration_s")
@@ -105,7 +105,7 @@ def test_save_format_is_checked_first(nothing_starts, capsys, tmp_path):
 def test_the_output_probe_leaves_existing_files_as_they_were(nothing_starts, capsys,
                                                              tmp_path, monkeypatch):
     """The probe appends nothing and creates nothing that the run would not."""
-    from bench.trace import probe_output
+    from bench.signals.trace import probe_output
     old = tmp_path / "old.log"
     old.write_text("keep me\n")
     probe_output(old, "log")

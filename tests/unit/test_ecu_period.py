@@ -10,11 +10,11 @@ import itertools
 import can
 import pytest
 
-from bench.control import ControllerParams
 from bench.ecu.errors import PlantFault
 from bench.ecu.master import Ecu
 from bench.ecu.period import EcuStats, PeriodSteps
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.control import ControllerParams
 from ema_contract.states import ControlWord, Pace, StatusWord
 from plant_rt.params import PlantParams
 

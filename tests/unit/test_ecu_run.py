@@ -20,7 +20,7 @@ from bus_helpers import sdo_client as bus_sdo_client
 from bench import BenchError
 from bench.bus.logs import trace_from_log
 from bench.ecu import Ecu, run_over_bus
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
 from ema_contract.frames import Frames
 from ema_contract.states import NMTCommand, NMTState, Pace, StatusWord
 from ema_contract.transport import close_bus
@@ -177,7 +177,7 @@ def test_the_controller_is_loaded_before_the_first_heartbeat(rig, monkeypatch):
     compiled step holds the interpreter lock for about 0.1 s (0.3-0.5 s on a loaded
     machine), which starved the set-up heartbeat thread and let the plant latch a timeout
     before the run: the ECU loads it before its first heartbeat."""
-    import bench.control as control
+    import bench.sim.control as control
     events: list[str] = []
     step = control.controller_step
 

@@ -1,4 +1,4 @@
-"""`bench.estimators`: the command's fundamental and the motion regimes, each estimated
+"""`bench.signals.estimators`: the command's fundamental and the motion regimes, each estimated
 by one function the HUMS report, the gap, the rig cycles and the usage counters call."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from bench import estimators as E
-from bench.trace import Trace
+from bench.signals import estimators as E
+from bench.signals.trace import Trace
 
 pytestmark = pytest.mark.unit
 
@@ -54,7 +54,7 @@ def test_a_rig_log_that_never_moves_has_no_motion_regime():
     """A constant set-point's np.gradient against a float time axis is ~1e-13, not 0: the
     gap's rig regimes read it as moving when the moving threshold's floor was 2e-14
     (0.02 x 1e-12), below that rounding noise; the one floor (1e-12) keeps it at rest."""
-    from bench.gap.riggap import _regimes
+    from bench.rig.riggap import _regimes
     n, dt = 2000, 1e-3
     tr = Trace({"t_s": np.arange(n) * dt, "setpoint_position_m": np.full(n, 0.3)})
     reg = _regimes(tr)

@@ -19,7 +19,7 @@ from bench.bus.logread import fast_frame, parse_line
 from bench.bus.logs import LogIssues, _codec, read_log, trace_from_log
 from bench.bus.rows import COLUMNS, ROW_FRAMES, SIGNAL_COLUMNS, TWO_PI, RowAssembler
 from bench.fleet.synth import _stamp_chars, write_candump
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from ema_contract.frames import PayloadCodec
 from ema_contract.states import ControlWord, NMTCommand, StatusWord
 

@@ -174,7 +174,7 @@ def test_usage_columns_of_a_constant_load_run():
     """2 rev/s for 5 s under 5 kN, winding 410 K for the second half: the store's usage
     columns by hand (L10 = (22 kN / 5 kN)^3 10^6 rev, docs/usage.md)."""
 
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     from plant_rt.params import PlantParams
     p = PlantParams()
     n, dt = 5001, 1e-3
@@ -212,7 +212,7 @@ def test_expand_files_dirs_globs_and_missing(tmp_path):
 
 
 def test_actuator_id_rule(tmp_path):
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     f = tmp_path / "EMA-7" / "run.log"
     tr = Trace({"t_s": np.zeros(2)})
     assert G.actuator_id(tr, f, None) == "EMA-7"
@@ -222,13 +222,13 @@ def test_actuator_id_rule(tmp_path):
 
 
 def test_ingest_passes_workers_and_scheduler_to_the_pool(tmp_path, monkeypatch):
-    import bench.workers
+    import bench.runtime.workers
     seen = {}
 
     def fake_run_all(fn, jobs, workers=None, progress=True, **kw):
         seen.update(workers=workers, jobs=list(jobs), **kw)
         return []
-    monkeypatch.setattr(bench.workers, "run_all", fake_run_all)
+    monkeypatch.setattr(bench.runtime.workers, "run_all", fake_run_all)
     (tmp_path / "A3").mkdir()
     (tmp_path / "A3" / "x.log").write_text("(1.0) can0 080#01\n")
     res = G.ingest([str(tmp_path / "A3")], tmp_path / "f.duckdb", workers=3,
@@ -240,7 +240,7 @@ def test_ingest_passes_workers_and_scheduler_to_the_pool(tmp_path, monkeypatch):
 def test_usage_columns_of_a_run_without_motor_angle_are_null():
     """A run without encoder angle, current or temperature: its travel, revolutions,
     reversals, life, I2t and time hot are NULL (not 0; reversals were int(NaN))."""
-    from bench.trace import Trace
+    from bench.signals.trace import Trace
     n = 200
     tr = Trace({"t_s": np.arange(n) * 1e-3, "position_m": np.linspace(0, 0.01, n),
                 "load_force_n": np.full(n, 100.0)}, {"period_s": 1e-3})
@@ -279,7 +279,7 @@ def test_a_damaged_store_is_one_line_naming_it_and_what_to_do(tmp_path, damage):
 
 
 def test_a_job_that_fails_in_a_worker_is_named_by_its_label():
-    from bench.workers import _job_error, _JobFailed
+    from bench.runtime.workers import _job_error, _JobFailed
     jobs = [("a.log",), ("b.log",), ("c.log",)]
     err = _job_error(_JobFailed(1, "ValueError: boom"), "fleet ingest", jobs,
                      lambda j: j[0], 0, 3)
@@ -290,9 +290,9 @@ def test_a_job_that_fails_in_a_worker_is_named_by_its_label():
 
 def test_levels_of_old_stores_read_in_the_one_encoding(tmp_path):
     """A version-1 store kept UNKNOWN as a NULL level (and a NULL verdict reads as none):
-    the status reads every stored run's level as `bench.verdict.Level` (-1 for UNKNOWN);
+    the status reads every stored run's level as `bench.core.verdict.Level` (-1 for UNKNOWN);
     a verdict that is no level is one line naming it, not a traceback."""
-    from bench.verdict import Level
+    from bench.core.verdict import Level
     path = tmp_path / "v1.duckdb"
     con = S.connect(path, target=1)
     con.execute("INSERT INTO runs (digest, actuator_id, run_time, ci, ci_harmonic, verdict, "
@@ -314,8 +314,8 @@ def test_levels_of_old_stores_read_in_the_one_encoding(tmp_path):
 
 
 def test_an_unjudged_run_is_stored_with_the_one_unknown_code(tmp_path):
-    """The ingest stores UNKNOWN as its code -1 (`bench.verdict.Level`), not as NULL."""
-    from bench.trace import Trace
+    """The ingest stores UNKNOWN as its code -1 (`bench.core.verdict.Level`), not as NULL."""
+    from bench.signals.trace import Trace
     t = np.arange(2000) * 1e-3
     cols = ("mode", "setpoint_position_m", "position_m", "current_a", "motor_speed_rad_s",
             "setpoint_speed_rad_s", "current_demand_a", "motor_angle_rad")

@@ -10,10 +10,10 @@ import pytest
 from scipy import signal
 
 from bench import BenchError
-from bench.control import Controller, ControllerParams
-from bench.flight import GRID_S
-from bench.harness import simulate
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.profiles.flight import GRID_S
+from bench.sim.control import Controller, ControllerParams
+from bench.sim.harness import simulate
 from plant_rt.aero import gust_sequence
 from plant_rt.model import Plant
 from plant_rt.params import PlantParams

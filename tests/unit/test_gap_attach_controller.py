@@ -10,7 +10,7 @@ import json
 import numpy as np
 
 from bench.cli.gap import _attach_controller
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 CASCADE = {"source": "encoder", "kp_pos": 2e5, "ki_pos": 1.2e6, "kp_spd": 0.44,
            "ki_spd": 8.2, "speed_limit_rad_s": 300.0, "current_limit_a": 20.0,

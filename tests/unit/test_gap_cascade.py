@@ -5,12 +5,12 @@ import math
 
 import numpy as np
 
-from bench.control import ControllerParams
 from bench.gap import resim as R
 from bench.gap.calibrate import initial_cascade
 from bench.gap.cascade import Cascade, logged_inputs, replay, replay_one_step
-from bench.maneuvers import excitation
-from bench.trace import Trace
+from bench.profiles.maneuvers import excitation
+from bench.signals.trace import Trace
+from bench.sim.control import ControllerParams
 from plant_rt.params import PlantParams
 
 FAST = PlantParams().with_dict({**R.FAST, "sensors.noise": False})

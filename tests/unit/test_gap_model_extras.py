@@ -9,7 +9,7 @@ import pytest
 
 from bench.gap import calibrate as C
 from bench.gap import resim as R
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from plant_rt import kernel as K
 from plant_rt.model import Plant, param_vector
 from plant_rt.params import ParameterError, PlantParams

@@ -12,8 +12,8 @@ import pytest
 
 import bench.gap.diagnose as D
 from bench.cli import main
-from bench.harness import simulate
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.harness import simulate
 
 
 class _Stop(Exception):

@@ -8,8 +8,8 @@ import pytest
 
 from bench.gap import problem as P
 from bench.gap import resim as R
-from bench.harness import simulate
-from bench.maneuvers import excitation
+from bench.profiles.maneuvers import excitation
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 FAST = PlantParams().with_dict(R.FAST)
@@ -87,7 +87,7 @@ def test_initial_position_from_the_absolute_encoder():
 
 def test_a_logged_load_step_marks_the_load_change_regime():
     from bench.gap import localise as L
-    from bench.profiles import make_profile
+    from bench.profiles.catalog import make_profile
     params = FAST.with_dict({"sensors.noise": True, "load.kind": "step",
                              "load.amplitude_n": 1500.0, "load.start_s": 1.0})
     tr = simulate(make_profile("sine", duration_s=2.0), params).measured()

@@ -74,8 +74,8 @@ def test_a_fit_beyond_its_bound_is_flagged(tmp_path):
     says so, and its interval is open on that side."""
     from bench.gap.fit import fit
     from bench.gap.problem import build
-    from bench.harness import simulate
-    from bench.maneuvers import compact
+    from bench.profiles.maneuvers import compact
+    from bench.sim.harness import simulate
     from plant_rt.params import PlantParams
     base = PlantParams().with_dict({**R.FAST, "sensors.noise": True, "sensors.noise_seed": 2})
     log = simulate(compact(), base.with_dict({"effects.backlash_m": 400e-6})).measured()

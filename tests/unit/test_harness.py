@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.control import Controller, ControllerParams
-from bench.harness import simulate
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.control import Controller, ControllerParams
+from bench.sim.harness import simulate
 from plant_rt.model import Plant
 from plant_rt.params import PlantParams
 

@@ -31,7 +31,7 @@ def _fake(monkeypatch: pytest.MonkeyPatch, command: str) -> None:
     if command == "sweep":
         from bench.hums import sweep as mod
         monkeypatch.setattr(mod, "run", lambda *a, **k: res)
-        monkeypatch.setattr("bench.thesis_rows.check", lambda rows: [])
+        monkeypatch.setattr("bench.core.thesis_rows.check", lambda rows: [])
     elif command == "rul":
         from bench.hums import rul_run as mod
         monkeypatch.setattr(mod, "run_rul", lambda *a, **k: res)

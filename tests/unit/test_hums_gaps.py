@@ -11,10 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from bench.harness import simulate
 from bench.hums import report as HR
-from bench.profiles import make_profile
-from bench.trace import MODE_IDLE, Trace
+from bench.profiles.catalog import make_profile
+from bench.signals.trace import MODE_IDLE, Trace
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from bench import BenchError
 from bench.hums import indexes as I
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 DT = 1e-3
 

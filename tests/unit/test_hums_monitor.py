@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.control import ControllerParams, position_gain_for_bandwidth
-from bench.harness import simulate
 from bench.hums import monitor as M
-from bench.profiles import make_profile
-from bench.trace import Trace
+from bench.profiles.catalog import make_profile
+from bench.signals.trace import Trace
+from bench.sim.control import ControllerParams, position_gain_for_bandwidth
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 FAST = {"drive.pwm_mode": "averaged", "sim.ball_model": "quasistatic"}

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from scipy.signal import windows
 
+from bench.core.paramset import ParamSetError
 from bench.hums import monitor as M
 from bench.hums import spectra
 from bench.hums.motion import Kinematics
-from bench.paramset import ParamSetError
 from plant_rt.params import PlantParams
 
 

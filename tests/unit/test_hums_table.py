@@ -7,8 +7,8 @@ import math
 import pytest
 
 from bench import BenchError
+from bench.core.thesis_rows import Row, check, markdown
 from bench.hums.table import replace_section
-from bench.thesis_rows import Row, check, markdown
 
 
 def test_ratio_and_reason_check():

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.harness import simulate
 from bench.hums import indexes as I
 from bench.hums import monitor as M
 from bench.hums.sweep import degraded
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.harness import simulate
 from plant_rt.params import PlantParams
 
 LEVELS = (0.0, 0.3, 0.6, 1.0)

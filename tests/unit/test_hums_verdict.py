@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import math
 
+from bench.core.verdict import Level, Verdict
 from bench.hums.indexes import Indexes
 from bench.hums.live import LiveHums, PeriodResult
 from bench.hums.verdict import THESIS_MODEL, judge
-from bench.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
-from bench.verdict import Level, Verdict
+from bench.signals.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
 
 
 def ix(**kw) -> Indexes:

@@ -1,4 +1,4 @@
-"""The one JSON encoding of reports (bench/jsonsafe.py)."""
+"""The one JSON encoding of reports (bench/core/jsonsafe.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from bench.jsonsafe import json_safe
+from bench.core.jsonsafe import json_safe
 
 
 def test_non_finite_numbers_become_null_at_any_depth():

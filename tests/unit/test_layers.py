@@ -125,9 +125,9 @@ def test_the_ecu_loads_without_scipy_signal():
     """`bench run` starts an ECU process; scipy.signal (and the scipy.stats it pulls in) cost
     it ~0.5 s of start-up for the flight profile's turbulence filter alone, so that import
     waits until a turbulence is drawn."""
-    r = _python("import sys, bench.ecu.master, bench.profiles, bench.flight\n"
+    r = _python("import sys, bench.ecu.master, bench.profiles.catalog, bench.profiles.flight\n"
                 "assert 'scipy.signal' not in sys.modules\n"
                 "import numpy as np\n"
-                "y = bench.flight._turbulence(3000, 1e-4, np.random.default_rng(0))\n"
+                "y = bench.profiles.flight._turbulence(3000, 1e-4, np.random.default_rng(0))\n"
                 "assert 'scipy.signal' in sys.modules and abs(float(np.std(y)) - 1e-4) < 1e-9\n")
     assert r.returncode == 0, r.stdout + r.stderr

@@ -97,8 +97,9 @@ def test_no_import_cycles():
 
 def _package(mod: str) -> str:
     """The package a module belongs to in the package graph: a subpackage of bench
-    (``bench.gap``, ``bench.rig``, ...), ``bench`` for the modules at the top of bench/,
-    else the top-level package (``ema_contract``, ``plant_rt``, ``indie_plant``)."""
+    (``bench.sim``, ``bench.signals``, ``bench.gap``, ...), ``bench`` for bench/__init__
+    and bench/__main__, else the top-level package (``ema_contract``, ``plant_rt``,
+    ``indie_plant``)."""
     parts = mod.split(".")
     if parts[0] == "bench" and len(parts) > 1 and (ROOT / "bench" / parts[1]).is_dir():
         return f"bench.{parts[1]}"
@@ -185,13 +186,44 @@ def test_no_import_cycles_between_packages():
     assert not cycles, "\n".join(report)
 
 
+BENCH_PACKAGES = sorted(f"bench.{d.name}" for d in (ROOT / "bench").iterdir()
+                        if (d / "__init__.py").is_file()
+                        and any(p.name != "__init__.py" for p in d.rglob("*.py")))
+"""bench's subpackages of code (a package of data files only has no imports): the
+pipeline's stages (sim, profiles, signals, ecu, hums, gap, rig, ...), each a node of the
+package graph."""
+TOP_OF_BENCH = {"__init__.py", "__main__.py"}
+
+
+def loose_modules(bench_dir: Path) -> list[str]:
+    """The modules at the top of `bench_dir` other than the package's entry points: each
+    belongs in the subpackage of its stage (bench/sim, bench/signals, ..., bench/core for
+    the small types every package shares)."""
+    return sorted(p.name for p in bench_dir.glob("*.py") if p.name not in TOP_OF_BENCH)
+
+
+def test_no_module_sits_loose_at_the_top_of_bench():
+    loose = loose_modules(ROOT / "bench")
+    assert not loose, f"modules at the top of bench/ (move them into a package): {loose}"
+
+
+def test_the_loose_module_check_sees_one(tmp_path):
+    for name in ("__init__.py", "__main__.py", "trace.py"):
+        (tmp_path / name).write_text("")
+    (tmp_path / "sim").mkdir()
+    (tmp_path / "sim" / "loop.py").write_text("")
+    assert loose_modules(tmp_path) == ["trace.py"]
+
+
 def test_the_package_graph_sees_the_packages():
     """The check above cannot pass by seeing nothing: the packages are nodes, a known
     edge is in it, and a cycle through two packages is found."""
     edges = _package_edges()
     nodes = {p for e in edges for p in e}
-    assert {"bench", "bench.gap", "bench.rig", "bench.hums", "bench.usage", "bench.bus",
-            "bench.fleet", "ema_contract", "plant_rt", "indie_plant"} <= nodes, nodes
+    assert set(BENCH_PACKAGES) | {"bench", "ema_contract", "plant_rt", "indie_plant"} \
+        <= nodes, sorted(set(BENCH_PACKAGES) - nodes)
+    assert {f"bench.{p}" for p in ("sim", "signals", "profiles", "runtime", "core", "studies",
+                                   "gap", "rig", "hums")} <= set(BENCH_PACKAGES)
     assert ("bench.rig", "bench.gap") in edges and ("bench.gap", "plant_rt") in edges
     cli = [e for (a, _), es in edges.items() if a == "bench.cli" for e in es]
     assert not [e for e in cli if e.startswith("bench.cli.gap ")], cli   # a command: exempt
@@ -390,7 +422,7 @@ def test_the_layout_checks_see_the_sources():
     assert not any(rel.startswith(REPORTS) for rel in SOURCES)
 
 
-UNITS_MODULE = "bench/units.py"
+UNITS_MODULE = "bench/signals/units.py"
 FORCE_FACTORS = (9.80665, 4.4482216152605)       # kgf and lbf in newtons
 
 
@@ -401,7 +433,7 @@ def _bench_trees() -> list[tuple[str, ast.AST]]:
 
 
 def test_one_units_table():
-    """Unit factors live in `bench.units` only: no kgf/lbf factor as a number, and no
+    """Unit factors live in `bench.signals.units` only: no kgf/lbf factor as a number, and no
     table keyed by a force unit, in another module."""
     own = []
     for rel, tree in _bench_trees():
@@ -419,7 +451,7 @@ def test_one_units_table():
 
 def test_one_thesis_row_and_one_table_writer():
     """The thesis-vs-project `Row` and its markdown table are written once, in
-    `bench.thesis_rows`."""
+    `bench.core.thesis_rows`."""
     rows, writers = [], []
     for rel, tree in _bench_trees():
         for n in ast.walk(tree):
@@ -428,16 +460,16 @@ def test_one_thesis_row_and_one_table_writer():
             if isinstance(n, ast.Constant) and isinstance(n.value, str) \
                     and n.value.startswith("| id | quantity | unit | thesis"):
                 writers.append(f"{rel}:{n.lineno}")
-    assert len(rows) == 1 and rows[0].startswith("bench/thesis_rows.py:"), rows
-    assert len(writers) == 1 and writers[0].startswith("bench/thesis_rows.py:"), writers
+    assert len(rows) == 1 and rows[0].startswith("bench/core/thesis_rows.py:"), rows
+    assert len(writers) == 1 and writers[0].startswith("bench/core/thesis_rows.py:"), writers
 
 
 def test_one_table_reader():
-    """A table file is opened by `bench.tables` only: no other module parses CSV with
+    """A table file is opened by `bench.signals.tables` only: no other module parses CSV with
     pyarrow or opens Parquet or .npz files itself."""
     own = []
     for rel, tree in _bench_trees():
-        if rel == "bench/tables.py":
+        if rel == "bench/signals/tables.py":
             continue
         for n in ast.walk(tree):
             if isinstance(n, (ast.Import, ast.ImportFrom)):
@@ -454,7 +486,7 @@ def test_one_table_reader():
     assert not own, "\n".join(own)
 
 
-VERDICT_MODULE = "bench/verdict.py"
+VERDICT_MODULE = "bench/core/verdict.py"
 """The one verdict model: `Level` (the names and their one numeric code) and `Verdict`."""
 LEVEL_NAMES = ("HEALTHY", "DEGRADED", "WARNING", "FAILURE", "UNKNOWN")
 LEVEL_TABLE_NAMES = ("LEVELS", "LEVEL_NAMES", "LEVEL_CLASSES", "LEVEL_CODES", "VERDICTS")
@@ -503,7 +535,7 @@ def level_vocabulary(source: str) -> list[str]:
 
 
 def test_the_verdict_vocabulary_is_defined_once():
-    """The level names and their numbers live in `bench.verdict` only: every other
+    """The level names and their numbers live in `bench.core.verdict` only: every other
     product module reads `Level` / `Verdict` (a module that compares with "UNKNOWN",
     returns "DEGRADED" or keeps a LEVELS list writes a second vocabulary)."""
     where = []
@@ -516,7 +548,7 @@ def test_the_verdict_vocabulary_is_defined_once():
 
 
 def test_the_vocabulary_check_sees_the_old_copies():
-    """The check fails on the forms the tree had before `bench.verdict`: a LEVELS list,
+    """The check fails on the forms the tree had before `bench.core.verdict`: a LEVELS list,
     a returned level name, a comparison with one; prose and metavars pass."""
     old = ('UNKNOWN = "UNKNOWN"\nLEVELS = ["HEALTHY", "DEGRADED", "WARNING", "FAILURE"]\n'
            'LEVELS = (*V.LEVELS, V.UNKNOWN)\n'
@@ -531,7 +563,7 @@ def test_the_vocabulary_check_sees_the_old_copies():
     assert level_vocabulary(fine) == []
 
 
-ESTIMATORS_MODULE = "bench/estimators.py"
+ESTIMATORS_MODULE = "bench/signals/estimators.py"
 SPECTRA = {"rfft", "fft", "amplitude_spectrum"}
 MOTION_WORDS = re.compile(r"regime|dwell|moving|direction", re.IGNORECASE)
 SPEED_NAMES = re.compile(r"speed|v_thr|vmax|^tol$")
@@ -577,7 +609,7 @@ def estimator_copies(source: str) -> list[str]:
 
 
 def test_the_fundamental_and_the_regimes_are_estimated_once():
-    """The command's fundamental and the motion regimes come from `bench.estimators`
+    """The command's fundamental and the motion regimes come from `bench.signals.estimators`
     (`fundamental_hz`, `motion_regimes` / `motion_direction`) only."""
     where = []
     for path in MODULES.values():
@@ -590,7 +622,7 @@ def test_the_fundamental_and_the_regimes_are_estimated_once():
 
 
 def test_the_estimator_check_sees_the_old_copies():
-    """The check fails on the forms the tree had before `bench.estimators` held them."""
+    """The check fails on the forms the tree had before `bench.signals.estimators` held them."""
     old = ('def fundamental_hz(trace, f0):\n    return f0\n'
            'def command_frequency(trace):\n    return 1.0\n'
            'def band_f0(p):\n    """The command fundamental."""\n'
@@ -606,3 +638,49 @@ def test_the_estimator_check_sees_the_old_copies():
             'def peak(x):\n    """The strongest line of a residual."""\n'
             '    return np.argmax(np.fft.rfft(x))\n')
     assert estimator_copies(fine) == []
+
+
+DOC_PAGES = ("docs/*.md", "README.md", "CONTRIBUTING.md")
+_BRACE_GROUP = re.compile(r"\{[^{}]*\}")
+TREE_PATH = re.compile(r"(?<![\w./-])((?:bench|plant_rt|ema_contract|indie_plant|tests|benchmarks"
+                       r"|scripts|dbc)/[\w/{},*.-]*?\.(?:py|json|j2|css|dbc|eds|sh))(?![\w])")
+
+
+def _expand(path: str) -> list[str]:
+    """``bench/bus/{hub,logs}.py`` -> ``bench/bus/hub.py``, ``bench/bus/logs.py``."""
+    m = _BRACE_GROUP.search(path)
+    if not m:
+        return [path]
+    return [q for alt in m.group(0)[1:-1].split(",")
+            for q in _expand(path[:m.start()] + alt + path[m.end():])]
+
+
+def missing_paths(text: str, root: Path) -> list[str]:
+    """The paths of the tree that `text` names (``bench/sim/loop.py``, a brace list over
+    lines, a glob such as ``bench/hums/trend_*.py``) and that do not exist under `root`."""
+    text = _BRACE_GROUP.sub(lambda m: re.sub(r"\s+", "", m.group(0)), text)
+    out = []
+    for m in TREE_PATH.finditer(text):
+        for path in _expand(m.group(1)):
+            found = any(root.glob(path)) if "*" in path else (root / path).exists()
+            if not found:
+                out.append(path)
+    return out
+
+
+def test_every_path_the_docs_name_exists():
+    """A page naming a module by its path (docs/architecture.md's map, the equation index
+    of docs/index.md, the method pages) names one that exists: a moved module cannot leave
+    the docs pointing at its old place."""
+    pages = sorted({p for pattern in DOC_PAGES for p in ROOT.glob(pattern)})
+    assert len(pages) > 10
+    where = [f"{p.relative_to(ROOT)}: {path}" for p in pages
+             for path in missing_paths(p.read_text(encoding="utf-8"), ROOT)]
+    assert not where, "\n".join(where)
+
+
+def test_the_docs_path_check_sees_a_missing_one():
+    text = ("`bench/sim/loop.py`, `bench/bus/{hub,\n  logs}.py`, `bench/hums/trend_*.py`, "
+            "`bench/nowhere.py`, `bench/gap/{resim,nowhere}.py`, `bench/hums/nothing_*.py`")
+    assert missing_paths(text, ROOT) == ["bench/nowhere.py", "bench/gap/nowhere.py",
+                                         "bench/hums/nothing_*.py"]

@@ -17,7 +17,7 @@ from bench.bus.logs import load_trace, read_frames, read_log, trace_from_log
 from bench.bus.logwrite import LOG_FORMATS, open_writer
 from bench.cli import main
 from bench.ecu import run_over_bus
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
 from ema_contract.states import Pace
 from ema_contract.transport import close_bus
 from plant_rt.node import PlantNode

@@ -1,4 +1,4 @@
-"""The one closed loop (`bench.loop`): a controller plugs in without another loop, the
+"""The one closed loop (`bench.sim.loop`): a controller plugs in without another loop, the
 loop's stop on a non-finite state, and the laws and constants it shares (the clamped PI,
 I_eq and C_s) are one copy each."""
 
@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 from numba import njit
 
-from bench.control import C_LAST, NC, NK, ControllerParams, controller_step
 from bench.gap import problem as P
 from bench.gap import resim as R
-from bench.harness import run_inputs, simulate
 from bench.hums import monitor as M
-from bench.loop import (
+from bench.profiles.catalog import make_profile
+from bench.sim.control import C_LAST, NC, NK, ControllerParams, controller_step
+from bench.sim.harness import run_inputs, simulate
+from bench.sim.loop import (
     NT,
     ecu_reference,
     kernel_advance,
@@ -26,7 +27,6 @@ from bench.loop import (
     run_chunks,
     run_loop,
 )
-from bench.profiles import make_profile
 from plant_rt import kernel as K
 from plant_rt.model import (
     Plant,

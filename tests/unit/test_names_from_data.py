@@ -1,4 +1,4 @@
-"""File names made from data (`bench.filenames`): every writer that names a file after a
+"""File names made from data (`bench.core.filenames`): every writer that names a file after a
 value of the data keeps it inside the folder given, one bounded name, and distinct
 values keep distinct files; logs given by path get distinct labels."""
 
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from bench.cli import main
-from bench.filenames import MAX_NAME_BYTES, distinct_labels, safe_name
-from bench.trace import Trace
+from bench.core.filenames import MAX_NAME_BYTES, distinct_labels, safe_name
+from bench.signals.trace import Trace
 
 
 def files_under(root) -> set[str]:

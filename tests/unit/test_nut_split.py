@@ -15,8 +15,8 @@ from bench.gap import problem as P
 from bench.gap.diagnose import Options, diagnose
 from bench.gap.fit import fit, for_problem, shared_once
 from bench.gap.library import NUT_SHARE, nut_split, with_nut_share
-from bench.harness import simulate
-from bench.maneuvers import excitation
+from bench.profiles.maneuvers import excitation
+from bench.sim.harness import simulate
 from plant_rt.model import static_friction
 from plant_rt.params import PlantParams
 

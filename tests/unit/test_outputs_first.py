@@ -23,7 +23,7 @@ STARTED = "the work started"
 @pytest.fixture
 def stub_work(monkeypatch, tmp_path):
     """The long steps of reproduce, hums and fleet synth raise BenchError(STARTED)."""
-    stub_steps(monkeypatch, (("bench.reproduce", "run"), ("bench.hums.monitor", "fitted"),
+    stub_steps(monkeypatch, (("bench.studies.reproduce", "run"), ("bench.hums.monitor", "fitted"),
                              ("bench.hums.sweep", "run"), ("bench.hums.rul_run", "run_rul"),
                              ("bench.hums.campaign", "run_campaign"),
                              ("bench.hums.prognosis_campaign", "run_usage_campaign"),

@@ -1,6 +1,6 @@
 """No command writes over a file it reads: `bench.cli.outputs.check_io` refuses, before
 anything runs, an output that resolves to an input (the same path, a link, another name
-of the same file, a fixed-name file of an output directory), and `bench.filenames`
+of the same file, a fixed-name file of an output directory), and `bench.core.filenames`
 refuses a file named from data that would be one. Each case leaves every input's bytes
 as they were."""
 

@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from bench.harness import simulate
-from bench.profiles import sine, step, velocity_cosine
-from bench.reproduce import analytic_axial_stiffness, stiffness_deflection
+from bench.profiles.catalog import sine, step, velocity_cosine
+from bench.sim.harness import simulate
+from bench.studies.reproduce import analytic_axial_stiffness, stiffness_deflection
 from ema_contract.states import Status
 from plant_rt import kernel as K
 from plant_rt.model import Plant

@@ -1,5 +1,5 @@
 """The one table reader and the one log loader, each chosen by suffix through a registry
-(`bench.tables.TABLE_READERS`, `bench.bus.logs.LOG_READERS`), and the calibration kinds."""
+(`bench.signals.tables.TABLE_READERS`, `bench.bus.logs.LOG_READERS`), and the calibration kinds."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from bench import BenchError
 from bench.bus.logs import LOG_READERS, load_trace
 from bench.bus.logwrite import LOG_FORMATS
 from bench.gap.inputs import Calibration, nominal_params, read_nominal
-from bench.gap.riggap import is_rig_doc
-from bench.tables import TABLE_READERS, TRACE_FORMATS, read_table, table_suffix
-from bench.trace import Trace
+from bench.rig.riggap import is_rig_doc
+from bench.signals.tables import TABLE_READERS, TRACE_FORMATS, read_table, table_suffix
+from bench.signals.trace import Trace
 
 
 def _one_line(exc: pytest.ExceptionInfo[BenchError]) -> str:
@@ -85,7 +85,7 @@ def test_measured_drops_the_truth_and_keeps_what_a_log_carries(tmp_path):
 
 
 def test_a_calibration_says_its_kind_and_old_files_stay_readable(tmp_path):
-    old_rig = {"model": "generic nut-level model (bench.gap.rigmodel)", "values": {}}
+    old_rig = {"model": "generic nut-level model (bench.sim.rigmodel)", "values": {}}
     old_plant = {"model": "plant", "params": {"effects.preload_n": 1000.0}}
     assert Calibration.of(old_rig).kind == "actuator" and is_rig_doc(old_rig)
     assert Calibration.of(old_plant).kind == "plant" and not is_rig_doc(old_plant)

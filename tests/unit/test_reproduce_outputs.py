@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-import bench.reproduce as R
+import bench.studies.reproduce as R
 from bench.cli import main
 
 LONG = ("share of the move at constant (>=95 % max) nut speed, measured over the whole "

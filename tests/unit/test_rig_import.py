@@ -13,7 +13,7 @@ import pytest
 from bench import BenchError
 from bench.cli import main
 from bench.gap.importer import import_table, read_map, split_table
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 MAP = [{"signal": "t_s", "column": "time", "unit": "s"},
        {"signal": "setpoint_position_m", "column": "set_point", "unit": "mm"},

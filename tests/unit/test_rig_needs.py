@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.actuator import from_dict, load, model_values
 from bench.gap.needs import availability, missing
-from bench.trace import Trace
+from bench.rig.actuator import from_dict, load, model_values
+from bench.signals.trace import Trace
 
 
 def sparse(dt: float = 0.04) -> Trace:
@@ -79,7 +79,7 @@ def test_load_sign_other_than_plus_or_minus_one_is_refused(sign):
 
 
 def test_load_sign_minus_one_flips_the_load_and_unknown_is_plus_one():
-    from bench.gap.rigcal import load_sign
+    from bench.rig.rigcal import load_sign
     assert load_sign(from_dict({"motor_kind": "dc_current_loop", "load_sign": -1})) == -1.0
     assert load_sign(from_dict({"motor_kind": "dc_current_loop"})) == 1.0
 

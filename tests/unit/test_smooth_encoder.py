@@ -9,9 +9,9 @@ import numpy as np
 from bench.gap import effects as E
 from bench.gap import problem as P
 from bench.gap import resim as R
-from bench.harness import simulate
-from bench.maneuvers import excitation
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.profiles.maneuvers import excitation
+from bench.sim.harness import simulate
 from plant_rt import kernel as K
 from plant_rt.model import sensor_vector
 from plant_rt.params import PlantParams

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from bench.actuator import from_dict, sensor_params
 from bench.gap import resim as R
+from bench.rig.actuator import from_dict, sensor_params
 from plant_rt import kernel as K
 from plant_rt.model import Plant
 from plant_rt.params import ParameterError, PlantParams

@@ -1,4 +1,4 @@
-"""Units and types from tables, one rule per case (`bench.tables`, `bench.trace`): a
+"""Units and types from tables, one rule per case (`bench.signals.tables`, `bench.signals.trace`): a
 Parquet timestamp column is time in seconds; a value that overflows once scaled is
 refused; a UTF-8 byte-order mark is dropped; a header name given twice is refused; each
 message names the column and the line. A big table is read as a stream."""
@@ -14,7 +14,7 @@ import pytest
 
 from bench import BenchError
 from bench.gap.importer import import_table, read_map
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 MAP = [{"signal": "t_s", "column": "time", "unit": "s"},
        {"signal": "setpoint_position_m", "column": "set_point", "unit": "mm"},
@@ -117,7 +117,7 @@ def test_a_big_table_is_read_as_a_stream_within_its_columns_memory(tmp_path):
     rows of 4 columns and the peak of the reading step's allocations."""
     import tracemalloc
 
-    from bench.tables import read_rows
+    from bench.signals.tables import read_rows
     n = 20_000
     path = tmp_path / "big.csv"
     with path.open("w") as fh:
@@ -131,7 +131,7 @@ def test_a_big_table_is_read_as_a_stream_within_its_columns_memory(tmp_path):
     assert len(cols["time"]) == n and int(rows.numbers[-1]) == n + 1
     # 3 columns + line numbers = 32 bytes a row; array growth and one line's objects
     assert peak < 2.5 * 32 * n, peak
-    from bench import tables as T
+    from bench.signals import tables as T
     T_limit = T.max_rows
 
     def small(n_columns, available=None):

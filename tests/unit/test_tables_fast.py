@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench import BenchError
-from bench import tables as T
+from bench.signals import tables as T
 
 CASES = {
     "plain": "a,b,c\n1,2,3\n4.5,-6e-3,7\n",

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.trace import Trace
+from bench.signals.trace import Trace
 
 
 def _trace(t, cur) -> Trace:

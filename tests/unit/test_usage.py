@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bench import BenchError
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from bench.usage import UsageAccumulator, UsageSettings, accumulate, usage_of_trace
 from bench.usage.accumulator import Geometry
 from bench.usage.life import nut_loads

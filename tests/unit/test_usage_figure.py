@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from bench.usage import usage_of_trace
 from bench.usage.figure import usage_figure
 from plant_rt.params import PlantParams

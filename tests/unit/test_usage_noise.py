@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.trace import Trace
+from bench.signals.trace import Trace
 from bench.usage import UsageAccumulator, UsageSettings, accumulate, usage_of_trace
 from bench.usage.accumulator import Geometry
 from plant_rt.params import PlantParams
@@ -146,11 +146,11 @@ def test_what_the_json_and_the_accumulation_say():
 
 
 def test_the_gap_fit_and_the_rig_tools_share_one_white_noise_estimator():
-    """`bench.gap.problem.noise_std` (the fits' weights) and `bench.estimators.noise_floor` (the
+    """`bench.gap.problem.noise_std` (the fits' weights) and `bench.signals.estimators.noise_floor` (the
     rig tools' floors, the usage hysteresis) were two copies of the same formula; now one
     is the other, but for the fit's 0.0 below 10 finite samples (the floor's NaN)."""
-    from bench.estimators import noise_floor
     from bench.gap.problem import noise_std
+    from bench.signals.estimators import noise_floor
     rng = np.random.default_rng(3)
     y = np.cumsum(rng.normal(size=500)) * 1e-3 + 0.02 * rng.normal(size=500)
     y[::9] = np.nan

@@ -1,4 +1,4 @@
-"""The one verdict model (`bench.verdict`): the levels and their one numeric code, the
+"""The one verdict model (`bench.core.verdict`): the levels and their one numeric code, the
 stored forms `Level.parse` reads, the JSON shape, and the producers that return it."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.verdict import Level, Verdict
+from bench.core.verdict import Level, Verdict
 
 
 def test_one_numeric_encoding():

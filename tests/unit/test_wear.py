@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from bench.harness import simulate
-from bench.profiles import make_profile
+from bench.profiles.catalog import make_profile
+from bench.sim.harness import simulate
 from plant_rt import kernel as K
 from plant_rt import wear
 from plant_rt.contacts import axial_stiffness, contact_geometry
@@ -124,7 +124,7 @@ def test_day_by_day_equals_one_long_run():
     def pos(t):
         return np.where(t < dur, two.position(t),
                         np.where(t < dur + 1.0, 0.0, two.position(t - dur - 1.0)))
-    from bench.setpoints import Profile
+    from bench.profiles.setpoints import Profile
     long = Profile("two-days", two.mode, 2 * dur + 1.0, pos, two.speed)
     one = simulate(long, p).meta["wear_volume_m3"]
     assert d2 > d1 > 0

@@ -1,4 +1,4 @@
-"""The compute engine (`bench.workers.run_all`) in this process: job order, callbacks,
+"""The compute engine (`bench.runtime.workers.run_all`) in this process: job order, callbacks,
 initializer, errors, and when it stays in-process (no cluster: workers=1, one job, even
 with a scheduler configured). The Dask cluster itself: tests/integration/test_workers_dask.py."""
 
@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from bench.cluster import ENV_SCHEDULER, default_workers, scheduler_address
-from bench.workers import _slug, run_all
+from bench.runtime.cluster import ENV_SCHEDULER, default_workers, scheduler_address
+from bench.runtime.workers import _slug, run_all
 
 _STATE: dict[str, str] = {}
 
@@ -69,7 +69,7 @@ def test_task_keys_are_readable_on_the_dashboard():
 
 
 def test_session_starts_nothing_for_in_process_jobs():
-    from bench.workers import _SESSIONS, session
+    from bench.runtime.workers import _SESSIONS, session
     with session(2):
         assert run_all(_square, [3], workers=2, progress=False) == [9]
         assert _SESSIONS[-1].engine is None         # one job: no cluster was started
@@ -93,10 +93,10 @@ def test_the_usage_campaign_runs_on_the_given_scheduler(monkeypatch):
     run_all calls started a local cluster): its work now runs inside the command's
     session, as the other campaign does."""
     from bench import BenchError
-    from bench import cluster as C
-    from bench import workers as W
     from bench.cli import main
     from bench.hums import prognosis_campaign as PC
+    from bench.runtime import cluster as C
+    from bench.runtime import workers as W
     seen = []
     monkeypatch.setattr(C, "probe_scheduler", lambda *a, **k: None)   # no scheduler here
 
@@ -117,7 +117,7 @@ def test_a_scheduler_address_that_is_not_one_is_refused_at_once(monkeypatch, add
     import time
 
     from bench import BenchError
-    from bench.cluster import Engine
+    from bench.runtime.cluster import Engine
     t0 = time.monotonic()
     with pytest.raises(BenchError, match=f"not a Dask scheduler address: '{address}'"):
         Engine(2, address)
@@ -131,7 +131,7 @@ def test_a_bad_scheduler_address_is_refused_when_the_jobs_would_run_here(monkeyp
     """`--scheduler bogus` with one job (or one worker) ran the job in-process and exited
     0: the address was never looked at (found by fuzzing)."""
     from bench import BenchError
-    from bench.workers import run_all
+    from bench.runtime.workers import run_all
     with pytest.raises(BenchError, match="not a Dask scheduler address: 'bogus'"):
         run_all(abs, [-1], workers=1, scheduler="bogus")
     monkeypatch.setenv(ENV_SCHEDULER, "tcp://h:abc")

@@ -1,7 +1,7 @@
 """The gap of a log against another actuator's calibrated generic model.
 
 `bench gap LOG --nominal CAL.json` with a calibration from `bench calibrate --actuator`
-(`bench.gap.rigcal`) comes here: the thesis plant's diagnosis needs signals and a SYNC
+(`bench.rig.rigcal`) comes here: the thesis plant's diagnosis needs signals and a SYNC
 rate such logs do not have (`bench.gap.needs`); this one needs only the set-point, the
 position and, for the current's parts, the current, at any rate.
 
@@ -31,13 +31,13 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from bench import BenchError
-from bench import estimators as E
-from bench.actuator import Actuator, from_dict
-from bench.gap import rigcal as RC
-from bench.gap import rigmodel as RM
 from bench.gap.inputs import Calibration
 from bench.hums import formulas as F
-from bench.trace import Trace
+from bench.rig import rigcal as RC
+from bench.rig.actuator import Actuator, from_dict
+from bench.signals import estimators as E
+from bench.signals.trace import Trace
+from bench.sim import rigmodel as RM
 
 CANDIDATES: dict[str, tuple[str, ...]] = {
     "friction": ("coulomb_n", "viscous_n_s_per_m"),

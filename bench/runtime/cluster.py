@@ -1,6 +1,6 @@
 """The bench's connection to Dask distributed: a `distributed.Client` on a LocalCluster of
 its own (this machine, 127.0.0.1 only) or on an existing scheduler (`--scheduler ADDRESS`
-or ``$BENCH_DASK_SCHEDULER``). `bench.workers` runs the jobs on it.
+or ``$BENCH_DASK_SCHEDULER``). `bench.runtime.workers` runs the jobs on it.
 
 The local cluster has one worker process per core (at most `workers`), one thread each,
 and one BLAS/OpenMP/numba thread per worker, so two workers use two cores and no more:

@@ -2,7 +2,7 @@
 
 The current loop lives in the drive (plant_rt), so the ECU sends a current demand; see
 docs/model.md, "Control partition and the bus delay". The same compiled `controller_step` runs in the live ECU
-(bench.ecu, one call per SYNC) and in the one compiled closed loop (`bench.loop`, used by
+(bench.ecu, one call per SYNC) and in the one compiled closed loop (`bench.sim.loop`, used by
 the harness, the gap re-simulation and the monitoring model), so all give the same demand
 for the same measurements. Its speed PI is the drive's clamped PI law (`plant_rt.pi`).
 
@@ -22,8 +22,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from bench.paramset import ParamSet
-from bench.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
+from bench.core.paramset import ParamSet
+from bench.signals.trace import MODE_IDLE, MODE_POSITION, MODE_SPEED
 from plant_rt.jit import njit
 from plant_rt.params import THESIS, P
 from plant_rt.pi import clamped_pi
@@ -48,7 +48,7 @@ def position_gain_for_bandwidth(bandwidth_hz: float, ratio: float = THESIS.reduc
 @dataclass(frozen=True)
 class ControllerParams(ParamSet):
     """ECU gains and limits (SI; thesis units are volts for position), with units, ranges
-    and sources as the plant's (`bench.paramset`)."""
+    and sources as the plant's (`bench.core.paramset`)."""
     _group: ClassVar[str] = "controller"
     position_kp_rad_s_per_m: float = P(position_gain_for_bandwidth(6.0), "(rad/s)/m", 0.0, 1e7,
                                        "position P gain: 6 Hz position bandwidth",

@@ -1,6 +1,6 @@
 """Estimates of a signal's properties from its own samples: one function each.
 
-- `noise_floor`: the white-noise sigma the rig calibration's floor (`bench.gap.rigcal`),
+- `noise_floor`: the white-noise sigma the rig calibration's floor (`bench.rig.rigcal`),
   the gap fits' weights (`bench.gap.problem.noise_std`) and the usage counters'
   hysteresis rule (`bench.usage.hysteresis`) all use.
 - `fundamental_hz`: the command's fundamental, stated or the strongest line of the
@@ -9,7 +9,7 @@
   (`bench.gap.localise`).
 - `motion_regimes` (and `motion_direction`, `moving_threshold`): samples split by speed
   into rest and motion (and the bands above), with the direction; the gap's regimes
-  (`bench.gap.localise`, `bench.gap.riggap`), a rig cycle's set-point phases
+  (`bench.gap.localise`, `bench.rig.riggap`), a rig cycle's set-point phases
   (`bench.rig.cycles`) and the usage counters' dwell / slow / fast time
   (`bench.usage.accumulator`).
 

@@ -1,7 +1,7 @@
 """The Dask worker plugin that runs a job's `initializer(*initargs)` once in every worker
 process of the job, including a worker that joins (or is restarted by its nanny) in the
 middle of it. Its own module because it imports `distributed` (~0.5 s), which the
-in-process path of `bench.workers.run_all` never needs."""
+in-process path of `bench.runtime.workers.run_all` never needs."""
 
 from __future__ import annotations
 

@@ -35,8 +35,8 @@ import math
 import numpy as np
 
 from bench import BenchError
-from bench.setpoints import Profile
-from bench.trace import MODE_POSITION
+from bench.profiles.setpoints import Profile
+from bench.signals.trace import MODE_POSITION
 
 GROUND_TEST_S = 2.0          # four periods of the 2 Hz ground-test sine
 GROUND_AMPLITUDE_M = 0.5e-3

@@ -20,7 +20,7 @@ inline embeds run-time pointers and is not cached either.) The parts:
   (`plant_rt.kernel`); the monitoring model's are in `bench.hums.monitor`.
 - controller: control(c, kvec, ref, kk, meas_out, kd) -> demand, with its state `c`, its
   parameters `kvec`, this period's row kk of the reference table `ref` and the (delayed)
-  measurement row kd. Here: the ECU's position/speed cascade (`bench.control.
+  measurement row kd. Here: the ECU's position/speed cascade (`bench.sim.control.
   controller_step`, any gains, limits and sample time in `kvec`) and `table_control`, a
   demand replayed from a table (a logged ECU demand, or a measured current for a rig
   without the bench's ECU).
@@ -38,7 +38,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from bench.control import controller_step
+from bench.sim.control import controller_step
 from plant_rt import kernel as K
 from plant_rt.jit import njit
 from plant_rt.params import PlantParams

@@ -1,8 +1,8 @@
 """Set-point profiles: the thesis' test maneuvers plus a chirp, the RUL run and a seeded
-flight (`bench.flight`), by name.
+flight (`bench.profiles.flight`), by name.
 
-Each builds a `bench.setpoints.Profile` (ECU mode and set-points as functions of time);
-the gap diagnosis maneuver comes from `bench.maneuvers`.
+Each builds a `bench.profiles.setpoints.Profile` (ECU mode and set-points as functions of time);
+the gap diagnosis maneuver comes from `bench.profiles.maneuvers`.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.flight import flight
-from bench.maneuvers import excitation
-from bench.setpoints import Profile
-from bench.trace import MODE_POSITION, MODE_SPEED
+from bench.profiles.flight import flight
+from bench.profiles.maneuvers import excitation
+from bench.profiles.setpoints import Profile
+from bench.signals.trace import MODE_POSITION, MODE_SPEED
 
 
 def _zeros(t: np.ndarray) -> np.ndarray:
@@ -92,7 +92,7 @@ def rul(duration_s: float = 120.0, amplitude_m: float = 0.5e-3,
 
 
 def gap_excitation(duration_s: float = 10.0, load_n: float = 2000.0) -> Profile:
-    """The gap diagnosis maneuver (`bench.maneuvers.excitation`): 1-4 Hz sines,
+    """The gap diagnosis maneuver (`bench.profiles.maneuvers.excitation`): 1-4 Hz sines,
     current-limited steps, cruise ramps and dwells under a `load_n` N sine load."""
     return excitation(duration_s, load_n)
 

@@ -13,7 +13,7 @@ from bench.cli import options as opt
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p = opt.add_command(
         subparsers, "gap-bench", "blind check of the gap diagnosis on generated logs", """
-        Generate logs with the plant in-process (bench.harness, full fidelity: switching PWM,
+        Generate logs with the plant in-process (bench.sim.harness, full fidelity: switching PWM,
         dynamic balls; sensor noise on) with zero, one or two effects at random magnitudes the
         diagnosis is not told, plus sensor-side effects applied to the logged columns and
         out-of-library effects; run the diagnosis (fast mode) on the measured columns only;

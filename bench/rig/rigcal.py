@@ -1,9 +1,9 @@
 """Calibration of another actuator from its healthy logs (`bench calibrate --actuator`).
 
-What the description (`bench.actuator`) leaves unknown is identified from one or more
-healthy logs with the generic model (`bench.gap.rigmodel`), by least squares on the
+What the description (`bench.rig.actuator`) leaves unknown is identified from one or more
+healthy logs with the generic model (`bench.sim.rigmodel`), by least squares on the
 residuals at the logs' own sample instants, each signal's residual divided by that log's
-noise floor (`bench.estimators.noise_floor`, from the measured samples):
+noise floor (`bench.signals.estimators.noise_floor`, from the measured samples):
 
 - ``fit-gains`` (a set-point is logged): the closed loop with a generic position/speed
   cascade; the unknown gains, feed-forward and current limit are fitted together with
@@ -30,11 +30,11 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from bench import BenchError
-from bench.actuator import Actuator, model_values
-from bench.estimators import noise_floor
-from bench.gap import rigmodel as RM
 from bench.gap.inputs import Calibration
-from bench.trace import Trace
+from bench.rig.actuator import Actuator, model_values
+from bench.signals.estimators import noise_floor
+from bench.signals.trace import Trace
+from bench.sim import rigmodel as RM
 
 METHODS = ("auto", "fit-gains", "measured-current")
 FLOOR_FACTOR = 2.0
@@ -46,7 +46,7 @@ NEEDS = {
 """Signals each calibration method needs (current_a is also used by fit-gains if logged)."""
 MIN_FLOOR = {"position_m": 1e-7, "current_a": 1e-4}
 MIN_SAMPLES = 5
-"""Measured samples a signal's noise floor needs (`bench.estimators.noise_floor`): a log with
+"""Measured samples a signal's noise floor needs (`bench.signals.estimators.noise_floor`): a log with
 fewer position samples cannot be scored against the model."""
 DEFAULT_PERIOD_S = 1e-3
 X0_FLOORS = 20.0     # the initial nut position is fitted within +- this many floors
@@ -179,7 +179,7 @@ def simulate(theta: np.ndarray, tr: Trace, act: Actuator, method: str, period_s:
 
 
 def load_sign(act: Actuator) -> float:
-    """The description's load sign (+1 or -1, validated by `bench.actuator`); +1 when it
+    """The description's load sign (+1 or -1, validated by `bench.rig.actuator`); +1 when it
     is unknown (`_notes` says so)."""
     sign = act.values.get("load_sign")
     return 1.0 if sign is None else float(sign)
@@ -275,7 +275,7 @@ def calibrate_rig(healthy: Sequence[Trace], act: Actuator,
     notes += [f"held-out {u['log']}: {u['signal']} not scored ({u['reason']}): only "
               f"{', '.join(u['scored']) or 'nothing'} judged on it" for u in unscored]
     return Calibration("actuator", {
-        "model": "generic nut-level model (bench.gap.rigmodel)",
+        "model": "generic nut-level model (bench.sim.rigmodel)",
         "actuator": act.name, "motor_kind": act.motor_kind, "method": method,
         "actuator_description": act.to_dict(),
         "method_text": METHOD_TEXT[method], "sample_period_s": period_s,

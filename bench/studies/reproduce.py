@@ -16,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from bench.control import ControllerParams
-from bench.freqresp import FreqResponse, current_loop, position_loop, speed_loop
-from bench.harness import simulate
-from bench.profiles import make_profile, sine, step
-from bench.thesis_rows import Row
-from bench.thesis_rows import markdown as rows_table
-from bench.trace import Trace
+from bench.core.thesis_rows import Row
+from bench.core.thesis_rows import markdown as rows_table
+from bench.profiles.catalog import make_profile, sine, step
+from bench.signals.trace import Trace
+from bench.sim.control import ControllerParams
+from bench.sim.freqresp import FreqResponse, current_loop, position_loop, speed_loop
+from bench.sim.harness import simulate
 from plant_rt.contacts import helix_rad
 from plant_rt.params import PlantParams
 

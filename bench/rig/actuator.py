@@ -5,14 +5,14 @@ described by a JSON or TOML file: what kind of motor drives it, its ratio, lead 
 stroke, inertias and friction where known, and its controller's structure and gains where
 known. Every value is a number in the field's unit, or ``"unknown"``; any value may come
 as ``{"value": ..., "source": "..."}`` to say where it is from. `bench calibrate`
-identifies what is unknown (`bench.gap.rigcal`).
+identifies what is unknown (`bench.rig.rigcal`).
 
     {"name": "...", "motor_kind": "stepper_chopper", "sources": ["..."],
      "lead_m": {"value": 0.005, "source": "RM1605 data sheet"}, "ratio": 1.0,
      "moving_mass_kg": "unknown", ...,
      "controller": {"structure": "unknown", "position_kp_1_s": "unknown", ...}}
 
-The generic model the calibration fits works at the nut (`bench.gap.rigmodel`): an
+The generic model the calibration fits works at the nut (`bench.sim.rigmodel`): an
 equivalent mass, a force per ampere, Coulomb and viscous friction, a current offset, and
 a position P + speed PI cascade with a current limit and a sample time. `model_values`
 turns a description into those values (None where unknown): the equivalent mass is
@@ -181,7 +181,7 @@ def load(spec: str | Path) -> Actuator:
     """A description from a .json or .toml file, or a shipped one by name (SHIPPED)."""
     s = str(spec)
     if s in SHIPPED:
-        text = resources.files("bench.actuators").joinpath(SHIPPED[s]).read_text()
+        text = resources.files("bench.rig.actuators").joinpath(SHIPPED[s]).read_text()
         return from_dict(json.loads(text), s)
     path = Path(s)
     if not path.exists():
@@ -220,7 +220,7 @@ def sensor_params(a: Actuator) -> dict[str, Any]:
 
 
 def model_values(a: Actuator) -> dict[str, float | None]:
-    """The generic model's values at the nut (`bench.gap.rigmodel.THETA`), None where the
+    """The generic model's values at the nut (`bench.sim.rigmodel.THETA`), None where the
     description leaves them unknown (see module doc for the conversions)."""
     v = a.values
     lead, ratio = v["lead_m"], v["ratio"] if v["ratio"] is not None else None

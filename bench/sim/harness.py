@@ -1,10 +1,10 @@
 """In-process harness: a profile run on the full plant with the ECU in the one compiled
-closed loop (`bench.loop.ecu_on_plant`), with the bus timing.
+closed loop (`bench.sim.loop.ecu_on_plant`), with the bus timing.
 
 This module prepares the per-period inputs (set-points, degradation schedule, noise,
 external force) and names the outputs; the loop itself, with its timing (the demand of
 SYNC k applied during period k+1, the sensor delay, the stop on a non-finite state), is
-`bench.loop`. A lockstep bus run of the same scenario gives the same trace
+`bench.sim.loop`. A lockstep bus run of the same scenario gives the same trace
 (tests/integration).
 """
 
@@ -17,9 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench import BenchError
-from bench.control import NC as CTRL_NC
-from bench.control import ControllerParams
-from bench.loop import (
+from bench.profiles.catalog import Profile
+from bench.signals.trace import Trace
+from bench.sim.control import NC as CTRL_NC
+from bench.sim.control import ControllerParams
+from bench.sim.loop import (
     NT,
     TRUTH_FROM_STATE,
     delay_periods,
@@ -29,8 +31,6 @@ from bench.loop import (
     no_columns,
     run_chunks,
 )
-from bench.profiles import Profile
-from bench.trace import Trace
 from plant_rt import kernel as K
 from plant_rt.aero import gust_sequence
 from plant_rt.model import Plant, load_noise_seed, schedule_at, separate_current_channel

@@ -19,7 +19,7 @@ deflection proportional to it; the current that holds the load is F p / (2 pi et
 (kt, lead), the current that accelerates the rotor is J a / kt. `load_n=0` gives the
 unloaded maneuver (a rig without a load actuator).
 
-The module sits next to `bench.profiles` (which offers `excitation` as `gap-excitation`),
+The module sits next to `bench.profiles.catalog` (which offers `excitation` as `gap-excitation`),
 below the gap diagnosis that uses it, so the profiles do not import the gap package.
 """
 
@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.setpoints import Profile
-from bench.trace import MODE_POSITION
+from bench.profiles.setpoints import Profile
+from bench.signals.trace import MODE_POSITION
 
 
 @dataclass(frozen=True)

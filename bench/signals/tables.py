@@ -1,5 +1,5 @@
 """The one reader of tables: a rig's own table (`bench import`, `bench rig`) and a trace
-the bench wrote (`bench.trace.Trace.load`), read as columns of numbers. The reader is
+the bench wrote (`bench.signals.trace.Trace.load`), read as columns of numbers. The reader is
 chosen by the file's suffix through `TABLE_READERS` (as python-can's
 ``can.io.MESSAGE_READERS`` picks a log reader): CSV-like text (``.csv``, ``.tsv``,
 ``.txt``; the delimiter sniffed; also .xz/.gz/.bz2-compressed), Parquet and compressed
@@ -415,7 +415,7 @@ TABLE_READERS: dict[str, TableFormat] = {
 IMPORT_FORMATS = (".csv", ".tsv", ".txt", ".parquet")
 """What `bench import` reads: a rig's own table."""
 TRACE_FORMATS = (".csv", ".parquet", ".npz")
-"""What `bench.trace.Trace.save` writes and `Trace.load` reads."""
+"""What `bench.signals.trace.Trace.save` writes and `Trace.load` reads."""
 
 
 def table_suffix(path: str | Path) -> str:

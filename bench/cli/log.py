@@ -52,9 +52,9 @@ def check_arguments(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bench import interrupts
     from bench.bus import bus_settings, close_bus, connect, find_bus
     from bench.bus.logwrite import flush, open_writer
+    from bench.runtime import interrupts
 
     check_arguments(args)
     found = find_bus(bus_settings(args))

@@ -2,7 +2,7 @@
 
 Position set-points are nut positions (m); speed set-points are motor-shaft speeds
 (rad/s), as in the thesis' open-loop tests (section 5.7.4). The profiles themselves are
-in `bench.profiles` (the thesis' maneuvers) and `bench.maneuvers` (the diagnosis
+in `bench.profiles.catalog` (the thesis' maneuvers) and `bench.profiles.maneuvers` (the diagnosis
 maneuver); both build this type, so neither imports the other for it.
 """
 

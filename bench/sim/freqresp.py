@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.control import ControllerParams
-from bench.harness import simulate
-from bench.profiles import Profile
-from bench.trace import MODE_POSITION, MODE_SPEED
+from bench.profiles.catalog import Profile
+from bench.signals.trace import MODE_POSITION, MODE_SPEED
+from bench.sim.control import ControllerParams
+from bench.sim.harness import simulate
 from plant_rt import kernel as K
 from plant_rt.model import Plant
 from plant_rt.params import PlantParams

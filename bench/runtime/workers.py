@@ -1,6 +1,6 @@
 """The one compute engine of the bench: every long job (HUMS sweep, RUL run, calibration
 and campaign, the gap diagnosis and its blind benchmark, the fleet) runs its independent
-pieces here, on Dask distributed (`bench.cluster`).
+pieces here, on Dask distributed (`bench.runtime.cluster`).
 
 `run_all(fn, jobs, ...)` is `[fn(job) for job in jobs]` as Dask tasks with a progress bar:
 on a LocalCluster of its own (127.0.0.1 only, `workers` single-threaded processes,
@@ -39,7 +39,7 @@ from typing import Any
 from tqdm import tqdm
 
 from bench import BenchError
-from bench.cluster import Engine, check_address, default_workers, scheduler_address
+from bench.runtime.cluster import Engine, check_address, default_workers, scheduler_address
 
 RETRIES = 1
 
@@ -151,7 +151,7 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
     name = f"{_slug(desc)}-{uuid.uuid4().hex[:8]}"
     plugin = None
     if init is not None:
-        from bench.cluster_plugin import Initializer
+        from bench.runtime.cluster_plugin import Initializer
         plugin = f"{name}-init"
         client.register_plugin(Initializer(*init), name=plugin)
     size = max(1, int(chunk))
@@ -280,7 +280,7 @@ class Pool:
         if self._client is None:
             client = self.engine.client()
             if self.init is not None:
-                from bench.cluster_plugin import Initializer
+                from bench.runtime.cluster_plugin import Initializer
                 self._plugin = f"bench-init-{uuid.uuid4().hex[:8]}"
                 client.register_plugin(Initializer(*self.init), name=self._plugin)
             self._client = client

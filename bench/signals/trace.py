@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.tables import (  # noqa: F401 - the memory bounds are also the trace's
+from bench.signals.tables import (  # noqa: F401 - the memory bounds are also the trace's
     MEMORY_SHARE,
     ROW_COPIES,
     TRACE_FORMATS,

@@ -46,7 +46,7 @@ THETA = ("mass_kg", "force_per_a_n", "coulomb_n", "viscous_n_s_per_m", "current_
 M, KF, FC, C, I0, KP, KV, KI, FF, IMAX, TAU, BA, BX, BW = range(len(THETA))
 EXTRA = {"bump_n": 0.0, "bump_at_m": 0.0, "bump_width_m": 2e-3}
 """Values no description gives: a position-locked force (N) opposing motion around one
-nut position (m) with a Gaussian width (m), zero in a healthy model (`bench.gap.riggap`)."""
+nut position (m) with a Gaussian width (m), zero in a healthy model (`bench.rig.riggap`)."""
 H_MAX = 2e-4            # s: the model's largest step
 
 

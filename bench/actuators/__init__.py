@@ -1,2 +1,0 @@
-"""Actuator descriptions that ship with the bench (`bench.actuator.SHIPPED`) and the
-column maps of their rigs' tables (`bench import --map`)."""

@@ -1,0 +1,1 @@
+"""The compute runtime: the Dask engine (workers, cluster, its worker plugin) and Ctrl-C handling."""
