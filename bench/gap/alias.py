@@ -113,16 +113,17 @@ def settle(p: Any, chosen: Any, singles: list[Any], ratio: float | None = None
                    line=INDISTINGUISHABLE)
         return chosen, rec
     force = np.asarray(load[:n], float)
-    slopes, resid = {}, {}
+    slopes, raw, resid = {}, {}, {}
     for c in (chosen, other):
         objs = c.fit.objs or [E.get(name) for name in c.fit.effects]
         sim = np.asarray(p.simulate(objs, c.fit.theta, n)["current_a"], float)[:n]
-        slopes[c.fit.name] = load_slope(sim, force)[0] * (ratio or 1.0)
-        resid[c.fit.name] = cur - sim * (ratio or 1.0)
+        raw[c.fit.name] = load_slope(sim, force)[0]
+        slopes[c.fit.name] = raw[c.fit.name] * (ratio or 1.0)
+        resid[c.fit.name] = cur - sim
     # the log's slope as the chosen candidate's plus its residual's: the residual, not the
     # whole current (the manoeuvre's own currents), sets the standard error
     b_r, se = load_slope(resid[chosen.fit.name], force)
-    log_b = slopes[chosen.fit.name] + b_r
+    log_b = raw[chosen.fit.name] + b_r
     pick, why = decide(log_b, se, slopes)
     rec.update(healthy_ratio=ratio, log_slope_a_per_n=log_b, se_a_per_n=se, candidate_slopes_a_per_n=slopes,
                separated=pick is not None, why=why, chosen=pick)
