@@ -2,9 +2,9 @@
 
 Both change the ratio of the LVDT's position to the motor's angle by the same factor, so
 the kinematics of a log do not tell them apart. Only the lead changes the torque the
-motor needs for an axial force: T = F lead / (2 pi eta) (thesis, ball-screw torque,
-eq. 3.5's direct drive), so the current a logged load-cell force costs, the slope of the
-logged current on the load cell's force, moves with the lead by the lead's ratio and not
+motor needs for an axial force: T = F lead / (2 pi eta) (the reaction lever of
+eq. 5.10 and 5.15 at the lead, eq. 5.26), so the current a logged load-cell force
+costs, the slope of the logged current on the load cell's force, moves with the lead by the lead's ratio and not
 at all with an LVDT gain. `settle` compares that slope on the log with each candidate's
 re-simulation: the candidate whose slope the log has is the verdict; where the log cannot
 tell (no load cell, a load too small against the current's noise, or a slope between
