@@ -35,6 +35,10 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "check: three randomised builds of it with physics no development run "
                         "switched on, fixed cases (docs/gap-results.md; --cases and --seed "
                         "do not apply)")
+    p.add_argument("--build-seed", dest="build_seed", type=int, default=9101, metavar="S",
+                   help="final check: the first of its three build seeds (S, S+1, S+2; noise "
+                        "seeds follow, bench.gap.finalcheck.noise_base); 9101 the first "
+                        "check, 9301 the second (default 9101)")
     p.add_argument("--controller", choices=("ecu", "own"), default="ecu",
                    help="independent generator: the bench's ECU closes the loops, as over "
                         "the bus (ecu, default), or the actuator's own PI+PI cascade (own)")
@@ -250,7 +254,7 @@ def run(args: argparse.Namespace) -> int:
     if args.generator == "final-check":
         from bench.gap.finalcheck import run as final_run
         out = final_run(args.workers, args.log_s, progress=sys.stderr.isatty(),
-                        scheduler=args.scheduler)
+                        scheduler=args.scheduler, first=args.build_seed)
     elif args.generator == "independent":
         from bench.gap.indiebench import NOMINAL, POOL
         if args.only and args.only not in POOL:

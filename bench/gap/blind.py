@@ -341,6 +341,21 @@ def truth_size(t: Truth) -> tuple[str, float, float] | None:
     return kind, v, t.nominal.get(k, 0.0)
 
 
+def verdict_text(js: dict[str, Any]) -> str:
+    """What the diagnosis concluded, in words: the finding of the chosen candidate, or,
+    where its held-out shrink is below the rule's minimum, "unexplained" with the closest
+    candidate and its shrink (the finding describes the closest fit, not the verdict)."""
+    verdict = js["verdict"]
+    line = (js.get("finding") or {}).get("line")
+    if verdict != "unexplained":
+        return line or verdict
+    sel = js["localisation"].get("selection", {})
+    shrink = sel.get("heldout_shrink_pct")
+    return (f"unexplained (closest: {line or sel.get('chosen', '?')}, held-out shrink "
+            f"{shrink if shrink is not None else math.nan:.0f} % < "
+            f"{sel.get('min_shrink_pct', 50):.0f} %)")
+
+
 def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
           snr_all: dict[str, float], elapsed: float,
           sizes: Callable[[Any], tuple[str, float, float] | None] | None = None
@@ -369,7 +384,7 @@ def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
         "verdict": verdict,
         "verdict_families": (finding.get("families") or F.family_name(verdict))
         if verdict not in ("none", "unexplained") else verdict,
-        "finding": finding.get("line"), "suspect": finding.get("suspect") or [],
+        "finding": verdict_text(js), "suspect": finding.get("suspect") or [],
         "at_bound": finding.get("at_bound") or [],
         "top2": top2, "elapsed_s": elapsed,
         "snr": {k: max(v.values()) for k, v in snr_each.items()},

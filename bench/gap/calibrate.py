@@ -302,17 +302,21 @@ def heldout_significance(cal: dict[str, Any], base: PlantParams, holdouts: Seque
                 "statistic": STATISTIC,
                 "note": "no held-out healthy log (--holdout): level unknown, the default "
                         "significance threshold applies"}
+    from bench.gap.alias import healthy_load_ratio
     modelled = base.with_dict(cal["params"])
-    each = []
+    each, ratios = [], []
     for tr in holdouts:
         p = build(fill_gaps(tr.measured(), "held-out log"), modelled, 0.5, encoder=encoder,
                   purpose="held-out log", model=model, **resim_of(cal["controller"]))
         each.append(heldout_level(p))
+        ratios.append(healthy_load_ratio(p))
     level = {s: max(e["level"][s] for e in each) for s in R.SIGNALS}
     margin = {s: max(e["margin"][s] for e in each) for s in R.SIGNALS}
     energy = {s: max(e["energy"][s] for e in each) for s in R.SIGNALS}
     return {"known": True, "logs": list(names), "level": level, "margin": margin,
             "energy": energy,
+            "load_current_ratio": (float(np.mean([r for r in ratios if r is not None]))
+                                   if ratios and None not in ratios else None),
             "per_log": [e["level"] for e in each], "model": model, "encoder": encoder,
             "statistic": STATISTIC,
             "rule": "bench gap --nominal: significant only where the log exceeds the larger "
@@ -338,7 +342,8 @@ def reference_of(cal: dict[str, Any], name: str, model: str | None = None,
                              f"finite number, not {v!r}"[:200])
     return {"name": name, "level": hs.get("level") if known else None,
             "margin": hs.get("margin"), "logs": hs.get("logs", []),
-            "energy": hs.get("energy") if known else None}
+            "energy": hs.get("energy") if known else None,
+            "load_current_ratio": hs.get("load_current_ratio") if known else None}
 
 
 

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.gap import alias as AL
 from bench.gap import effects as E
 from bench.gap import families as F
 from bench.gap import limitcycle as LC
@@ -378,12 +379,17 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
                                                                ho_ex, sig, L, o.reference,
                                                                ho_en)
+    chosen, verdict, ties = _settle_alias(p, chosen, singles, verdict, ties, loc["selection"],
+                                          (o.reference or {}).get("load_current_ratio"))
     finding = None
     if chosen is not None and math.isfinite(chosen.fit.rss):
         say("refining the verdict's fit against the model at its own fidelity")
         chosen.fit, loc["selection"]["fast_model_correction"] = refine(p, chosen.fit)
         flag(chosen, p)
         finding = describe(p, chosen.fit, chosen.suspect, chosen.edge)
+        alias = loc["selection"].get("lead_or_lvdt_gain")
+        if alias and not alias["separated"] and verdict == chosen.fit.name:
+            finding["line"] = f"{alias['line']} ({finding['line']})"
     lc = LC.note(p, names)          # a note under the verdict (the summary prints it)
     if lc is not None:
         loc["limit_cycle"] = lc
@@ -485,6 +491,27 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
                           f"{PAIR_BIC:g}; 'unexplained' if the held-out shrink < "
                           f"{MIN_SHRINK_PCT:.0f} %")}
     return chosen, verdict, ranking, ties, selection
+
+
+def _settle_alias(p: Any, chosen: Any, singles: list[Any], verdict: str, ties: list[str],
+                  selection: dict[str, Any], ratio: float | None
+                  ) -> tuple[Any, str, list[str]]:
+    """An LVDT gain or a lead error chosen: the one the current's slope on the load-cell
+    force points to (`alias.settle`), recorded in `selection`; where the log cannot tell
+    them apart the other stays among the ties and the finding says so."""
+    new, rec = AL.settle(p, chosen, singles, ratio)
+    if rec is None:
+        return chosen, verdict, ties
+    selection["lead_or_lvdt_gain"] = rec
+    if rec["separated"]:
+        ties = [t for t in ties if t not in AL.PAIR]
+        if new is not chosen:
+            if verdict == chosen.fit.name:
+                verdict = new.fit.name
+            selection["chosen"] = new.fit.name
+        return new, verdict, ties
+    other = AL.PAIR[1 - AL.PAIR.index(chosen.fit.name)]
+    return chosen, verdict, ties if other in ties else [*ties, other]
 
 
 def log_integrity(trace: Trace, holdout: Trace | None) -> dict[str, Any]:

@@ -39,10 +39,27 @@ from indie_plant.params import IndieParams
 PHYSICS = {"friction_ripple": 0.15, "seal_friction_n": 40.0, "current_filter_s": 3e-4}
 """The final check's physics (indie_plant I15-I17), on in every one of its logs."""
 BUILD_SEEDS = (9101, 9102, 9103)
-"""One randomised actuator per seed."""
+"""One randomised actuator per seed (the first final check: `build_seeds(9101)`)."""
 NOISE_SEEDS = 40_000
-"""Case j of actuator a has noise seed NOISE_SEEDS + 100 a + j; its calibration log
-NOISE_SEEDS + 100 a + 90, its held-out healthy log + 91, the floor's + 92..94."""
+"""Case j of actuator a has noise seed noise_base + 100 a + j (`noise_base`, NOISE_SEEDS
+for the first final check); its calibration log + 90, its held-out healthy log + 91, the
+floor's + 92..94."""
+FRESH_SEED = 9301
+"""The second final check's first build seed (`--build-seed 9301`), fixed before it ran:
+builds 9301-9303, noise seeds 42000-42294, never run by any development or earlier
+check."""
+
+
+def build_seeds(first: int = BUILD_SEEDS[0]) -> tuple[int, int, int]:
+    """The three builds' seeds of the final check whose first build seed is `first`."""
+    return first, first + 1, first + 2
+
+
+def noise_base(first: int = BUILD_SEEDS[0]) -> int:
+    """The noise seed of case 0 of actuator 0 for the check of first build seed `first`:
+    NOISE_SEEDS for the first final check, 10 per build seed further for another (the
+    three actuators' 300 seeds never overlap another check's)."""
+    return NOISE_SEEDS + 10 * (first - BUILD_SEEDS[0])
 
 
 def build(seed: int) -> IndieParams:
@@ -130,12 +147,14 @@ def run_case(item: tuple[int, Case], duration_s: float = IB.LOG_S) -> dict[str, 
     return rec
 
 
-def calibrate_actuator(a: int, duration_s: float = IB.LOG_S) -> dict[str, Any]:
+def calibrate_actuator(a: int, duration_s: float = IB.LOG_S,
+                       first: int = BUILD_SEEDS[0]) -> dict[str, Any]:
     """Actuator a's build, its datasheet model calibrated on its healthy log, the held-out
-    healthy level the cases are judged against, and the generator's floor."""
+    healthy level the cases are judged against, and the generator's floor (`first`: the
+    check's first build seed)."""
     from bench.gap.calibrate import calibrate, default_names
-    act = build(BUILD_SEEDS[a])
-    s0 = NOISE_SEEDS + 100 * a
+    act = build(build_seeds(first)[a])
+    s0 = noise_base(first) + 100 * a
     healthy = IB.generate(Case(-1, "nominal", [], s0 + 90), True, duration_s, "ecu", act)
     base = IB.datasheet_model()
     cal = calibrate(healthy, base, default_names(healthy))
@@ -151,27 +170,29 @@ def calibrate_actuator(a: int, duration_s: float = IB.LOG_S) -> dict[str, Any]:
 
 def run(workers: int = 2, duration_s: float = IB.LOG_S, progress: bool = True,
         on_result: Callable[[dict[str, Any]], None] | None = None,
-        scheduler: str | None = None) -> dict[str, Any]:
-    """Calibrate the three actuators, then diagnose every case of each."""
+        scheduler: str | None = None, first: int = BUILD_SEEDS[0]) -> dict[str, Any]:
+    """Calibrate the three actuators, then diagnose every case of each (`first`: the
+    first build seed, `build_seeds`; 9101 the first final check, FRESH_SEED the second)."""
     t0 = time.perf_counter()
     states, items = {}, []
-    for a in range(len(BUILD_SEEDS)):
-        st = calibrate_actuator(a, duration_s)
+    seeds, base = build_seeds(first), noise_base(first)
+    for a in range(len(seeds)):
+        st = calibrate_actuator(a, duration_s, first)
         cases = _cases(st["actuator"])
         st["names"] = [name for name, _ in cases]
         states[a] = st
         for j, (_name, truths) in enumerate(cases):
             kind = "nominal" if not truths else ("pair" if len(truths) > 1 else "single")
-            items.append((a, Case(j, kind, truths, NOISE_SEEDS + 100 * a + j)))
+            items.append((a, Case(j, kind, truths, base + 100 * a + j)))
     t_cal = time.perf_counter() - t0
     job = partial(run_case, duration_s=duration_s)
     results = run_all(job, items, workers, progress, desc="gap-bench (final check)",
                       unit="case", initializer=_init, initargs=(states,),
                       on_result=on_result, leave=True, scheduler=scheduler)
-    return {"generator": "final-check", "controller": "ecu", "seed": BUILD_SEEDS[0],
+    return {"generator": "final-check", "controller": "ecu", "seed": first,
             "cases": len(items), "fidelity": "independent physics with the final check's "
             "physics on, randomised builds", "log_s": duration_s, "workers": workers,
-            "physics": PHYSICS, "build_seeds": BUILD_SEEDS, "wall_s": time.perf_counter() - t0,
+            "physics": PHYSICS, "build_seeds": seeds, "wall_s": time.perf_counter() - t0,
             "calibration_wall_s": t_cal,
             "actuators": [{"build": {k: v for k, v in dataclasses.asdict(st["actuator"]).items()
                                      if v != getattr(IB.NOMINAL, k)},

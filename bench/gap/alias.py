@@ -1,0 +1,133 @@
+"""An LVDT gain against a screw-lead error: the load cell separates them.
+
+Both change the ratio of the LVDT's position to the motor's angle by the same factor, so
+the kinematics of a log do not tell them apart. Only the lead changes the torque the
+motor needs for an axial force: T = F lead / (2 pi eta) (the reaction lever of
+eq. 5.10 and 5.15 at the lead, eq. 5.26), so the current a logged load-cell force
+costs, the slope of the logged current on the load cell's force, moves with the lead by the lead's ratio and not
+at all with an LVDT gain. `settle` compares that slope on the log with each candidate's
+re-simulation: the candidate whose slope the log has is the verdict; where the log cannot
+tell (no load cell, a load too small against the current's noise, or a slope between
+the two) the verdict says "LVDT gain or screw lead: indistinguishable on this log".
+
+The slope's standard error is heteroskedasticity-and-autocorrelation consistent (Newey
+and West, `autocorr.long_run_cov`, the lag the residual's correlation length): closed
+loop residuals are not independent samples.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from bench.gap import effects as E
+from bench.gap.autocorr import corr_length, long_run_cov
+
+PAIR = ("lead", "lvdt_gain")
+"""The two candidates the kinematics cannot tell apart."""
+SEPARATION_Z = 6.0
+"""The two candidates' slopes must differ by this many standard errors of the log's
+slope for the log to tell them apart (a 6-sigma power: a 3-sigma distance from the wrong
+one when the log sits on the right one)."""
+NEAR_FRACTION = 1.0 / 3.0
+"""... and the log's slope must lie within this fraction of that difference of the
+candidate it is given to (not halfway between them, nor beyond both)."""
+INDISTINGUISHABLE = "LVDT gain or screw lead: indistinguishable on this log"
+
+
+def load_slope(current: np.ndarray, force: np.ndarray) -> tuple[float, float]:
+    """The least-squares slope of `current` (A) on `force` (N), both demeaned, and its
+    HAC standard error (A/N)."""
+    f = np.asarray(force, float) - float(np.mean(force))
+    y = np.asarray(current, float) - float(np.mean(current))
+    sff = float(f @ f)
+    if not sff > 0.0:
+        return math.nan, math.inf
+    b = float(f @ y) / sff
+    e = y - b * f
+    lag = int(math.ceil(corr_length(e)))
+    lrv = float(long_run_cov((f * e)[:, None], lag)[0, 0])
+    return b, math.sqrt(max(lrv, 0.0)) / sff
+
+
+def decide(log_slope: float, se: float, slopes: dict[str, float]) -> tuple[str | None, str]:
+    """The candidate whose re-simulated slope the log's slope has (`slopes`: name -> A/N),
+    or None where the log cannot tell them apart, with the reason."""
+    (a, sa), (b, sb) = slopes.items()
+    gap = abs(sa - sb)
+    if not (math.isfinite(log_slope) and math.isfinite(gap) and se > 0 and math.isfinite(se)):
+        return None, "no load-cell force to compare the current with"
+    if gap < SEPARATION_Z * se:
+        return None, (f"the two slopes differ by {gap / se:.1f} standard errors of the log's "
+                      f"(< {SEPARATION_Z:g}): the load is too small against the current's "
+                      "noise")
+    near, d = min(((a, abs(log_slope - sa)), (b, abs(log_slope - sb))), key=lambda x: x[1])
+    if d > NEAR_FRACTION * gap:
+        return None, ("the log's slope lies between or beyond the two candidates' "
+                      f"(nearest {near}, {d / gap:.0%} of their difference away)")
+    return near, f"the log's slope is that of {near} ({d / se:.1f} standard errors away)"
+
+
+def healthy_load_ratio(p: Any) -> float | None:
+    """The log's slope of current on load-cell force over the model's on a healthy log
+    (`p`: its problem, the calibrated model): what the calibrated model still misses of
+    the current an axial force costs, which a later log's candidates are scaled by
+    (None without a load cell)."""
+    load = p.drive.load_n
+    n = p.n
+    if load is None or not np.isfinite(load[:n]).all() or not np.ptp(load[:n]) > 0:
+        return None
+    force = np.asarray(load[:n], float)
+    sim = np.asarray(p.simulate([], [], n)["current_a"], float)[:n]
+    b_sim = load_slope(sim, force)[0]
+    b_log = load_slope(np.asarray(p.meas["current_a"], float)[:n], force)[0]
+    return float(b_log / b_sim) if math.isfinite(b_sim) and b_sim != 0.0 else None
+
+
+def settle(p: Any, chosen: Any, singles: list[Any], ratio: float | None = None
+           ) -> tuple[Any, dict[str, Any] | None]:
+    """Between an LVDT gain and a lead error: the candidate the current's slope on the
+    load-cell force points to (it may replace `chosen`), and the test's record (None when
+    `chosen` is neither or the other was not fitted). `p`: the problem (logged current in
+    `p.meas`, load cell in `p.drive.load_n`); the candidates: `diagnose.Candidate`;
+    `ratio`: the calibration's healthy log's slope over its model's (`healthy_load_ratio`),
+    the candidates' slopes scaled by it (1 without one)."""
+    if chosen is None or chosen.fit.name not in PAIR:
+        return chosen, None
+    other_name = PAIR[1 - PAIR.index(chosen.fit.name)]
+    other = next((c for c in singles if c.fit.name == other_name
+                  and math.isfinite(c.fit.rss)), None)
+    if other is None:
+        return chosen, None
+    n = p.n
+    load = p.drive.load_n
+    cur = np.asarray(p.meas["current_a"], float)[:n]
+    rec: dict[str, Any] = {"rule": (
+        "an LVDT gain and a lead error move the LVDT per motor angle alike; only the lead "
+        "moves the current an axial force costs (T = F lead / (2 pi eta)): the slope of the "
+        "logged current on the load cell's force against each candidate's re-simulation")}
+    if load is None or not np.isfinite(load[:n]).all() or not np.ptp(load[:n]) > 0:
+        rec.update(separated=False, why="no load-cell force to compare the current with",
+                   line=INDISTINGUISHABLE)
+        return chosen, rec
+    force = np.asarray(load[:n], float)
+    slopes, raw, resid = {}, {}, {}
+    for c in (chosen, other):
+        objs = c.fit.objs or [E.get(name) for name in c.fit.effects]
+        sim = np.asarray(p.simulate(objs, c.fit.theta, n)["current_a"], float)[:n]
+        raw[c.fit.name] = load_slope(sim, force)[0]
+        slopes[c.fit.name] = raw[c.fit.name] * (ratio or 1.0)
+        resid[c.fit.name] = cur - sim
+    # the log's slope as the chosen candidate's plus its residual's: the residual, not the
+    # whole current (the manoeuvre's own currents), sets the standard error
+    b_r, se = load_slope(resid[chosen.fit.name], force)
+    log_b = raw[chosen.fit.name] + b_r
+    pick, why = decide(log_b, se, slopes)
+    rec.update(healthy_ratio=ratio, log_slope_a_per_n=log_b, se_a_per_n=se, candidate_slopes_a_per_n=slopes,
+               separated=pick is not None, why=why, chosen=pick)
+    if pick is None:
+        rec["line"] = INDISTINGUISHABLE
+        return chosen, rec
+    return (chosen if pick == chosen.fit.name else other), rec
