@@ -9,19 +9,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.hums.formulas import (
-    CURRENT_SIGNALS,
-    LOST_MOTION_SIGNALS,
-    POSITION_SIGNALS,
-    ci,
-    ci_harmonic,
-    cp,
-    friction_current,
-    lost_motion_from,
-    mean_error,
-    peak_ratio,
-    stall_time_from,
-)
+from bench.hums import formulas as F
 from bench.hums.motion import Kinematics, motion_signals
 from bench.hums.spectra import N_HARMONICS, harmonic_amplitudes
 from bench.signals import estimators as E
@@ -100,40 +88,40 @@ def compare(real: Trace, nominal: Trace, f0_hz: float | None = None,
         if g not in ("position", "current", "lost_motion"):
             raise BenchError(f"unknown index group {g!r}")
     if "position" in need:
-        real.require(POSITION_SIGNALS, "the position indexes (eq. 6.4-6.5)")
+        real.require(F.POSITION_SIGNALS, "the position indexes (eq. 6.4-6.5)")
     if "current" in need:
-        real.require(CURRENT_SIGNALS, "the current indexes (eq. 6.6-6.7)")
+        real.require(F.CURRENT_SIGNALS, "the current indexes (eq. 6.6-6.7)")
     if "lost_motion" in need:
-        real.require(LOST_MOTION_SIGNALS, "the lost-motion index")
+        real.require(F.LOST_MOTION_SIGNALS, "the lost-motion index")
     t = real.t
     out = Indexes(float(t[0]), float(t[-1] + real.dt) if len(t) > 1 else float(t[0]))
-    if has_signals(real, POSITION_SIGNALS):
+    if has_signals(real, F.POSITION_SIGNALS):
         xn, x = nominal["position_m"], real["position_m"]
-        out.mean_error_m = mean_error(xn, x)
-        out.cp = cp(xn, x)
-    if has_signals(real, CURRENT_SIGNALS):
+        out.mean_error_m = F.mean_error(xn, x)
+        out.cp = F.cp(xn, x)
+    if has_signals(real, F.CURRENT_SIGNALS):
         i_n, i = nominal["current_a"], real["current_a"]
-        out.ci = ci(i_n, i)
-        out.peak_ratio = peak_ratio(i_n, i)
+        out.ci = F.ci(i_n, i)
+        out.peak_ratio = F.peak_ratio(i_n, i)
         out.current_rms_a = float(np.sqrt(np.mean(i * i)))
         out.nominal_current_rms_a = float(np.sqrt(np.mean(i_n * i_n)))
         f0 = E.fundamental_hz((f0_hz, real.meta.get("fundamental_hz")))
         if math.isfinite(f0) and f0 > 0 and f0 * len(real) * real.dt >= 1.0 - 1e-9:
-            out.ci_harmonic = ci_harmonic(i_n, i, int(round(1.0 / (f0 * real.dt))))
+            out.ci_harmonic = F.ci_harmonic(i_n, i, int(round(1.0 / (f0 * real.dt))))
             out.harmonics_a = harmonic_amplitudes(i, real.dt, f0, n_harmonics, window).tolist()
             out.nominal_harmonics_a = harmonic_amplitudes(i_n, real.dt, f0, n_harmonics,
                                                           window).tolist()
-    if has_signals(real, CURRENT_SIGNALS + ("motor_speed_rad_s",)):
-        out.friction_current_a = friction_current(real["current_a"], real["motor_speed_rad_s"])
-        out.nominal_friction_current_a = friction_current(nominal["current_a"],
+    if has_signals(real, F.CURRENT_SIGNALS + ("motor_speed_rad_s",)):
+        out.friction_current_a = F.friction_current(real["current_a"], real["motor_speed_rad_s"])
+        out.nominal_friction_current_a = F.friction_current(nominal["current_a"],
                                                           nominal["motor_speed_rad_s"])
-    if has_signals(real, LOST_MOTION_SIGNALS) and has_signals(nominal, LOST_MOTION_SIGNALS):
+    if has_signals(real, F.LOST_MOTION_SIGNALS) and has_signals(nominal, F.LOST_MOTION_SIGNALS):
         d, w_s, v_s = motion_signals(real, kin)
         dn, wn_s, vn_s = motion_signals(nominal, kin)
-        out.lost_motion_m = lost_motion_from(d, real["motor_speed_rad_s"])
-        out.nominal_lost_motion_m = lost_motion_from(dn, nominal["motor_speed_rad_s"])
-        out.dead_time_s = (stall_time_from(w_s, v_s, real.dt)
-                           - stall_time_from(wn_s, vn_s, real.dt))
+        out.lost_motion_m = F.lost_motion_from(d, real["motor_speed_rad_s"])
+        out.nominal_lost_motion_m = F.lost_motion_from(dn, nominal["motor_speed_rad_s"])
+        out.dead_time_s = (F.stall_time_from(w_s, v_s, real.dt)
+                           - F.stall_time_from(wn_s, vn_s, real.dt))
     return out
 
 

@@ -10,20 +10,8 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.hums import formulas as F
 from bench.hums.comparison import Indexes, check_aligned, has_signals
-from bench.hums.formulas import (
-    CURRENT_SIGNALS,
-    LOST_MOTION_SIGNALS,
-    POSITION_SIGNALS,
-    ci,
-    ci_harmonic,
-    cp,
-    friction_current,
-    lost_motion_from,
-    mean_error,
-    peak_ratio,
-    stall_time_from,
-)
 from bench.hums.motion import Kinematics, MotionStream, motion_signals
 from bench.hums.spectra import N_HARMONICS, harmonic_amplitudes
 from bench.signals.estimators import fundamental_hz
@@ -46,7 +34,7 @@ def period_indexes(real: Trace, nominal: Trace, period_s: float | None = None,
     `OnlineHums` reports from the same samples pushed live.
     """
     check_aligned(real, nominal)
-    real.require(CURRENT_SIGNALS + POSITION_SIGNALS, "the per-period HUMS indexes")
+    real.require(F.CURRENT_SIGNALS + F.POSITION_SIGNALS, "the per-period HUMS indexes")
     if period_s is None:
         f0 = fundamental_hz(real.meta.get("fundamental_hz"))
         if not (math.isfinite(f0) and f0 > 0):
@@ -60,7 +48,7 @@ def period_indexes(real: Trace, nominal: Trace, period_s: float | None = None,
     t = real.t
     k0 = 0 if t0_s is None else int(np.searchsorted(t, t0_s - 0.5 * dt))
     mot = None
-    if has_signals(real, LOST_MOTION_SIGNALS) and has_signals(nominal, LOST_MOTION_SIGNALS):
+    if has_signals(real, F.LOST_MOTION_SIGNALS) and has_signals(nominal, F.LOST_MOTION_SIGNALS):
         mot = (motion_signals(real, kin), motion_signals(nominal, kin))
     while k0 + m <= len(t):
         sl = slice(k0, k0 + m)
@@ -76,22 +64,22 @@ def one_period(r: Trace, nm: Trace, period_s: float, n_harmonics: int,
     x, xn = r["position_m"], nm["position_m"]
     i, i_n = r["current_a"], nm["current_a"]
     out = Indexes(float(r.t[0]), float(r.t[0] + period_s),
-                  mean_error_m=mean_error(xn, x), cp=cp(xn, x), ci=ci(i_n, i),
-                  peak_ratio=peak_ratio(i_n, i),
+                  mean_error_m=F.mean_error(xn, x), cp=F.cp(xn, x), ci=F.ci(i_n, i),
+                  peak_ratio=F.peak_ratio(i_n, i),
                   current_rms_a=float(np.sqrt(np.mean(i * i))),
                   nominal_current_rms_a=float(np.sqrt(np.mean(i_n * i_n))))
     f0 = 1.0 / period_s
     out.harmonics_a = harmonic_amplitudes(i, r.dt, f0, n_harmonics, "rect").tolist()
     out.nominal_harmonics_a = harmonic_amplitudes(i_n, r.dt, f0, n_harmonics, "rect").tolist()
-    out.ci_harmonic = ci_harmonic(i_n, i, len(i))
+    out.ci_harmonic = F.ci_harmonic(i_n, i, len(i))
     if "motor_speed_rad_s" in r and np.isfinite(r["motor_speed_rad_s"]).all():
-        out.friction_current_a = friction_current(i, r["motor_speed_rad_s"])
-        out.nominal_friction_current_a = friction_current(i_n, nm["motor_speed_rad_s"])
+        out.friction_current_a = F.friction_current(i, r["motor_speed_rad_s"])
+        out.nominal_friction_current_a = F.friction_current(i_n, nm["motor_speed_rad_s"])
     if mot is not None:
         (d, w_s, v_s), (dn, wn_s, vn_s) = mot
-        out.lost_motion_m = lost_motion_from(d, r["motor_speed_rad_s"])
-        out.nominal_lost_motion_m = lost_motion_from(dn, nm["motor_speed_rad_s"])
-        out.dead_time_s = stall_time_from(w_s, v_s, r.dt) - stall_time_from(wn_s, vn_s, r.dt)
+        out.lost_motion_m = F.lost_motion_from(d, r["motor_speed_rad_s"])
+        out.nominal_lost_motion_m = F.lost_motion_from(dn, nm["motor_speed_rad_s"])
+        out.dead_time_s = F.stall_time_from(w_s, v_s, r.dt) - F.stall_time_from(wn_s, vn_s, r.dt)
     return out
 
 
@@ -161,7 +149,7 @@ class OnlineHums:
             x0 = float(arrs["position_m"][0])
             self.monitor.x0_m = x0 if abs(x0) >= 20e-6 else 0.0
             self.monitor.reset()
-            if all(k in arrs for k in LOST_MOTION_SIGNALS):
+            if all(k in arrs for k in F.LOST_MOTION_SIGNALS):
                 dt = self.mparams.sync_period_s
                 self._streams = (MotionStream(dt, self.kin), MotionStream(dt, self.kin))
             self._started = True
