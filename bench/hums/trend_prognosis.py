@@ -438,6 +438,7 @@ class _Run:
         """The RUL draws of the two models (`bench.hums.trend_model`, "Two models"): a
         share P_LOCAL of the curve's draws, at random places, replaced by the local drift
         model's on the tests since the change."""
+        assert self.span is not None
         tr = self.tr
         j = int(np.searchsorted(tr.t, self.res.events["change_t"]))
         j = max(min(j, k + 1 - LOCAL_MIN), 0)
