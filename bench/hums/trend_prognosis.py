@@ -43,7 +43,14 @@ from scipy.special import ndtri, stdtr
 
 from bench import BenchError
 from bench.hums.trend_io import Trend
-from bench.hums.trend_model import HORIZON, CurvePosterior, samples
+from bench.hums.trend_model import (
+    HORIZON,
+    LOCAL_MIN,
+    P_LOCAL,
+    CurvePosterior,
+    local_drift,
+    samples,
+)
 
 DEFAULT_HEALTHY = 5
 CUSUM_K = 0.5
@@ -401,6 +408,7 @@ class _Run:
         cols, ref, sign = self.res.cols, self.ref, self.sign
         f = self.curve.fit(ref.sd / self.span, ref.n)
         rul, u_now = samples(f, self.rng)
+        rul = self._mix_local(k, rul)
         lv = ref.level + sign * self.span * _quantiles(u_now, (5, 50, 95))
         cols["level_p5"][k], cols["level_p50"][k], cols["level_p95"][k] = (
             (lv[0], lv[1], lv[2]) if sign > 0 else (lv[2], lv[1], lv[0]))
@@ -425,6 +433,23 @@ class _Run:
             self._note(k, f"the tests scatter {f.widened:.2g} times the healthy tests' noise "
                           "about the fitted curves: the band is that much wider")
         self._trust(k, t, y, q, rul)
+
+    def _mix_local(self, k: int, rul: np.ndarray) -> np.ndarray:
+        """The RUL draws of the two models (`bench.hums.trend_model`, "Two models"): a
+        share P_LOCAL of the curve's draws, at random places, replaced by the local drift
+        model's on the tests since the change."""
+        assert self.span is not None
+        tr = self.tr
+        j = int(np.searchsorted(tr.t, self.res.events["change_t"]))
+        j = max(min(j, k + 1 - LOCAL_MIN), 0)
+        t = tr.t[j:k + 1]
+        u = self.sign * (tr.y[j:k + 1] - self.ref.level) / self.span
+        m = int(round(P_LOCAL * len(rul)))
+        out = rul.copy()
+        loc = local_drift(t, u, float(self.res.events["change_t"]), self.rng, m)
+        hor = HORIZON * max(float(tr.t[k] - tr.t[0]), self.ref.dt)
+        out[self.rng.permutation(len(rul))[:m]] = np.where(loc < hor, loc, np.inf)
+        return out
 
     def _warn_level(self, k: int, level: float) -> float:
         """The warning: the level past the warning level when one is given, else the
