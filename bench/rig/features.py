@@ -94,9 +94,8 @@ FEATURES = ("localised", "level", "reversal", "takeup", "hysteresis", "turn", "p
             "dwell", "index")
 SPECIFIC = ("periodic", "localised")
 NAMING_ONLY = ("hysteresis",)
-"""Features that name a flagged cycle's fault but do not flag one: their thresholds take
-the same share of the false-alarm rate as a flagging feature's, and the flagging
-features' share is not split with them (the healthy false-alarm rate is theirs alone)."""
+"""Features that name a flagged cycle's fault but flag none (no share of the false-alarm
+rate is split off for them)."""
 EFFECTS = {
     "dwell": "a transient at standstill (in a dwell)",
     "index": "a phase index outside its healthy spread",
@@ -466,10 +465,8 @@ def hysteresis(mm: dict[str, float], zz: dict[str, float]) -> float:
     the lag along the motion changed alike at both reversals, (mm_out + mm_in) over its
     standard error. A position offset (the sensor's zero, or the nut held on one flank,
     that moves from run to run) moves the out- and in-stroke error the same way, i.e.
-    along the motion by +d on one stroke and -d on the other, and cancels; a play the
-    motor turns through at both reversals adds to both. Under a one-sided load the play
-    shows at one reversal only (the load's sign decides which) and the sum keeps it. NaN
-    without both strokes."""
+    along the motion by +d on one stroke and -d on the other, and cancels; a play adds
+    to both, or to the one reversal a one-sided load leaves it on. NaN without both."""
     if not all(k in mm and k in zz and zz[k] != 0 for k in ("out", "in")):
         return float("nan")
     se = math.hypot(mm["out"] / zz["out"], mm["in"] / zz["in"])
