@@ -49,7 +49,7 @@ import numpy as np
 from bench import BenchError
 from bench.rig import baseline as B
 from bench.rig.cycles import Cycle, condition_name
-from bench.rig.features import FEATURES, cycle_features
+from bench.rig.features import FEATURES, NAMING_ONLY, cycle_features
 
 UNKNOWN = "unknown"
 UNKNOWN_TEXT = "unknown (no class within its spread)"
@@ -119,7 +119,9 @@ def cycle_vector(c: Cycle, lb: B.LoadBaseline | None, lead_mm: float | None
     out = dict(own_vector(c, lead_mm))
     if lb is not None:
         f = cycle_features(lb, c, lead_mm)
-        out.update({f"feat.{k}": f.scores[k] for k in FEATURES})
+        # the naming-only features (the hysteresis) name a flagged cycle for the physics
+        # route; the classifier keeps the columns it was built on
+        out.update({f"feat.{k}": f.scores[k] for k in FEATURES if k not in NAMING_ONLY})
         out.update({"feat.level_out": f.level_out, "feat.level_in": f.level_in,
                     "feat.reversal_signed": f.reversal_signed,
                     **{f"feat.takeup_{k}": v for k, v in f.takeup_z.items()}})

@@ -28,6 +28,10 @@ position error has settled, `takeup_window`, from the baseline alone) and its tr
   over the take-up, along the motion, over its standard error, per stroke (the sensor's
   zero, the dwells' median error, removed); the score is the larger of the two strokes,
   since a one-sided load shows the play at one reversal only, which one its sign decides.
+- hysteresis (backlash as a hysteresis over the take-ups): the two strokes' take-up
+  constants along the motion added, over its standard error (`hysteresis`): a position
+  offset that moves between runs cancels, a lag at both reversals (or at the one a
+  one-sided load leaves a play on) remains.
 - turn: the current residual's constant over each take-up over its standard error (a
   breakaway friction and a play's free run both move it), the larger of the two.
 - periodic (position-periodic, at the screw's lead): a defect on the screw's raceway
@@ -86,9 +90,12 @@ SCALES = (1, 3, 9, 27)          # scan window widths, samples
 _SCALES = np.asarray(SCALES, dtype=np.int64)
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
 STROKE_CURRENT = "current_ref_a"   # the stroke features' current (against the standstill)
-FEATURES = ("localised", "level", "reversal", "takeup", "turn", "periodic", "dwell",
-            "index")
+FEATURES = ("localised", "level", "reversal", "takeup", "hysteresis", "turn", "periodic",
+            "dwell", "index")
 SPECIFIC = ("periodic", "localised")
+NAMING_ONLY = ("hysteresis",)
+"""Features that name a flagged cycle's fault but flag none (no share of the false-alarm
+rate is split off for them)."""
 EFFECTS = {
     "dwell": "a transient at standstill (in a dwell)",
     "index": "a phase index outside its healthy spread",
@@ -99,6 +106,8 @@ EFFECTS = {
     "reversal": "backlash-like effect (position error at the reversals)",
     "takeup": "backlash-like effect (lost motion at a reversal: the position error while "
               "the motion reverses)",
+    "hysteresis": "backlash-like effect (position-error hysteresis: the lag while taking "
+                  "up both reversals changed alike along the motion)",
     "turn": "the current while the motion reverses (a breakaway friction or a play's "
             "impact: the current alone cannot tell which)",
     "offset": ("position offset in every phase, backlash-like under a one-sided load (a "
@@ -137,6 +146,7 @@ class CycleFeatures:
     takeup_mm: dict[str, float] = field(default_factory=dict)
     takeup_z: dict[str, float] = field(default_factory=dict)
     turn_z: dict[str, float] = field(default_factory=dict)   # the current in the take-up
+    hysteresis_signed: float = float("nan")   # the take-ups' common lag over its se
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
@@ -267,6 +277,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
     take_mm, take_z = takeup(lb, cycle, cache)
     scores = {"localised": loc[0], "level": abs(level), "reversal": abs(rev),
               "takeup": max((abs(v) for v in take_z.values()), default=nan),
+              "hysteresis": abs(hyst := hysteresis(take_mm, take_z)),
               "turn": max((abs(v) for v in turn.values()), default=nan),
               "periodic": per[0], "dwell": dwell_score(lb, cycle, cache), "index": idx}
     if lead_mm is None:
@@ -275,7 +286,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
                          scores, loc[1], loc[2], loc[3],
                          side["out"], side["in"], levels["out"], levels["in"],
                          per[1], per[2], per[3], idx_at, position_shifts(lb, pidx),
-                         notes, incomplete(lb, cycle), rev, take_mm, take_z, turn)
+                         notes, incomplete(lb, cycle), rev, take_mm, take_z, turn, hyst)
 
 
 def stroke_signal(lb: LoadBaseline) -> str:
@@ -449,6 +460,19 @@ def takeup(lb: LoadBaseline, cycle: Cycle, cache: dict[str, Any] | None = None
     return mm, zz
 
 
+def hysteresis(mm: dict[str, float], zz: dict[str, float]) -> float:
+    """A position-error hysteresis over the take-ups of the reversals (`takeup`'s values):
+    the lag along the motion changed alike at both reversals, (mm_out + mm_in) over its
+    standard error. A position offset (the sensor's zero, or the nut held on one flank,
+    that moves from run to run) moves the out- and in-stroke error the same way, i.e.
+    along the motion by +d on one stroke and -d on the other, and cancels; a play adds
+    to both, or to the one reversal a one-sided load leaves it on. NaN without both."""
+    if not all(k in mm and k in zz and zz[k] != 0 for k in ("out", "in")):
+        return float("nan")
+    se = math.hypot(mm["out"] / zz["out"], mm["in"] / zz["in"])
+    return (mm["out"] + mm["in"]) / se if se > 0 else float("nan")
+
+
 @dataclass(frozen=True)
 class Judgement:
     """A cycle against its thresholds: flagged or not, the signature named (an `EFFECTS`
@@ -462,8 +486,8 @@ class Judgement:
 
 
 def assess(f: CycleFeatures, thresholds: dict[str, float]) -> Judgement:
-    """The cycle judged: flagged when any feature is above its threshold; the fault
-    family and its signature from `naming.attribute` (the family whose strongest
+    """The cycle judged: flagged when any feature but a naming-only one (`NAMING_ONLY`)
+    is above its threshold; the fault family and its signature from `naming.attribute` (the family whose strongest
     signature is furthest above its threshold; friction and backlash both above and
     neither clearly ahead: indistinguishable). A level below the healthy one in both
     directions is `drag` (the preload's drag lost: backlash-like), an index that is a
@@ -474,7 +498,7 @@ def assess(f: CycleFeatures, thresholds: dict[str, float]) -> Judgement:
               and thresholds[k] > 0}
     above = {k: r for k, r in ratios.items() if r > 1.0}
     reasons = [f"{k} {f.scores[k]:.2f} vs threshold {thresholds[k]:.2f}" for k in ratios]
-    if not above:
+    if not set(above) - set(NAMING_ONLY):
         return Judgement(False, "none", "", reasons, ratios)
     fault, effect = naming.attribute(above, naming.level_sign(f.level_out, f.level_in),
                                      "index" in above and is_offset(f))

@@ -11,8 +11,10 @@ a signature of a fault family:
 - backlash (a play between screw and nut, a preload lost): lost motion at a reversal
   (`takeup`: a one-sided load holds the nut on one flank of a play, so the play shows at
   the one reversal where the drive's force changes sign: which one the load's sign
-  decides, and the feature takes either), a position-error hysteresis between the
-  strokes (`reversal`), the drag of the preload lowered in both directions (`drag`), or
+  decides, and the feature takes either), a position-error hysteresis: the lag while
+  taking up both reversals changed alike along the motion (`hysteresis`, a position
+  offset that moves from run to run cancelled) or between the strokes' travel
+  (`reversal`), the drag of the preload lowered in both directions (`drag`), or
   every phase's position error moved alike under a one-sided load (`offset`);
 - the current alone while a stroke takes up its reversal (`turn`): a breakaway friction
   and a play's free run and impact both change it, so on its own it names "friction or
@@ -26,7 +28,9 @@ Friction also lags a stepper or a position loop behind its set-point, so it leav
 position-error hysteresis of its own: when friction and backlash signatures are both
 above their thresholds and neither is `CLEAR` times the other, the fault is "friction
 or backlash: indistinguishable on this log" rather than a guess. A lag of the nut at the
-reversals or between the strokes is a play's, not a spall's; otherwise the family whose
+reversals or between the strokes is a play's, not a spall's; a level raised in both
+directions beside a periodic line with no spot of its own is friction's (a spot on the
+raceway does not raise the whole strokes' current); otherwise the family whose
 strongest signature is furthest above its threshold is named (`attribute`). A cycle
 flagged only by a catch-all (a dwell transient, a phase index, a level raised in one
 direction only) is "unattributed".
@@ -56,7 +60,7 @@ ratio to its threshold is at least this many times the other's."""
 # the signatures (effects) of each family; `drag` and `offset` are named by the level and
 # the index feature (`features.FEATURE_OF`)
 SIGNATURES = {SPALL: ("periodic", "localised"), FRICTION: ("level",),
-              BACKLASH: ("takeup", "reversal", "drag", "offset"), AMBIGUOUS: ("turn",)}
+              BACKLASH: ("takeup", "hysteresis", "reversal", "drag", "offset"), AMBIGUOUS: ("turn",)}
 
 
 def family_ratios(above: dict[str, float], level_sign: int, offset: bool
@@ -82,7 +86,7 @@ def family_ratios(above: dict[str, float], level_sign: int, offset: bool
     return out
 
 
-POSITION = ("takeup", "reversal", "offset")   # the backlash signatures of the nut's lag
+POSITION = ("takeup", "hysteresis", "reversal", "offset")   # the backlash signatures of the nut's lag
 
 
 def attribute(above: dict[str, float], level_sign: int, offset: bool
@@ -94,10 +98,14 @@ def attribute(above: dict[str, float], level_sign: int, offset: bool
     2. a backlash signature of the nut's lag (`POSITION`): backlash, whatever the current
        does besides: a spot on the raceway loads the nut, it does not make it lag the motor
        at the reversals or between the strokes;
-    3. else the family whose strongest signature is furthest above its threshold (the
+    3. friction beside a spall's periodic line with no spot of its own (the localised
+       scan below its threshold): friction, since a lubricant lost or a screw worn along
+       the stroke changes the once-per-revolution ripple along the whole stroke too, but
+       a spot on the raceway does not raise both strokes' current;
+    4. else the family whose strongest signature is furthest above its threshold (the
        current at a reversal alone beside the level is friction's breakaway: it names
        "friction or backlash" only when nothing else is above);
-    4. else unattributed, its strongest catch-all (dwell, index, or `level` when only one
+    5. else unattributed, its strongest catch-all (dwell, index, or `level` when only one
        direction moved) the signature."""
     fams = family_ratios(above, level_sign, offset)
     if not fams:
@@ -114,6 +122,9 @@ def attribute(above: dict[str, float], level_sign: int, offset: bool
               key=lambda k: above.get(k, above.get("index", 0.0)), default="")
     if lag and BACKLASH in fams:
         return BACKLASH, lag
+    if FRICTION in fams and fams.get(SPALL, (0.0, ""))[1] == "periodic" \
+            and "localised" not in above:
+        return FRICTION, fams[FRICTION][1]
     rest = {k: v for k, v in fams.items() if k != AMBIGUOUS}
     if rest:
         fam = max(rest, key=lambda k: rest[k][0])

@@ -35,6 +35,7 @@ from bench.rig.baseline import MIN_CYCLES, LoadBaseline, build_load, residuals
 from bench.rig.cycles import Cycle
 from bench.rig.features import (
     FEATURES,
+    NAMING_ONLY,
     CycleFeatures,
     assess,
     cycle_features,
@@ -72,7 +73,7 @@ class Calibration:
                 "alpha": self.alpha, "provisional": self.provisional,
                 "zscore_threshold": self.zscore_threshold,
                 "spreads": {k: v.to_json() for k, v in self.spreads.items()},
-                "method": METHOD.format(n=len(self.thresholds)),
+                "method": METHOD.format(n=len(set(self.thresholds) - set(NAMING_ONLY))),
                 "nulls": {k: list(NULLS.get(k, ("log", 0))) for k in self.thresholds}}
 
 
@@ -80,8 +81,9 @@ METHOD = ("leave-one-run-out over the calibration runs; per feature the upper pr
           "bound of one cycle of a healthy run not among them, from the spread within and "
           "between runs of its transformed held-out scores (Student-t, Welch-Satterthwaite "
           "degrees of freedom; log for the scans and the index maximum, cube root for the "
-          "chi-square-like periodic power, the signed value for level and reversal); "
-          "alpha shared by {n} features")
+          "chi-square-like periodic power, the signed value for level, reversal and hysteresis); "
+          "alpha shared by the {n} features that flag (the naming-only ones at the same "
+          "alpha)")
 
 
 # how each feature's healthy scores are distributed, for its prediction bound:
@@ -90,7 +92,8 @@ METHOD = ("leave-one-run-out over the calibration runs; per feature the upper pr
 # square a scaled chi-square with 1); "log" a log-normal (the localised scan, a maximum,
 # stays well away from 0)
 NULLS: dict[str, tuple[str, int]] = {"periodic": ("chi2", 4), "level": ("abs", 1),
-                                     "reversal": ("abs", 1), "localised": ("log", 0),
+                                     "reversal": ("abs", 1), "hysteresis": ("abs", 1),
+                                     "localised": ("log", 0),
                                      "takeup": ("log", 0), "turn": ("log", 0),
                                      "dwell": ("log", 0),
                                      "index": ("log", 0)}
@@ -98,11 +101,13 @@ NULLS: dict[str, tuple[str, int]] = {"periodic": ("chi2", 4), "level": ("abs", 1
 
 def healthy_value(f: CycleFeatures, key: str) -> float:
     """The value of feature `key` that `spread_bound` models: the signed value for the
-    two-sided scores (level, reversal), else the score."""
+    two-sided scores (level, reversal, hysteresis), else the score."""
     if key == "level":
         return signed_level(f)
     if key == "reversal":
         return f.reversal_signed if math.isfinite(f.reversal_signed) else f.scores[key]
+    if key == "hysteresis":
+        return f.hysteresis_signed
     return f.scores[key]
 
 
@@ -213,7 +218,7 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
     feature a load's cycles cannot give (periodic without the lead) gets none."""
     usable = [k for k in FEATURES if all(np.isfinite(lo.scores[k]).all() and lo.scores[k]
                                          for lo in loros.values())]
-    per = alpha / max(len(usable), 1)
+    per = alpha / max(len([k for k in usable if k not in NAMING_ONLY]), 1)
     thr: dict[float, dict[str, float]] = {ld: {} for ld in loros}
     spreads: dict[float, dict[str, Spread]] = {ld: {} for ld in loros}
     for k in usable:
