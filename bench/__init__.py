@@ -30,11 +30,25 @@ def machine_description() -> str:
 
 
 def refuse_mf4_import() -> None:
-    """python-can imports asammdf (its MF4 log format) with `import can`, ~0.6 s of a
-    process's start-up; a process that reads and writes no log file refuses that import
-    (the documented `sys.modules[name] = None`), in this process only: the loopback hub
-    (`bench.bus`) and `bench up/status/down/plant` (`bench.cli`). `python -m plant_rt`
-    does the same for itself (plant_rt does not import bench)."""
+    """python-can imports asammdf (its MF4 log format: asammdf, pandas, sympy) with `import
+    can`, 0.6-2 s of CPU at every process's start-up; a process refuses that import (the
+    documented `sys.modules[name] = None`), in this process only, until it opens an MF4
+    log (`allow_mf4_import`): every `bench` command run as its own process
+    (`bench.cli.main`) and the loopback hub (`bench.bus`). `python -m plant_rt` does the
+    same for itself (plant_rt does not import bench)."""
     import sys
     if "asammdf" not in sys.modules:
         sys.modules["asammdf"] = None  # type: ignore[assignment]
+
+
+def allow_mf4_import() -> None:
+    """Undo `refuse_mf4_import` before an MF4 log is read or written: asammdf becomes
+    importable and python-can's `can.io.mf4` runs again in its own namespace, where the
+    MF4 reader and writer classes python-can handed out already (`can.MF4Reader`, the
+    table of `can.Logger`) look asammdf up. Nothing to do where it was not refused."""
+    import importlib
+    import sys
+    if "asammdf" in sys.modules and sys.modules["asammdf"] is None:
+        del sys.modules["asammdf"]
+        import can.io.mf4
+        importlib.reload(can.io.mf4)

@@ -33,7 +33,7 @@ from typing import Any
 
 import can
 
-from bench import BenchError
+from bench import BenchError, allow_mf4_import
 from bench.bus.logwrite import LOG_FORMATS, log_format
 
 LINE = re.compile(r"^\((?P<ts>\d+(?:\.\d*)?)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})"
@@ -336,6 +336,8 @@ def read_frames(path: str | Path, issues: Any = None, raw: bool = False,
 
 def _reader(path: str | Path, suffix: str) -> Any:
     """python-can's reader of format `suffix` on the file `path` or standard input."""
+    if suffix == ".mf4":
+        allow_mf4_import()
     classes = {".asc": can.ASCReader, ".blf": can.BLFReader, ".trc": can.TRCReader,
                ".mf4": can.MF4Reader}
     if not is_stdin(path):

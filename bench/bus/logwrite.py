@@ -13,7 +13,7 @@ from typing import Any
 import can
 from can.util import channel2int
 
-from bench import BenchError
+from bench import BenchError, allow_mf4_import
 
 LOG_FORMATS = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF",
                ".trc": "PEAK TRC", ".mf4": "ASAM MDF4"}
@@ -40,6 +40,8 @@ def open_writer(path: str | Path, max_bytes: int = 0) -> Any:
     reaches `max_bytes`; the full ones renamed ``NAME_<date>T<time>_#NNN.ext``), else the
     format's own writer through `can.Logger`. OSError when the file cannot be opened."""
     suffix = log_format(path)
+    if suffix == ".mf4":
+        allow_mf4_import()
     if max_bytes > 0:
         if suffix not in ROTATING_FORMATS:
             raise BenchError(f"--max-bytes: python-can rotates {', '.join(ROTATING_FORMATS)} "

@@ -43,10 +43,9 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-# commands that read and write no log file: their process refuses python-can's MF4 import
-# (`bench.refuse_mf4_import`; ~0.6-0.9 s of every `bench down`); only when `bench` runs
-# as its own process (never for `main(argv)` in-process)
-NO_LOG_FILES = frozenset({"up", "status", "down", "plant"})
+# a `bench` command run as its own process refuses python-can's MF4 import until it opens
+# an MF4 log (`bench.refuse_mf4_import`, `bench.allow_mf4_import`; 0.6-2 s of CPU of every
+# command's start-up); never for `main(argv)` in-process
 
 
 def selected_command(argv: list[str]) -> str | None:
@@ -105,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    if argv is None and selected_command(sys.argv[1:]) in NO_LOG_FILES:
+    if argv is None:
         refuse_mf4_import()
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)

@@ -7,9 +7,12 @@ index."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import random
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +53,15 @@ def logs(tmp_path_factory):
     return d
 
 
+@pytest.fixture(scope="module")
+def good(logs):
+    """The intact log, decoded once for the file: its trace and `bench decode`'s output."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        rc = main(["decode", str(logs / "good.log")])
+    return trace_from_log(logs / "good.log"), rc, out.getvalue()
+
+
 VALUES = ("setpoint_position_m", "mode", "current_demand_a", "current_a", "motor_speed_rad_s",
           "motor_angle_rad", "position_m", "status_word")
 
@@ -61,10 +73,10 @@ VALUES = ("setpoint_position_m", "mode", "current_demand_a", "current_a", "motor
     ("shuffled", "frames out of time order: decoded in time-stamp order",
      VALUES + ("bus_time_s",)),
 ])
-def test_decode_counts_the_damage(logs, capsys, variant, phrase, same):
-    good = trace_from_log(logs / "good.log")
-    assert main(["decode", str(logs / "good.log")]) == 0
-    assert "no lost, missing, duplicate or out-of-order frame" in capsys.readouterr().out
+def test_decode_counts_the_damage(logs, good, capsys, variant, phrase, same):
+    good, rc, good_out = good
+    assert rc == 0
+    assert "no lost, missing, duplicate or out-of-order frame" in good_out
     assert main(["decode", str(logs / f"good_{variant}.log")]) == 0
     out = capsys.readouterr().out
     phrase = phrase.format(lines=len((logs / "good.log").read_text().splitlines()))
@@ -112,13 +124,17 @@ def test_hums_report_gives_no_verdict_without_its_index(logs, tmp_path, capsys, 
         len(err.splitlines()) == 1
 
 
-def _gap(path: Path):
-    return bench("gap", str(path), "--workers", "1", "-q", timeout=300)
+def _gap(path: Path, capsys) -> subprocess.CompletedProcess:
+    """`bench gap LOG` in this process (the command's start-up, numba's and scipy's
+    imports, paid once for the file, not once a log)."""
+    rc = main(["gap", str(path), "--workers", "1", "-q"])
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(["bench", "gap", str(path)], rc, out, err)
 
 
 @pytest.mark.parametrize("variant", ["", "_drop_sync", "_drop_period"])
-def test_gap_noise_free_log_with_a_lost_sync_has_no_significant_gap(logs, variant):
-    r = _gap(logs / f"clean{variant}.log")
+def test_gap_noise_free_log_with_a_lost_sync_has_no_significant_gap(logs, variant, capsys):
+    r = _gap(logs / f"clean{variant}.log", capsys)
     assert r.returncode == 0, r.stderr
     assert "significant gap: no" in r.stdout, r.stdout
     if variant == "_drop_sync":
@@ -127,8 +143,8 @@ def test_gap_noise_free_log_with_a_lost_sync_has_no_significant_gap(logs, varian
         assert "short gaps bridged by interpolation: " in r.stdout
 
 
-def test_gap_refuses_a_gap_it_cannot_bridge(logs):
-    r = _gap(logs / "clean_drop_30_periods.log")
+def test_gap_refuses_a_gap_it_cannot_bridge(logs, capsys):
+    r = _gap(logs / "clean_drop_30_periods.log", capsys)
     assert r.returncode == 2
     assert r.stderr.startswith("error: gap diagnosis: 30 samples missing in")
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1

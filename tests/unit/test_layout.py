@@ -10,6 +10,7 @@ A long function states why on its first body line, as a comment starting with
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -39,6 +40,28 @@ def _modules() -> dict[str, Path]:
 MODULES = _modules()
 
 
+# Every check below reads the same sources: each file is read, parsed and walked once per
+# test process (the trees are only read, never changed).
+@functools.cache
+def _source(path: Path) -> str:
+    return path.read_text()
+
+
+@functools.cache
+def _parse(source: str) -> ast.Module:
+    return ast.parse(source)
+
+
+_WALKED: dict[int, tuple[ast.AST, tuple[ast.AST, ...]]] = {}
+
+
+def _nodes(tree: ast.AST) -> tuple[ast.AST, ...]:
+    """`ast.walk(tree)` as a tuple, kept for the trees `_parse` keeps."""
+    if id(tree) not in _WALKED:
+        _WALKED[id(tree)] = (tree, tuple(ast.walk(tree)))
+    return _WALKED[id(tree)][1]
+
+
 def _resolve(mod: str, node: ast.ImportFrom) -> str:
     if not node.level:
         return node.module or ""
@@ -49,10 +72,11 @@ def _resolve(mod: str, node: ast.ImportFrom) -> str:
     return ".".join(base + ([node.module] if node.module else []))
 
 
-def _imports(mod: str) -> set[str]:
+@functools.cache
+def _imports(mod: str) -> frozenset[str]:
     """Modules of this tree that `mod` imports anywhere: at module level or inside a
     function (a function-local import does not break a cycle, it only hides it)."""
-    tree = ast.parse(MODULES[mod].read_text())
+    tree = _parse(_source(MODULES[mod]))
     found: set[str] = set()
 
     def add(name: str) -> None:
@@ -61,7 +85,7 @@ def _imports(mod: str) -> set[str]:
         if name and name != mod:
             found.add(name)
 
-    for st in ast.walk(tree):
+    for st in _nodes(tree):
         if isinstance(st, ast.Import):
             for a in st.names:
                 add(a.name)
@@ -69,7 +93,7 @@ def _imports(mod: str) -> set[str]:
             base = _resolve(mod, st)
             for a in st.names:
                 add(f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base)
-    return found
+    return frozenset(found)
 
 
 def test_no_import_cycles():
@@ -256,7 +280,7 @@ def test_indie_plant_imports_only_the_contract_and_numeric_libraries():
     for m, path in MODULES.items():
         if not m.startswith("indie_plant"):
             continue
-        for st in ast.walk(ast.parse(path.read_text())):
+        for st in _nodes(_parse(_source(path))):
             names = ([a.name for a in st.names] if isinstance(st, ast.Import) else
                      [st.module or ""] if isinstance(st, ast.ImportFrom) and not st.level
                      else [])
@@ -271,14 +295,14 @@ def test_indie_plant_imports_only_the_contract_and_numeric_libraries():
 
 def test_no_module_over_600_lines():
     long = {m: n for m, p in MODULES.items()
-            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+            if (n := len(_source(p).splitlines())) > MAX_MODULE_LINES}
     assert not long, long
 
 
 def _long_functions(path: Path) -> list[str]:
-    src = path.read_text().splitlines()
+    src = _source(path).splitlines()
     out = []
-    for node in ast.walk(ast.parse("\n".join(src))):
+    for node in _nodes(_parse(_source(path))):
         if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             continue
         n = node.end_lineno - node.lineno + 1
@@ -321,7 +345,7 @@ JUDGED_CI = ("bench/hums/verdict.py", "judged_ci")
 
 
 def _mentions_harmonic_ci(node: ast.AST, tainted: set[str]) -> bool:
-    for n in ast.walk(node):
+    for n in _nodes(node):
         name = (n.id if isinstance(n, ast.Name) else n.attr if isinstance(n, ast.Attribute)
                 else n.value if isinstance(n, ast.Constant) and isinstance(n.value, str)
                 else n.arg if isinstance(n, ast.arg) else None)
@@ -331,7 +355,7 @@ def _mentions_harmonic_ci(node: ast.AST, tainted: set[str]) -> bool:
 
 
 def _calls(node: ast.AST, name: str) -> list[ast.Call]:
-    return [n for n in ast.walk(node) if isinstance(n, ast.Call) and (
+    return [n for n in _nodes(node) if isinstance(n, ast.Call) and (
         isinstance(n.func, ast.Name) and n.func.id == name
         or isinstance(n.func, ast.Attribute) and n.func.attr == name)]
 
@@ -341,11 +365,11 @@ def _ci_choices(func: ast.AST) -> list[int]:
     conditional expression or a `where` whose condition asks whether the harmonic Ci (or
     a name assigned from it) is finite."""
     tainted: set[str] = set()
-    for n in ast.walk(func):
+    for n in _nodes(func):
         if (isinstance(n, ast.Assign) and _mentions_harmonic_ci(n.value, tainted)
                 and not _calls(n.value, JUDGED_CI[1])):
             tainted |= {t.id for t in n.targets if isinstance(t, ast.Name)}
-    tests = [n.test for n in ast.walk(func) if isinstance(n, (ast.If, ast.IfExp))]
+    tests = [n.test for n in _nodes(func) if isinstance(n, (ast.If, ast.IfExp))]
     tests += [c.args[0] for c in _calls(func, "where") if c.args]
     return [t.lineno for t in tests
             if any(_mentions_harmonic_ci(c, tainted) for c in _calls(t, "isfinite"))]
@@ -358,8 +382,8 @@ def test_the_judged_ci_rule_is_written_once():
     where, found = [], []
     for path in MODULES.values():
         rel = path.relative_to(ROOT).as_posix()
-        tree = ast.parse(path.read_text())
-        for f in ast.walk(tree):
+        tree = _parse(_source(path))
+        for f in _nodes(tree):
             if not isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
             if (rel, f.name) == JUDGED_CI:
@@ -427,7 +451,7 @@ FORCE_FACTORS = (9.80665, 4.4482216152605)       # kgf and lbf in newtons
 
 
 def _bench_trees() -> list[tuple[str, ast.AST]]:
-    return [(rel, ast.parse(path.read_text())) for rel, path in
+    return [(rel, _parse(_source(path))) for rel, path in
             ((p.relative_to(ROOT).as_posix(), p) for p in MODULES.values())
             if rel.startswith("bench/")]
 
@@ -439,7 +463,7 @@ def test_one_units_table():
     for rel, tree in _bench_trees():
         if rel == UNITS_MODULE:
             continue
-        for n in ast.walk(tree):
+        for n in _nodes(tree):
             if isinstance(n, ast.Constant) and isinstance(n.value, float) \
                     and any(abs(n.value - f) < 1e-9 for f in FORCE_FACTORS):
                 own.append(f"{rel}:{n.lineno}: a force unit's factor {n.value}")
@@ -454,7 +478,7 @@ def test_one_thesis_row_and_one_table_writer():
     `bench.core.thesis_rows`."""
     rows, writers = [], []
     for rel, tree in _bench_trees():
-        for n in ast.walk(tree):
+        for n in _nodes(tree):
             if isinstance(n, ast.ClassDef) and n.name == "Row":
                 rows.append(f"{rel}:{n.lineno}")
             if isinstance(n, ast.Constant) and isinstance(n.value, str) \
@@ -471,7 +495,7 @@ def test_one_table_reader():
     for rel, tree in _bench_trees():
         if rel == "bench/signals/tables.py":
             continue
-        for n in ast.walk(tree):
+        for n in _nodes(tree):
             if isinstance(n, (ast.Import, ast.ImportFrom)):
                 names = [a.name for a in n.names] + [getattr(n, "module", None) or ""]
                 from_pyarrow = isinstance(n, ast.ImportFrom) and n.module == "pyarrow"
@@ -497,7 +521,7 @@ def _prose(tree: ast.AST) -> set[int]:
     `__all__` (an exported name such as ``UNKNOWN = "unknown"``, the usage's serial), and
     argparse metavars (``metavar="HEALTHY"``: healthy logs)."""
     out: set[int] = set()
-    for n in ast.walk(tree):
+    for n in _nodes(tree):
         if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
             body = n.body
             out |= {id(s.value) for s in body if isinstance(s, ast.Expr)
@@ -517,10 +541,10 @@ def level_vocabulary(source: str) -> list[str]:
     (``return "DEGRADED"``, ``v == "UNKNOWN"``, a list of them) or a level table assigned
     (``LEVELS = ...``, ``LEVEL_CLASSES = (...)`` as a literal). Prose naming a level
     (docstrings, help and page text) is not vocabulary."""
-    tree = ast.parse(source)
+    tree = _parse(source)
     prose = _prose(tree)
     out = []
-    for n in ast.walk(tree):
+    for n in _nodes(tree):
         if (isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in prose
                 and n.value.strip() in LEVEL_NAMES):
             out.append(f"{n.lineno}: the level name {n.value!r}")
@@ -542,7 +566,7 @@ def test_the_verdict_vocabulary_is_defined_once():
     for path in MODULES.values():
         rel = path.relative_to(ROOT).as_posix()
         if rel != VERDICT_MODULE:
-            where += [f"{rel}:{w}" for w in level_vocabulary(path.read_text())]
+            where += [f"{rel}:{w}" for w in level_vocabulary(_source(path))]
     assert not where, "\n".join(where)
     assert "class Level(enum.IntEnum)" in (ROOT / VERDICT_MODULE).read_text()
 
@@ -572,7 +596,7 @@ ORDER_OPS = (ast.Gt, ast.Lt, ast.GtE, ast.LtE)
 
 def _called(node: ast.AST) -> set[str]:
     return {c.func.attr if isinstance(c.func, ast.Attribute) else getattr(c.func, "id", "")
-            for c in ast.walk(node) if isinstance(c, ast.Call)}
+            for c in _nodes(node) if isinstance(c, ast.Call)}
 
 
 def _speed_operand(node: ast.AST) -> bool:
@@ -581,7 +605,7 @@ def _speed_operand(node: ast.AST) -> bool:
             and len(node.args) == 1 and isinstance(node.args[0], ast.Name):
         return True
     return any(SPEED_NAMES.search(n.id if isinstance(n, ast.Name) else n.attr)
-               for n in ast.walk(node) if isinstance(n, (ast.Name, ast.Attribute)))
+               for n in _nodes(node) if isinstance(n, (ast.Name, ast.Attribute)))
 
 
 def estimator_copies(source: str) -> list[str]:
@@ -591,7 +615,7 @@ def estimator_copies(source: str) -> list[str]:
     speaking of regimes, dwell, motion or direction that compares a speed with a
     threshold (|v| > x, v < dwell_speed, d > tol)."""
     out = []
-    for f in ast.walk(ast.parse(source)):
+    for f in _nodes(_parse(source)):
         if not isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
             continue
         doc = ast.get_docstring(f) or ""
@@ -601,7 +625,7 @@ def estimator_copies(source: str) -> list[str]:
                 r"fundamental|command frequency", f.name + " " + doc, re.IGNORECASE):
             out.append(f"{f.lineno}: {f.name}: the strongest spectral line, its own way")
         if MOTION_WORDS.search(f.name + " " + doc):
-            for c in ast.walk(f):
+            for c in _nodes(f):
                 if isinstance(c, ast.Compare) and any(isinstance(o, ORDER_OPS) for o in c.ops) \
                         and any(_speed_operand(x) for x in (c.left, *c.comparators)):
                     out.append(f"{c.lineno}: {f.name}: a speed against a threshold")
@@ -615,7 +639,7 @@ def test_the_fundamental_and_the_regimes_are_estimated_once():
     for path in MODULES.values():
         rel = path.relative_to(ROOT).as_posix()
         if rel.startswith("bench/") and rel != ESTIMATORS_MODULE:
-            where += [f"{rel}:{w}" for w in estimator_copies(path.read_text())]
+            where += [f"{rel}:{w}" for w in estimator_copies(_source(path))]
     assert not where, "\n".join(where)
     src = (ROOT / ESTIMATORS_MODULE).read_text()
     assert all(f"def {f}(" in src for f in ("fundamental_hz", "motion_regimes", "noise_floor"))
