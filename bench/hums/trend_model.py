@@ -50,9 +50,9 @@ crossing against progpy's `simulate_to_threshold` on `CurveModel` and against a
 brute-force search.
 
 **Two models** (`local_drift`): the curve's RUL draws are mixed, half and half, with
-those of a local drift model: a Wiener process whose drift is the least-squares slope of
-the tests in the later half of the time since the change, level and slope from their
-Student-t posterior. The curve, fitted to every test, extrapolates the shape it has
+those of a local drift model: the straight line through the tests in the later half of
+the time since the change (a constant drift, as a Wiener process's mean, without its
+diffusion term), level and slope drawn from their Student-t posterior. The curve, fitted to every test, extrapolates the shape it has
 seen; the local drift follows the recent rate only. Where their RULs differ (an
 index whose rise is slightly convex or concave: the campaign's lost motion and Ci), the
 band holds both and its median lies between; on the bench's development trends (the
@@ -348,7 +348,7 @@ def samples(f: Fit, rng: np.random.Generator, n: int = N_SAMPLES
 def local_drift(t: np.ndarray, u: np.ndarray, t_change: float, rng: np.random.Generator,
                 n: int) -> np.ndarray:
     """n RUL draws of the local drift model (module docstring, "Two models"): the level
-    as a Wiener process whose drift is that of the recent tests, those of the later half
+    rising at the constant drift of the recent tests (no diffusion term), those of the later half
     of the time since the change `t_change` (at least `LOCAL_MIN` tests): the ordinary
     least-squares line through them, level now and slope drawn from their Student-t
     posterior (flat prior; Gelman et al., BDA section 14.2), the time the line reaches
