@@ -35,9 +35,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default="plant", metavar="NAME",
                    help="nominal model: plant (high-fidelity plant at nominal parameters, "
                         "default) or monitor (HUMS monitoring model)")
-    p.add_argument("--effects", metavar="A,B,...",
-                   help="candidate effects to try (default: the whole library; see "
-                        "--list-effects)")
+    opt.add_effects(p)
     p.add_argument("--nominal", metavar="CALIBRATION.json",
                    help="nominal parameters from `bench calibrate` (default: thesis values): "
                         "its start model with the calibrated values on top, re-simulated "

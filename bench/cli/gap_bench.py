@@ -51,9 +51,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                    help="independent generator: change the actuator as built (all logs, "
                         "calibration included), e.g. speed_window=1; names: python -m "
                         "indie_plant --list-params")
-    p.add_argument("--effects", metavar="A,B,...",
-                   help="restrict the diagnosis' candidate library (default: all; for quick "
-                        "checks: the generator's effects are unchanged)")
+    opt.add_effects(p, "; the generator's effects are unchanged")
     p.add_argument("--only", metavar="EFFECT",
                    help="independent generator: every case is this one effect at a random "
                         "magnitude (a benchmark aimed at one effect; no nominal cases)")

@@ -73,6 +73,13 @@ def add_json(parser: argparse.ArgumentParser, help: str, metavar: str = "PATH") 
     parser.add_argument("--json", metavar=metavar, help=help)
 
 
+def add_effects(parser: argparse.ArgumentParser, also: str = "") -> None:
+    """`--effects A,B,...`: the gap diagnosis' candidate effects (`bench gap --list-effects`)."""
+    parser.add_argument("--effects", metavar="A,B,...",
+                        help="candidate effects to try (default: the whole library; see "
+                             f"`bench gap --list-effects`){also}")
+
+
 def add_seed(parser: argparse.ArgumentParser, default: int, what: str = "random seed",
              metavar: str | None = None) -> None:
     """`--seed N`, its default said in the help."""

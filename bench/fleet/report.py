@@ -222,32 +222,23 @@ def _usage_table(sub: dict[str, np.ndarray]) -> Any:
 def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) -> str:
     from urllib.parse import quote
 
+    from bench import reports as page
     from bench.core.filenames import data_file
-    from bench.reports import (
-        Document,
-        Figure,
-        Heading,
-        Paragraph,
-        Table,
-        badge,
-        link,
-        render_document,
-    )
     fig = data_file(out / "actuators", st.ident, ".png")     # beside its page
     _actuator_figure(st, sub, fig)
     why = inspect_reason(st) or watch_reason(st)
-    doc = Document([Paragraph(badge(st.verdict)), Table(["quantity", "value"], [list(kv) for kv in (
+    doc = page.Document([page.Paragraph(page.badge(st.verdict)), page.Table(["quantity", "value"], [list(kv) for kv in (
         ("tests", str(st.tests)), ("last test (UTC)", _when(st.last_time_s)),
         ("last verdict", f"{st.verdict}: {st.reasons}"), ("Ci (last)", f"{st.ci_last:.3f}"),
         ("trend", f"{_slope(st)} Ci per day over the last tests"),
         ("RUL (days) [90 % band]", rul_text(st)), ("usage consumed", usage_text(st)),
         ("action", why or "none"))], numeric=[False, False], role="summary"),
-        Heading("Index trends"), Figure("", src=quote(fig.name), alt="trends"),
-        Heading("Usage"), _usage_table(sub)])
+        page.Heading("Index trends"), page.Figure("", src=quote(fig.name), alt="trends"),
+        page.Heading("Usage"), _usage_table(sub)])
     lvl = np.array([int(stored_level(v)) for v in sub["verdict"]])
     alerts = np.flatnonzero(lvl > Level.HEALTHY)[::-1][:MAX_ALERTS]
     n_alerts = int((lvl > Level.HEALTHY).sum())
-    doc.add(Heading(f"Alerts ({n_alerts} tests not {Level.HEALTHY.name}"
+    doc.add(page.Heading(f"Alerts ({n_alerts} tests not {Level.HEALTHY.name}"
                     + (f", latest {MAX_ALERTS} shown" if n_alerts > MAX_ALERTS else "")
                     + ")"))
     if len(alerts):
@@ -256,14 +247,14 @@ def _actuator_page(st: ActuatorStatus, sub: dict[str, np.ndarray], out: Path) ->
         for k in alerts:
             path = str(sub["path"][k])
             href = os.path.relpath(path, out / "actuators") if path else ""
-            rows.append([_when(float(sub["run_time"][k])), badge(str(sub["verdict"][k])),
+            rows.append([_when(float(sub["run_time"][k])), page.badge(str(sub["verdict"][k])),
                          f"{ci[k]:.3f}", str(sub["reasons"][k]),
-                         link(quote(href), Path(path).name)])
-        doc.add(Table(["test (UTC)", "verdict", "Ci", "why", "log"], rows,
+                         page.link(quote(href), Path(path).name)])
+        doc.add(page.Table(["test (UTC)", "verdict", "Ci", "why", "log"], rows,
                       numeric=[False, False, True, False, False]))
     else:
         doc.add(f"None: every test {Level.HEALTHY.name}.")
-    return render_document(doc, title=f"{st.ident}: health", footer=_footer(),
+    return page.render_document(doc, title=f"{st.ident}: health", footer=_footer(),
                            nav=[("../index.html", "fleet overview")])
 
 
