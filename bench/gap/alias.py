@@ -70,16 +70,25 @@ def decide(log_slope: float, se: float, slopes: dict[str, float]) -> tuple[str |
     return near, f"the log's slope is that of {near} ({d / se:.1f} standard errors away)"
 
 
+def load_force(p: Any) -> np.ndarray | None:
+    """The load cell's force over the problem's `p.n` samples (N), or None where the log
+    has none to compare the current with (no load cell, a non-finite sample, no change)."""
+    load = p.drive.load_n
+    if load is None:
+        return None
+    force = np.asarray(load[:p.n], float)
+    return force if np.isfinite(force).all() and np.ptp(force) > 0 else None
+
+
 def healthy_load_ratio(p: Any) -> float | None:
     """The log's slope of current on load-cell force over the model's on a healthy log
     (`p`: its problem, the calibrated model): what the calibrated model still misses of
     the current an axial force costs, which a later log's candidates are scaled by
     (None without a load cell)."""
-    load = p.drive.load_n
-    n = p.n
-    if load is None or not np.isfinite(load[:n]).all() or not np.ptp(load[:n]) > 0:
+    force = load_force(p)
+    if force is None:
         return None
-    force = np.asarray(load[:n], float)
+    n = p.n
     sim = np.asarray(p.simulate([], [], n)["current_a"], float)[:n]
     b_sim = load_slope(sim, force)[0]
     b_log = load_slope(np.asarray(p.meas["current_a"], float)[:n], force)[0]
@@ -102,17 +111,16 @@ def settle(p: Any, chosen: Any, singles: list[Any], ratio: float | None = None
     if other is None:
         return chosen, None
     n = p.n
-    load = p.drive.load_n
     cur = np.asarray(p.meas["current_a"], float)[:n]
     rec: dict[str, Any] = {"rule": (
         "an LVDT gain and a lead error move the LVDT per motor angle alike; only the lead "
         "moves the current an axial force costs (T = F lead / (2 pi eta)): the slope of the "
         "logged current on the load cell's force against each candidate's re-simulation")}
-    if load is None or not np.isfinite(load[:n]).all() or not np.ptp(load[:n]) > 0:
+    force = load_force(p)
+    if force is None:
         rec.update(separated=False, why="no load-cell force to compare the current with",
                    line=INDISTINGUISHABLE)
         return chosen, rec
-    force = np.asarray(load[:n], float)
     slopes, raw, resid = {}, {}, {}
     for c in (chosen, other):
         objs = c.fit.objs or [E.get(name) for name in c.fit.effects]
