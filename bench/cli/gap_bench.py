@@ -35,7 +35,7 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
                         "check: three randomised builds of it with physics no development run "
                         "switched on, fixed cases (docs/gap-results.md; --cases and --seed "
                         "do not apply)")
-    p.add_argument("--build-seed", dest="build_seed", type=int, default=9101, metavar="S",
+    p.add_argument("--build-seed", dest="build_seed", type=int, metavar="S",
                    help="final check: the first of its three build seeds (S, S+1, S+2; noise "
                         "seeds follow, bench.gap.finalcheck.noise_base); 9101 the first "
                         "check, 9301 the second (default 9101)")
@@ -214,6 +214,27 @@ def _table(out: dict, top1_goal: float = 0.9, nominal_goal: float = 0.95) -> str
     return "\n".join(lines) + "\n"
 
 
+def check_generator_flags(args: argparse.Namespace) -> None:
+    """Refuse a flag given to a generator it does not apply to (it would be ignored, and
+    the run would measure other cases than asked)."""
+    from bench import BenchError
+    if args.identify and (args.generator != "independent" or args.controller != "own"):
+        raise BenchError("--identify is for --generator independent --controller own")
+    for flag, given in (("--only", args.only), ("--indie-set", args.indie_set)):
+        if given and args.generator != "independent":
+            raise BenchError(f"{flag} is for --generator independent")
+    if args.build_seed is not None:
+        from bench.gap.finalcheck import LOWEST_BUILD_SEED
+        if args.generator != "final-check":
+            raise BenchError("--build-seed is for --generator final-check")
+        if args.build_seed < LOWEST_BUILD_SEED:     # its noise seeds would be negative
+            raise BenchError(f"--build-seed must be >= {LOWEST_BUILD_SEED}, "
+                             f"not {args.build_seed}")
+    if args.generator == "final-check" and (args.effects or args.controller != "ecu"):
+        raise BenchError("the final check runs its fixed cases with the whole library under "
+                         "the bench's ECU: --effects and --controller do not apply")
+
+
 def check_arguments(args: argparse.Namespace) -> list | None:
     """Refuse, before minutes of work, what the benchmark cannot run or write (the
     effects library asked for is returned)."""
@@ -231,14 +252,7 @@ def check_arguments(args: argparse.Namespace) -> list | None:
     if args.effects is not None and not args.effects.strip(", "):
         raise BenchError("--effects lists no effect")
     lib = E.parse_list(args.effects) if args.effects else None
-    if args.identify and (args.generator != "independent" or args.controller != "own"):
-        raise BenchError("--identify is for --generator independent --controller own")
-    for flag, given in (("--only", args.only), ("--indie-set", args.indie_set)):
-        if given and args.generator != "independent":
-            raise BenchError(f"{flag} is for --generator independent")
-    if args.generator == "final-check" and (args.effects or args.controller != "ecu"):
-        raise BenchError("the final check runs its fixed cases with the whole library under "
-                         "the bench's ECU: --effects and --controller do not apply")
+    check_generator_flags(args)
     for flag, path in (("--json", args.json), ("--markdown", args.markdown)):
         if path:
             check_output_file(path, flag)
@@ -250,9 +264,10 @@ def run(args: argparse.Namespace) -> int:
     from bench.gap.blind import run as bench_run
     lib = check_arguments(args)
     if args.generator == "final-check":
-        from bench.gap.finalcheck import run as final_run
-        out = final_run(args.workers, args.log_s, progress=sys.stderr.isatty(),
-                        scheduler=args.scheduler, first=args.build_seed)
+        from bench.gap import finalcheck as FC
+        out = FC.run(args.workers, args.log_s, progress=sys.stderr.isatty(),
+                     scheduler=args.scheduler,
+                     first=FC.BUILD_SEEDS[0] if args.build_seed is None else args.build_seed)
     elif args.generator == "independent":
         from bench.gap.indiebench import NOMINAL, POOL
         if args.only and args.only not in POOL:

@@ -62,6 +62,10 @@ def noise_base(first: int = BUILD_SEEDS[0]) -> int:
     return NOISE_SEEDS + 10 * (first - BUILD_SEEDS[0])
 
 
+LOWEST_BUILD_SEED = BUILD_SEEDS[0] - NOISE_SEEDS // 10
+"""The lowest first build seed whose noise seeds are >= 0 (`noise_base` of it is 0)."""
+
+
 def build(seed: int) -> IndieParams:
     """A randomised actuator: the nominal one with every build parameter drawn from its
     catalogue tolerance (uniform; factors on the nominal), and `PHYSICS` on."""

@@ -24,3 +24,15 @@ def test_the_fresh_check_shares_no_seed_with_the_first():
     assert not set(FC.build_seeds(FC.FRESH_SEED)) & set(FC.BUILD_SEEDS)
     assert not _noise(FC.FRESH_SEED) & _noise(FC.BUILD_SEEDS[0])
     assert min(_noise(FC.FRESH_SEED)) == 42_000
+
+
+def test_build_seed_is_refused_where_it_cannot_apply(capsys):
+    """`--build-seed` picks the final check's builds: given with another generator it
+    would be ignored (a run of other cases, exit 0), and a seed whose noise seeds fall
+    below 0 cannot be drawn; both are one-line errors before any work."""
+    from bench.cli import main
+    assert main(["gap-bench", "--build-seed", "9301", "--cases", "1"]) == 2
+    assert "--build-seed is for --generator final-check" in capsys.readouterr().err
+    assert main(["gap-bench", "--generator", "final-check", "--build-seed", "10"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --build-seed") and err.count("\n") == 1, err
