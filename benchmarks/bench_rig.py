@@ -157,8 +157,8 @@ def main() -> int:
         f"Measured by `{cmd}` on {platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}; 1-minute load average {load0:.1f} at the start and "
         f"{load1:.1f} at the end (the machine is shared: the wall times are an upper "
-        "bound, the ratios compare the trees measured one after the other)"
-        + (f"; old: {args.old}" if old else "") + ".", "",
+        "bound" + (", the ratios compare the trees measured one after the other); "
+                   f"old: {args.old}" if old else ")") + ".", "",
         head, rule, *rows, "",
         "A cycle's verdict is timed on each cycle the first time it is judged (its "
         "phases, ramps and phase indexes computed then too). The study's wall time "
