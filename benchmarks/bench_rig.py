@@ -152,13 +152,13 @@ def main() -> int:
                 f"{'yes' if s['new'][0] < 120 else 'no'} |")
     cmd = "python benchmarks/bench_rig.py --data CRANFIELD_DIR" + (
         " --old OLD_TREE" if old else "") + (f" --write {args.write}" if args.write else "")
+    ratios = ", the ratios compare the trees measured one after the other" if old else ""
     text = "\n".join([
         SECTION, "",
         f"Measured by `{cmd}` on {platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}; 1-minute load average {load0:.1f} at the start and "
         f"{load1:.1f} at the end (the machine is shared: the wall times are an upper "
-        "bound" + (", the ratios compare the trees measured one after the other); "
-                   f"old: {args.old}" if old else ")") + ".", "",
+        f"bound{ratios})" + (f"; old: {args.old}" if old else "") + ".", "",
         head, rule, *rows, "",
         "A cycle's verdict is timed on each cycle the first time it is judged (its "
         "phases, ramps and phase indexes computed then too). The study's wall time "
