@@ -42,6 +42,11 @@ from bench import BenchError
 from bench.runtime.cluster import Engine, check_address, default_workers, scheduler_address
 
 RETRIES = 1
+# Jobs carry their data (a study's cycles, a split's tables) in the task graph: a worker
+# that dies then loses nothing, where data scattered to it would die with it. Dask warns
+# from 10 MB ("Sending large graph ..., consider scatter"); the bench's own jobs stay
+# quiet up to this size.
+GRAPH_WARNING = "512MB"
 
 
 class _Session:
@@ -156,9 +161,11 @@ def _on_dask(client: Any, fn: Callable[[Any], Any], jobs: list[Any],
         client.register_plugin(Initializer(*init), name=plugin)
     size = max(1, int(chunk))
     starts = list(range(0, len(jobs), size))
-    futs = client.map(_run_chunk, [fn] * len(starts), starts,
-                      [jobs[k:k + size] for k in starts],
-                      key=[f"{name}-{k}" for k in starts], retries=max(0, int(retries)))
+    import dask
+    with dask.config.set({"distributed.admin.large-graph-warning-threshold": GRAPH_WARNING}):
+        futs = client.map(_run_chunk, [fn] * len(starts), starts,
+                          [jobs[k:k + size] for k in starts],
+                          key=[f"{name}-{k}" for k in starts], retries=max(0, int(retries)))
     index = {f.key: i for i, f in enumerate(futs)}
     dbar = None if bar is None else _DaskBar(futs, client, bar, size, len(jobs))
     try:
