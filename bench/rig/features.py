@@ -42,6 +42,8 @@ position error has settled, `takeup_window`, from the baseline alone) and its tr
   baseline's noise, and the score is the sum over both strokes. Where: the same
   projection over a sliding window of `PERIODIC_WINDOW` samples, out- and in-stroke
   added at the same position, its largest value.
+- rattle (a play's broadband roughness along the stroke, `rattle.roughness`): the
+  rougher stroke's; naming-only (`NAMING_ONLY`), as the hysteresis is.
 - dwell (standstill): the current and position-error residuals of each dwell, less their
   medians, scanned as the localised feature scans a stroke; the score is the largest
   |scan|.
@@ -84,6 +86,7 @@ from bench.rig.baseline import (
 )
 from bench.rig.cycles import Cycle
 from bench.rig.offsets import is_offset, position_shifts, shift_text
+from bench.rig.rattle import roughness
 from bench.rig.verdict import RigVerdict, provisional_note
 
 SCALES = (1, 3, 9, 27)          # scan window widths, samples
@@ -91,9 +94,9 @@ _SCALES = np.asarray(SCALES, dtype=np.int64)
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
 STROKE_CURRENT = "current_ref_a"   # the stroke features' current (against the standstill)
 FEATURES = ("localised", "level", "reversal", "takeup", "hysteresis", "turn", "periodic",
-            "dwell", "index")
+            "dwell", "index", "rattle")
 SPECIFIC = ("periodic", "localised")
-NAMING_ONLY = ("hysteresis",)
+NAMING_ONLY = ("hysteresis", "rattle")
 """Features that name a flagged cycle's fault but flag none (no share of the false-alarm
 rate is split off for them)."""
 EFFECTS = {
@@ -110,6 +113,8 @@ EFFECTS = {
                   "up both reversals changed alike along the motion)",
     "turn": "the current while the motion reverses (a breakaway friction or a play's "
             "impact: the current alone cannot tell which)",
+    "rattle": ("backlash-like effect (the current rough along the whole travel: a nut "
+               "moving within a play as the drive's force ripples)"),
     "offset": ("position offset in every phase, backlash-like under a one-sided load (a "
                "play held on one flank by the load, a nut softer under the load, or a "
                "moved position-sensor zero)"),
@@ -242,6 +247,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
     turn: dict[str, float] = {}                 # the current while taking up a reversal
     profiles: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     masked: dict[str, np.ndarray] = {}          # the travel's profile, 0 in the take-up
+    rough: list[float] = []                     # each stroke's travel roughness (`rattle`)
     for name, r in (("out", out), ("in", inn)):
         if r is None:
             notes.append(f"no {name}-stroke in the cycle or the baseline")
@@ -253,6 +259,7 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
         zt = zone_free(std[w:], z[w:])
         profiles[name] = (zt, pos[w:])
         masked[name] = np.r_[np.zeros(w), zt]
+        rough.append(roughness(z[w:] * std[w:], std[w:], pos[w:], lead_mm))
         if w >= 2:
             c, se = constant(std[:w] * math.sqrt(1.0 + 1.0 / lb.n), z[:w])
             turn[name] = c / se
@@ -279,7 +286,8 @@ def cycle_features(lb: LoadBaseline, cycle: Cycle, lead_mm: float | None = None
               "takeup": max((abs(v) for v in take_z.values()), default=nan),
               "hysteresis": abs(hyst := hysteresis(take_mm, take_z)),
               "turn": max((abs(v) for v in turn.values()), default=nan),
-              "periodic": per[0], "dwell": dwell_score(lb, cycle, cache), "index": idx}
+              "periodic": per[0], "dwell": dwell_score(lb, cycle, cache), "index": idx,
+              "rattle": max((v for v in rough if math.isfinite(v)), default=nan)}
     if lead_mm is None:
         notes.append("periodic: not available (the screw's lead was not given)")
     return CycleFeatures(cycle.label, cycle.source, cycle.load, cycle.run, cycle.group,
@@ -366,21 +374,11 @@ MIN_TRAVEL = 27          # samples of travel a stroke keeps at least (the widest
 
 
 def zone_free(std: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """A zone's residual less its weighted constant in the signal's unit (`offset_free`
-    of a part of a stroke)."""
+    """A zone's residual less its weighted constant in the signal's unit: a friction torque
+    is a constant current on a stroke, which divided by the per-sample spread is not a
+    constant in z and would leak into the localised scan and the periodic projection."""
     if not len(z):
         return z
-    c, _ = constant(std, z)
-    return z - c / std[:len(z)]
-
-
-def offset_free(lb: LoadBaseline, phase: str, z: np.ndarray, sig: str) -> np.ndarray:
-    """The residual less its constant in amperes: a friction torque is a constant current
-    on a stroke, which divided by the per-sample spread is not a constant in z and would
-    leak into the localised scan and the periodic projection."""
-    if not len(z):
-        return z
-    std = lb.phases[phase].std[sig]
     c, _ = constant(std, z)
     return z - c / std[:len(z)]
 

@@ -14,8 +14,10 @@ a signature of a fault family:
   decides, and the feature takes either), a position-error hysteresis: the lag while
   taking up both reversals changed alike along the motion (`hysteresis`, a position
   offset that moves from run to run cancelled) or between the strokes' travel
-  (`reversal`), the drag of the preload lowered in both directions (`drag`), or
-  every phase's position error moved alike under a one-sided load (`offset`);
+  (`reversal`), the drag of the preload lowered in both directions (`drag`), the current
+  rough along the whole travel (`rattle`: a nut no longer held on both flanks moves
+  within its play as the drive's force ripples), or every phase's position error moved
+  alike under a one-sided load (`offset`);
 - the current alone while a stroke takes up its reversal (`turn`): a breakaway friction
   and a play's free run and impact both change it, so on its own it names "friction or
   backlash: indistinguishable on this log".
@@ -28,9 +30,14 @@ Friction also lags a stepper or a position loop behind its set-point, so it leav
 position-error hysteresis of its own: when friction and backlash signatures are both
 above their thresholds and neither is `CLEAR` times the other, the fault is "friction
 or backlash: indistinguishable on this log" rather than a guess. A lag of the nut at the
-reversals or between the strokes is a play's, not a spall's; a level raised in both
-directions beside a periodic line with no spot of its own is friction's (a spot on the
-raceway does not raise the whole strokes' current); otherwise the family whose
+reversals or between the strokes is a play's, not a spall's. A periodic line with no spot
+of its own (the localised scan below its threshold) is the once-per-revolution ripple
+changed along the whole stroke, which any change of the nut's contact with the screw
+makes (a lubricant lost, a preload lost, a raceway worn); beside it, the family whose own
+signature along the whole stroke is above its threshold is named: a level raised in both
+directions is friction's, a drag lowered in both directions or a rattle a play's (a spot
+on the raceway neither raises nor lowers both strokes' current, nor makes the whole
+stroke rough). Otherwise the family whose
 strongest signature is furthest above its threshold is named (`attribute`). A cycle
 flagged only by a catch-all (a dwell transient, a phase index, a level raised in one
 direction only) is "unattributed".
@@ -48,8 +55,8 @@ FAULTS = (SPALL, FRICTION, BACKLASH, AMBIGUOUS, UNATTRIBUTED)
 TEXT = {
     SPALL: "spall-like (a position-locked or position-periodic effect)",
     FRICTION: "friction growth (current raised in both directions)",
-    BACKLASH: "backlash-like (lost motion at a reversal, a position-error hysteresis or "
-              "the preload's drag lost)",
+    BACKLASH: "backlash-like (lost motion at a reversal, a position-error hysteresis, "
+              "the preload's drag lost or a play's rattle)",
     AMBIGUOUS: "friction or backlash: indistinguishable on this log",
     UNATTRIBUTED: "no fault family (only a catch-all feature is above its threshold)",
 }
@@ -60,7 +67,7 @@ ratio to its threshold is at least this many times the other's."""
 # the signatures (effects) of each family; `drag` and `offset` are named by the level and
 # the index feature (`features.FEATURE_OF`)
 SIGNATURES = {SPALL: ("periodic", "localised"), FRICTION: ("level",),
-              BACKLASH: ("takeup", "hysteresis", "reversal", "drag", "offset"), AMBIGUOUS: ("turn",)}
+              BACKLASH: ("takeup", "hysteresis", "reversal", "drag", "offset", "rattle"), AMBIGUOUS: ("turn",)}
 
 
 def family_ratios(above: dict[str, float], level_sign: int, offset: bool
@@ -98,10 +105,12 @@ def attribute(above: dict[str, float], level_sign: int, offset: bool
     2. a backlash signature of the nut's lag (`POSITION`): backlash, whatever the current
        does besides: a spot on the raceway loads the nut, it does not make it lag the motor
        at the reversals or between the strokes;
-    3. friction beside a spall's periodic line with no spot of its own (the localised
-       scan below its threshold): friction, since a lubricant lost or a screw worn along
-       the stroke changes the once-per-revolution ripple along the whole stroke too, but
-       a spot on the raceway does not raise both strokes' current;
+    3. friction or backlash beside a spall's periodic line with no spot of its own (the
+       localised scan below its threshold): that family (its signature here: the level
+       raised in both directions, or the drag lowered in both directions or the rattle),
+       since a lubricant lost, a preload lost or a screw worn changes the
+       once-per-revolution ripple along the whole stroke too, but a spot on the raceway
+       neither moves both strokes' current nor makes the whole stroke rough;
     4. else the family whose strongest signature is furthest above its threshold (the
        current at a reversal alone beside the level is friction's breakaway: it names
        "friction or backlash" only when nothing else is above);
@@ -122,9 +131,11 @@ def attribute(above: dict[str, float], level_sign: int, offset: bool
               key=lambda k: above.get(k, above.get("index", 0.0)), default="")
     if lag and BACKLASH in fams:
         return BACKLASH, lag
-    if FRICTION in fams and fams.get(SPALL, (0.0, ""))[1] == "periodic" \
-            and "localised" not in above:
-        return FRICTION, fams[FRICTION][1]
+    if fams.get(SPALL, (0.0, ""))[1] == "periodic" and "localised" not in above:
+        # after 1. and 2., backlash's signatures here are the drag and the rattle
+        for fam in (FRICTION, BACKLASH):
+            if fam in fams:
+                return fam, fams[fam][1]
     rest = {k: v for k, v in fams.items() if k != AMBIGUOUS}
     if rest:
         fam = max(rest, key=lambda k: rest[k][0])

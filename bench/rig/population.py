@@ -80,7 +80,7 @@ class Calibration:
 METHOD = ("leave-one-run-out over the calibration runs; per feature the upper prediction "
           "bound of one cycle of a healthy run not among them, from the spread within and "
           "between runs of its transformed held-out scores (Student-t, Welch-Satterthwaite "
-          "degrees of freedom; log for the scans and the index maximum, cube root for the "
+          "degrees of freedom; log for the scans, the index maximum and the rattle, cube root for the "
           "chi-square-like periodic power, the signed value for level, reversal and hysteresis); "
           "alpha shared by the {n} features that flag (the naming-only ones at the same "
           "alpha)")
@@ -96,7 +96,7 @@ NULLS: dict[str, tuple[str, int]] = {"periodic": ("chi2", 4), "level": ("abs", 1
                                      "localised": ("log", 0),
                                      "takeup": ("log", 0), "turn": ("log", 0),
                                      "dwell": ("log", 0),
-                                     "index": ("log", 0)}
+                                     "index": ("log", 0), "rattle": ("log", 0)}
 
 
 def healthy_value(f: CycleFeatures, key: str) -> float:
