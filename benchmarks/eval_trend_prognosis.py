@@ -168,11 +168,62 @@ def score_campaign(d: Path, index: str, healthy: str, work: Path) -> dict[str, A
         sc = score_run(preds, float(tr.t[warn[0]]) if len(warn) else math.nan, tf,
                        cadence=1.0)
         sc["seed"] = int(tr.actuator.split("-", 1)[1])
+        # the side of the truth the median lies on where alpha-lambda at 70 % is missed
+        # (the prediction score_run scores there)
+        at = [p for p in preds if 0.7 * tf - 1e-9 <= p.t_pred_s <= 0.7 * tf + 1.0]
+        sc["side_0.7"] = ("" if sc["alpha_lambda_0.7"] or not at else
+                          "early" if np.median(at[0].toe_samples) < tf else "late")
         scores.append(sc)
     summ = _summary(scores)
+    lim = [index_limits(dict(rows[a][index]), tf, limit, int(healthy))
+           for a, tf in truth.items() if a in rows]
     summ.update(index=name, limit=limit, cli_s=cli_s,
-                held_out=_summary([x for x in scores if x["seed"] >= HELD_FROM]))
+                held_out=_summary([x for x in scores if x["seed"] >= HELD_FROM]),
+                **_limits_summary(lim))
     return summ
+
+
+def index_limits(trend: dict[float, float], t_f: float, limit: float, healthy: int
+                 ) -> dict[str, float]:
+    """What the trend itself allows of one actuator's index, in hindsight: the level
+    u (0 the mean of the first `healthy` tests, 1 the threshold) and least-squares lines
+    through the tests from 45 to 70 % of life and from 70 % on. `rate_ratio`: the rate
+    after 70 % of life over the rate before it (1: a straight line); `u_fail`: the later
+    line at the failure (1: the failure is the threshold's); `line_ok`: the earlier line
+    extrapolated from the test at 70 % of life to u = 1 lies within +-20 % of the true
+    RUL (the window needs the true life: a bound on extrapolating the recent rate, not a
+    method); `ratio_fail`, `value_fail`: the index at failure over the healthy level and
+    over the threshold."""
+    t, y = (np.array(v, dtype=float) for v in zip(*sorted(trend.items()), strict=True))
+    h0 = float(np.mean(y[:healthy]))
+    u = (y - h0) / (limit - h0)
+    k = int(np.searchsorted(t, 0.7 * t_f - 1e-9))
+    before, after = (t >= 0.45 * t_f) & (t <= t[k]), t >= t[k]
+    if before.sum() < 3 or after.sum() < 3:
+        return {}
+    p1, p2 = np.polyfit(t[before], u[before], 1), np.polyfit(t[after], u[after], 1)
+    u_fail = float(np.polyval(p2, t_f))
+    rul = (1.0 - float(np.polyval(p1, t[k]))) / p1[0] if p1[0] > 0 else math.inf
+    y_fail = h0 + u_fail * (limit - h0)
+    return {"rate_ratio": float(p2[0] / p1[0]), "u_fail": u_fail,
+            "line_ok": float(abs(rul - (t_f - t[k])) <= 0.2 * (t_f - t[k])),
+            "ratio_fail": y_fail / h0, "value_fail": y_fail / limit}
+
+
+def _limits_summary(lim: list[dict[str, float]]) -> dict[str, Any]:
+    """`index_limits` over the actuators: the medians and ranges of the table, the
+    spread (sd over mean) of the index at failure about the threshold and about a
+    multiple of the healthy level."""
+    def col(key: str) -> np.ndarray:
+        return np.array([x[key] for x in lim if key in x])
+    r, uf = col("rate_ratio"), col("u_fail")
+    if not len(r):
+        return {}
+    return {"rate_ratio_median": float(np.median(r)), "rate_ratio_range": (
+        float(r.min()), float(r.max())), "u_fail_range": (float(uf.min()), float(uf.max())),
+        "line_ok": float(np.mean(col("line_ok"))),
+        "cv_threshold": float(np.std(col("value_fail")) / np.mean(col("value_fail"))),
+        "cv_healthy": float(np.std(col("ratio_fail")) / np.mean(col("ratio_fail")))}
 
 
 def _summary(scores: list[dict[str, Any]]) -> dict[str, Any]:
@@ -183,6 +234,8 @@ def _summary(scores: list[dict[str, Any]]) -> dict[str, Any]:
                                                      for x in scores]))
         ra = np.array([x[f"ra_{lam}"] for x in scores], dtype=float)
         summ[f"ra_{lam}_median"] = float(np.nanmedian(ra)) if np.isfinite(ra).any() else math.nan
+    summ["missed_early_0.7"] = float(sum(x.get("side_0.7") == "early" for x in scores))
+    summ["missed_late_0.7"] = float(sum(x.get("side_0.7") == "late" for x in scores))
     summ["warned"] = float(np.mean([math.isfinite(x["t_warning_s"]) for x in scores]))
     summ["warning_life_frac_median"] = float(np.nanmedian(
         [x["warning_life_frac"] for x in scores]))
@@ -221,8 +274,9 @@ def markdown(syn: dict[str, Any], camp: list[dict[str, Any]] | None,
                   "calibration's w = 1, `--healthy-tests 3`; progpy's metrics on 250 "
                   "samples a day, alpha 0.2, beta 0.5), beside the campaign's calibrated "
                   "paths on the same actuators. The trend's own model was developed on "
-                  f"actuators 2024-{HELD_FROM - 1}; the last rows score the others "
-                  "alone:", "",
+                  f"actuators 2024-{HELD_FROM - 1}; the held-out rows score the others "
+                  "alone, the hindsight rows (every actuator, the true life known) say "
+                  "what the trends themselves allow:", "",
                   "| metric | " + " | ".join(f"trend's own: {c['index']}" for c in camp)
                   + " | calibrated: usage + health | calibrated: health only |",
                   "|---|" + "---|" * (len(camp) + 2)]
@@ -243,7 +297,26 @@ def markdown(syn: dict[str, Any], camp: list[dict[str, Any]] | None,
             lines.append(f"| {label}, held-out actuators {HELD_FROM}-2073 only | "
                          + " | ".join(_pct(c["held_out"].get(key, math.nan)) for c in camp)
                          + " | - | - |")
-        lines += ["", "Failure thresholds: " + ", ".join(
+        lines.append("| alpha-lambda missed at 70 % of life: the median RUL short / long "
+                     "(actuators) | " + " | ".join(
+                         f"{c['missed_early_0.7']:.0f} / {c['missed_late_0.7']:.0f}"
+                         for c in camp) + " | - | - |")
+        lines.append("| in hindsight (every actuator): the index's rate after 70 % of life "
+                     "over its rate from 45 to 70 %, median (range) | " + " | ".join(
+                         f"{c['rate_ratio_median']:.2f} ({c['rate_ratio_range'][0]:.2f}-"
+                         f"{c['rate_ratio_range'][1]:.2f})" for c in camp) + " | - | - |")
+        lines.append("| in hindsight: the index at failure, of the way from healthy to the "
+                     "threshold (range) | " + " | ".join(
+                         f"{c['u_fail_range'][0]:.2f}-{c['u_fail_range'][1]:.2f}"
+                         for c in camp) + " | - | - |")
+        lines.append("| in hindsight: the line through the tests from 45 to 70 % of life "
+                     "within +-20 % of the RUL at 70 % | " + " | ".join(
+                         _pct(c["line_ok"]) for c in camp) + " | - | - |")
+        lines += ["", "The index at failure spreads (sd / mean) " + ", ".join(
+            f"{c['cv_threshold']:.0%}" for c in camp) + " about the threshold and " + ", ".join(
+            f"{c['cv_healthy']:.0%}" for c in camp) + " about a multiple of the healthy "
+            "level (a `--failure Nx`).", ""]
+        lines += ["Failure thresholds: " + ", ".join(
             f"{c['index']} {c['limit']:.4g}" for c in camp) + "; the CLI on each foreign "
             "file (50 actuators): " + ", ".join(f"{c['cli_s']:.0f} s" for c in camp) + "."]
     return "\n".join(lines) + "\n"
