@@ -16,7 +16,7 @@ traffic in the log (expedited and segmented transfers), which gives the SYNC per
 
 The jobs live in their own modules: `bench.bus.logread` (the line reader),
 `bench.bus.sdo` (the SDO tracker), `bench.bus.rows` (the row assembler, shared with the
-live HUMS), `bench.bus.integrity` (the damage in words). This module puts them together
+live HUMS), `bench.signals.integrity` (the damage in words). This module puts them together
 (and re-exports their names); sorting a shuffled log by time stamp (`time_ordered`)
 needs the whole log and is done here only.
 """
@@ -32,7 +32,6 @@ import can
 import numpy as np
 
 from bench import BenchError
-from bench.bus.integrity import integrity
 from bench.bus.logread import (
     FD_LENGTHS,
     LINE,
@@ -60,6 +59,7 @@ from bench.bus.rows import (
     trace_columns,
 )
 from bench.bus.sdo import SdoTracker, sdo_values, serial_of
+from bench.signals.integrity import integrity
 from bench.signals.tables import TRACE_FORMATS
 from bench.signals.trace import Trace
 from ema_contract.frames import Frames, load_od

@@ -139,6 +139,6 @@ def _describe(out: Path, tr: Trace) -> None:
                if s not in tr]
     if missing:
         print("not mapped: " + ", ".join(missing))
-    from bench.bus.logs import integrity
+    from bench.signals.integrity import integrity
     for line in integrity(tr.meta):
         print(f"{out}: {line}")

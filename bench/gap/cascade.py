@@ -120,7 +120,7 @@ def cascade_rows(c, kvec, ref, kk, meas, kl, ke):  # pragma: no cover - compiled
     return i_dem
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def cascade_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                      diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
     """The generic cascade on the full plant."""

@@ -58,7 +58,7 @@ def cascade_split_control(c, kvec, ref, kk, meas, kd):  # pragma: no cover - com
     return cascade_rows(c, kvec, ref, kk, meas, kl, ke)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def ecu_split_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                        diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
     """The bench's ECU on the full plant, its LVDT and encoder delayed apart."""
@@ -67,7 +67,7 @@ def ecu_split_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_o
                     meas_out, dem_out, diag_out, truth_out, applied, k0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def cascade_split_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out,
                            dem_out, diag_out, truth_out, applied,
                            k0):  # pragma: no cover - compiled

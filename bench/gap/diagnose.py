@@ -40,13 +40,14 @@ from bench.gap import families as F
 from bench.gap import limitcycle as LC
 from bench.gap import localise as LZ
 from bench.gap import resim as R
+from bench.gap import schedule as S
 from bench.gap.finding import describe
 from bench.gap.fit import Fit, fit
 from bench.gap.library import FRICTION_SPLITS
 from bench.gap.problem import Problem, build, fill_gaps
 from bench.gap.refine import refine
 from bench.gap.scores import excess, shrink_pct
-from bench.runtime.workers import ensure_started, make_pool
+from bench.runtime.workers import make_pool
 from bench.signals.trace import Trace
 from plant_rt.params import PlantParams
 
@@ -125,6 +126,9 @@ class Result:
 
 # --- workers -------------------------------------------------------------------------
 
+Task = tuple[tuple[str, ...], list[dict[str, float]] | None]   # (names, start)
+
+
 def _task(p: Problem, h: Problem | None, names: tuple[str, ...],
           start: list[dict[str, float]] | None) -> Candidate:
     return evaluate(p, h, names, start)
@@ -180,9 +184,10 @@ def _strip(p: Problem) -> Problem:
     return dataclasses.replace(p, holdout=None, info={}, _cache={})
 
 
-def _run(tasks: Sequence[tuple[tuple[str, ...], list[dict[str, float]] | None]], p: Problem,
-         h: Problem | None, pool: Any = None, bar: Any = None) -> list[Candidate]:
-    """Evaluate `tasks` in `pool` (worker processes set up by `_init`) or in-process."""
+def _run(tasks: Sequence[Task], p: Problem, h: Problem | None, pool: Any = None,
+         bar: Any = None) -> list[Candidate]:
+    """Evaluate `tasks` in `pool` (worker processes, `bench.gap.schedule`) or in-process;
+    the results in task order."""
     if pool is None or len(tasks) <= 1:
         out = []
         for t in tasks:
@@ -190,15 +195,7 @@ def _run(tasks: Sequence[tuple[tuple[str, ...], list[dict[str, float]] | None]],
             if bar is not None:
                 bar.update(1)
         return out
-    ensure_started(pool)
-    ps, hs = _strip(p), (_strip(h) if h is not None else None)
-    futs = [pool.submit(_task, ps, hs, *t) for t in tasks]
-    out = []
-    for fu in futs:
-        out.append(fu.result())
-        if bar is not None:
-            bar.update(1)
-    return out
+    return S.on_pool(_task, evaluate, _strip, tasks, p, h, pool, bar)
 
 
 # --- the diagnosis --------------------------------------------------------------------
@@ -340,6 +337,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if (sig or o.fit_always) and o.workers > 1 and len(names) > 1:
         pool = make_pool(o.workers, wait=False, scheduler=o.scheduler)
         pools.append(pool)
+        pool.preload(S.warm_worker)
     loc, ho_en, ho_ex = _localisation(trace, holdout, p, h, frac, (sig, raw, sm), say)
     if o.reference is not None:
         b = basis(o.reference, sm, loc["significance"]["threshold"])
@@ -516,7 +514,7 @@ def _settle_alias(p: Any, chosen: Any, singles: list[Any], verdict: str, ties: l
 
 def log_integrity(trace: Trace, holdout: Trace | None) -> dict[str, Any]:
     """What the log (and the held-out log) lost or repeated and what was bridged."""
-    from bench.bus.logs import integrity
+    from bench.signals.integrity import integrity
     out: dict[str, Any] = {}
     for key, tr in (("log", trace), ("holdout", holdout)):
         if tr is None:

@@ -40,6 +40,7 @@ FLOORS = {"current_a": 2e-3, "motor_speed_rad_s": 2e-3, "position_m": 2e-8,
 RMAX = 1e4               # normalised residuals are clipped here (a diverging candidate)
 MIN_TRAVEL_M = 50e-6      # below this the log has too little motion to identify anything
 MIN_SAMPLES = 200
+LOOP_CACHE = 64           # re-simulations a problem keeps (`Problem._loop_cols`)
 
 
 @dataclass
@@ -99,6 +100,8 @@ class Problem:
         delays = self.loop_delays(effects, thetas)
         if params is self.base and delays == (0, 0) and noise is None:
             cols = self._nominal_cols(n)
+        elif noise is None:
+            cols = self._loop_cols(params, n, delays)
         else:
             cols = self.closed_loop(params, n, noise, delays)
         for eff, th in zip(effects, thetas, strict=True):
@@ -115,6 +118,29 @@ class Problem:
             hit = (key, self.base, self.closed_loop(self.base, n))
             self._cache["nominal"] = hit
         return dict(hit[2])
+
+    def _loop_cols(self, params: PlantParams, n: int | None, delays: tuple[int, int]
+                   ) -> dict[str, np.ndarray]:
+        """The noise-free re-simulation's columns with `params` and `delays` over the
+        first `n` samples, from the last LOOP_CACHE ones of this problem when it ran them
+        already (the same values, the same columns: a fit evaluates its start, its first
+        least-squares point and its optimum more than once, and candidates meet at the
+        same values). Keyed by the model, the values (exact: repr), the length and the
+        delays, for this drive; copies in and out, so no caller sees another's arrays."""
+        key = (self.model, repr(params), self.n if n is None else min(n, self.n),
+               tuple(int(d) for d in delays))
+        store = self._cache.setdefault("loops", {})
+        hit = store.get(key)
+        if hit is not None and hit[0] is self.drive:
+            return {c: v.copy() for c, v in hit[1].items()}
+        cols = self.closed_loop(params, n, None, delays)
+        store[key] = (self.drive, {c: v.copy() for c, v in cols.items()})
+        while len(store) > LOOP_CACHE:       # first in, first out
+            try:
+                del store[next(iter(store))]
+            except (KeyError, RuntimeError, StopIteration):   # another thread's eviction
+                break
+        return cols
 
     def closed_loop(self, params: PlantParams, n: int | None = None,
                     noise: np.ndarray | None = None,

@@ -271,7 +271,7 @@ def resync(x, p, aux, kk):  # pragma: no cover - compiled
             x[K.TH_HIST + j] = x[K.TH] - (j + 1) * t_sync * x[K.OM]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def table_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                    diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
     """The logged demand (`bench.sim.loop.table_control`) on the full plant, re-synchronised
@@ -362,7 +362,7 @@ def restart(x, p, aux, kk):  # pragma: no cover - compiled
             x[K.TH_HIST + j] = th - (j + 1) * t_sync * om
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def current_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                      diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
     """A demand table (the measured current) on the full plant, re-started where aux
@@ -480,6 +480,18 @@ def encoder_speed_from_angle(angle_rad: np.ndarray, params: PlantParams,
     w = np.gradient(angle_rad, dt) if len(angle_rad) > 1 else np.zeros_like(angle_rad)
     # the central difference is centred half a sample late relative to the filter input
     return second_order(w, dt, se.encoder_natural_rad_s, se.encoder_damping)
+
+
+def warm() -> None:
+    """Load the compiled closed loops (numba's cache: the ECU on the plant, and with the
+    sensors delayed apart) by a few periods of a still drive: a worker process that does
+    it while the diagnosis localises the gap does not pay it at its first fit."""
+    n = 4
+    z = np.zeros(n)
+    drive = Drive(np.arange(n) * 1e-3, z, z, np.ones(n), np.full(n, np.nan), 0.0, 0.0)
+    params = PlantParams().with_dict({**FAST, "sensors.noise": False})
+    closed_loop(params, drive)
+    closed_loop(params, drive, delays=(1, 0))
 
 
 def friction_work(params: PlantParams, drive: Drive, n: int | None = None,

@@ -189,7 +189,7 @@ def _no_rul(rul: bool, f0: float, n_periods: int, both: bool, blocked: set[str])
 def _log_notes(meta: dict[str, Any]) -> list[str]:
     """What the decoder found wrong with the log (lost SYNCs, missing frames, ...)."""
     try:
-        from bench.bus.logs import integrity
+        from bench.signals.integrity import integrity
     except ImportError:        # the bus part is not installed: no decoded logs either
         return []
     return integrity(meta)

@@ -206,6 +206,11 @@ class Engine:
         if closed:                            # closed while starting
             self._shutdown()
 
+    @property
+    def start_finished(self) -> bool:
+        """Whether the start has finished (started or failed), without waiting."""
+        return self._done
+
     def client(self, announce: bool | None = None) -> Any:
         """The started `distributed.Client`; a cluster that does not start (or a
         scheduler that cannot be reached) is a BenchError, not a hang. With `announce`

@@ -279,22 +279,53 @@ class Pool:
         self.retries = retries
         self._client: Any = None
         self._plugin: str | None = None
+        self._start_lock = threading.Lock()
+        self._preloaded: threading.Event | None = None
         if wait:
             self.started()
 
     def started(self) -> Any:
         """The client, once the workers are up (BenchError when they cannot start)."""
-        if self._client is None:
-            client = self.engine.client()
-            if self.init is not None:
-                from bench.runtime.cluster_plugin import Initializer
-                self._plugin = f"bench-init-{uuid.uuid4().hex[:8]}"
-                client.register_plugin(Initializer(*self.init), name=self._plugin)
-            self._client = client
-        return self._client
+        with self._start_lock:
+            if self._client is None:
+                client = self.engine.client()
+                if self.init is not None:
+                    from bench.runtime.cluster_plugin import Initializer
+                    self._plugin = f"bench-init-{uuid.uuid4().hex[:8]}"
+                    client.register_plugin(Initializer(*self.init), name=self._plugin)
+                self._client = client
+            return self._client
+
+    def preload(self, fn: Callable[[], Any]) -> None:
+        """Run `fn()` once on every worker as soon as the workers are up, in a background
+        thread (imports and compiled code that the first task would otherwise load while
+        the caller waits for it); best effort: where it fails, the first task pays."""
+        done = self._preloaded = threading.Event()
+
+        def run() -> None:
+            try:
+                self.started().run(fn)
+            except Exception:  # noqa: BLE001 - best effort; submit() reports a real fault
+                pass
+            finally:
+                done.set()
+        threading.Thread(target=run, name="bench-dask-preload", daemon=True).start()
+
+    def ready(self) -> bool:
+        """Whether the workers are up (and through `preload`), without waiting: a caller
+        with work it can do itself does it meanwhile instead of waiting in `started`."""
+        if self._preloaded is not None:
+            return self._preloaded.is_set()
+        return self.engine.start_finished
 
     def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
         return self.started().submit(fn, *args, pure=False, retries=self.retries)
+
+    def share(self, obj: Any) -> Any:
+        """`obj` sent once to every worker (a Dask future to pass to `submit` in its
+        place): each worker then holds one copy for all the tasks that take it, instead
+        of one pickled into every task."""
+        return self.started().scatter(obj, broadcast=True, hash=False)
 
     def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
         """Stop the cluster this pool started (`wait` and `cancel_futures` are accepted

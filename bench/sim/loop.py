@@ -138,10 +138,12 @@ def table_control(c, kvec, ref, kk, meas, kd):  # pragma: no cover - compiled
 
 # --- entry points -------------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def ecu_on_plant(x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                  diag_out, truth_out, applied, k0):  # pragma: no cover - compiled
-    """The bench's loop: the ECU on the full plant (harness, gap re-simulation)."""
+    """The bench's loop: the ECU on the full plant (harness, gap re-simulation). It
+    releases the GIL (``nogil``), as the gap's other loops do: the threads of the process
+    that runs it (a Dask scheduler starting beside the diagnosis) go on meanwhile."""
     return run_loop(no_prepare, kernel_measure, kernel_truth, kernel_advance, ecu_control,
                     x, p, s, aux, u, noise, ref, kvec, cstate, ndelay, meas_out, dem_out,
                     diag_out, truth_out, applied, k0)
