@@ -44,6 +44,11 @@ position error has settled, `takeup_window`, from the baseline alone) and its tr
   added at the same position, its largest value.
 - rattle (a play's broadband roughness along the stroke, `rattle.roughness`): the
   rougher stroke's; naming-only (`NAMING_ONLY`), as the hysteresis is.
+- play (a play's weak signatures together, `play_score`): the hysteresis, the reversal,
+  the take-up and the rattle each as its excess over its own threshold, added; it needs
+  the thresholds, so `assess` computes it, and its own threshold comes from the same
+  leave-one-run-out healthy scores as every other (`population.thresholds`);
+  naming-only.
 - dwell (standstill): the current and position-error residuals of each dwell, less their
   medians, scanned as the localised feature scans a stroke; the score is the largest
   |scan|.
@@ -94,9 +99,16 @@ _SCALES = np.asarray(SCALES, dtype=np.int64)
 PERIODIC_WINDOW = 25            # samples of the sliding periodic projection (~24 mm)
 STROKE_CURRENT = "current_ref_a"   # the stroke features' current (against the standstill)
 FEATURES = ("localised", "level", "reversal", "takeup", "hysteresis", "turn", "periodic",
-            "dwell", "index", "rattle")
+            "dwell", "index", "rattle", "play")
 SPECIFIC = ("periodic", "localised")
-NAMING_ONLY = ("hysteresis", "rattle")
+NAMING_ONLY = ("hysteresis", "rattle", "play")
+PLAY = "play"
+PLAY_OF = ("hysteresis", "reversal", "takeup", "rattle")
+"""The play's weak signatures whose evidence `play_score` adds (none need be above its
+own threshold)."""
+TWO_SIDED = ("hysteresis", "reversal")
+"""Of `PLAY_OF`, the signed scores whose healthy null is a normal about 0 (the others' is
+a log-normal)."""
 """Features that name a flagged cycle's fault but flag none (no share of the false-alarm
 rate is split off for them)."""
 EFFECTS = {
@@ -115,6 +127,9 @@ EFFECTS = {
             "impact: the current alone cannot tell which)",
     "rattle": ("backlash-like effect (the current rough along the whole travel: a nut "
                "moving within a play as the drive's force ripples)"),
+    "play": ("backlash-like effect (a play's weak signatures together: the take-up "
+             "hysteresis, the reversal, the lost motion and the rattle, none of them alone "
+             "need be above its threshold)"),
     "offset": ("position offset in every phase, backlash-like under a one-sided load (a "
                "play held on one flank by the load, a nut softer under the load, or a "
                "moved position-sensor zero)"),
@@ -483,6 +498,23 @@ class Judgement:
     ratios: dict[str, float]
 
 
+def play_score(scores: dict[str, float], thresholds: dict[str, float]) -> float:
+    """A play's weak signatures together (`PLAY_OF`): exp of the sum of each one's excess
+    over its own threshold on the scale its healthy null is modelled on
+    (`population.NULLS`): log(score / threshold) for the log-normal take-up and rattle,
+    score / threshold - 1 for the two-sided hysteresis and reversal (their |value|, a
+    normal's about 0: its log runs to minus infinity near 0, where a healthy score often
+    is). Several signatures each raised but below its threshold add up, as one far above
+    does; NaN when a signature or its threshold is missing."""
+    tot = 0.0
+    for k in PLAY_OF:
+        v, t = scores.get(k, nan_), thresholds.get(k, nan_)
+        if not (math.isfinite(v) and math.isfinite(t) and t > 0):
+            return nan_
+        tot += v / t - 1.0 if k in TWO_SIDED else math.log(max(v, 1e-9) / t)
+    return math.exp(tot)
+
+
 def assess(f: CycleFeatures, thresholds: dict[str, float]) -> Judgement:
     """The cycle judged: flagged when any feature but a naming-only one (`NAMING_ONLY`)
     is above its threshold; the fault family and its signature from `naming.attribute` (the family whose strongest
@@ -491,11 +523,14 @@ def assess(f: CycleFeatures, thresholds: dict[str, float]) -> Judgement:
     directions is `drag` (the preload's drag lost: backlash-like), an index that is a
     mean position error moved alike in every phase `offset`."""
     from bench.rig import naming
-    ratios = {k: f.scores[k] / thresholds[k] for k in FEATURES
-              if k in thresholds and math.isfinite(f.scores.get(k, nan_))
+    scores = f.scores
+    if PLAY in thresholds:
+        scores = {**scores, PLAY: play_score(scores, thresholds)}
+    ratios = {k: scores[k] / thresholds[k] for k in FEATURES
+              if k in thresholds and math.isfinite(scores.get(k, nan_))
               and thresholds[k] > 0}
     above = {k: r for k, r in ratios.items() if r > 1.0}
-    reasons = [f"{k} {f.scores[k]:.2f} vs threshold {thresholds[k]:.2f}" for k in ratios]
+    reasons = [f"{k} {scores[k]:.2f} vs threshold {thresholds[k]:.2f}" for k in ratios]
     if not set(above) - set(NAMING_ONLY):
         return Judgement(False, "none", "", reasons, ratios)
     fault, effect = naming.attribute(above, naming.level_sign(f.level_out, f.level_in),
@@ -540,8 +575,7 @@ def rig_verdict(base: Baseline, f: CycleFeatures, thresholds: dict[str, float]
     else:
         text = f"{naming.TEXT[j.fault]}: {effect_text(f, j.effect, where, thresholds)}"
         named = FEATURE_OF.get(j.effect, j.effect)
-        others = [k for k in FEATURES if k != named and k in thresholds
-                  and f.scores.get(k, 0.0) > thresholds[k]]
+        others = [k for k in FEATURES if k != named and j.ratios.get(k, 0.0) > 1.0]
         if others:
             text += "; also above threshold: " + ", ".join(others)
     if prov:

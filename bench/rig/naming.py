@@ -17,7 +17,10 @@ a signature of a fault family:
   (`reversal`), the drag of the preload lowered in both directions (`drag`), the current
   rough along the whole travel (`rattle`: a nut no longer held on both flanks moves
   within its play as the drive's force ripples), or every phase's position error moved
-  alike under a one-sided load (`offset`);
+  alike under a one-sided load (`offset`), or several of the play's weak signatures
+  together (`play`: the hysteresis, the reversal, the take-up and the rattle each as its
+  excess over its own threshold, added, `features.play_score`: a play's lag and rattle
+  can each stay within the healthy spread while together they do not);
 - the current alone while a stroke takes up its reversal (`turn`): a breakaway friction
   and a play's free run and impact both change it, so on its own it names "friction or
   backlash: indistinguishable on this log".
@@ -35,9 +38,9 @@ of its own (the localised scan below its threshold) is the once-per-revolution r
 changed along the whole stroke, which any change of the nut's contact with the screw
 makes (a lubricant lost, a preload lost, a raceway worn); beside it, the family whose own
 signature along the whole stroke is above its threshold is named: a level raised in both
-directions is friction's, a drag lowered in both directions or a rattle a play's (a spot
-on the raceway neither raises nor lowers both strokes' current, nor makes the whole
-stroke rough). Otherwise the family whose
+directions is friction's, a drag lowered in both directions, a rattle or the play's
+signatures together a play's (a spot on the raceway neither raises nor lowers both
+strokes' current, nor makes the whole stroke rough). Otherwise the family whose
 strongest signature is furthest above its threshold is named (`attribute`). A cycle
 flagged only by a catch-all (a dwell transient, a phase index, a level raised in one
 direction only) is "unattributed".
@@ -56,7 +59,7 @@ TEXT = {
     SPALL: "spall-like (a position-locked or position-periodic effect)",
     FRICTION: "friction growth (current raised in both directions)",
     BACKLASH: "backlash-like (lost motion at a reversal, a position-error hysteresis, "
-              "the preload's drag lost or a play's rattle)",
+              "the preload's drag lost, a play's rattle or its signatures together)",
     AMBIGUOUS: "friction or backlash: indistinguishable on this log",
     UNATTRIBUTED: "no fault family (only a catch-all feature is above its threshold)",
 }
@@ -67,7 +70,9 @@ ratio to its threshold is at least this many times the other's."""
 # the signatures (effects) of each family; `drag` and `offset` are named by the level and
 # the index feature (`features.FEATURE_OF`)
 SIGNATURES = {SPALL: ("periodic", "localised"), FRICTION: ("level",),
-              BACKLASH: ("takeup", "hysteresis", "reversal", "drag", "offset", "rattle"), AMBIGUOUS: ("turn",)}
+              BACKLASH: ("takeup", "hysteresis", "reversal", "drag", "offset", "rattle",
+                         "play"),
+              AMBIGUOUS: ("turn",)}
 
 
 def family_ratios(above: dict[str, float], level_sign: int, offset: bool
@@ -107,7 +112,8 @@ def attribute(above: dict[str, float], level_sign: int, offset: bool
        at the reversals or between the strokes;
     3. friction or backlash beside a spall's periodic line with no spot of its own (the
        localised scan below its threshold): that family (its signature here: the level
-       raised in both directions, or the drag lowered in both directions or the rattle),
+       raised in both directions, or the drag lowered in both directions, the rattle or
+       the play's signatures together),
        since a lubricant lost, a preload lost or a screw worn changes the
        once-per-revolution ripple along the whole stroke too, but a spot on the raceway
        neither moves both strokes' current nor makes the whole stroke rough;
@@ -132,7 +138,7 @@ def attribute(above: dict[str, float], level_sign: int, offset: bool
     if lag and BACKLASH in fams:
         return BACKLASH, lag
     if fams.get(SPALL, (0.0, ""))[1] == "periodic" and "localised" not in above:
-        # after 1. and 2., backlash's signatures here are the drag and the rattle
+        # after 1. and 2., backlash's signatures here are the drag, the rattle, the play
         for fam in (FRICTION, BACKLASH):
             if fam in fams:
                 return fam, fams[fam][1]

@@ -36,10 +36,13 @@ from bench.rig.cycles import Cycle
 from bench.rig.features import (
     FEATURES,
     NAMING_ONLY,
+    PLAY,
+    PLAY_OF,
     CycleFeatures,
     assess,
     cycle_features,
     location,
+    play_score,
 )
 from bench.rig.offsets import signed_level
 from bench.rig.spread import MIN_RUNS, Spread, pooled, spread
@@ -80,7 +83,8 @@ class Calibration:
 METHOD = ("leave-one-run-out over the calibration runs; per feature the upper prediction "
           "bound of one cycle of a healthy run not among them, from the spread within and "
           "between runs of its transformed held-out scores (Student-t, Welch-Satterthwaite "
-          "degrees of freedom; log for the scans, the index maximum and the rattle, cube root for the "
+          "degrees of freedom; log for the scans, the index maximum, the rattle and the combined "
+          "play, cube root for the "
           "chi-square-like periodic power, the signed value for level, reversal and hysteresis); "
           "alpha shared by the {n} features that flag (the naming-only ones at the same "
           "alpha)")
@@ -96,7 +100,8 @@ NULLS: dict[str, tuple[str, int]] = {"periodic": ("chi2", 4), "level": ("abs", 1
                                      "localised": ("log", 0),
                                      "takeup": ("log", 0), "turn": ("log", 0),
                                      "dwell": ("log", 0),
-                                     "index": ("log", 0), "rattle": ("log", 0)}
+                                     "index": ("log", 0), "rattle": ("log", 0),
+                                     "play": ("log", 0)}
 
 
 def healthy_value(f: CycleFeatures, key: str) -> float:
@@ -207,6 +212,8 @@ def loro(cycles: list[Cycle], lead_mm: float | None = None) -> Loro:
                 out.of_run.append(r)
                 out.zscores.append(zscore_score(lb, c))
                 for k in FEATURES:
+                    if k == PLAY:         # from the thresholds (`thresholds`)
+                        continue
                     out.scores[k].append(f.scores[k])
                     out.values[k].append(healthy_value(f, k))
     return out
@@ -216,8 +223,8 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
     """Per load the thresholds of its features from the loads' leave-one-run-out scores,
     the spreads within and between runs pooled over the loads (`spread.pooled`); a
     feature a load's cycles cannot give (periodic without the lead) gets none."""
-    usable = [k for k in FEATURES if all(np.isfinite(lo.scores[k]).all() and lo.scores[k]
-                                         for lo in loros.values())]
+    usable = [k for k in FEATURES if k != PLAY and all(
+        np.isfinite(lo.scores[k]).all() and lo.scores[k] for lo in loros.values())]
     per = alpha / max(len([k for k in usable if k not in NAMING_ONLY]), 1)
     thr: dict[float, dict[str, float]] = {ld: {} for ld in loros}
     spreads: dict[float, dict[str, Spread]] = {ld: {} for ld in loros}
@@ -231,8 +238,28 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
                                  f"healthy scores, got {sp.cycles}")
             spreads[ld][k] = sp
             thr[ld][k] = threshold_of(sp, per, null)
+    if all(k in usable for k in PLAY_OF):
+        _play(loros, thr, spreads, per)
     return {ld: Calibration(ld, lo.runs, thr[ld], lo.scores, alpha, lo.of_run, spreads[ld],
                             prediction_bound(lo.zscores, alpha)) for ld, lo in loros.items()}
+
+
+def _play(loros: dict[float, Loro], thr: dict[float, dict[str, float]],
+          spreads: dict[float, dict[str, Spread]], per: float) -> None:
+    """The combined play's threshold (`features.play_score`), in place: its held-out
+    healthy values from each cycle's scores against the thresholds just set, then its
+    bound as any log-normal feature's (the spreads pooled over the loads)."""
+    for ld, lo in loros.items():
+        lo.scores[PLAY] = lo.values[PLAY] = [
+            play_score({k: lo.scores[k][i] for k in PLAY_OF}, thr[ld])
+            for i in range(len(lo.of_run))]
+    null = NULLS[PLAY]
+    sps = pooled({ld: list(_transform(null[0], np.asarray(lo.values[PLAY], float)))
+                  for ld, lo in loros.items()}, {ld: lo.of_run for ld, lo in loros.items()})
+    for ld, sp in sps.items():
+        if sp.cycles >= 3:
+            spreads[ld][PLAY] = sp
+            thr[ld][PLAY] = threshold_of(sp, per, null)
 
 
 def calibrate(cycles: list[Cycle], alpha: float = ALPHA, lead_mm: float | None = None
