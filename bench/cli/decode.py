@@ -56,9 +56,9 @@ def check_arguments(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from bench.bus.integrity import integrity
     from bench.bus.logread import LogIssues, report_issues
     from bench.bus.logs import trace_from_log
+    from bench.signals.integrity import integrity
 
     check_arguments(args)
     to_stdout = args.output == "-"

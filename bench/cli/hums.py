@@ -539,7 +539,7 @@ def _watch_summary(n: int, hums, out: str | None) -> None:
     """What the watcher saw, on stderr: periods, runs, frames, and any damage on the bus."""
     import sys
 
-    from bench.bus.integrity import integrity
+    from bench.signals.integrity import integrity
     print(f"{n} command periods over {hums.run} run(s), {hums.frames_seen} frames"
           + (f", {hums.bad_frames} bad" if hums.bad_frames else "")
           + (f"; rows in {out}" if out else ""), file=sys.stderr)

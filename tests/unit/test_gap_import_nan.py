@@ -45,7 +45,7 @@ def test_a_nan_block_is_reported_and_left_empty(tmp_path):
     assert np.isnan(cur[1000:1100]).all()
     assert np.isfinite(cur[:1000]).all() and np.isfinite(cur[1100:]).all()
     assert np.isfinite(tr["position_m"]).all()
-    from bench.bus.logs import integrity
+    from bench.signals.integrity import integrity
     assert integrity(tr.meta) == ["NaN block in i (current_a): table rows 1001-1100, "
                                   "t = 0.999-1.100 s, 100 SYNC samples left empty"]
 

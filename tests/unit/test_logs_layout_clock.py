@@ -11,9 +11,9 @@ import pytest
 from log_frames import F, run, write_log
 
 from bench import BenchError
-from bench.bus.integrity import integrity
 from bench.bus.logs import MISFIT_SHARE, trace_from_log
 from bench.cli import main
+from bench.signals.integrity import integrity
 
 
 def foreign(n: int = 300) -> list[can.Message]:
