@@ -12,13 +12,12 @@ from bench.rig import naming as N
 from bench.rig import population as P
 from bench.rig.cycles import Cycle
 from bench.rig.features import NAMING_ONLY, assess, cycle_features, hysteresis
-from tests.unit.test_rig_naming import lagging, lost_motion_at
+from tests.unit.test_rig_naming import healthy_runs, lagging, lost_motion_at
 
 
 @pytest.fixture(scope="module")
 def cycles():
-    rng = np.random.default_rng(31)
-    return [lagging(rng, r, 10 * r + g) for r in (1, 2, 3) for g in range(5)]
+    return healthy_runs(31)
 
 
 @pytest.fixture(scope="module")

@@ -29,10 +29,15 @@ def lagging(rng, run=1, group=1, load=20.0):
     return Cycle(np.arange(len(sp)) * 0.04, sp, pos, cur, load, run, group, "synthetic")
 
 
+def healthy_runs(seed: int) -> list[Cycle]:
+    """Three healthy runs of five `lagging` cycles each (the calibration of these tests)."""
+    rng = np.random.default_rng(seed)
+    return [lagging(rng, r, 10 * r + g) for r in (1, 2, 3) for g in range(5)]
+
+
 @pytest.fixture(scope="module")
 def base():
-    rng = np.random.default_rng(31)
-    return B.build([lagging(rng, r, 10 * r + g) for r in (1, 2, 3) for g in range(5)])
+    return B.build(healthy_runs(31))
 
 
 def lost_motion_at(c: Cycle, stroke: str, mm: float) -> Cycle:

@@ -13,15 +13,14 @@ from bench.rig import population as P
 from bench.rig.cycles import Cycle
 from bench.rig.features import NAMING_ONLY, assess, cycle_features
 from bench.rig.rattle import roughness
-from tests.unit.test_rig_naming import lagging
+from tests.unit.test_rig_naming import healthy_runs, lagging
 
 LEAD = 5.0
 
 
 @pytest.fixture(scope="module")
 def cycles():
-    rng = np.random.default_rng(51)
-    return [lagging(rng, r, 10 * r + g) for r in (1, 2, 3) for g in range(5)]
+    return healthy_runs(51)
 
 
 @pytest.fixture(scope="module")
