@@ -44,7 +44,7 @@ position error has settled, `takeup_window`, from the baseline alone) and its tr
   added at the same position, its largest value.
 - rattle (a play's broadband roughness along the stroke, `rattle.roughness`): the
   rougher stroke's; naming-only (`NAMING_ONLY`), as the hysteresis is.
-- play (a play's weak signatures together, `play_score`): the hysteresis, the reversal,
+- play (a play's weak signatures together, `play.play_score`): the hysteresis, the reversal,
   the take-up and the rattle each as its excess over its own threshold, added; it needs
   the thresholds, so `assess` computes it, and its own threshold comes from the same
   leave-one-run-out healthy scores as every other (`population.thresholds`);
@@ -91,7 +91,7 @@ from bench.rig.baseline import (
 )
 from bench.rig.cycles import Cycle
 from bench.rig.offsets import is_offset, position_shifts, shift_text
-from bench.rig.play import PLAY, PLAY_OF, TWO_SIDED, hysteresis, play_score  # noqa: F401
+from bench.rig.play import PLAY, hysteresis, play_score
 from bench.rig.rattle import roughness
 from bench.rig.verdict import RigVerdict, provisional_note
 

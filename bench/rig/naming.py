@@ -19,7 +19,7 @@ a signature of a fault family:
   within its play as the drive's force ripples), or every phase's position error moved
   alike under a one-sided load (`offset`), or several of the play's weak signatures
   together (`play`: the hysteresis, the reversal, the take-up and the rattle each as its
-  excess over its own threshold, added, `features.play_score`: a play's lag and rattle
+  excess over its own threshold, added, `play.play_score`: a play's lag and rattle
   can each stay within the healthy spread while together they do not);
 - the current alone while a stroke takes up its reversal (`turn`): a breakaway friction
   and a play's free run and impact both change it, so on its own it names "friction or

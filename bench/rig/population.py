@@ -36,15 +36,13 @@ from bench.rig.cycles import Cycle
 from bench.rig.features import (
     FEATURES,
     NAMING_ONLY,
-    PLAY,
-    PLAY_OF,
     CycleFeatures,
     assess,
     cycle_features,
     location,
-    play_score,
 )
 from bench.rig.offsets import signed_level
+from bench.rig.play import PLAY, PLAY_OF, play_score
 from bench.rig.spread import MIN_RUNS, Spread, pooled, spread
 
 ALPHA = 0.05
@@ -246,7 +244,7 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
 
 def _play(loros: dict[float, Loro], thr: dict[float, dict[str, float]],
           spreads: dict[float, dict[str, Spread]], per: float) -> None:
-    """The combined play's threshold (`features.play_score`), in place: its held-out
+    """The combined play's threshold (`play.play_score`), in place: its held-out
     healthy values from each cycle's scores against the thresholds just set, then its
     bound as any log-normal feature's (the spreads pooled over the loads)."""
     for ld, lo in loros.items():

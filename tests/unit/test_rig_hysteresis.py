@@ -1,5 +1,5 @@
 """Backlash as a position-error hysteresis over the take-ups of the reversals
-(bench/rig/features.py `hysteresis`), a naming-only feature, and friction beside a
+(bench/rig/play.py `hysteresis`), a naming-only feature, and friction beside a
 periodic line with no spot of its own (bench/rig/naming.py)."""
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ from bench.rig import baseline as B
 from bench.rig import naming as N
 from bench.rig import population as P
 from bench.rig.cycles import Cycle
-from bench.rig.features import NAMING_ONLY, assess, cycle_features, hysteresis
+from bench.rig.features import NAMING_ONLY, assess, cycle_features
+from bench.rig.play import hysteresis
 from tests.unit.test_rig_naming import healthy_runs, lagging, lost_motion_at
 
 

@@ -1,4 +1,4 @@
-"""A play's weak signatures together (bench/rig/features.py `play_score`, a naming-only
+"""A play's weak signatures together (bench/rig/play.py `play_score`, a naming-only
 feature): its score from the signatures' ratios to their thresholds, its threshold from
 the healthy runs' leave-one-run-out scores (bench/rig/population.py `thresholds`), and
 the family it names beside a periodic line with no spot (bench/rig/naming.py)."""
@@ -12,7 +12,8 @@ import pytest
 
 from bench.rig import naming as N
 from bench.rig import population as P
-from bench.rig.features import NAMING_ONLY, PLAY_OF, assess, cycle_features, play_score
+from bench.rig.features import NAMING_ONLY, assess, cycle_features
+from bench.rig.play import PLAY_OF, play_score
 from tests.unit.test_rig_naming import lagging
 from tests.unit.test_rig_rattle import LEAD, base, cycles  # noqa: F401 (fixtures)
 
