@@ -99,13 +99,14 @@ def settle(p: Any, chosen: Any, singles: list[Any], ratio: float | None = None
            ) -> tuple[Any, dict[str, Any] | None]:
     """Between an LVDT gain and a lead error: the candidate the current's slope on the
     load-cell force points to (it may replace `chosen`), and the test's record (None when
-    `chosen` is neither or the other was not fitted). `p`: the problem (logged current in
-    `p.meas`, load cell in `p.drive.load_n`); the candidates: `diagnose.Candidate`;
-    `ratio`: the calibration's healthy log's slope over its model's (`healthy_load_ratio`),
-    the candidates' slopes scaled by it (1 without one)."""
-    if chosen is None or chosen.fit.name not in PAIR:
+    `chosen` holds neither or the other (`swap`) was not fitted). A pair holding one of
+    them is tested against the same pair with the other (`swapped_pair`). `p`: the
+    problem (logged current in `p.meas`, load cell in `p.drive.load_n`); the candidates:
+    `diagnose.Candidate`; `ratio`: the calibration's healthy log's slope over its model's
+    (`healthy_load_ratio`), the candidates' slopes scaled by it (1 without one)."""
+    other_name = swap(chosen.fit.name) if chosen is not None else None
+    if other_name is None:
         return chosen, None
-    other_name = PAIR[1 - PAIR.index(chosen.fit.name)]
     other = next((c for c in singles if c.fit.name == other_name
                   and math.isfinite(c.fit.rss)), None)
     if other is None:
@@ -139,3 +140,55 @@ def settle(p: Any, chosen: Any, singles: list[Any], ratio: float | None = None
         rec["line"] = INDISTINGUISHABLE
         return chosen, rec
     return (chosen if pick == chosen.fit.name else other), rec
+
+
+def plausible_best(best: Any, singles: list[Any], margin: float) -> Any:
+    """`best`, or where it is suspect the plausible single of lowest BIC within `margin`
+    of it: an alias as good takes its place (`diagnose.Candidate`s)."""
+    if getattr(best, "suspect", None):
+        ok = [c for c in singles if not getattr(c, "suspect", None)
+              and math.isfinite(c.bic) and c.bic <= best.bic + margin]
+        if ok:
+            return min(ok, key=lambda c: c.bic)
+    return best
+
+
+def base_single(p: Any, best: Any, singles: list[Any], ratio: float | None = None) -> Any:
+    """The single a pair extends: of an LVDT gain and a lead, the one the load cell points
+    to (`settle`), else `best`. A pair built on the wrong one of the two holds the right
+    second effect beside the wrong first: an LVDT gain with a worn winding read as a lead
+    error plus the winding, a verdict the load-cell test of a single never sees."""
+    new, rec = settle(p, best, singles, ratio)
+    return new if rec is not None and rec["separated"] else best
+
+
+def swap(name: str) -> str | None:
+    """Candidate `name` with its LVDT gain or lead replaced by the other ("lead+resistance"
+    -> "lvdt_gain+resistance"); None when it holds neither or both."""
+    parts = name.split("+")
+    if sum(x in PAIR for x in parts) != 1:
+        return None
+    return "+".join(PAIR[1 - PAIR.index(x)] if x in PAIR else x for x in parts)
+
+
+def swapped_pair(chosen: Any, singles: list[Any], fit: Any, fitted: Any = ()) -> Any:
+    """A chosen pair holding an LVDT gain or a lead, with the other in its place: the one
+    among `fitted` (the forward selection tried both beside another best single), else
+    fitted (`fit(names, start)` -> a candidate; started from the other's single fit and
+    the pair's second member): the forward selection extends one of the two only, and a
+    log that cannot tell them apart alone cannot within a pair either. None for a single,
+    a pair holding neither, or the other not fitted alone."""
+    if chosen is None or len(chosen.fit.effects) != 2 or swap(chosen.fit.name) is None:
+        return None
+    names = tuple(swap(n) or n for n in chosen.fit.effects)
+    done = next((c for c in fitted if set(c.fit.effects) == set(names)), None)
+    if done is not None:
+        return done
+    alias = next(n for n in names if n in PAIR)
+    single = next((c for c in singles if c.fit.name == alias and math.isfinite(c.fit.rss)),
+                  None)
+    if single is None:
+        return None
+    start = [single.fit.theta[0] if n == alias else th
+             for n, th in zip(names, chosen.fit.theta, strict=True)]
+    return fit(names, start)

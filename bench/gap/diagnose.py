@@ -377,8 +377,9 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
                                                                ho_ex, sig, L, o.reference,
                                                                ho_en)
-    chosen, verdict, ties = _settle_alias(p, chosen, singles, verdict, ties, loc["selection"],
-                                          (o.reference or {}).get("load_current_ratio"))
+    chosen, verdict, ranking, ties = _settle_alias(
+        p, h, L, chosen, singles, verdict, ranking, ties, loc["selection"],
+        (o.reference or {}).get("load_current_ratio"))
     finding = None
     if chosen is not None and math.isfinite(chosen.fit.rss):
         say("refining the verdict's fit against the model at its own fidelity")
@@ -436,13 +437,8 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     held-out healthy level x margin, `reference`). A pair whose added effect is suspect
     (`flag`) does not replace the single: a second effect of implausible size is more
     likely the first one's misfit absorbed. A suspect best single gives way to a
-    plausible one whose BIC is within PAIR_BIC of it (an alias: an LVDT gain of 1.03 read
-    as a lead 3 % long, ahead by 2 of BIC)."""
-    if getattr(best, "suspect", None):     # a plausible single as good takes its place
-        plausible_single = [c for c in singles if not getattr(c, "suspect", None)
-                            and math.isfinite(c.bic) and c.bic <= best.bic + PAIR_BIC]
-        if plausible_single:
-            best = min(plausible_single, key=lambda c: c.bic)
+    plausible one (`alias.plausible_best`: an LVDT gain of 1.03 read as a lead 3 % long)."""
+    best = AL.plausible_best(best, singles, PAIR_BIC)
     chosen = best
     remaining = leaves_gap(best, p, h, reference)
 
@@ -491,25 +487,30 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     return chosen, verdict, ranking, ties, selection
 
 
-def _settle_alias(p: Any, chosen: Any, singles: list[Any], verdict: str, ties: list[str],
-                  selection: dict[str, Any], ratio: float | None
-                  ) -> tuple[Any, str, list[str]]:
-    """An LVDT gain or a lead error chosen: the one the current's slope on the load-cell
-    force points to (`alias.settle`), recorded in `selection`; where the log cannot tell
-    them apart the other stays among the ties and the finding says so."""
-    new, rec = AL.settle(p, chosen, singles, ratio)
+def _settle_alias(p: Any, h: Any, L: float, chosen: Any, singles: list[Any], verdict: str,
+                  ranking: list[Any], ties: list[str], selection: dict[str, Any],
+                  ratio: float | None) -> tuple[Any, str, list[Any], list[str]]:
+    """An LVDT gain or a lead error chosen, alone or in a pair (the pair fitted again with
+    the other, `alias.swapped_pair`, and ranked): the one the current's slope on the
+    load-cell force points to (`alias.settle`), recorded in `selection`; where the log
+    cannot tell them apart the other stays among the ties and the finding says so."""
+    twin = AL.swapped_pair(chosen, singles, lambda n, th: evaluate(p, h, n, th), ranking)
+    if twin is not None and all(c is not twin for c in ranking):
+        twin.bic, twin.aic = twin.fit.bic(L), twin.fit.aic(L)
+        ranking = sorted([*ranking, twin], key=lambda c: (c.bic, c is not chosen))
+    new, rec = AL.settle(p, chosen, [*singles, twin] if twin else singles, ratio)
     if rec is None:
-        return chosen, verdict, ties
+        return chosen, verdict, ranking, ties
     selection["lead_or_lvdt_gain"] = rec
+    other = AL.swap(chosen.fit.name)
     if rec["separated"]:
-        ties = [t for t in ties if t not in AL.PAIR]
+        ties = [t for t in ties if t not in (chosen.fit.name, other)]
         if new is not chosen:
             if verdict == chosen.fit.name:
                 verdict = new.fit.name
             selection["chosen"] = new.fit.name
-        return new, verdict, ties
-    other = AL.PAIR[1 - AL.PAIR.index(chosen.fit.name)]
-    return chosen, verdict, ties if other in ties else [*ties, other]
+        return new, verdict, ranking, ties
+    return chosen, verdict, ranking, ties if other in ties else [*ties, other]
 
 
 def log_integrity(trace: Trace, holdout: Trace | None) -> dict[str, Any]:
@@ -560,24 +561,26 @@ def _select(names: Sequence[str], p: Problem, h: Problem | None, pool: Any, bar:
             say: Callable[[str], None], reference: dict[str, Any] | None = None
             ) -> tuple[list[Candidate], list[Candidate], Candidate, float]:
     """Singles ranked by BIC, then the pairs of the best single (forward selection), unless
-    the best single leaves no significant held-out gap (no pair could then replace it:
-    the pair rule of `_choose`)."""
+    it leaves no significant held-out gap (no pair could then replace it: `_choose`). The
+    best single is the one the verdict's rules take: a plausible alias in place of a
+    suspect best (`alias.plausible_best`), of an LVDT gain and a lead the one the load cell
+    points to (`alias.base_single`)."""
     singles = _run([((n,), None) for n in names], p, h, pool, bar)
     ref = min(singles, key=lambda c: c.fit.rss)
     L = max(ref.fit.corr_len, 1.0)
     for c in singles:
         c.bic, c.aic = c.fit.bic(L), c.fit.aic(L)
     singles.sort(key=lambda c: c.bic)
-    best = singles[0]
-    # -- forward selection: pairs, the best single with the best PAIR_MEMBERS members of
-    # each other family (a second member of the best single's own family is another form
-    # of the same mechanism, not a second effect; the member that fits best alone need not
-    # be the one that completes a pair: a delay in the loop beside a log-side one)
+    best = AL.base_single(p, AL.plausible_best(singles[0], singles, PAIR_BIC), singles,
+                          (reference or {}).get("load_current_ratio"))
+    # -- forward selection: the best single with the best PAIR_MEMBERS members of each
+    # other family (a member of its own family is another form of the same mechanism; the
+    # member best alone need not complete a pair: a delay in the loop beside a log-side one)
     pairs: list[Candidate] = []
     mine = F.family(best.fit.effects[0])
     seen: dict[str, int] = {}
     others = []
-    for c in singles[1:]:
+    for c in singles:
         fam = F.family(c.fit.effects[0])
         if math.isfinite(c.fit.rss) and fam != mine and seen.get(fam, 0) < PAIR_MEMBERS:
             seen[fam] = seen.get(fam, 0) + 1
