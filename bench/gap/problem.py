@@ -111,13 +111,23 @@ class Problem:
 
     def _nominal_cols(self, n: int | None) -> dict[str, np.ndarray]:
         """The nominal re-simulation's columns over the first `n` samples, simulated once
-        per model and length (a later change of `base` is a new key)."""
-        key = (id(self.base), self.n if n is None else min(n, self.n))
-        hit = self._cache.get("nominal")
-        if hit is None or hit[0] != key or hit[1] is not self.base:
-            hit = (key, self.base, self.closed_loop(self.base, n))
-            self._cache["nominal"] = hit
-        return dict(hit[2])
+        per model and length (a later change of `base` is a new key): the fit part's and
+        the whole log's are both kept (an effect on the log alone asks for each in turn)."""
+        length = self.n if n is None else min(n, self.n)
+        store = self._cache.get("nominal")
+        if not isinstance(store, dict) or store.get("base") is not self.base:
+            store = {"base": self.base}
+            self._cache["nominal"] = store
+        hit = store.get(length)
+        if hit is None:
+            hit = store[length] = self.closed_loop(self.base, n)
+        return dict(hit)
+
+    def _resumable(self) -> bool:
+        """Whether this problem's re-simulation can go on from a kept state (`resim.Resume`):
+        the bench's plant in its closed loop (not the measured-current replay, which
+        corrects its demand over the whole run, nor another model)."""
+        return self.model == "plant" and self.drive.resim == "closed-loop"
 
     def _loop_cols(self, params: PlantParams, n: int | None, delays: tuple[int, int]
                    ) -> dict[str, np.ndarray]:
@@ -126,29 +136,50 @@ class Problem:
         already (the same values, the same columns: a fit evaluates its start, its first
         least-squares point and its optimum more than once, and candidates meet at the
         same values). Keyed by the model, the values (exact: repr), the length and the
-        delays, for this drive; copies in and out, so no caller sees another's arrays."""
-        key = (self.model, repr(params), self.n if n is None else min(n, self.n),
-               tuple(int(d) for d in delays))
+        delays, for this drive; copies in and out, so no caller sees another's arrays.
+        A run shorter than the log keeps its state before its last period, and a longer
+        run of the same values goes on from there (`resim.Resume`): a fit's optimum on
+        the fit part, then on the whole log for the held-out energies, costs the held-out
+        part only, with the columns of a run from the start."""
+        length = self.n if n is None else min(n, self.n)
+        dl = tuple(int(d) for d in delays)
+        key = (self.model, repr(params), length, dl)
         store = self._cache.setdefault("loops", {})
         hit = store.get(key)
         if hit is not None and hit[0] is self.drive:
             return {c: v.copy() for c, v in hit[1].items()}
-        cols = self.closed_loop(params, n, None, delays)
+        kept = self._cache.setdefault("resume", {})
+        rkey = (self.model, key[1], dl)
+        keep: dict[str, Any] | None = None
+        resume = None
+        if self._resumable():
+            prior = kept.get(rkey)
+            if prior is not None and prior[0] is self.drive and prior[1].k < length:
+                resume = prior[1]
+            if length < self.n:
+                keep = {}
+        cols = self.closed_loop(params, n, None, delays, keep=keep, resume=resume)
         store[key] = (self.drive, {c: v.copy() for c, v in cols.items()})
-        while len(store) > LOOP_CACHE:       # first in, first out
-            try:
-                del store[next(iter(store))]
-            except (KeyError, RuntimeError, StopIteration):   # another thread's eviction
-                break
+        if keep and "state" in keep:
+            kept[rkey] = (self.drive, keep["state"])
+        for d in (store, kept):
+            while len(d) > LOOP_CACHE:       # first in, first out
+                try:
+                    del d[next(iter(d))]
+                except (KeyError, RuntimeError, StopIteration):   # another thread's eviction
+                    break
         return cols
 
     def closed_loop(self, params: PlantParams, n: int | None = None,
                     noise: np.ndarray | None = None,
-                    delays: tuple[int, int] = (0, 0)) -> dict[str, np.ndarray]:
+                    delays: tuple[int, int] = (0, 0), keep: dict[str, Any] | None = None,
+                    resume: Any = None) -> dict[str, np.ndarray]:
         """The nominal model's closed-loop re-simulation with `params` (`delays`: the
-        LVDT's and the encoder's extra periods in the loop, `bench.gap.delays`)."""
+        LVDT's and the encoder's extra periods in the loop, `bench.gap.delays`; `keep`,
+        `resume`: `resim.closed_loop`'s, the bench's plant only)."""
         if self.model == "plant":
-            return R.closed_loop(params, self.drive, n, noise=noise, delays=delays)
+            return R.closed_loop(params, self.drive, n, noise=noise, delays=delays, keep=keep,
+                                 resume=resume)
         from bench.gap.models import closed_loop_of
         cols = closed_loop_of(self.model)(params, self.drive, n, noise=noise)
         return R.shift_columns(cols, *delays) if delays != (0, 0) else cols
@@ -459,7 +490,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     p.sigma_smooth = {s: float(math.sqrt(np.mean([np.mean(smooth(b[s]) ** 2) for b in boot])
                                          + mf[s] ** 2 + FLOORS[s] ** 2)) for s in R.SIGNALS}
     p.info["nominal"] = nominal
-    p.info["nominal_cols"] = p.closed_loop(fast)
+    p.info["nominal_cols"] = {c: v.copy() for c, v in p._nominal_cols(None).items()}
     p.info["smooth_encoder"] = smooth_encoder
     p.info["noisy_cols"] = noisy_cols
     p.info["bootstrap"] = boot
