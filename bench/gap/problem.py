@@ -15,6 +15,7 @@ position_m (LVDT, m), encoder_position_m (encoder angle as nut travel, m).
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -136,8 +137,9 @@ class Problem:
         already (the same values, the same columns: a fit evaluates its start, its first
         least-squares point and its optimum more than once, and candidates meet at the
         same values). Keyed by the model, the values (exact: repr), the length and the
-        delays, for this drive; copies in and out, so no caller sees another's arrays.
-        A run shorter than the log keeps its state before its last period, and a longer
+        delays, for this drive; copies in and out, so no caller sees another's arrays;
+        the least recently used goes first (a pair's fits all start from its single's
+        optimum). A run shorter than the log keeps its state before its last period, and a longer
         run of the same values goes on from there (`resim.Resume`): a fit's optimum on
         the fit part, then on the whole log for the held-out energies, costs the held-out
         part only, with the columns of a run from the start."""
@@ -147,6 +149,10 @@ class Problem:
         store = self._cache.setdefault("loops", {})
         hit = store.get(key)
         if hit is not None and hit[0] is self.drive:
+            try:                             # the last used goes last: evicted last
+                store[key] = store.pop(key)
+            except KeyError:                 # another thread's eviction
+                pass
             return {c: v.copy() for c, v in hit[1].items()}
         kept = self._cache.setdefault("resume", {})
         rkey = (self.model, key[1], dl)
@@ -163,7 +169,7 @@ class Problem:
         if keep and "state" in keep:
             kept[rkey] = (self.drive, keep["state"])
         for d in (store, kept):
-            while len(d) > LOOP_CACHE:       # first in, first out
+            while len(d) > LOOP_CACHE:       # the oldest (least recently used) out
                 try:
                     del d[next(iter(d))]
                 except (KeyError, RuntimeError, StopIteration):   # another thread's eviction
@@ -425,6 +431,27 @@ def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
     return sig
 
 
+def _in_thread(fn: Any, *args: Any) -> Any:
+    """`fn(*args)` started in a thread; returns a function that waits for its result (or
+    raises its error)."""
+    out: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            out["value"] = fn(*args)
+        except BaseException as exc:  # noqa: BLE001 - raised in the caller's thread
+            out["error"] = exc
+    th = threading.Thread(target=run, name="bench-gap-floor", daemon=True)
+    th.start()
+
+    def result() -> Any:
+        th.join()
+        if "error" in out:
+            raise out["error"]
+        return out["value"]
+    return result
+
+
 def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
           encoder: str = "absolute", purpose: str = "gap diagnosis",
@@ -463,6 +490,14 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     n = len(trace)
     p.n_fit = max(MIN_SAMPLES // 2, min(n, int(round(n * (1.0 - holdout_frac)))))
     # -- noise floor ---------------------------------------------------------------------
+    # the model at its own fidelity (the model floor below) runs in a thread meanwhile:
+    # its compiled loop releases the GIL, and it needs nothing the noise floor computes
+    full, hi_run = None, None
+    if model_floor and model == "plant":
+        full = base.with_dict({"sensors.noise": False})
+        full = continuous(full) if smooth_encoder else full
+        if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
+            hi_run = _in_thread(R.closed_loop, full, drive)
     ns = estimate_noise(p, cols, sensor=sensor)
     p.noise_sigma = ns
     nominal = p.simulate()
@@ -477,13 +512,10 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
         noisy = p.signals(nc)
         boot.append({s: noisy[s] - nominal[s] for s in R.SIGNALS})
     mf = {s: 0.0 for s in R.SIGNALS}
-    if model_floor and model == "plant":
-        full = base.with_dict({"sensors.noise": False})
-        full = continuous(full) if smooth_encoder else full
-        if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
-            p.full_base = full
-            hi = p.signals(R.closed_loop(full, drive))
-            mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
+    if hi_run is not None:
+        p.full_base = full
+        hi = p.signals(hi_run())
+        mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
     p.model_floor = mf
     p.sigma = {s: float(math.sqrt(np.mean([np.mean(b[s] ** 2) for b in boot])
                                   + mf[s] ** 2 + FLOORS[s] ** 2)) for s in R.SIGNALS}
