@@ -82,7 +82,7 @@ def fundamental_hz(stated: Any = (), y: np.ndarray | None = None, dt: float = ma
     if not np.any(y):
         return math.nan
     f = np.fft.rfftfreq(len(y), dt)
-    from scipy.signal import get_window    # here: scipy.signal costs most of an import
+    from scipy.signal import get_window  # here: scipy.signal costs most of an import
     a = np.abs(np.fft.rfft(y * get_window("hann", len(y), fftbins=False)))
     keep = f > 2.0 / (len(y) * dt)
     if not keep.any():
