@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from scipy.signal import welch
 
 from bench.gap import effects as E
 from bench.gap.problem import Problem
@@ -39,7 +40,6 @@ def line(residual: np.ndarray, dt: float, floor: Sequence[np.ndarray] = ()
     """The strongest spectral line of `residual` above F_LO_HZ: its frequency (Hz), the
     share of the power above F_LO_HZ it holds (+-2 bins), its power over the mean of the
     `floor` residuals' at that frequency (inf without them) and the bin width (Hz)."""
-    from scipy.signal import welch  # here: a worker process's fits never need it
     fs = 1.0 / dt
     nps = int(min(1024, max(16, len(residual) // 4)))
     f, pr = welch(np.asarray(residual, float), fs=fs, nperseg=nps)

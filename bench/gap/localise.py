@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d, uniform_filter1d
+from scipy.signal import get_window
 
 from bench.gap import resim as R
 from bench.gap.problem import Problem
@@ -137,7 +138,6 @@ def command_fundamental(p: Problem, meta_hz: float | None = None) -> float:
 def band_shares(r: np.ndarray, dt: float, f0: float) -> dict[str, float]:
     """Share of the residual's excess energy (above a white floor of 1 per sample) in
     each band; sums to 1, or all 0 when nothing exceeds the floor."""
-    from scipy.signal import get_window  # here: a worker process's fits never need it
     if not (math.isfinite(f0) and f0 > 0) or len(r) < 8:
         return {b[0]: float("nan") for b in BANDS}
     w = get_window("hann", len(r), fftbins=False)       # symmetric Hann

@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from typing import Any, Literal
 
 import numpy as np
+from scipy.signal import get_window
 
 MOVING_FRACTION = 0.02
 """A set-point moves where its speed (or step) is above this share of its largest."""
@@ -82,7 +83,6 @@ def fundamental_hz(stated: Any = (), y: np.ndarray | None = None, dt: float = ma
     if not np.any(y):
         return math.nan
     f = np.fft.rfftfreq(len(y), dt)
-    from scipy.signal import get_window  # here: scipy.signal costs most of an import
     a = np.abs(np.fft.rfft(y * get_window("hann", len(y), fftbins=False)))
     keep = f > 2.0 / (len(y) * dt)
     if not keep.any():
@@ -94,7 +94,6 @@ def _period_line(y: np.ndarray, dt: float) -> float:
     """`fundamental_hz` with `periodic`: the line, its share, its whole-sample period."""
     if np.ptp(y) == 0:
         return math.nan
-    from scipy.signal import get_window
     w = get_window("hann", len(y), fftbins=True)
     a = np.abs(np.fft.rfft((y - y.mean()) * w)) / w.sum()   # eq. 6.3, amplitude
     a[1:] *= 2.0
