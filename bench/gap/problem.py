@@ -431,6 +431,16 @@ def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
     return sig
 
 
+def _own_fidelity(base: PlantParams, smooth_encoder: bool) -> PlantParams | None:
+    """The noise-free model at the fidelity it was given (the encoder continuous with
+    `smooth_encoder`), or None when that is the fits' fast mode already."""
+    full = base.with_dict({"sensors.noise": False})
+    full = continuous(full) if smooth_encoder else full
+    if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
+        return full
+    return None
+
+
 def _in_thread(fn: Any, *args: Any) -> Any:
     """`fn(*args)` started in a thread; returns a function that waits for its result (or
     raises its error)."""
@@ -492,12 +502,8 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     # -- noise floor ---------------------------------------------------------------------
     # the model at its own fidelity (the model floor below) runs in a thread meanwhile:
     # its compiled loop releases the GIL, and it needs nothing the noise floor computes
-    full, hi_run = None, None
-    if model_floor and model == "plant":
-        full = base.with_dict({"sensors.noise": False})
-        full = continuous(full) if smooth_encoder else full
-        if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
-            hi_run = _in_thread(R.closed_loop, full, drive)
+    full = _own_fidelity(base, smooth_encoder) if model_floor and model == "plant" else None
+    hi_run = _in_thread(R.closed_loop, full, drive) if full is not None else None
     ns = estimate_noise(p, cols, sensor=sensor)
     p.noise_sigma = ns
     nominal = p.simulate()
