@@ -15,6 +15,7 @@ position_m (LVDT, m), encoder_position_m (encoder angle as nut travel, m).
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -111,13 +112,23 @@ class Problem:
 
     def _nominal_cols(self, n: int | None) -> dict[str, np.ndarray]:
         """The nominal re-simulation's columns over the first `n` samples, simulated once
-        per model and length (a later change of `base` is a new key)."""
-        key = (id(self.base), self.n if n is None else min(n, self.n))
-        hit = self._cache.get("nominal")
-        if hit is None or hit[0] != key or hit[1] is not self.base:
-            hit = (key, self.base, self.closed_loop(self.base, n))
-            self._cache["nominal"] = hit
-        return dict(hit[2])
+        per model and length (a later change of `base` is a new key): the fit part's and
+        the whole log's are both kept (an effect on the log alone asks for each in turn)."""
+        length = self.n if n is None else min(n, self.n)
+        store = self._cache.get("nominal")
+        if not isinstance(store, dict) or store.get("base") is not self.base:
+            store = {"base": self.base}
+            self._cache["nominal"] = store
+        hit = store.get(length)
+        if hit is None:
+            hit = store[length] = self.closed_loop(self.base, n)
+        return dict(hit)
+
+    def _resumable(self) -> bool:
+        """Whether this problem's re-simulation can go on from a kept state (`resim.Resume`):
+        the bench's plant in its closed loop (not the measured-current replay, which
+        corrects its demand over the whole run, nor another model)."""
+        return self.model == "plant" and self.drive.resim == "closed-loop"
 
     def _loop_cols(self, params: PlantParams, n: int | None, delays: tuple[int, int]
                    ) -> dict[str, np.ndarray]:
@@ -126,29 +137,55 @@ class Problem:
         already (the same values, the same columns: a fit evaluates its start, its first
         least-squares point and its optimum more than once, and candidates meet at the
         same values). Keyed by the model, the values (exact: repr), the length and the
-        delays, for this drive; copies in and out, so no caller sees another's arrays."""
-        key = (self.model, repr(params), self.n if n is None else min(n, self.n),
-               tuple(int(d) for d in delays))
+        delays, for this drive; copies in and out, so no caller sees another's arrays;
+        the least recently used goes first (a pair's fits all start from its single's
+        optimum). A run shorter than the log keeps its state before its last period, and a longer
+        run of the same values goes on from there (`resim.Resume`): a fit's optimum on
+        the fit part, then on the whole log for the held-out energies, costs the held-out
+        part only, with the columns of a run from the start."""
+        length = self.n if n is None else min(n, self.n)
+        dl = tuple(int(d) for d in delays)
+        key = (self.model, repr(params), length, dl)
         store = self._cache.setdefault("loops", {})
         hit = store.get(key)
         if hit is not None and hit[0] is self.drive:
+            try:                             # the last used goes last: evicted last
+                store[key] = store.pop(key)
+            except KeyError:                 # another thread's eviction
+                pass
             return {c: v.copy() for c, v in hit[1].items()}
-        cols = self.closed_loop(params, n, None, delays)
+        kept = self._cache.setdefault("resume", {})
+        rkey = (self.model, key[1], dl)
+        keep: dict[str, Any] | None = None
+        resume = None
+        if self._resumable():
+            prior = kept.get(rkey)
+            if prior is not None and prior[0] is self.drive and prior[1].k < length:
+                resume = prior[1]
+            if length < self.n:
+                keep = {}
+        cols = self.closed_loop(params, n, None, delays, keep=keep, resume=resume)
         store[key] = (self.drive, {c: v.copy() for c, v in cols.items()})
-        while len(store) > LOOP_CACHE:       # first in, first out
-            try:
-                del store[next(iter(store))]
-            except (KeyError, RuntimeError, StopIteration):   # another thread's eviction
-                break
+        if keep and "state" in keep:
+            kept[rkey] = (self.drive, keep["state"])
+        for d in (store, kept):
+            while len(d) > LOOP_CACHE:       # the oldest (least recently used) out
+                try:
+                    del d[next(iter(d))]
+                except (KeyError, RuntimeError, StopIteration):   # another thread's eviction
+                    break
         return cols
 
     def closed_loop(self, params: PlantParams, n: int | None = None,
                     noise: np.ndarray | None = None,
-                    delays: tuple[int, int] = (0, 0)) -> dict[str, np.ndarray]:
+                    delays: tuple[int, int] = (0, 0), keep: dict[str, Any] | None = None,
+                    resume: Any = None) -> dict[str, np.ndarray]:
         """The nominal model's closed-loop re-simulation with `params` (`delays`: the
-        LVDT's and the encoder's extra periods in the loop, `bench.gap.delays`)."""
+        LVDT's and the encoder's extra periods in the loop, `bench.gap.delays`; `keep`,
+        `resume`: `resim.closed_loop`'s, the bench's plant only)."""
         if self.model == "plant":
-            return R.closed_loop(params, self.drive, n, noise=noise, delays=delays)
+            return R.closed_loop(params, self.drive, n, noise=noise, delays=delays, keep=keep,
+                                 resume=resume)
         from bench.gap.models import closed_loop_of
         cols = closed_loop_of(self.model)(params, self.drive, n, noise=noise)
         return R.shift_columns(cols, *delays) if delays != (0, 0) else cols
@@ -394,6 +431,37 @@ def estimate_noise(p: Problem, cols: dict[str, np.ndarray], iterations: int = 3,
     return sig
 
 
+def _own_fidelity(base: PlantParams, smooth_encoder: bool) -> PlantParams | None:
+    """The noise-free model at the fidelity it was given (the encoder continuous with
+    `smooth_encoder`), or None when that is the fits' fast mode already."""
+    full = base.with_dict({"sensors.noise": False})
+    full = continuous(full) if smooth_encoder else full
+    if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
+        return full
+    return None
+
+
+def _in_thread(fn: Any, *args: Any) -> Any:
+    """`fn(*args)` started in a thread; returns a function that waits for its result (or
+    raises its error)."""
+    out: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            out["value"] = fn(*args)
+        except BaseException as exc:  # noqa: BLE001 - raised in the caller's thread
+            out["error"] = exc
+    th = threading.Thread(target=run, name="bench-gap-floor", daemon=True)
+    th.start()
+
+    def result() -> Any:
+        th.join()
+        if "error" in out:
+            raise out["error"]
+        return out["value"]
+    return result
+
+
 def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
           encoder: str = "absolute", purpose: str = "gap diagnosis",
@@ -432,6 +500,10 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     n = len(trace)
     p.n_fit = max(MIN_SAMPLES // 2, min(n, int(round(n * (1.0 - holdout_frac)))))
     # -- noise floor ---------------------------------------------------------------------
+    # the model at its own fidelity (the model floor below) runs in a thread meanwhile:
+    # its compiled loop releases the GIL, and it needs nothing the noise floor computes
+    full = _own_fidelity(base, smooth_encoder) if model_floor and model == "plant" else None
+    hi_run = _in_thread(R.closed_loop, full, drive) if full is not None else None
     ns = estimate_noise(p, cols, sensor=sensor)
     p.noise_sigma = ns
     nominal = p.simulate()
@@ -446,20 +518,17 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
         noisy = p.signals(nc)
         boot.append({s: noisy[s] - nominal[s] for s in R.SIGNALS})
     mf = {s: 0.0 for s in R.SIGNALS}
-    if model_floor and model == "plant":
-        full = base.with_dict({"sensors.noise": False})
-        full = continuous(full) if smooth_encoder else full
-        if full.drive.pwm_mode != "averaged" or full.sim.ball_model != "quasistatic":
-            p.full_base = full
-            hi = p.signals(R.closed_loop(full, drive))
-            mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
+    if hi_run is not None:
+        p.full_base = full
+        hi = p.signals(hi_run())
+        mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
     p.model_floor = mf
     p.sigma = {s: float(math.sqrt(np.mean([np.mean(b[s] ** 2) for b in boot])
                                   + mf[s] ** 2 + FLOORS[s] ** 2)) for s in R.SIGNALS}
     p.sigma_smooth = {s: float(math.sqrt(np.mean([np.mean(smooth(b[s]) ** 2) for b in boot])
                                          + mf[s] ** 2 + FLOORS[s] ** 2)) for s in R.SIGNALS}
     p.info["nominal"] = nominal
-    p.info["nominal_cols"] = p.closed_loop(fast)
+    p.info["nominal_cols"] = {c: v.copy() for c, v in p._nominal_cols(None).items()}
     p.info["smooth_encoder"] = smooth_encoder
     p.info["noisy_cols"] = noisy_cols
     p.info["bootstrap"] = boot

@@ -48,7 +48,6 @@ from bench.sim.loop import (
     kernel_truth,
     measured_columns,
     no_columns,
-    run_chunks,
     run_loop,
     table_control,
 )
@@ -153,20 +152,60 @@ def _x0_true(params: PlantParams, drive: Drive) -> float:
     return (drive.x0_m - se.lvdt_offset_m) / se.lvdt_gain
 
 
+@dataclass
+class Resume:
+    """A closed loop's state after its first `k` periods, to run on from there
+    (`closed_loop`'s `keep` and `resume`): the plant state, the controller state and the
+    measurements and demands so far (the sensor delay reads them)."""
+    k: int
+    x: np.ndarray
+    cstate: np.ndarray
+    meas: np.ndarray
+    dem: np.ndarray
+
+
 def _run(entry: Callable[..., int], params: PlantParams, drive: Drive, n: int, aux: np.ndarray,
          noise: np.ndarray, ref: np.ndarray, kvec: np.ndarray, cstate: np.ndarray,
-         ndelay: int, final: dict[str, np.ndarray] | None = None
+         ndelay: int, final: dict[str, np.ndarray] | None = None,
+         keep: dict[str, Resume] | None = None, resume: Resume | None = None
          ) -> tuple[np.ndarray, np.ndarray]:
     """Run `entry` (a `bench.sim.loop` entry point) on the plant at rest at the log's start;
     after a non-finite state the remaining periods are NaN. Returns (meas, demand);
-    `final`, when given, receives the plant's last state (``final["x"]``)."""
+    `final`, when given, receives the plant's last state (``final["x"]``). `keep`, when
+    given, receives the state after all periods but the last (``keep["state"]``, a
+    `Resume`; the last period's load is the log's next reading, which a longer run
+    replaces), and `resume` starts from such a state instead of the start: the periods
+    are the same compiled steps on the same state either way (`run_chunks` in two
+    spans), so the columns are those of one run from the start."""
     plant = initial_plant(params, _x0_true(params, drive))
     meas = np.zeros((n, K.NM))
     dem = np.zeros(n)
     x = plant.x.copy()
-    got = run_chunks(entry, x, plant.param_vector, plant.sensor_vector, aux,
-                     _plant_inputs(params, drive, n), noise, ref, kvec, cstate, ndelay, meas,
-                     dem, np.zeros((n, K.NO)), np.zeros((n, NT)))
+    u = _plant_inputs(params, drive, n)
+    diag, truth = np.zeros((n, K.NO)), np.zeros((n, NT))
+    pv, sv = plant.param_vector, plant.sensor_vector
+    start, applied = 0, 0.0
+    if resume is not None and 0 < resume.k < n:
+        start = resume.k
+        x[:] = resume.x
+        cstate[:] = resume.cstate
+        meas[:start] = resume.meas
+        dem[:start] = resume.dem
+        applied = float(resume.dem[start - 1])
+    split = n - 1 if keep is not None and start < n - 1 else n
+    got = start
+    for a, b in ((start, split), (split, n)):
+        if b <= a:
+            continue
+        ran = entry(x, pv, sv, aux[a:b], u[a:b], noise[a:b], ref[a:b], kvec, cstate, ndelay,
+                    meas, dem, diag, truth, applied, a)      # `run_chunks`' step, from a
+        got = a + ran
+        if ran < b - a:
+            break
+        applied = float(dem[b - 1])
+        if keep is not None and b == split:
+            keep["state"] = Resume(b, x.copy(), cstate.copy(), meas[:b].copy(),
+                                   dem[:b].copy())
     meas[got:] = np.nan
     dem[got:] = np.nan
     if final is not None:
@@ -178,7 +217,9 @@ def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
                 cparams: ControllerParams | None = None,
                 noise: np.ndarray | None = None,
                 delays: tuple[int, int] = (0, 0),
-                final: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+                final: dict[str, np.ndarray] | None = None,
+                keep: dict[str, Resume] | None = None,
+                resume: Resume | None = None) -> dict[str, np.ndarray]:
     """Re-simulate the closed loop over the first `n` periods of `drive`.
 
     Returns the measured columns (current_a, motor_speed_rad_s, motor_angle_rad,
@@ -188,6 +229,10 @@ def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
     each alone (`bench.gap.delays`; the measured-current re-simulation has no loop to
     delay them in: they shift its logged columns). `final`: receives the plant's last
     state (``final["x"]``; its energy accounts hold the friction's work, `friction_work`).
+    `keep` and `resume` (the closed loop without noise only, `_run`): the state before the
+    last period, and a run that goes on from one kept by a shorter run of the same values
+    (`bench.gap.problem.Problem._loop_cols`: a fit's optimum on the fit part, then on the
+    whole log).
     """
     n = len(drive.t) if n is None else min(n, len(drive.t))
     dl, de = (int(d) for d in delays)
@@ -207,7 +252,10 @@ def closed_loop(params: PlantParams, drive: Drive, n: int | None = None,
         kv, entry, cstate = cparams.vector(), ecu_on_plant, np.zeros(CTRL_NC)
         if dl or de:
             entry, kv = D.ecu_split_on_plant, D.with_delays(kv, dl, de)
-    meas, dem = _run(entry, params, drive, n, no_columns(n), nz, ref, kv, cstate, nd, final)
+    if noise is not None:
+        keep = resume = None
+    meas, dem = _run(entry, params, drive, n, no_columns(n), nz, ref, kv, cstate, nd, final,
+                     keep, resume)
     if dl or de:
         return D.split_columns(meas, dem, nd, dl, de)
     return _columns(meas, dem, nd)

@@ -328,14 +328,21 @@ class Pool:
         return self.started().scatter(obj, broadcast=True, hash=False)
 
     def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
-        """Stop the cluster this pool started (`wait` and `cancel_futures` are accepted
-        for concurrent.futures compatibility: pending tasks end with the client)."""
+        """Stop the cluster this pool started. With `wait` false, as in concurrent.futures,
+        it returns at once and the cluster closes in a background thread (its workers'
+        processes take about a second to stop; the caller has its results already); the
+        thread is not a daemon, so the process's exit still waits for it.
+        `cancel_futures` is accepted for concurrent.futures compatibility: pending tasks
+        end with the client."""
         if self._plugin is not None and self.engine.cluster is None:
             try:                           # leave a shared cluster as it was
                 self._client.unregister_worker_plugin(self._plugin)
             except Exception:  # noqa: BLE001 - best effort
                 pass
-        self.engine.close()
+        if wait:
+            self.engine.close()
+        else:
+            threading.Thread(target=self.engine.close, name="bench-dask-close").start()
 
     def __enter__(self) -> Pool:
         return self

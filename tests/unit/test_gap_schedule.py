@@ -1,6 +1,8 @@
 """The diagnosis's re-simulations are kept by value and its fits scheduled on workers
 without changing a result: a repeated parameter set is simulated once and returns the same
-columns, which no caller can change for another; tasks come back in their order wherever
+columns, which no caller can change for another; a run of the whole log goes on from the
+fit part's state with the columns of a run from the start; the nominal run is kept per
+length and the cache drops the least recently used; tasks come back in their order wherever
 they ran, the costliest submitted first, the cheapest fitted here while the workers start."""
 
 from __future__ import annotations
@@ -65,6 +67,74 @@ def test_the_cache_is_bounded():
     eff = [E.get("friction")]
     for k in range(P.LOOP_CACHE + 5):
         p.simulate(eff, [{"friction_scale": 1.0 + 0.01 * k}], 50)
+    assert len(p._cache["loops"]) == P.LOOP_CACHE
+
+
+def test_a_whole_log_run_goes_on_from_the_fit_part_with_the_columns_of_a_fresh_run(
+        monkeypatch):
+    """A fit's optimum on the fit part, then on the whole log (the held-out energies): the
+    second run starts from the first's state before its last period and simulates the rest
+    only, with the columns of a run from the start (loop delays too)."""
+    p = _problem()
+    real = R.closed_loop
+    starts = []
+
+    def counted(*a, **k):
+        starts.append(0 if k.get("resume") is None else k["resume"].k)
+        return real(*a, **k)
+    monkeypatch.setattr(R, "closed_loop", counted)
+    for name, th in (("friction", {"friction_scale": 2.0}),
+                     ("encoder_delay", {"encoder_delay_s": 0.003})):
+        eff = [E.get(name)]
+        starts.clear()
+        part = p.simulate(eff, [th], p.n_fit)
+        whole = p.simulate(eff, [th])
+        assert starts == [0, p.n_fit - 1]
+        params, delays = p.params_for(eff, [th]), p.loop_delays(eff, [th])
+        fresh = p.signals(real(params, p.drive, None, delays=delays))
+        for s in R.SIGNALS:
+            np.testing.assert_array_equal(whole[s], fresh[s], err_msg=f"{name} {s}")
+            np.testing.assert_array_equal(part[s], fresh[s][:p.n_fit], err_msg=f"{name} {s}")
+
+
+def test_the_nominal_run_is_kept_for_the_fit_part_and_the_whole_log(monkeypatch):
+    """An effect on the log alone asks for the nominal run of the fit part and of the whole
+    log in turn: each is simulated once."""
+    p = _problem()
+    p._cache.clear()
+    real = R.closed_loop
+    runs = []
+
+    def counted(*a, **k):
+        runs.append(1)
+        return real(*a, **k)
+    monkeypatch.setattr(R, "closed_loop", counted)
+    eff = [E.get("current_offset_log")]
+    th = [{q.name: q.from_unit(0.7) for q in eff[0].params}]
+    for _ in range(3):
+        p.simulate(eff, th, p.n_fit)
+        p.simulate(eff, th)
+    assert len(runs) == 2
+
+
+def test_a_run_in_use_outlives_older_ones_in_the_cache(monkeypatch):
+    """The cache drops the least recently used run: one asked for again and again (a
+    single's optimum, where each of its pairs starts) stays while others come and go."""
+    p = _problem()
+    eff = [E.get("friction")]
+    keep = [{"friction_scale": 3.0}]
+    p.simulate(eff, keep, 50)
+    real = R.closed_loop
+    runs = []
+
+    def counted(*a, **k):
+        runs.append(1)
+        return real(*a, **k)
+    monkeypatch.setattr(R, "closed_loop", counted)
+    for k in range(2 * P.LOOP_CACHE):
+        p.simulate(eff, [{"friction_scale": 1.0 + 0.01 * k}], 50)
+        p.simulate(eff, keep, 50)
+    assert len(runs) == 2 * P.LOOP_CACHE            # the others only
     assert len(p._cache["loops"]) == P.LOOP_CACHE
 
 
