@@ -11,10 +11,12 @@ from its no-effect value by d (the fit's [0, 1] coordinates, one entry per free
 parameter) through the model's form and the noise alone; no truth enters. d is taken as
 one draw of a systematic error of zero mean and its outer product added to the fit's
 covariance, cov_u + d d^T (in quadrature with the noise, as a type B uncertainty), and
-the verdict's intervals follow from that covariance: its parameters' here, the friction
-size's through the delta method (`bench.gap.finding.friction_size`). Grid-searched
-parameters (delays) keep their exact intervals. Without a healthy log the fit is
-returned as it is.
+the verdict's intervals follow from that covariance: its parameters' here. The friction
+size is the family's one number whatever member fitted (`bench.gap.finding.
+friction_size`), so its departure is taken in those terms: the healthy fit's friction
+size s_h (1 at no effect), var ln(size) = the delta method through the noise's
+covariance + ln(s_h)^2 (`size_departures`). Grid-searched parameters (delays) keep their
+exact intervals. Without a healthy log the fit is returned as it is.
 
 Cost: one fit of the verdict's candidate on the healthy log, and once per process the
 healthy log's floors (`bench.gap.problem.build`, cached by log and model, CACHE_SIZE).
@@ -93,6 +95,24 @@ def widened(f: Fit, d: np.ndarray) -> Fit:
     return dataclasses.replace(f, cov_u=cov, ci95=ci)
 
 
+def size_departures(hp: Problem, h: Fit) -> dict[int, float]:
+    """ln of the friction size (`bench.gap.finding.friction_size`) of each friction-family
+    effect of the healthy fit `h` on the healthy problem `hp`: the family's own size at no
+    effect is 1, so this is its departure in the terms the verdict reports. The friction
+    size's interval takes it instead of d d^T through its gradient: a member of several
+    levels moves them against each other on the healthy log while their work stays
+    near the model's, and d d^T would carry those moves to the fault's work."""
+    from bench.gap.families import family
+    from bench.gap.finding import friction_size
+    out = {}
+    for i, eff in enumerate(h.objs):
+        if family(eff.name) == "friction":
+            k = friction_size(hp, h, i)["factor"]
+            if math.isfinite(k) and k > 0 and k != 1.0:
+                out[i] = math.log(k)
+    return out
+
+
 def apply(p: Problem, f: Fit, reference: dict[str, Any] | None, nominal: PlantParams,
           holdout_frac: float, bootstrap: int, encoder: str, model: str,
           friction_split: str) -> tuple[Fit, dict[str, Any] | None]:
@@ -110,7 +130,13 @@ def apply(p: Problem, f: Fit, reference: dict[str, Any] | None, nominal: PlantPa
         return f, {"applied": False, "why": "the healthy fit has other parameters"}
     d = departure(p, f, h)
     names = [name for _, name in f.free]
-    return widened(f, d), {
+    g = widened(f, d)
+    size = size_departures(hp, h) if g is not f else {}
+    if size:
+        g = dataclasses.replace(g, extra={**g.extra, "size_departure_ln": size,
+                                          "cov_u_noise": f.cov_u})
+    return g, {
+        "healthy_friction_size": {h.effects[i]: math.exp(v) for i, v in size.items()},
         "applied": bool(np.any(d)), "rule": RULE,
         "healthy_log": ((reference or {}).get("healthy_names")
                         or (reference or {}).get("logs") or ["?"])[0],

@@ -1,7 +1,8 @@
 """The model-form term of the verdict's intervals (`bench.gap.modelform`): the verdict's
 candidate fitted on the calibration's held-out healthy log departs from no effect by d
 ([0, 1] coordinates); the covariance becomes cov_u + d d^T and the intervals follow from
-it. Without a healthy log nothing changes."""
+it; the friction size's interval takes the healthy fit's own friction size s_h instead,
+var ln(size) + ln(s_h)^2. Without a healthy log nothing changes."""
 
 from __future__ import annotations
 
@@ -92,3 +93,9 @@ def test_a_model_off_by_a_healthy_friction_gets_the_truth_back_inside():
     assert lo1 < lo0 and hi1 > hi0
     assert not lo0 <= 3.0 <= hi0                     # the plain interval misses x3 ...
     assert lo1 <= 3.0 <= hi1                         # ... the widened one holds it
+    # the friction size's term is the healthy fit's own friction size, in quadrature (ln)
+    sh = mf["healthy_friction_size"]["friction"]
+    assert sh == pytest.approx(1.3, rel=0.1)
+    sd0 = math.log(hi0 / lo0) / (2 * 1.96)
+    assert math.log(hi1 / lo1) / (2 * 1.96) == pytest.approx(
+        math.sqrt(sd0 ** 2 + math.log(sh) ** 2), rel=1e-9)
