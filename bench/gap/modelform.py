@@ -37,7 +37,8 @@ from plant_rt.params import PlantParams
 
 RULE = ("cov_u + d d^T: d, the verdict's candidate fitted on the calibration's held-out "
         "healthy log minus its no-effect value ([0, 1] coordinates), added in quadrature "
-        "to the fit's covariance; grid-searched parameters keep their exact intervals")
+        "to the fit's covariance; a friction size adds ln of the healthy fit's own friction "
+        "size in quadrature instead; grid-searched parameters keep their exact intervals")
 
 _CACHE: dict[tuple[Any, ...], tuple[Trace, PlantParams, Problem]] = {}
 CACHE_SIZE = 4
