@@ -121,6 +121,8 @@ def run(args: argparse.Namespace) -> int:
         cal["base_params"] = base_params(base)
     cal["heldout_significance"] = heldout_significance(cal, base, held, list(args.holdout),
                                                        args.encoder, args.model)
+    if held:               # where bench gap finds them again (the verdict's model-form term)
+        cal["heldout_significance"]["paths"] = [str(Path(h).resolve()) for h in args.holdout]
     # the model's declaration (bench gap): unknown unless told (a calibrated actuator is
     # another one than the thesis', and a healthy log cannot tell where its friction acts)
     cal["friction_split"] = args.friction_split or "unknown"

@@ -185,7 +185,17 @@ def _calibration_reference(args: argparse.Namespace, data: dict[str, Any] | None
     if data is None or not isinstance(data.get("params"), dict):
         return None
     from bench.gap.calibrate import reference_of
-    return reference_of(data, Path(args.nominal).name, args.model, args.encoder)
+    ref = reference_of(data, Path(args.nominal).name, args.model, args.encoder)
+    found = [x for x in ref["paths"] if Path(x).is_file()]
+    if found:              # the first held-out healthy log: the verdict's model-form term
+        from bench.gap.inputs import load_log
+        healthy = load_log(found[0])
+        ctrl = data.get("controller")
+        if isinstance(ctrl, dict) and ctrl.get("method", "bench-ecu") != "bench-ecu":
+            healthy.meta.setdefault("controller", ctrl)
+        ref["healthy_logs"] = [healthy]
+        ref["healthy_names"] = [found[0]]
+    return ref
 
 
 def friction_split(args: argparse.Namespace, data: dict[str, Any] | None) -> str:

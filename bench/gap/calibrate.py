@@ -343,7 +343,8 @@ def reference_of(cal: dict[str, Any], name: str, model: str | None = None,
     return {"name": name, "level": hs.get("level") if known else None,
             "margin": hs.get("margin"), "logs": hs.get("logs", []),
             "energy": hs.get("energy") if known else None,
-            "load_current_ratio": hs.get("load_current_ratio") if known else None}
+            "load_current_ratio": hs.get("load_current_ratio") if known else None,
+            "paths": [str(x) for x in hs.get("paths") or []] if known else []}
 
 
 

@@ -39,6 +39,7 @@ from bench.gap import effects as E
 from bench.gap import families as F
 from bench.gap import limitcycle as LC
 from bench.gap import localise as LZ
+from bench.gap import modelform as MF
 from bench.gap import resim as R
 from bench.gap import schedule as S
 from bench.gap.finding import describe
@@ -384,6 +385,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if chosen is not None and math.isfinite(chosen.fit.rss):
         say("refining the verdict's fit against the model at its own fidelity")
         chosen.fit, loc["selection"]["fast_model_correction"] = refine(p, chosen.fit)
+        chosen.fit = _model_form(p, chosen.fit, o, base, frac, loc["selection"], say)
         flag(chosen, p)
         finding = describe(p, chosen.fit, chosen.suspect, chosen.edge)
         alias = loc["selection"].get("lead_or_lvdt_gain")
@@ -393,6 +395,20 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if lc is not None:
         loc["limit_cycle"] = lc
     return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties, finding)
+
+
+def _model_form(p: Problem, f: Fit, o: Options, base: PlantParams, frac: float,
+                selection: dict[str, Any], say: Callable[[str], None]) -> Fit:
+    """The verdict's fit `f` with the model-form term of the calibration's held-out
+    healthy log (`bench.gap.modelform`; `f` itself without one); `selection` gets what
+    was done (`model_form`)."""
+    if (o.reference or {}).get("healthy_logs"):
+        say("fitting the verdict on the calibration's held-out healthy log")
+    g, form = MF.apply(p, f, o.reference, base, frac, o.bootstrap, o.encoder, o.model,
+                       o.friction_split)
+    if form is not None:
+        selection["model_form"] = form
+    return g
 
 
 def _localisation(trace: Trace, holdout: Trace | None, p: Any, h: Any, frac: float,

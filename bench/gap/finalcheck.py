@@ -168,7 +168,7 @@ def calibrate_actuator(a: int, duration_s: float = IB.LOG_S,
     sig = heldout_significance(cal, base, [held], [f"final check {a}, noise seed {s0 + 91}"])
     return {"actuator": act, "model": model, "calibration": cal,
             "reference": reference_of(cal | {"heldout_significance": sig},
-                                      f"final-check-{a}"),
+                                      f"final-check-{a}") | {"healthy_logs": [held]},
             "ref": IB.reference(duration_s, s0 + 92, "ecu", act)}
 
 

@@ -11,7 +11,8 @@ friction dissipates there (`bench.gap.resim.friction_work`), both re-simulated o
 with every other effect of the candidate as fitted. For a pure scale of the friction
 levels it is that scale (up to the change of motion it causes); for a viscous or a
 Stribeck member it is what that law amounts to on this manoeuvre. Its interval is the
-delta method through the fit's covariance (`bench.gap.fit.Fit.cov_u`).
+delta method through the fit's covariance (`bench.gap.fit.Fit.cov_u`), with the healthy
+log's friction size in quadrature when the fit carries one (`bench.gap.modelform`).
 """
 
 from __future__ import annotations
@@ -63,9 +64,14 @@ def friction_size(p: Problem, f: Fit, i: int) -> dict[str, Any]:
         th = dict(f.theta[i])
         th[name] = prm.from_unit(u + h)
         grad[j] = (work(th) / w0 - factor) / h
-    var = float(grad @ f.cov_u @ grad)
+    # the model-form term in the size's own terms (`bench.gap.modelform.size_departures`)
+    form = (f.extra.get("size_departure_ln") or {}).get(i)
+    cov = f.cov_u if form is None else f.extra["cov_u_noise"]
+    var = float(grad @ cov @ grad)
     if math.isfinite(var) and var >= 0 and factor > 0:
         sd = math.sqrt(var) / factor                    # on ln(factor)
+        if form is not None:
+            sd = math.sqrt(sd ** 2 + form ** 2)
         out["ci95"] = [factor * math.exp(-1.96 * sd), factor * math.exp(1.96 * sd)]
     return out
 

@@ -365,16 +365,25 @@ def heldout_residual(model: PlantParams, seed: int, duration_s: float = LOG_S,
 
 
 def heldout_level_of(cal: dict[str, Any], seed: int, duration_s: float = LOG_S,
-                     controller: str = "ecu", actuator: IndieParams = NOMINAL
-                     ) -> dict[str, Any]:
+                     controller: str = "ecu", actuator: IndieParams = NOMINAL,
+                     log: Trace | None = None) -> dict[str, Any]:
     """The calibration's held-out healthy level (`bench.gap.calibrate.heldout_significance`)
     on the held-out healthy log, noise seed `seed + HELDOUT_SEED_OFFSET` (never a judged
     case: `make_cases` draws the cases' seeds from `seed`'s generator, 1 .. 2^31); every
     judged case's significance test is raised to it x its margin."""
     ho = seed + HELDOUT_SEED_OFFSET
-    log = generate(Case(-1, "nominal", [], ho), True, duration_s, controller, actuator)
+    if log is None:          # `healthy_log`'s, generated once by `run`
+        log = healthy_log(seed, duration_s, controller, actuator)
     return heldout_significance(cal, datasheet_model(actuator), [log],
                                 [f"independent actuator, healthy, noise seed {ho}"])
+
+
+def healthy_log(seed: int, duration_s: float = LOG_S, controller: str = "ecu",
+                actuator: IndieParams = NOMINAL) -> Trace:
+    """The held-out healthy log (noise seed `seed + HELDOUT_SEED_OFFSET`), measured columns
+    only."""
+    return generate(Case(-1, "nominal", [], seed + HELDOUT_SEED_OFFSET), True, duration_s,
+                    controller, actuator)
 
 
 _STATE: dict[str, Any] = {}
@@ -420,9 +429,13 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
     model, cal = calibrated_model(seed, duration_s, controller, actuator, identify)
     t_cal = time.perf_counter() - t0
     held = heldout_residual(model, seed, duration_s, controller, actuator, cal["controller"])
-    sig_ref = heldout_level_of(cal, seed, duration_s, controller, actuator)
+    healthy = healthy_log(seed, duration_s, controller, actuator)
+    sig_ref = heldout_level_of(cal, seed, duration_s, controller, actuator, healthy)
     judged_against = reference_of(cal | {"heldout_significance": sig_ref},
                              f"independent-calibration-seed-{seed + CALIBRATION_SEED_OFFSET}")
+    if cal["controller"].get("method", "bench-ecu") != "bench-ecu":
+        healthy.meta["controller"] = cal["controller"]      # re-simulated as calibrated
+    judged_against["healthy_logs"] = [healthy]   # the verdicts' model-form term
     ref = reference(duration_s, seed + 7919, controller, actuator)
     cases = make_cases(n, seed, only)
     reserved = {seed + CALIBRATION_SEED_OFFSET, seed + HELDOUT_SEED_OFFSET}

@@ -22,6 +22,9 @@ def logs(tmp_path_factory):
     for name, seed in (("fit", 31), ("held", 32), ("judged", 33)):
         simulate(compact(), base.with_dict({"sensors.noise_seed": seed})).measured().save(
             d / f"{name}.npz")
+    simulate(compact(), base.with_dict({"sensors.noise_seed": 34,
+                                        "effects.friction_scale": 3.0})).measured().save(
+        d / "worn.npz")
     return d
 
 
@@ -36,6 +39,7 @@ def test_holdout_level_is_stored_and_used(logs, capsys):
     assert "held-out healthy level" in out
     hs = json.loads((logs / "cal.json").read_text())["heldout_significance"]
     assert hs["known"] and hs["logs"] == [str(logs / "held.npz")]
+    assert hs["paths"] == [str((logs / "held.npz").resolve())]
     assert set(hs["level"]) == {"current_a", "motor_speed_rad_s", "position_m",
                                 "encoder_position_m"}
     assert all(0.0 < v < 10.0 for v in hs["level"].values())
@@ -49,6 +53,26 @@ def test_holdout_level_is_stored_and_used(logs, capsys):
         "judged_against"]
     for s, lv in hs["level"].items():
         assert ja["threshold"][s] >= lv * hs["margin"][s] - 1e-12
+
+
+def test_the_held_out_log_gives_the_verdict_its_model_form_term(logs, capsys):
+    """`bench gap --nominal` fits the verdict's candidate on the calibration's held-out
+    healthy log (stored path) and says so in `selection.model_form`; a calibration
+    without one leaves the verdict's fit as it is."""
+    assert _calibrate(logs, "cal_m.json", "--holdout", str(logs / "held.npz")) == 0
+    assert _calibrate(logs, "cal_m0.json") == 0
+    out = {}
+    for cal in ("cal_m", "cal_m0"):
+        assert main(["gap", str(logs / "worn.npz"), "--nominal", str(logs / f"{cal}.json"),
+                     "--effects", "friction", "--workers", "1", "-q",
+                     "--json", str(logs / f"gap_{cal}.json")]) == 0
+        out[cal] = json.loads((logs / f"gap_{cal}.json").read_text())
+    capsys.readouterr()
+    mf = out["cal_m"]["localisation"]["selection"]["model_form"]
+    assert mf["healthy_log"] == str((logs / "held.npz").resolve())
+    assert "friction_scale" in mf["departure_u"]        # (and the nut friction share)
+    assert "model_form" not in out["cal_m0"]["localisation"]["selection"]
+    assert out["cal_m"]["verdict"]["effect"] == out["cal_m0"]["verdict"]["effect"]
 
 
 def test_without_holdout_the_level_is_unknown(logs, capsys):
