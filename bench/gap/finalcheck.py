@@ -48,6 +48,10 @@ FRESH_SEED = 9301
 """The second final check's first build seed (`--build-seed 9301`), fixed before it ran:
 builds 9301-9303, noise seeds 42000-42294, never run by any development or earlier
 check."""
+THIRD_SEED = 9501
+"""The third final check's first build seed (`--build-seed 9501`), fixed before it ran,
+after the pair selection's alias swap and the verdict's model-form interval term: builds
+9501-9503, noise seeds 44000-44294, never run by any development or earlier check."""
 
 
 def build_seeds(first: int = BUILD_SEEDS[0]) -> tuple[int, int, int]:
@@ -176,7 +180,8 @@ def run(workers: int = 2, duration_s: float = IB.LOG_S, progress: bool = True,
         on_result: Callable[[dict[str, Any]], None] | None = None,
         scheduler: str | None = None, first: int = BUILD_SEEDS[0]) -> dict[str, Any]:
     """Calibrate the three actuators, then diagnose every case of each (`first`: the
-    first build seed, `build_seeds`; 9101 the first final check, FRESH_SEED the second)."""
+    first build seed, `build_seeds`; 9101 the first final check, FRESH_SEED the second,
+    THIRD_SEED the third)."""
     t0 = time.perf_counter()
     states, items = {}, []
     seeds, base = build_seeds(first), noise_base(first)

@@ -26,6 +26,13 @@ def test_the_fresh_check_shares_no_seed_with_the_first():
     assert min(_noise(FC.FRESH_SEED)) == 42_000
 
 
+def test_the_third_check_shares_no_seed_with_the_others():
+    third = set(FC.build_seeds(FC.THIRD_SEED))
+    assert not third & (set(FC.BUILD_SEEDS) | set(FC.build_seeds(FC.FRESH_SEED)))
+    assert not _noise(FC.THIRD_SEED) & (_noise(FC.BUILD_SEEDS[0]) | _noise(FC.FRESH_SEED))
+    assert min(_noise(FC.THIRD_SEED)) == 44_000
+
+
 def test_build_seed_is_refused_where_it_cannot_apply(capsys):
     """`--build-seed` picks the final check's builds: given with another generator it
     would be ignored (a run of other cases, exit 0), and a seed whose noise seeds fall
