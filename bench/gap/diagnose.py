@@ -45,10 +45,11 @@ from bench.gap import schedule as S
 from bench.gap.finding import describe
 from bench.gap.fit import Fit, fit
 from bench.gap.library import FRICTION_SPLITS
-from bench.gap.problem import Problem, build, fill_gaps
+from bench.gap.problem import Problem, build, fill_gaps, not_representable
 from bench.gap.refine import refine
 from bench.gap.scores import excess, shrink_pct
 from bench.runtime.workers import make_pool
+from bench.signals.integrity import log_integrity
 from bench.signals.trace import Trace
 from plant_rt.params import PlantParams
 
@@ -527,41 +528,6 @@ def _settle_alias(p: Any, h: Any, L: float, chosen: Any, singles: list[Any], ver
             selection["chosen"] = new.fit.name
         return new, verdict, ranking, ties
     return chosen, verdict, ranking, ties if other in ties else [*ties, other]
-
-
-def log_integrity(trace: Trace, holdout: Trace | None) -> dict[str, Any]:
-    """What the log (and the held-out log) lost or repeated and what was bridged."""
-    from bench.signals.integrity import integrity
-    out: dict[str, Any] = {}
-    for key, tr in (("log", trace), ("holdout", holdout)):
-        if tr is None:
-            continue
-        notes = integrity(tr.meta)
-        bridged = {c: int(k) for c, k in (tr.meta.get("bridged") or {}).items()}
-        if bridged:
-            notes.append("short gaps bridged by interpolation: " + ", ".join(
-                f"{c} {k} sample{'s' if k > 1 else ''}" for c, k in bridged.items()))
-        out[key] = {"notes": notes, "bridged": bridged}
-    return out
-
-
-def not_representable(p: Problem, names: Sequence[str], n: int = 1000) -> list[str]:
-    """Candidates whose mid-range values leave model `p.model` unchanged (it does not
-    read the parameters they act through)."""
-    ref = p.simulate([], [], n)
-    out = []
-    for name in names:
-        eff = E.get(name)
-        if eff.where == "log":
-            continue
-        same = True
-        for u in (0.3, 0.7):
-            th = {q.name: q.from_unit(u) for q in eff.params}
-            sim = p.simulate([eff], [th], n)
-            same = same and all(np.array_equal(sim[s], ref[s]) for s in R.SIGNALS)
-        if same:
-            out.append(name)
-    return out
 
 
 def leaves_gap(best: Any, p: Any, h: Any, reference: dict[str, Any] | None) -> bool:

@@ -28,6 +28,7 @@ from bench.gap import resim as R
 from bench.gap.autocorr import corr_length
 from bench.gap.cascade import Cascade
 from bench.gap.effects import Effect
+from bench.gap.effects import get as get_effect
 from bench.signals.estimators import noise_floor
 from bench.signals.trace import MODE_POSITION, MODE_SPEED, Trace
 from plant_rt.params import PlantParams
@@ -551,3 +552,22 @@ def smooth(y: np.ndarray, w: int = 10) -> np.ndarray:
     if w <= 1 or len(y) < w:
         return np.asarray(y, float).copy()
     return uniform_filter1d(np.asarray(y, float), w, mode="nearest")
+
+
+def not_representable(p: Problem, names: Sequence[str], n: int = 1000) -> list[str]:
+    """Candidates whose mid-range values leave model `p.model` unchanged (it does not
+    read the parameters they act through)."""
+    ref = p.simulate([], [], n)
+    out = []
+    for name in names:
+        eff = get_effect(name)
+        if eff.where == "log":
+            continue
+        same = True
+        for u in (0.3, 0.7):
+            th = {q.name: q.from_unit(u) for q in eff.params}
+            sim = p.simulate([eff], [th], n)
+            same = same and all(np.array_equal(sim[s], ref[s]) for s in R.SIGNALS)
+        if same:
+            out.append(name)
+    return out

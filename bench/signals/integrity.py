@@ -48,3 +48,19 @@ def integrity(meta: dict[str, Any]) -> list[str]:
                    f"{b['first_row']}-{b['last_row']}, t = {b['t0_s']:.3f}-{b['t1_s']:.3f} s, "
                    f"{_n(b['samples'], 'SYNC sample')} left empty")
     return out
+
+
+def log_integrity(trace: Any, holdout: Any | None) -> dict[str, Any]:
+    """What a log (a `bench.signals.trace.Trace`) and its held-out log lost or repeated,
+    and what was bridged (the gap diagnosis' `localisation.log`)."""
+    out: dict[str, Any] = {}
+    for key, tr in (("log", trace), ("holdout", holdout)):
+        if tr is None:
+            continue
+        notes = integrity(tr.meta)
+        bridged = {c: int(k) for c, k in (tr.meta.get("bridged") or {}).items()}
+        if bridged:
+            notes.append("short gaps bridged by interpolation: " + ", ".join(
+                f"{c} {k} sample{'s' if k > 1 else ''}" for c, k in bridged.items()))
+        out[key] = {"notes": notes, "bridged": bridged}
+    return out
