@@ -519,7 +519,7 @@ def _settle_alias(p: Any, h: Any, L: float, chosen: Any, singles: list[Any], ver
     if rec is None:
         return chosen, verdict, ranking, ties
     selection["lead_or_lvdt_gain"] = rec
-    other = AL.swap(chosen.fit.name)
+    other = AL.swap(chosen.fit.name) or ""     # settled: the chosen holds one of the two
     if rec["separated"]:
         ties = [t for t in ties if t not in (chosen.fit.name, other)]
         if new is not chosen:
