@@ -195,6 +195,9 @@ def _calibration_reference(args: argparse.Namespace, data: dict[str, Any] | None
             healthy.meta.setdefault("controller", ctrl)
         ref["healthy_logs"] = [healthy]
         ref["healthy_names"] = [found[0]]
+    elif ref["paths"]:
+        print(f"note: the calibration's held-out healthy log {ref['paths'][0]} is not found: "
+              "the verdict's intervals leave out the model family's misfit", file=sys.stderr)
     return ref
 
 

@@ -75,6 +75,26 @@ def test_the_held_out_log_gives_the_verdict_its_model_form_term(logs, capsys):
     assert out["cal_m"]["verdict"]["effect"] == out["cal_m0"]["verdict"]["effect"]
 
 
+def test_a_moved_held_out_log_is_said_not_found(logs, capsys):
+    """A calibration whose held-out healthy log has gone (moved, another machine): the
+    diagnosis runs without the model-form term and says so in one line."""
+    import shutil
+    moved = logs / "moved"
+    moved.mkdir()
+    shutil.copy(logs / "held.npz", moved / "held.npz")
+    assert _calibrate(logs, "cal_mv.json", "--holdout", str(moved / "held.npz")) == 0
+    shutil.rmtree(moved)
+    capsys.readouterr()
+    assert main(["gap", str(logs / "worn.npz"), "--nominal", str(logs / "cal_mv.json"),
+                 "--effects", "friction", "--workers", "1", "-q",
+                 "--json", str(logs / "gap_mv.json")]) == 0
+    err = capsys.readouterr().err
+    notes = [ln for ln in err.splitlines() if "is not found" in ln]
+    assert len(notes) == 1 and str((moved / "held.npz").resolve()) in notes[0], err
+    js = json.loads((logs / "gap_mv.json").read_text())
+    assert "model_form" not in js["localisation"]["selection"]
+
+
 def test_without_holdout_the_level_is_unknown(logs, capsys):
     assert _calibrate(logs, "cal0.json") == 0
     hs = json.loads((logs / "cal0.json").read_text())["heldout_significance"]
