@@ -48,6 +48,7 @@ from bench.sim.loop import (
     kernel_truth,
     measured_columns,
     no_columns,
+    run_chunks,
     run_loop,
     table_control,
 )
@@ -193,19 +194,12 @@ def _run(entry: Callable[..., int], params: PlantParams, drive: Drive, n: int, a
         dem[:start] = resume.dem
         applied = float(resume.dem[start - 1])
     split = n - 1 if keep is not None and start < n - 1 else n
-    got = start
-    for a, b in ((start, split), (split, n)):
-        if b <= a:
-            continue
-        ran = entry(x, pv, sv, aux[a:b], u[a:b], noise[a:b], ref[a:b], kvec, cstate, ndelay,
-                    meas, dem, diag, truth, applied, a)      # `run_chunks`' step, from a
-        got = a + ran
-        if ran < b - a:
-            break
-        applied = float(dem[b - 1])
-        if keep is not None and b == split:
-            keep["state"] = Resume(b, x.copy(), cstate.copy(), meas[:b].copy(),
-                                   dem[:b].copy())
+    args = (entry, x, pv, sv, aux, u, noise, ref, kvec, cstate, ndelay, meas, dem, diag, truth)
+    got = run_chunks(*args, applied=applied, start=start, stop=split)
+    if keep is not None and got == split < n:    # the state kept, then the last period
+        keep["state"] = Resume(split, x.copy(), cstate.copy(), meas[:split].copy(),
+                               dem[:split].copy())
+        got = run_chunks(*args, applied=float(dem[split - 1]), start=split)
     meas[got:] = np.nan
     dem[got:] = np.nan
     if final is not None:

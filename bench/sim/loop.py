@@ -165,16 +165,18 @@ def run_chunks(entry: Callable[..., int], x: np.ndarray, p: np.ndarray, s: np.nd
                kvec: np.ndarray, cstate: np.ndarray, ndelay: int, meas: np.ndarray,
                dem: np.ndarray, diag: np.ndarray, truth: np.ndarray,
                chunk: int | None = None, on_chunk: Callable[[int], None] | None = None,
-               applied: float = 0.0) -> int:
-    """Run `entry` over all len(ref) periods, `chunk` periods per compiled call (all at
-    once without), calling `on_chunk(periods)` after each; returns the periods run.
+               applied: float = 0.0, start: int = 0, stop: int | None = None) -> int:
+    """Run `entry` over periods `start` to `stop` (all len(ref) periods by default),
+    `chunk` periods per compiled call (all at once without), calling `on_chunk(periods)`
+    after each; returns the periods done (counted from 0: `start` and those run).
     `applied`: the demand held over the first period (a previous run's last demand).
 
     The state (x, controller state, applied demand) carries across chunk boundaries and
-    the outputs are whole-run arrays, so chunking does not change the result."""
-    n = ref.shape[0]
-    step = n if chunk is None else max(1, chunk)
-    done = 0
+    the outputs are whole-run arrays, so chunking, or running on from a kept state at
+    `start`, does not change the result."""
+    n = ref.shape[0] if stop is None else stop
+    step = max(1, n - start) if chunk is None else max(1, chunk)
+    done = start
     while done < n:
         k1 = min(n, done + step)
         got = entry(x, p, s, aux[done:k1], u[done:k1], noise[done:k1], ref[done:k1], kvec,
