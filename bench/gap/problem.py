@@ -15,8 +15,8 @@ position_m (LVDT, m), encoder_position_m (encoder angle as nut travel, m).
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -442,27 +442,6 @@ def _own_fidelity(base: PlantParams, smooth_encoder: bool) -> PlantParams | None
     return None
 
 
-def _in_thread(fn: Any, *args: Any) -> Any:
-    """`fn(*args)` started in a thread; returns a function that waits for its result (or
-    raises its error)."""
-    out: dict[str, Any] = {}
-
-    def run() -> None:
-        try:
-            out["value"] = fn(*args)
-        except BaseException as exc:  # noqa: BLE001 - raised in the caller's thread
-            out["error"] = exc
-    th = threading.Thread(target=run, name="bench-gap-floor", daemon=True)
-    th.start()
-
-    def result() -> Any:
-        th.join()
-        if "error" in out:
-            raise out["error"]
-        return out["value"]
-    return result
-
-
 def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
           encoder: str = "absolute", purpose: str = "gap diagnosis",
@@ -504,7 +483,11 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     # the model at its own fidelity (the model floor below) runs in a thread meanwhile:
     # its compiled loop releases the GIL, and it needs nothing the noise floor computes
     full = _own_fidelity(base, smooth_encoder) if model_floor and model == "plant" else None
-    hi_run = _in_thread(R.closed_loop, full, drive) if full is not None else None
+    hi_run = None
+    if full is not None:
+        pool = ThreadPoolExecutor(1, thread_name_prefix="bench-gap-floor")
+        hi_run = pool.submit(R.closed_loop, full, drive)
+        pool.shutdown(wait=False)
     ns = estimate_noise(p, cols, sensor=sensor)
     p.noise_sigma = ns
     nominal = p.simulate()
@@ -521,7 +504,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     mf = {s: 0.0 for s in R.SIGNALS}
     if hi_run is not None:
         p.full_base = full
-        hi = p.signals(hi_run())
+        hi = p.signals(hi_run.result())
         mf = {s: float(np.sqrt(np.mean((hi[s] - nominal[s]) ** 2))) for s in R.SIGNALS}
     p.model_floor = mf
     p.sigma = {s: float(math.sqrt(np.mean([np.mean(b[s] ** 2) for b in boot])
