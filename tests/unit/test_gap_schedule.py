@@ -97,18 +97,24 @@ def test_a_whole_log_run_goes_on_from_the_fit_part_with_the_columns_of_a_fresh_r
             np.testing.assert_array_equal(part[s], fresh[s][:p.n_fit], err_msg=f"{name} {s}")
 
 
-def test_the_nominal_run_is_kept_for_the_fit_part_and_the_whole_log(monkeypatch):
-    """An effect on the log alone asks for the nominal run of the fit part and of the whole
-    log in turn: each is simulated once."""
-    p = _problem()
-    p._cache.clear()
+def _count_loops(monkeypatch) -> list[int]:
+    """The closed-loop re-simulations run from here on, one entry each."""
     real = R.closed_loop
-    runs = []
+    runs: list[int] = []
 
     def counted(*a, **k):
         runs.append(1)
         return real(*a, **k)
     monkeypatch.setattr(R, "closed_loop", counted)
+    return runs
+
+
+def test_the_nominal_run_is_kept_for_the_fit_part_and_the_whole_log(monkeypatch):
+    """An effect on the log alone asks for the nominal run of the fit part and of the whole
+    log in turn: each is simulated once."""
+    p = _problem()
+    p._cache.clear()
+    runs = _count_loops(monkeypatch)
     eff = [E.get("current_offset_log")]
     th = [{q.name: q.from_unit(0.7) for q in eff[0].params}]
     for _ in range(3):
@@ -124,13 +130,7 @@ def test_a_run_in_use_outlives_older_ones_in_the_cache(monkeypatch):
     eff = [E.get("friction")]
     keep = [{"friction_scale": 3.0}]
     p.simulate(eff, keep, 50)
-    real = R.closed_loop
-    runs = []
-
-    def counted(*a, **k):
-        runs.append(1)
-        return real(*a, **k)
-    monkeypatch.setattr(R, "closed_loop", counted)
+    runs = _count_loops(monkeypatch)
     for k in range(2 * P.LOOP_CACHE):
         p.simulate(eff, [{"friction_scale": 1.0 + 0.01 * k}], 50)
         p.simulate(eff, keep, 50)
