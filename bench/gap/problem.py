@@ -442,6 +442,10 @@ def _own_fidelity(base: PlantParams, smooth_encoder: bool) -> PlantParams | None
     return None
 
 
+_FLOOR_THREAD = ThreadPoolExecutor(1, thread_name_prefix="bench-gap-floor")
+"""Runs a build's model floor beside its noise floor (`build`); no thread until used."""
+
+
 def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
           bootstrap: int = 6, model_floor: bool = True, seed: int = 12345,
           encoder: str = "absolute", purpose: str = "gap diagnosis",
@@ -483,11 +487,7 @@ def build(trace: Trace, base: PlantParams, holdout_frac: float = 0.5,
     # the model at its own fidelity (the model floor below) runs in a thread meanwhile:
     # its compiled loop releases the GIL, and it needs nothing the noise floor computes
     full = _own_fidelity(base, smooth_encoder) if model_floor and model == "plant" else None
-    hi_run = None
-    if full is not None:
-        pool = ThreadPoolExecutor(1, thread_name_prefix="bench-gap-floor")
-        hi_run = pool.submit(R.closed_loop, full, drive)
-        pool.shutdown(wait=False)
+    hi_run = _FLOOR_THREAD.submit(R.closed_loop, full, drive) if full is not None else None
     ns = estimate_noise(p, cols, sensor=sensor)
     p.noise_sigma = ns
     nominal = p.simulate()
