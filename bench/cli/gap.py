@@ -189,10 +189,9 @@ def _calibration_reference(args: argparse.Namespace, data: dict[str, Any] | None
     found = [x for x in ref["paths"] if Path(x).is_file()]
     if found:              # the first held-out healthy log: the verdict's model-form term
         from bench.gap.inputs import load_log
+        from bench.gap.problem import under_controller
         healthy = load_log(found[0])
-        ctrl = data.get("controller")
-        if isinstance(ctrl, dict) and ctrl.get("method", "bench-ecu") != "bench-ecu":
-            healthy.meta.setdefault("controller", ctrl)
+        under_controller(healthy, data.get("controller"))
         ref["healthy_logs"] = [healthy]
         ref["healthy_names"] = [found[0]]
     elif ref["paths"]:
@@ -258,9 +257,10 @@ def _attach_controller(args: argparse.Namespace, data: dict[str, Any] | None, lo
     if not isinstance(ctrl, dict) or mine == "bench-ecu":
         return None
     from bench.cli.calibrate import controller_text
+    from bench.gap.problem import under_controller
     for tr in (log, hold):
-        if tr is not None and "controller" not in tr.meta:
-            tr.meta["controller"] = ctrl
+        if tr is not None:
+            under_controller(tr, ctrl)
     name = Path(args.nominal).name
     how = (f"under the controller identified by calibration {name}" if ctrl.get("cascade")
            else f"as calibration {name} handles the controller")

@@ -37,6 +37,7 @@ import numpy as np
 from bench.gap.blind import Case, Truth, score, summarise
 from bench.gap.calibrate import calibrate, default_names, heldout_significance, reference_of
 from bench.gap.diagnose import Options, diagnose
+from bench.gap.problem import under_controller
 from bench.profiles.maneuvers import LOAD_HZ, excitation
 from bench.runtime.workers import run_all
 from bench.signals.trace import Trace
@@ -398,8 +399,7 @@ def run_case(case: Case, duration_s: float = LOG_S, controller: str = "ecu",
     """Generate, diagnose against the calibrated model (seeing only the log), score."""
     ref, model, act = _STATE["ref"], _STATE["model"], _STATE["actuator"]
     log = generate(case, True, duration_s, controller, act)
-    if _STATE.get("controller", {}).get("method", "bench-ecu") != "bench-ecu":
-        log.meta["controller"] = _STATE["controller"]   # re-simulated as calibrated
+    under_controller(log, _STATE.get("controller"))    # re-simulated as calibrated
     t0 = time.perf_counter()
     res = diagnose(log, nominal=model, options=Options(workers=1, effects=effects,
                                                         reference=_STATE.get("reference"),
@@ -433,8 +433,7 @@ def run(n: int, seed: int, workers: int = 2, duration_s: float = LOG_S,
     sig_ref = heldout_level_of(cal, seed, duration_s, controller, actuator, healthy)
     judged_against = reference_of(cal | {"heldout_significance": sig_ref},
                              f"independent-calibration-seed-{seed + CALIBRATION_SEED_OFFSET}")
-    if cal["controller"].get("method", "bench-ecu") != "bench-ecu":
-        healthy.meta["controller"] = cal["controller"]      # re-simulated as calibrated
+    under_controller(healthy, cal["controller"])          # re-simulated as calibrated
     judged_against["healthy_logs"] = [healthy]   # the verdicts' model-form term
     ref = reference(duration_s, seed + 7919, controller, actuator)
     cases = make_cases(n, seed, only)

@@ -330,6 +330,15 @@ def check_log(trace: Trace, purpose: str = "gap diagnosis") -> None:
                          "dwells)")
 
 
+def under_controller(trace: Trace, controller: Any) -> None:
+    """Name a calibration's `controller` entry in `trace`'s metadata, so that `drive_of`
+    re-simulates the log under it; a log that names its own, or a controller that is the
+    bench's ECU (the default), is left as it is."""
+    if (isinstance(controller, dict) and controller.get("method", "bench-ecu") != "bench-ecu"
+            and "controller" not in trace.meta):
+        trace.meta["controller"] = controller
+
+
 def drive_of(trace: Trace, encoder: str = "absolute",
              params: PlantParams | None = None, resim: str = "closed-loop",
              cascade: Any = None) -> R.Drive:
