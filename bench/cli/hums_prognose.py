@@ -24,7 +24,8 @@ def add_prognose(s: argparse._SubParsersAction) -> None:
         whose curves the trends' index names match: the campaign's particle filter instead.""")
     q.add_argument("--trends", required=True, metavar="FILE.csv",
                    help="the trends: a time (or date) column and one column per index, or "
-                   "the long form time, actuator, index, value (optional unit)")
+                   "the long form time, actuator, index, value (optional unit); comma, "
+                   "semicolon or tab delimited, also compressed; - reads standard input")
     q.add_argument("--index", metavar="NAME", help="the index to prognose when the file has "
                    "several")
     q.add_argument("--healthy-tests", metavar="N|DATE",
@@ -99,6 +100,11 @@ def _prognose_calibrated(args: argparse.Namespace, table, cal) -> int:
         print(f"note: skipped index names the calibration has no curve for: "
               f"{', '.join(skipped)}", file=sys.stderr)
     import json
+    if args.json == "-":                # the JSON alone on standard output
+        print(text(results), file=sys.stderr)
+        json.dump(to_json(results), sys.stdout, indent=2)
+        print()
+        return 0
     print(text(results))
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
@@ -123,7 +129,7 @@ def refuse_inputs_as_outputs(args: argparse.Namespace, outputs: tuple[str, ...],
         if not out:
             continue
         for flag, given in paths:
-            if not given:
+            if not given or "-" in (str(given), str(out)):     # standard input / output
                 continue
             same = (os.path.exists(out) and os.path.exists(given)
                     and os.path.samefile(out, given)) or (
@@ -200,15 +206,16 @@ def _prognose_own(args: argparse.Namespace, table: Any) -> int:
                 figures.append(TR.figure(r, args.figures, truth.get(r.trend.actuator),
                                          args.time_unit))
         run(trends, s, on_result, args.workers)
-    print(TR.table([]))
-    print("\n".join(lines))
-    print("\n".join(said))
+    out_fh = sys.stderr if args.json == "-" else sys.stdout   # the JSON alone on stdout
+    print(TR.table([]), file=out_fh)
+    print("\n".join(lines), file=out_fh)
+    print("\n".join(said), file=out_fh)
     if len(trends) > 3:
-        print(f"({len(trends) - 3} more actuators: --json for every estimate)")
-    if args.json:
+        print(f"({len(trends) - 3} more actuators: --json for every estimate)", file=out_fh)
+    if args.json and args.json != "-":
         print(f"wrote {args.json}")
     if figures:
         more = (f" (the first {TR.MAX_FIGURES} of {len(trends)} actuators)"
                 if len(trends) > TR.MAX_FIGURES else "")
-        print(f"wrote {len(figures)} figure(s) into {args.figures}{more}")
+        print(f"wrote {len(figures)} figure(s) into {args.figures}{more}", file=out_fh)
     return 0

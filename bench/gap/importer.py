@@ -50,7 +50,8 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.signals.tables import COMPRESSED, FINITE, Rows, read_rows, read_text
+from bench.signals.tables import COMPRESSED, FINITE, Rows, read_rows
+from bench.signals.textlines import read_text
 from bench.signals.trace import Trace
 from bench.signals.units import UNITS
 

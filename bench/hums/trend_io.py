@@ -1,7 +1,11 @@
 """Reading a trends file: one health index per test, over real time, from any rig.
 
 `read_table(path)` reads a CSV of health-index tests into `Trend`s (one per actuator and
-index), refusing what cannot be a trend with a one-line `BenchError` naming the line:
+index), refusing what cannot be a trend with a one-line `BenchError` naming the line.
+The text is read as the table reader reads it (`bench.signals.tables`: UTF-8, a
+byte-order mark dropped, .xz/.gz/.bz2 decompressed, its delimiter sniffed among comma,
+semicolon and tab; with one of the latter two a decimal comma, ``2,15``, is a number);
+``-`` is standard input:
 
 - **time**: a column named ``time``, ``date``, ``day`` or ``days`` (else the first whose
   name holds "date" or "time"): numbers (days, or the
@@ -30,10 +34,13 @@ from __future__ import annotations
 import csv
 import math
 import re
+import sys
 from array import array
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -42,6 +49,8 @@ from bench import BenchError
 TIME_NAMES = ("time", "date", "day", "days")
 EXPOSURE = "exposure"
 MAX_ABS_TIME = 1e7
+STDIN = "-"
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
 _UNIT_IN_NAME = re.compile(r"^(.*?)\s*[\[(]([^\])]*)[\])]\s*$")
 
 
@@ -86,8 +95,9 @@ class Table:
 class _Times:
     """Parses the time column: all numbers or all ISO dates (cached per distinct text)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, comma: bool = False) -> None:
         self.path = path
+        self.comma = comma
         self.kind: str | None = None       # "number" or "date"
         self.aware: bool | None = None
         self.cache: dict[str, float] = {}
@@ -103,7 +113,7 @@ class _Times:
     def _parse(self, s: str, line: int) -> float:
         where = f"{self.path}:{line}"
         try:
-            v, kind = float(s), "number"
+            v, kind = _number(s, self.comma), "number"
         except ValueError:
             v, kind = self._date(s, where), "date"
         if self.kind is not None and kind != self.kind:
@@ -130,12 +140,19 @@ class _Times:
         return (d if aware else d.replace(tzinfo=UTC)).timestamp() / 86400.0
 
 
-def _value(text: str, where: str) -> float:
+def _number(s: str, comma: bool) -> float:
+    """float(s), a decimal comma read as a point when `comma` (1,25 or -0,5e-3)."""
+    if comma and _DECIMAL_COMMA.match(s):
+        s = s.replace(",", ".")
+    return float(s)
+
+
+def _value(text: str, where: str, comma: bool = False) -> float:
     s = text.strip()
     if s == "" or s.lower() in ("nan", "na", "n/a"):
         return math.nan
     try:
-        v = float(s)
+        v = _number(s, comma)
     except ValueError:
         raise BenchError(f"{where}: value {s!r} is not a number") from None
     if math.isinf(v):
@@ -168,36 +185,55 @@ def _time_column(path: Path, cols: dict[str, int]) -> int:
 
 
 def read_table(path: str | Path, progress: bool = False) -> Table:
-    """The trends of a CSV (module docstring)."""
+    """The trends of a CSV (module docstring); ``-`` reads standard input. `progress`:
+    a bar in bytes on a large file (`bench.signals.textlines.TextLines`)."""
+    from bench.signals.textlines import TextLines
+    if str(path) == STDIN:
+        with _StdinLines() as lines:
+            return _read(Path("<stdin>"), lines, "stdin")
     p = Path(path)
     if not p.is_file():
         raise BenchError(f"no trends file {p}")
-    fh = p.open(encoding="utf-8", newline="")
-    try:
-        return _read(p, fh, progress)
-    except UnicodeDecodeError:
-        at, byte = _first_bad_byte(p)
-        raise BenchError(f"{p}: not UTF-8 text (byte 0x{byte:02x} at offset {at}): not a "
-                         "trends CSV") from None
-    finally:
-        fh.close()
+    from bench.signals.textlines import COMPRESSED
+    stem = Path(p.stem).stem if p.suffix.lower() in COMPRESSED else p.stem
+    with TextLines(p, "trends", compressed=True, bar=progress) as lines:
+        return _read(p, lines, stem)
 
 
-def _first_bad_byte(p: Path) -> tuple[int, int]:
-    """Offset and value of the first byte of `p` that is not UTF-8."""
-    import codecs
-    dec = codecs.getincrementaldecoder("utf-8")()
-    done = 0
-    with p.open("rb") as fh:
-        while chunk := fh.read(1 << 20):
-            pending = dec.getstate()[0]       # an unfinished character's first bytes
-            try:
-                dec.decode(chunk)
-            except UnicodeDecodeError as exc:
-                data = pending + chunk
-                return done - len(pending) + exc.start, data[exc.start]
-            done += len(chunk)
-    return done, 0
+class _StdinLines:
+    """Standard input's lines, read ahead for the dialect as `TextLines` does."""
+
+    def __init__(self) -> None:
+        self.ahead: list[str] = []
+        self.rest = iter(sys.stdin)
+
+    def __enter__(self) -> _StdinLines:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def head(self, chars: int) -> str:
+        n = 0
+        for line in self._decoded(self.rest):
+            self.ahead.append(line)
+            n += len(line)
+            if n >= chars:
+                break
+        return "".join(self.ahead)
+
+    def __iter__(self) -> Iterator[str]:
+        yield from self.ahead
+        self.ahead = []
+        yield from self._decoded(self.rest)
+
+    @staticmethod
+    def _decoded(it: Iterator[str]) -> Iterator[str]:
+        try:
+            yield from it
+        except UnicodeDecodeError as exc:
+            raise BenchError(f"<stdin>: not UTF-8 text (byte 0x{exc.object[exc.start]:02x}"
+                             "): not a trends CSV") from None
 
 
 @dataclass
@@ -236,27 +272,32 @@ def _layout(p: Path, names: list[str]) -> _Layout:
     return _Layout(len(names), it, ia, wide=wide)
 
 
-def _read(p: Path, fh, progress: bool) -> Table:  # type: ignore[no-untyped-def]
-    """The rows of the open file `fh` into a `Table`."""
-    names = next(csv.reader([fh.readline()]), [])
+def _read(p: Path, lines: Any, stem: str) -> Table:
+    """The rows of the open text `lines` into a `Table` (the delimiter sniffed among
+    comma, semicolon and tab; with another than the comma, a decimal comma is read as a
+    point); `stem`: the actuator's name when the file has no actuator column."""
+    from bench.signals.tables import sniff_dialect
+    dialect = sniff_dialect(lines.head(4096), ",;\t")
+    comma = dialect.delimiter != ","
+    rd = csv.reader(lines, dialect)
+    names = next(rd, [])
     if not names:
         raise BenchError(f"{p}: empty file (a header row and one row per test)")
     lay = _layout(p, names)
-    times = _Times(p)
+    times = _Times(p, comma)
     acc: dict[tuple[str, str], tuple[array, array, array]] = {}
     units: dict[tuple[str, str], tuple[str, int]] = {}
     missing = 0
-    rd = csv.reader(_lines(fh, progress, p))
     for row in rd:
-        line = rd.line_num + 1
+        line = rd.line_num
         if not row or (len(row) == 1 and not row[0].strip()):
             continue
         if len(row) != lay.n:
             raise BenchError(f"{p}:{line}: {len(row)} fields, the header has {lay.n}")
         t = times(row[lay.time], line)
-        a = row[lay.actuator].strip() if lay.actuator is not None else p.stem
+        a = row[lay.actuator].strip() if lay.actuator is not None else stem
         for name, text, unit in lay.cells(row):
-            v = _value(text, f"{p}:{line}")
+            v = _value(text, f"{p}:{line}", comma)
             if math.isnan(v):
                 missing += 1
                 continue
@@ -279,19 +320,6 @@ def _read(p: Path, fh, progress: bool) -> Table:  # type: ignore[no-untyped-def]
 def _split_unit(name: str) -> tuple[str, str]:
     m = _UNIT_IN_NAME.match(name.strip())
     return (m.group(1).strip(), m.group(2).strip()) if m else (name.strip(), "")
-
-
-def _lines(fh, progress: bool, path: Path):   # type: ignore[no-untyped-def]
-    """The file's lines, with a tqdm bar in bytes when `progress`."""
-    if not progress:
-        yield from fh
-        return
-    from tqdm import tqdm
-    with tqdm(total=path.stat().st_size, unit="B", unit_scale=True, desc="reading",
-              leave=False, delay=1.0) as bar:
-        for ln in fh:
-            bar.update(len(ln))
-            yield ln
 
 
 def _assemble(p: Path, acc: dict[tuple[str, str], tuple[array, array, array]],

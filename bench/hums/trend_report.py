@@ -121,17 +121,22 @@ def write_actuator(fh: IO[str], r: TrendResult, first: bool) -> None:
 class StreamedJson:
     """The JSON of every estimate (module docstring), written actuator by actuator into a
     temporary file beside `path`, renamed to it when the block ends without an error (an
-    interrupted run leaves no half file and no earlier file overwritten). No-op for
-    None."""
+    interrupted run leaves no half file and no earlier file overwritten); ``-``: standard
+    output, as it comes. No-op for None."""
 
     def __init__(self, path: str | Path | None) -> None:
-        self.path = Path(path) if path else None
+        self.stdout = str(path) == "-"
+        self.path = Path(path) if path and not self.stdout else None
         self.fh: IO[str] | None = None
         self.tmp = ""
         self.n = 0
 
     def __enter__(self) -> StreamedJson:
-        if self.path is not None:
+        if self.stdout:
+            import sys
+            self.fh = sys.stdout
+            self.fh.write("{")
+        elif self.path is not None:
             import os
             import tempfile
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -148,6 +153,10 @@ class StreamedJson:
 
     def __exit__(self, exc_type: Any, *rest: Any) -> None:
         import os
+        if self.stdout and self.fh is not None:
+            self.fh.write("}\n" if exc_type is None else "\n")
+            self.fh.flush()
+            return
         if self.fh is None or self.path is None:
             return
         if exc_type is None:

@@ -31,18 +31,14 @@ row):
 
 from __future__ import annotations
 
-import bz2
 import codecs
 import csv
-import gzip
 import io
-import lzma
 import math
 import os
 import re
-import zlib
 from array import array
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from itertools import islice
 from pathlib import Path
@@ -51,14 +47,9 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.signals.textlines import COMPRESSED, TextLines
 
-COMPRESSED: dict[str, Any] = {".xz": lzma.open, ".gz": gzip.open, ".bz2": bz2.open}
 FINITE = "a value must be a finite number (leave a cell blank where there is no value)"
-MAX_LINE_BYTES = 1 << 20
-"""A table's text line longer than this is refused (no rig writes such rows; a binary
-file read as text would otherwise be one line of its whole size)."""
-BAR_BYTES = 16 << 20
-"""Tables at least this large show a progress bar while they are read."""
 FAST_BYTES = 32 << 20
 """Text tables up to this size as text are parsed at once by pyarrow (`_arrow_delimited`,
 a peak of a few times this size); larger ones are streamed line by line."""
@@ -232,12 +223,8 @@ def _read_delimited(path: Path, columns: list[str] | None, text: bool,
     """A CSV-like text file (the delimiter sniffed: , ; tab or space), streamed line by
     line into one float array per column read (with `text`: the cells, then a column
     of numbers or of text each)."""
-    with _TextLines(path, "table") as lines:
-        head = lines.head(4096)
-        try:
-            dialect: type[csv.Dialect] = csv.Sniffer().sniff(head, delimiters=",;\t ")
-        except csv.Error:
-            dialect = csv.excel
+    with TextLines(path, "table") as lines:
+        dialect = sniff_dialect(lines.head(4096))
         if (fast := _arrow_delimited(path, dialect.delimiter, columns, text, finite)):
             return fast
         rd = csv.reader(lines, dialect)
@@ -278,6 +265,15 @@ def _read_delimited(path: Path, columns: list[str] | None, text: bool,
         raise BenchError(f"{path}: the table has a header but no rows")
     out, strings = sink.columns(columns)
     return Table(out, Rows(path, np.frombuffer(numbers, dtype=np.int64)), {}, strings)
+
+
+def sniff_dialect(head: str, delimiters: str = ",;\t ") -> type[csv.Dialect]:
+    """The CSV dialect of a text table's first lines (`head`): its delimiter one of
+    `delimiters` (Python's csv.Sniffer), the comma where none shows."""
+    try:
+        return csv.Sniffer().sniff(head, delimiters=delimiters)
+    except csv.Error:
+        return csv.excel
 
 
 def _arrow_delimited(path: Path, delimiter: str, columns: list[str] | None, text: bool,
@@ -470,100 +466,6 @@ def read_rows(path: str | Path, columns: list[str]) -> tuple[dict[str, np.ndarra
     NaN, infinite refused), and where its rows are in the file (`Rows`)."""
     t = read_table(path, columns, formats=IMPORT_FORMATS, finite=True)
     return t.columns, t.rows
-
-
-class _TextLines:
-    """The lines of a text file (a table decompressed when it ends in .xz, .gz or .bz2)
-    as read, decoded as UTF-8 (a byte-order mark at its start dropped); a directory, an
-    unreadable, corrupt or non-UTF-8 file, a line over MAX_LINE_BYTES is a one-line
-    BenchError naming the file. `head` reads ahead without losing those lines."""
-
-    def __init__(self, path: Path, what: str) -> None:
-        self.path, self.what = path, what
-        self.offset = 0
-        self.ahead: list[str] = []
-        opener = COMPRESSED.get(path.suffix.lower()) if what == "table" else None
-        self.compressed = opener is not None
-        try:
-            self.raw = open(path, "rb")  # noqa: SIM115 - closed in __exit__
-        except IsADirectoryError:
-            raise BenchError(f"{path}: is a directory, not a {what} file") from None
-        except OSError as exc:
-            raise BenchError(f"{path}: cannot be read ({exc.strerror or exc})") from None
-        self.fh: Any = (io.BufferedReader(opener(self.raw, "rb"), 1 << 20) if opener is not None
-                        else self.raw)
-        self.size = os.fstat(self.raw.fileno()).st_size
-        self.bar: Any = None
-
-    def __enter__(self) -> _TextLines:
-        if self.size >= BAR_BYTES:
-            from tqdm import tqdm
-            self.bar = tqdm(total=self.size, unit="B", unit_scale=True,
-                            desc=f"reading {self.path.name}", leave=False)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if self.bar is not None:
-            self.bar.close()
-        self.fh.close()
-        self.raw.close()
-
-    def head(self, chars: int) -> str:
-        """The first lines up to about `chars` characters (kept for the iteration)."""
-        it = self._read()
-        n = 0
-        for line in it:
-            self.ahead.append(line)
-            n += len(line)
-            if n >= chars:
-                break
-        self._rest = it
-        return "".join(self.ahead)
-
-    def __iter__(self) -> Iterator[str]:
-        yield from self.ahead
-        self.ahead = []
-        yield from getattr(self, "_rest", None) or self._read()
-
-    def _read(self) -> Iterator[str]:
-        n = 0
-        while True:
-            raw = self._readline()
-            if not raw:
-                return
-            if self.offset == 0 and raw.startswith(codecs.BOM_UTF8):
-                raw, self.offset = raw[3:], 3
-            try:
-                line = raw.decode("utf-8")
-            except UnicodeDecodeError as exc:
-                raise BenchError(
-                    f"{self.path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset "
-                    f"{self.offset + exc.start}); a {self.what} file must be UTF-8 text"
-                    + (" (or Parquet)" if self.what == "table" else "")) from None
-            self.offset += len(raw)
-            n += 1
-            if self.bar is not None and n % 65536 == 0:
-                self.bar.update(self.raw.tell() - self.bar.n)
-            yield line
-
-    def _readline(self) -> bytes:
-        try:
-            raw: bytes = self.fh.readline(MAX_LINE_BYTES + 1)
-        except (OSError, EOFError, ValueError, lzma.LZMAError, zlib.error) as exc:
-            if not self.compressed:
-                raise BenchError(f"{self.path}: cannot be read ({exc})") from None
-            raise BenchError(f"{self.path}: cannot decompress ({type(exc).__name__}: "
-                             f"{exc}); is it a complete {self.path.suffix} file?") from None
-        if len(raw) > MAX_LINE_BYTES:
-            raise BenchError(f"{self.path}: a line longer than {MAX_LINE_BYTES} bytes at "
-                             f"offset {self.offset}: not a {self.what} of text rows")
-        return raw
-
-
-def read_text(path: Path, what: str) -> str:
-    """A (small) text file's content, by the rules of `_TextLines`."""
-    with _TextLines(path, what) as lines:
-        return "".join(lines)
 
 
 def _row_values(path: Path, lineno: int, row: list[str], idx: list[int],

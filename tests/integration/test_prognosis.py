@@ -167,7 +167,7 @@ def test_a_calibration_of_the_wrong_shape_is_one_line(tmp_path, capsys, change, 
     f.write_bytes(b"\x91\xb6garbage")
     assert main(["hums", "prognose", "--trends", str(f), "--calibration", str(cf)]) == 2
     assert capsys.readouterr().err.strip() == (f"error: {f}: not UTF-8 text (byte 0x91 at "
-                                               "offset 0): not a trends CSV")
+                                               "offset 0); a trends file must be UTF-8 text")
 
 
 def test_bench_hums_prognose_on_a_trends_csv(tmp_path, capsys):

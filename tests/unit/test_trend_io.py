@@ -33,6 +33,50 @@ def test_dates_wide_form_and_unit_in_the_header(tmp_path):
     assert any("1 missing value" in n for n in tab.notes)
 
 
+@pytest.mark.parametrize("name, text", [
+    ("rig.tsv", "day\tcurrent [A]\n0\t2.1\n1\t2.2\n2\t2.15\n"),
+    ("rig.csv", "Test date;current [A]\n0;2,1\n1;2,2\n2;2,15\n"),
+    ("rig.txt", "day;current [A]\n0;2.1\n1;2.2\n2;2.15\n"),
+])
+def test_tab_and_semicolon_tables_with_a_decimal_comma(tmp_path, name, text):
+    """Before: only the comma delimited a trends file, so a rig's tab-separated export
+    or a spreadsheet's semicolon CSV with decimal commas was 'no time column' or 'no
+    index column'."""
+    (tr,) = read_table(_write(tmp_path / name, text)).trends
+    assert (tr.actuator, tr.index, tr.unit) == ("rig", "current", "A")
+    assert tr.t.tolist() == [0.0, 1.0, 2.0]
+    assert tr.y.tolist() == [2.1, 2.2, 2.15]
+
+
+def test_a_comma_csv_keeps_commas_out_of_its_numbers(tmp_path):
+    f = _write(tmp_path / "rig.csv", 'day,current\n0,"2,1"\n')
+    with pytest.raises(BenchError, match=r"rig.csv:2: value '2,1' is not a number"):
+        read_table(f)
+
+
+def test_a_compressed_file_and_standard_input(tmp_path, monkeypatch, capsys):
+    """Before: `--trends -` was 'no trends file -' and a .csv.xz was not UTF-8 text."""
+    import io
+    import lzma
+    text = "date,current [A]\n" + "".join(f"2024-03-{d:02d},{2 + 0.01 * d}\n"
+                                          for d in range(1, 13))
+    f = tmp_path / "rig7.csv.xz"
+    f.write_bytes(lzma.compress(text.encode()))
+    (tr,) = read_table(f).trends
+    assert (tr.actuator, len(tr.t)) == ("rig7", 12)
+    monkeypatch.setattr("sys.stdin", io.StringIO(text))
+    assert main(["hums", "prognose", "--trends", "-", "--failure", "2x"]) == 0
+    out = capsys.readouterr().out
+    assert "stdin: current [A], 12 tests, 2024-03-01 to 2024-03-12" in out
+    # a pipe on both sides: the JSON alone on standard output (before: a file named "-")
+    monkeypatch.setattr("sys.stdin", io.StringIO(text))
+    monkeypatch.chdir(tmp_path)
+    assert main(["hums", "prognose", "--trends", "-", "--failure", "2x", "--json", "-"]) == 0
+    got = capsys.readouterr()
+    assert len(json.loads(got.out)["stdin"]) == 12
+    assert "12 tests" in got.err and not (tmp_path / "-").exists()
+
+
 def test_a_time_column_by_another_name(tmp_path):
     f = _write(tmp_path / "rig.csv", "Test Date,RMS current (A),note\n2024-03-01,2.1,3\n"
                "2024-03-02,2.2,4\n")
@@ -186,9 +230,11 @@ def test_prognose_shows_its_progress_in_tests_and_actuators(tmp_path, capsys, mo
     assert main(["hums", "prognose", "--trends", str(f), "--calibration", str(cf)]) == 0
     assert ("prognosis", "actuator", 2) in made
     g = _trend_file(tmp_path)
+    from bench.signals import textlines
+    monkeypatch.setattr(textlines, "BAR_BYTES", 1)     # the reading bar of a large file
     assert main(["hums", "prognose", "--trends", str(g), "--failure", "2x"]) == 0
     assert ("prognosis", "test", 12) in made
-    assert ("reading", "B", g.stat().st_size) in made
+    assert (f"reading {g.name}", "B", g.stat().st_size) in made
 
 
 def test_the_run_hands_each_chunk_over_and_keeps_the_order(monkeypatch):
