@@ -26,6 +26,9 @@ def add_prognose(s: argparse._SubParsersAction) -> None:
                    help="the trends: a time (or date) column and one column per index, or "
                    "the long form time, actuator, index, value (optional unit); comma, "
                    "semicolon or tab delimited, also compressed; - reads standard input")
+    q.add_argument("--date-format", metavar="FMT",
+                   help="the time column's dates in this strptime layout, e.g. '%%d/%%m/%%Y' "
+                   "(default: ISO 8601 dates, or numbers)")
     q.add_argument("--index", metavar="NAME", help="the index to prognose when the file has "
                    "several")
     q.add_argument("--healthy-tests", metavar="N|DATE",
@@ -76,7 +79,7 @@ def run_prognose(args: argparse.Namespace) -> int:
     if args.calibration and args.model != "trend":
         from bench.hums.prognosis_trends import load_calibration
         load_calibration(args.calibration)      # a given calibration's error comes first
-    table = read_table(args.trends, progress=True)
+    table = read_table(args.trends, progress=True, date_format=args.date_format)
     for n in table.notes:
         print(f"note: {n}", file=sys.stderr)
     path, cal, why = choose_path(args, table)

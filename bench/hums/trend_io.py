@@ -95,9 +95,11 @@ class Table:
 class _Times:
     """Parses the time column: all numbers or all ISO dates (cached per distinct text)."""
 
-    def __init__(self, path: Path, comma: bool = False) -> None:
+    def __init__(self, path: Path, comma: bool = False, date_format: str | None = None
+                 ) -> None:
         self.path = path
         self.comma = comma
+        self.date_format = date_format
         self.kind: str | None = None       # "number" or "date"
         self.aware: bool | None = None
         self.cache: dict[str, float] = {}
@@ -113,6 +115,8 @@ class _Times:
     def _parse(self, s: str, line: int) -> float:
         where = f"{self.path}:{line}"
         try:
+            if self.date_format:
+                raise ValueError(s)             # a stated format: the times are dates
             v, kind = _number(s, self.comma), "number"
         except ValueError:
             v, kind = self._date(s, where), "date"
@@ -127,12 +131,17 @@ class _Times:
     def _date(self, s: str, where: str) -> float:
         """An ISO date or date-time in days since 1970 (naive ones read as UTC)."""
         try:
-            d = datetime.fromisoformat(s)
+            d = (datetime.strptime(s, self.date_format) if self.date_format
+                 else datetime.fromisoformat(s))
         except ValueError:
             d = None
+        if d is None and self.date_format:
+            raise BenchError(f"{where}: time {s!r} is not a date of --date-format "
+                             f"{self.date_format!r}")
         if d is None:
             raise BenchError(f"{where}: time {s!r} is neither a number nor an ISO date "
-                             "(2024-03-01, 2024-03-01T08:00)")
+                             "(2024-03-01, 2024-03-01T08:00; another layout: --date-format, "
+                             "e.g. '%d/%m/%Y')")
         aware = d.tzinfo is not None
         if self.aware is not None and aware != self.aware:
             raise BenchError(f"{where}: time {s!r} mixes dates with and without a time zone")
@@ -184,20 +193,22 @@ def _time_column(path: Path, cols: dict[str, int]) -> int:
                      f"{', '.join(TIME_NAMES)}, or holding 'date' or 'time')")
 
 
-def read_table(path: str | Path, progress: bool = False) -> Table:
+def read_table(path: str | Path, progress: bool = False, date_format: str | None = None
+               ) -> Table:
     """The trends of a CSV (module docstring); ``-`` reads standard input. `progress`:
-    a bar in bytes on a large file (`bench.signals.textlines.TextLines`)."""
+    a bar in bytes on a large file (`bench.signals.textlines.TextLines`); `date_format`:
+    the time column's dates by this `strptime` format (``%d/%m/%Y``) instead of ISO."""
     from bench.signals.textlines import TextLines
     if str(path) == STDIN:
         with _StdinLines() as lines:
-            return _read(Path("<stdin>"), lines, "stdin")
+            return _read(Path("<stdin>"), lines, "stdin", date_format)
     p = Path(path)
     if not p.is_file():
         raise BenchError(f"no trends file {p}")
     from bench.signals.textlines import COMPRESSED
     stem = Path(p.stem).stem if p.suffix.lower() in COMPRESSED else p.stem
     with TextLines(p, "trends", compressed=True, bar=progress) as lines:
-        return _read(p, lines, stem)
+        return _read(p, lines, stem, date_format)
 
 
 class _StdinLines:
@@ -272,7 +283,7 @@ def _layout(p: Path, names: list[str]) -> _Layout:
     return _Layout(len(names), it, ia, wide=wide)
 
 
-def _read(p: Path, lines: Any, stem: str) -> Table:
+def _read(p: Path, lines: Any, stem: str, date_format: str | None = None) -> Table:
     """The rows of the open text `lines` into a `Table` (the delimiter sniffed among
     comma, semicolon and tab; with another than the comma, a decimal comma is read as a
     point); `stem`: the actuator's name when the file has no actuator column."""
@@ -284,7 +295,7 @@ def _read(p: Path, lines: Any, stem: str) -> Table:
     if not names:
         raise BenchError(f"{p}: empty file (a header row and one row per test)")
     lay = _layout(p, names)
-    times = _Times(p, comma)
+    times = _Times(p, comma, date_format)
     acc: dict[tuple[str, str], tuple[array, array, array]] = {}
     units: dict[tuple[str, str], tuple[str, int]] = {}
     missing = 0

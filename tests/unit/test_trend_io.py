@@ -48,6 +48,18 @@ def test_tab_and_semicolon_tables_with_a_decimal_comma(tmp_path, name, text):
     assert tr.y.tolist() == [2.1, 2.2, 2.15]
 
 
+def test_dates_of_a_stated_layout(tmp_path):
+    """Before: a spreadsheet's day-first dates could only be refused (not ISO)."""
+    f = _write(tmp_path / "rig.csv", "date,current [A]\n01/03/2024,2.1\n03/03/2024,2.2\n")
+    with pytest.raises(BenchError, match=r"rig.csv:2: .*nor an ISO date.*--date-format"):
+        read_table(f)
+    (tr,) = read_table(f, date_format="%d/%m/%Y").trends
+    assert tr.t.tolist() == [0.0, 2.0] and tr.date(2.0) == "2024-03-03"
+    with pytest.raises(BenchError, match=r"rig.csv:2: time '01/03/2024' is not a date of "
+                                         r"--date-format '%Y-%m-%d'"):
+        read_table(f, date_format="%Y-%m-%d")
+
+
 def test_a_comma_csv_keeps_commas_out_of_its_numbers(tmp_path):
     f = _write(tmp_path / "rig.csv", 'day,current\n0,"2,1"\n')
     with pytest.raises(BenchError, match=r"rig.csv:2: value '2,1' is not a number"):
