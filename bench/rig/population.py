@@ -135,16 +135,6 @@ def threshold_of(sp: Spread, alpha: float, null: tuple[str, int]) -> float:
     return max(up, 0.0) ** 3 if kind == "chi2" else math.exp(up)
 
 
-def bound_at(key: str, sp: Spread, alpha: float) -> float:
-    """`threshold_of` of feature `key` (its null from `NULLS`)."""
-    return threshold_of(sp, alpha, NULLS.get(key, ("log", 0)))
-
-
-def transformed(key: str, v: np.ndarray) -> np.ndarray:
-    """Feature `key`'s values on the scale its spread is modelled on."""
-    return _transform(NULLS.get(key, ("log", 0))[0], v)
-
-
 def spread_bound(values: list[float], runs: list[int], alpha: float,
                  null: tuple[str, int]) -> tuple[float, Spread]:
     """The threshold of one feature of one load from its held-out healthy values
@@ -231,12 +221,9 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
     """Per load the thresholds of its features from the loads' leave-one-run-out scores,
     the spreads within and between runs pooled over the loads (`spread.pooled`); a
     feature a load's cycles cannot give (periodic without the lead) gets none."""
-    from bench.rig.level import level_of
     usable = [k for k in FEATURES if k != PLAY and all(
         np.isfinite(lo.scores[k]).all() and lo.scores[k] for lo in loros.values())]
-    flag = [k for k in usable if k not in NAMING_ONLY]
-    per = alpha / max(len(flag), 1)
-    level = level_of(loros, flag, alpha, per, bound_at, transformed)   # alpha / n unless set
+    per = alpha / max(len([k for k in usable if k not in NAMING_ONLY]), 1)
     thr: dict[float, dict[str, float]] = {ld: {} for ld in loros}
     spreads: dict[float, dict[str, Spread]] = {ld: {} for ld in loros}
     for k in usable:
@@ -248,7 +235,7 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
                 raise BenchError(f"load {ld:g}: a threshold needs at least 3 held-out "
                                  f"healthy scores, got {sp.cycles}")
             spreads[ld][k] = sp
-            thr[ld][k] = threshold_of(sp, level if k in flag else per, null)
+            thr[ld][k] = threshold_of(sp, per, null)
     if all(k in usable for k in PLAY_OF):
         _play(loros, thr, spreads, per)
     return {ld: Calibration(ld, lo.runs, thr[ld], lo.scores, alpha, lo.of_run, spreads[ld],
