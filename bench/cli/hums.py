@@ -118,7 +118,7 @@ def _add_report(s: argparse._SubParsersAction) -> None:
     q = opt.add_command(s, "report", "HTML health report of logs", """
         A self-contained HTML report (figures, indexes, verdict, RUL with band) of candump logs
         (decoded through the DBC) or trace files (.npz, .csv, .parquet). Short gaps in a log
-        (lost SYNCs, missing frames, NaN rows: up to 5 samples in a row, 2 %% in all) are
+        (lost SYNCs, missing frames, NaN rows: up to 5 samples in a row, 2 % in all) are
         bridged and reported; longer ones make the indexes that need the signal 'not available'.
         A log whose verdict index (Ci in position mode, Cp in speed mode) is not available, that
         is shorter than 0.1 s or in which nothing was commanded gets the verdict UNKNOWN. Exit

@@ -196,13 +196,14 @@ def _prognose_own(args: argparse.Namespace, table: Any) -> int:
     for tr in trends:              # every stated level checked before any work
         TP.check(tr, s)
     truth = _truths(args.truth, trends)
+    names = [tr.actuator for tr in trends]
     lines: list[str] = []
     said: list[str] = []
     figures: list[Path] = []
     with TR.StreamedJson(args.json) as out:
         def on_result(r: Any) -> None:
             out.add(r)
-            lines.append(TR.table([r]).split("\n", 1)[1])
+            lines.append(TR.table([r], names).split("\n", 1)[1])
             if len(lines) <= 3:
                 said.extend(TR.statements(r, args.time_unit))
             if args.figures and len(lines) <= TR.MAX_FIGURES:
@@ -210,7 +211,7 @@ def _prognose_own(args: argparse.Namespace, table: Any) -> int:
                                          args.time_unit))
         run(trends, s, on_result, args.workers)
     out_fh = sys.stderr if args.json == "-" else sys.stdout   # the JSON alone on stdout
-    print(TR.table([]), file=out_fh)
+    print(TR.table([], names), file=out_fh)
     print("\n".join(lines), file=out_fh)
     print("\n".join(said), file=out_fh)
     if len(trends) > 3:

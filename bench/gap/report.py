@@ -16,7 +16,7 @@ import numpy as np
 from bench.gap import effects as E
 from bench.gap import resim as R
 from bench.gap.localise import BANDS, PATHS, REGIMES
-from bench.gap.summary import fmt_params, text
+from bench.gap.summary import f0_text, fmt_params, shrink_text, text
 
 SIGNAL_UNITS = {"current_a": (1.0, "A"), "motor_speed_rad_s": (1.0, "rad/s"),
                 "position_m": (1e3, "mm"), "encoder_position_m": (1e3, "mm")}
@@ -56,7 +56,7 @@ def write_report(res: Any, js: dict[str, Any], out: Path, doc: dict[str, Any]) -
     _bars(axes[0, 0], {s: {r: sig[s]["by_regime"][r]["energy_share"] for r in REGIMES}
                        for s in sig}, list(REGIMES), "signals: residual by regime")
     _bars(axes[0, 1], {s: sig[s]["by_band"] for s in sig}, [b[0] for b in BANDS],
-          f"signals: residual by band (f0 = {loc.get('fundamental_hz') or float('nan'):.3g} Hz)")
+          f"signals: residual by band ({f0_text(loc.get('fundamental_hz'))})")
     paths = {k: v for k, v in loc["paths"].items() if v.get("available")}
     if paths:
         _bars(axes[1, 0], {k: {r: v["by_regime"][r]["energy_share"] for r in REGIMES}
@@ -154,15 +154,24 @@ def _shade(ax, t: np.ndarray, reg: np.ndarray) -> None:
         ax.axvspan(t[a], t[min(b, len(t) - 1)], color=REGIME_COLOURS[name], alpha=0.15, lw=0)
 
 
-def _shrink(pct: float | None) -> float | None:
-    return pct if pct is None else round(pct, 1)
-
-
 def _limit_cycle(js: dict[str, Any]) -> list[Any]:
     """The limit-cycle note (bench.gap.limitcycle) as a paragraph under the verdict."""
     from bench.reports import Paragraph, strong
     lc = js["localisation"].get("limit_cycle")
     return [Paragraph(strong("Limit cycle:") + " " + lc["note"])] if lc else []
+
+
+def _size_notes(js: dict[str, Any]) -> list[Any]:
+    """What a verdict's factor means where it is not a fitted parameter (friction: the
+    work ratio, beside the ranking's scale parameter), as a note under the verdict."""
+    from bench.reports import Paragraph
+    eff = (js.get("finding") or {}).get("effects") or []
+    notes = [f"{e['line'].split(' (')[0]}: {e['size']['how']}" for e in eff
+             if (e.get("size") or {}).get("how") and e.get("line")]
+    if not notes:
+        return []
+    return [Paragraph("; ".join(notes) + ". The fitted parameters are in the ranking.",
+                      role="note")]
 
 
 def ranking_table(js: dict[str, Any]) -> Any:
@@ -172,7 +181,7 @@ def ranking_table(js: dict[str, Any]) -> Any:
     rows = []
     for i, c in enumerate(js["ranking"], 1):
         row = [str(c.get("rank", i)), c["effect"] + (" (chosen)" if c.get("chosen") else ""),
-               fmt_params(c["params"]), str(_shrink(c["heldout_shrink_pct"])),
+               fmt_params(c["params"]), shrink_text(c["heldout_shrink_pct"]),
                f"{c['gap_before']['normalised']:.3g} \u2192 {c['gap_after']['normalised']:.3g}",
                f"{c['score']['bic']:.1f}", "; ".join(c.get("suspect") or [])]
         rows.append([strong(x) for x in row] if c.get("chosen") else row)
@@ -192,7 +201,7 @@ def _html(js: dict[str, Any], figs: list[tuple[str, str]]) -> str:
         render_document,
     )
     finding = (js.get("finding") or {}).get("line") or js["verdict"]
-    doc = Document([Heading("Verdict: " + finding), *_limit_cycle(js),
+    doc = Document([Heading("Verdict: " + finding), *_size_notes(js), *_limit_cycle(js),
                     Preformatted(text(js)), Heading("Ranking by BIC, lower is better"),
                     ranking_table(js)])
     for f, cap in figs:

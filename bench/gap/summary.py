@@ -62,6 +62,17 @@ def fmt_params(params: dict[str, Any], names: bool = True) -> str:
     return "; ".join(parts)
 
 
+def f0_text(hz: float | None) -> str:
+    """'f0 = 2 Hz', or 'no fundamental' when the log has none (a step, a ramp)."""
+    return f"f0 = {hz:.3g} Hz" if hz is not None and math.isfinite(hz) else "no fundamental"
+
+
+def shrink_text(pct: float | None) -> str:
+    """A held-out shrink in per cent to one decimal ('n/a' where not measured; a
+    shrink that rounds to zero from below reads 0.0, not -0.0)."""
+    return "n/a" if pct is None else f"{round(pct, 1) + 0.0:.1f}"
+
+
 def _shares(d: dict[str, float], keys: tuple[str, ...] | list[str]) -> str:
     return "  ".join(f"{k} {100 * (d.get(k) or 0.0):.0f}%" for k in keys)
 
@@ -110,7 +121,7 @@ def text(js: dict[str, Any], top: int = 8) -> str:
     main = max(sigs, key=lambda s: sigs[s].get("share", 0))
     reg = {r: sigs[main]["by_regime"][r]["energy_share"] for r in REGIMES}
     out.append(f"  regimes  ({main}) " + _shares(reg, REGIMES))
-    out.append(f"  bands    ({main}, f0 = {loc.get('fundamental_hz') or float('nan'):.3g} Hz) "
+    out.append(f"  bands    ({main}, {f0_text(loc.get('fundamental_hz'))}) "
                + _shares(sigs[main]["by_band"], [b[0] for b in BANDS]))
     out += _ranking_lines(js, top)
     line = _verdict_line(js)
@@ -137,7 +148,7 @@ def _ranking_lines(js: dict[str, Any], top: int) -> list[str]:
     shown += [c for c in rk[top:] if c.get("chosen")]
     for c in shown:
         sh = c["heldout_shrink_pct"]
-        sh_s = f"{sh:6.1f} %" if sh is not None else "   n/a  "
+        sh_s = f"{shrink_text(sh):>6s} %" if sh is not None else "   n/a  "
         mark = "  <- chosen" if c.get("chosen") else ""
         flags = "  (suspect)" if c.get("suspect") else ""
         out.append(f"  {c.get('rank', 0):2d}. {c['effect']:<28s} BIC {c['score']['bic']:9.1f}"

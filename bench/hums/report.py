@@ -243,12 +243,12 @@ def _figures(a: LogAnalysis) -> list[tuple[str, str]]:
         ax[0].plot(t[show], 1e3 * tr["position_m"][show], "k", lw=1.5, label="log (LVDT)")
         ax[0].plot(t[show], 1e3 * nm["position_m"][show], "C0--", label="nominal model")
     ax[0].set(title="nut position", xlabel="t (s)", ylabel="mm")
-    ax[0].legend(fontsize=8)
+    legend_above_data(ax[0], ncol=2, fontsize=8)
     if "current_a" in tr:
         ax[1].plot(t[show], tr["current_a"][show], "k", lw=1, label="log")
         ax[1].plot(t[show], nm["current_a"][show], "C0--", label="nominal model")
     ax[1].set(title="motor current", xlabel="t (s)", ylabel="A")
-    ax[1].legend(fontsize=8)
+    legend_above_data(ax[1], ncol=2, fontsize=8)
     out.append(("Measured signals against the nominal model"
                 + (" (first 4 s)" if show.stop < n else ""), png_base64(fig)))
     if "current_a" in tr and np.isfinite(tr["current_a"]).all() and n >= 64:
@@ -266,9 +266,22 @@ def _figures(a: LogAnalysis) -> list[tuple[str, str]]:
     pt = a.period_table
     if pt and len(pt["ci"]) >= 2:
         out.append(("Trend per command period", png_base64(_trend_figure(a))))
-    if a.fused is not None and a.fused[0].predictions:
+    if a.fused is not None and any(np.isfinite(p.band()[0]) for p in a.fused[0].predictions):
         out.append(("Remaining useful life (fused predictor)", png_base64(_rul_figure(a))))
     return out
+
+
+def legend_above_data(ax: Any, ncol: int, fontsize: float = 7) -> None:
+    """The legend in a band added above the data (the y range grown upwards to make
+    room), so no entry hides a trace or a level line."""
+    handles, _ = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    rows = -(-len(handles) // ncol)
+    share = min(0.5, 0.06 + 0.075 * rows * fontsize / 7)  # of the axes' height
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, lo + (hi - lo) / (1.0 - share))
+    ax.legend(fontsize=fontsize, ncol=ncol, loc="upper center", framealpha=0.9)
 
 
 def _trend_figure(a: LogAnalysis) -> Any:
@@ -288,7 +301,7 @@ def _trend_figure(a: LogAnalysis) -> Any:
                         (R.FAILURE, "C3", "failure")):
         ax[0].axhline(lv, color=c, ls="--", lw=1, label=f"{name} {lv}")
     ax[0].set(title="current fidelity per command period", xlabel="t (s)")
-    ax[0].legend(fontsize=7, ncol=2)
+    legend_above_data(ax[0], ncol=3)
     ax[1].plot(te, 1e6 * pt["lost_motion_m"], ".", ms=3, label="lost motion (um)")
     if a.fused is not None:
         fr, cal, _ = a.fused
@@ -300,7 +313,7 @@ def _trend_figure(a: LogAnalysis) -> Any:
                 (cal.fail_um, "C3", "--", f"failure: Ci {R.FAILURE} at {cal.fail_um:.0f} um")):
             ax[1].axhline(b, color=c, ls=ls, lw=1, label=name)
     ax[1].set(title="backlash indicators per period", xlabel="t (s)", ylabel="um")
-    ax[1].legend(fontsize=7)
+    legend_above_data(ax[1], ncol=2)
     return fig
 
 
@@ -322,7 +335,8 @@ def _rul_figure(a: LogAnalysis) -> Any:
     ax.fill_between(tp, np.minimum(lo, top), np.minimum(hi, top), color="C1", alpha=0.25,
                     lw=0, label="90 % band")
     ok = np.isfinite(med)
-    ax.plot(tp, np.where(ok, med, np.nan), "C1-o", ms=3, label="RUL, median")
+    ax.plot(tp, np.where(ok, med, np.nan), "C1-o", ms=3,
+            label="RUL, median" if ok.any() else None)
     if not ok.all():
         ax.plot(tp[~ok], np.full((~ok).sum(), top), "v", color="C3", ms=5,
                 label="median: no failure predicted")
@@ -375,8 +389,8 @@ def _index_rows(ix: I.Indexes) -> list[list[str]]:
         ("Ci", judged_ci(ix.ci, ix.ci_harmonic), 1.0, -3, "judged: " + _ci_reading(ix)),
         ("Ci broadband", ix.ci, 1.0, -3, "eq. 6.6, whole spectrum"),
         ("peak ratio", ix.peak_ratio, 1.0, 3, "eq. 6.7"),
-        ("lost motion (um)", ix.lost_motion_m, 1e6, 3, ""),
-        ("nominal lost motion (um)", ix.nominal_lost_motion_m, 1e6, 2, ""),
+        ("lost motion (um)", ix.lost_motion_m, 1e6, -1, ""),
+        ("nominal lost motion (um)", ix.nominal_lost_motion_m, 1e6, -1, ""),
         ("harmonic distortion", ix.harmonic_distortion, 1.0, 3, ""),
         ("nominal harmonic distortion", ix.nominal_harmonic_distortion, 1.0, 3, ""),
         ("friction current (A)", ix.friction_current_a, 1.0, 3, ""),
@@ -401,7 +415,7 @@ def render(analyses: list[LogAnalysis]) -> str:
     summary = Table(["log", "command", "duration (s)", "Ci", "Cp", "lost motion (um)",
                      "verdict", "RUL (s) [90 % band]"],
                     [[r["log"], r["command"], f"{r['duration_s']:.1f}", _fmt(r["ci"], digits=-3),
-                      _fmt(r["cp"], digits=4), _fmt(r["lost_motion_um"]), r["verdict"],
+                      _fmt(r["cp"], digits=4), _fmt(r["lost_motion_um"], digits=-1), r["verdict"],
                       _rul_text(a, short=True)]
                      for r, a in zip(summary_rows(analyses), analyses, strict=True)],
                     numeric=[False, False, True, True, True, True, False, False])

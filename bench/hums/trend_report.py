@@ -41,9 +41,12 @@ def _num(v: float, f: str = "{:.1f}") -> str:
     return f.format(v)
 
 
-def table(results: list[TrendResult]) -> str:
-    """One line per actuator: its last estimate, the detection and the peers' days."""
-    lines = [f"{'actuator':>12s} {'tests':>5s} {'healthy':>9s} {'level':>9s} "
+def table(results: list[TrendResult], names: list[str] | None = None) -> str:
+    """One line per actuator: its last estimate, the detection and the peers' days. The
+    name column is as wide as the longest of `names` (default: the results'), never cut."""
+    w = max([12] + [len(n) for n in (names if names is not None else
+                                     [r.trend.actuator for r in results])])
+    lines = [f"{'actuator':>{w}s} {'tests':>5s} {'healthy':>9s} {'level':>9s} "
              f"{'detected':>10s} {'RUL p5':>8s} {'p50':>8s} {'p95':>8s} {'warning':>7s} "
              f"{'z-score':>10s} {'exp. cross':>10s}"]
     for r in results:
@@ -54,7 +57,7 @@ def table(results: list[TrendResult]) -> str:
         cross = c["exp_cross_t"][k]
         p95 = (">" if c["rul_open"][k] else "") + _num(c["rul_p95"][k])
         lines.append(
-            f"{r.trend.actuator[:12]:>12s} {k + 1:5d} {h:>9s} {_num(c['level_p50'][k], '{:.4g}'):>9s} "
+            f"{r.trend.actuator:>{w}s} {k + 1:5d} {h:>9s} {_num(c['level_p50'][k], '{:.4g}'):>9s} "
             f"{_day(r, 'detected_t'):>10s} {_num(c['rul_p5'][k]):>8s} "
             f"{_num(c['rul_p50'][k]):>8s} {p95:>8s} {warned:>7s} "
             f"{_day(r, 'z_alarm_t'):>10s} "

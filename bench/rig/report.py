@@ -25,7 +25,7 @@ def residual_figure(study: Study, path: Path) -> Path:
     stage, with each stage's located position (median) marked."""
     from matplotlib.figure import Figure
     loads = study.loads
-    fig = Figure(figsize=(12, 3.2 * len(loads)))
+    fig = Figure(figsize=(12, 3.2 * len(loads) + 0.6), layout="constrained")
     axes = fig.subplots(len(loads), 2, squeeze=False)
     faults = study.fault_conditions
     picked = sorted({0, len(faults) // 2, len(faults) - 1}) if faults else []
@@ -47,10 +47,9 @@ def residual_figure(study: Study, path: Path) -> Path:
                 where = row["stages"].get(cond, {}).get("position_mm", float("nan"))
                 if not healthy and math.isfinite(where):
                     ax.axvline(where, color=color, ls=":", lw=0.8)
-            _stroke_panel(ax, f"load {load:g}, {stroke}-stroke: mean current residual",
-                          "residual (baseline sd)")
-        axes[i][1].legend(fontsize=6, ncol=2)
-    fig.tight_layout()
+            _stroke_panel(ax, f"load {study.baseline.load_text(load)}, {stroke}-stroke: "
+                          "mean current residual", "residual (baseline sd)")
+    figure_legend(fig, axes, ncol=4)
     fig.savefig(path, dpi=72)
     return path
 
@@ -64,6 +63,18 @@ def _stroke_panel(ax: Any, title: str, ylabel: str, fontsize: float | None = Non
     ax.grid(alpha=0.3)
 
 
+def figure_legend(fig: Any, axes: Any, ncol: int) -> None:
+    """One legend for every panel (the same conditions in each), under the panels, in a
+    size that reads at the page's scale: not one per row on top of the curves."""
+    seen: dict[str, Any] = {}
+    for ax in np.ravel(axes):
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            seen.setdefault(lab, h)
+    if seen:
+        fig.legend(list(seen.values()), list(seen), loc="outside lower center", ncol=ncol,
+                   fontsize=9, frameon=False)
+
+
 def location_figure(study: Study, path: Path) -> Path:
     """Is there a place? Per load and stroke, every condition's mean current residual
     (baseline sd) against measured position, less its median over the stroke and
@@ -74,7 +85,7 @@ def location_figure(study: Study, path: Path) -> Path:
     no fault at all."""
     from matplotlib.figure import Figure
     loads = study.loads
-    fig = Figure(figsize=(12, 3.2 * len(loads)))
+    fig = Figure(figsize=(12, 3.2 * len(loads) + 0.9), layout="constrained")
     axes = fig.subplots(len(loads), 2, squeeze=False)
     conds = [study.healthy_condition] + study.fault_conditions
     cmap = __import__("matplotlib").colormaps["viridis"]
@@ -95,10 +106,10 @@ def location_figure(study: Study, path: Path) -> Path:
                         label=f"{cond} (held-out runs)" if healthy else
                         study.condition_label(cond))
             span = f"one lead ({lead:g} mm)" if lead else "5 samples"
-            _stroke_panel(ax, f"load {load:g}, {stroke}-stroke: mean residual over {span}",
+            _stroke_panel(ax, f"load {study.baseline.load_text(load)}, {stroke}-stroke: "
+                          f"mean residual over {span}",
                           "residual less its median (baseline sd)", fontsize=9)
-        axes[i][1].legend(fontsize=6, ncol=3)
-    fig.tight_layout()
+    figure_legend(fig, axes, ncol=4)
     fig.savefig(path, dpi=72)
     return path
 
@@ -112,7 +123,7 @@ def detection_figure(study: Study, path: Path) -> Path:
     """Detection rate per stage and load, the bench's detector beside the z-score."""
     from matplotlib.figure import Figure
     conds = study.fault_conditions
-    fig = Figure(figsize=(10, 4.0))
+    fig = Figure(figsize=(10, 4.6), layout="constrained")
     ax = fig.subplots()
     if not conds:                     # healthy runs only: a false-alarm check
         ax.text(0.5, 0.5, NO_FAULT, ha="center", va="center", wrap=True)
@@ -126,7 +137,8 @@ def detection_figure(study: Study, path: Path) -> Path:
         ours = [st.get(c, {}).get("rate", np.nan) for c in conds]
         zs = [st.get(c, {}).get("zscore_rate", np.nan) for c in conds]
         xs = x + (i - (len(study.loads) - 1) / 2) * width
-        bars = ax.bar(xs, ours, width, label=f"baseline features, load {load:g}")
+        bars = ax.bar(xs, ours, width,
+                      label=f"baseline features, load {study.baseline.load_text(load)}")
         rng = [split_range(study, f"{load:g}", c) for c in conds]
         lo = [r["min"] if r else np.nan for r in rng]
         hi = [r["max"] if r else np.nan for r in rng]
@@ -144,9 +156,9 @@ def detection_figure(study: Study, path: Path) -> Path:
     ax.set_xlabel("stage (black ticks: plain z-score at the same false-alarm rate)")
     ax.set_ylabel("cycles flagged")
     ax.set_ylim(0, 1.05)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=4)
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=3,
+               fontsize=8, frameon=False)
     ax.grid(alpha=0.3, axis="y")
-    fig.tight_layout()
     fig.savefig(path, dpi=90)
     return path
 

@@ -123,3 +123,22 @@ def test_rul_figure_has_a_median_and_a_band_upright(noisy_logs, monkeypatch):
     p = a.fused[0].predictions[-1]
     assert "does not grow measurably" in text
     assert f"within {p.band()[0] - p.t_pred_s:.0f} s" in text
+
+
+def test_no_rul_figure_when_no_prediction_reaches_failure(noisy_logs, monkeypatch):
+    """Every fit short of failure (all inf): the words say so; no empty frame whose
+    axis reads 0 to 1 s with only markers at its top."""
+    from matplotlib.figure import Figure
+    a = HR.analyse(load_trace(noisy_logs / "worn.npz"), "worn.npz", rul=False)
+    b = [10.0 * k for k in range(11)]
+    cal = F.Calibration(b, {}, [1 - 0.0046 * x for x in b], {}, {}, {}, 0.98, 0.8, 89.7)
+    est = np.full(len(a.period_table["ci"]), 50.0)
+    never = [Prediction(t, np.full(200, np.inf)) for t in (7.0, 8.0, 9.0, 10.0)]
+    a.fused = (F.FusedResult(est, est, 0.5, never), cal, np.arange(len(est)))
+    drawn: list = []
+    monkeypatch.setattr(Figure, "savefig", lambda self, *x, **k: drawn.append(self))
+    page = HR.render([a])
+    assert drawn and not any("remaining useful life" in ax.get_title()
+                             for f in drawn for ax in f.axes)
+    assert "Remaining useful life (fused predictor)" not in page
+    assert HR._rul_text(a).startswith("no failure predicted at t = 10.0 s")

@@ -218,3 +218,15 @@ def test_the_crossing_equals_a_brute_force_search():
         ref = tt[k] if u[k] >= 1.0 else np.inf
         assert (np.isinf(ref) and np.isinf(got[i])) or abs(ref - got[i]) <= 0.06, i
     assert 0.05 < np.isinf(got).mean() < 0.5          # both kinds are in the sample
+
+
+
+def test_the_table_prints_every_actuator_name_whole(capsys):
+    """'exponential-7' was cut to 'exponential-' (a 12-character column), and the
+    command prints its rows as they come, so the width is the longest name of all."""
+    data = Path(__file__).parents[1] / "data" / "trends" / "endurance.csv"
+    assert main(["hums", "prognose", "--trends", str(data), "--failure", "2x"]) == 0
+    head, *rows = capsys.readouterr().out.splitlines()[:3]
+    assert [r.split()[0] for r in rows] == ["exponential-7", "jam-8"]
+    end = head.index("tests") + len("tests")      # right-aligned under its header
+    assert all(r[:end].split()[-1].isdigit() and r[end] == " " for r in rows)
