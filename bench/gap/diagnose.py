@@ -42,7 +42,7 @@ from bench.gap import localise as LZ
 from bench.gap import modelform as MF
 from bench.gap import resim as R
 from bench.gap import schedule as S
-from bench.gap.finding import describe
+from bench.gap.finding import describe, insignificant
 from bench.gap.fit import Fit, fit
 from bench.gap.library import FRICTION_SPLITS
 from bench.gap.problem import Problem, build, fill_gaps, not_representable
@@ -105,6 +105,8 @@ class Candidate:
     fit_excess: float = math.nan
     suspect: list[str] = field(default_factory=list)    # implausible values, one line each
     edge: list[str] = field(default_factory=list)       # parameters at a family's bound
+    insignificant: list[str] = field(default_factory=list)  # added effects whose interval
+                                                    # holds their no-effect value
 
 
 @dataclass
@@ -167,6 +169,8 @@ def evaluate(p: Problem, h: Problem | None, names: Sequence[str],
     c = Candidate(f, heldout=en, heldout_excess=ex, heldout_smooth=sm)
     c.fit_excess = f.rss / (f.n / len(R.SIGNALS)) - len(R.SIGNALS)
     flag(c, p)
+    if len(names) > 1:
+        c.insignificant = insignificant(p, f)
     return c
 
 
@@ -453,7 +457,9 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     single leaves is significant by the same rule as the log's (raised to a calibration's
     held-out healthy level x margin, `reference`). A pair whose added effect is suspect
     (`flag`) does not replace the single: a second effect of implausible size is more
-    likely the first one's misfit absorbed. A suspect best single gives way to a
+    likely the first one's misfit absorbed; nor does one whose added effect's interval
+    holds its no-effect value (`finding.holds_no_effect`: friction x0.99 [0.89, 1.10]
+    beside a delay is no second effect). A suspect best single gives way to a
     plausible one (`alias.plausible_best`: an LVDT gain of 1.03 read as a lead 3 % long)."""
     best = AL.plausible_best(best, singles, PAIR_BIC)
     chosen = best
@@ -469,6 +475,8 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
 
     better = [c for c in pairs if above(c) < (1.0 - PAIR_GAIN) * above(best)]
     plausible = [c for c in better if not getattr(c, "suspect", None)]
+    null = [c for c in plausible if getattr(c, "insignificant", None)]
+    plausible = [c for c in plausible if not getattr(c, "insignificant", None)]
     if remaining and plausible:
         bp = min(plausible, key=lambda c: c.bic)
         if bp.bic < best.bic - PAIR_BIC:
@@ -496,10 +504,12 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
                  "same_family_forms": [t for t in tied if t not in ties],
                  "pairs_rejected_as_suspect": [c.fit.name for c in better
                                                if getattr(c, "suspect", None)],
+                 "pairs_rejected_as_insignificant": [c.fit.name for c in null],
                  "rule": ("a pair replaces the best single when the single leaves a "
                           f"significant held-out gap, the pair removes >= {PAIR_GAIN:.0%} "
-                          f"of it, no value of it is suspect and its BIC is lower by > "
-                          f"{PAIR_BIC:g}; 'unexplained' if the held-out shrink < "
+                          f"of it, no value of it is suspect, its added effect's 95 % interval "
+                          "does not hold that effect's no-effect value and its BIC is lower "
+                          f"by > {PAIR_BIC:g}; 'unexplained' if the held-out shrink < "
                           f"{MIN_SHRINK_PCT:.0f} %")}
     return chosen, verdict, ranking, ties, selection
 
