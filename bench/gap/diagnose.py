@@ -44,7 +44,7 @@ from bench.gap import resim as R
 from bench.gap import schedule as S
 from bench.gap.finding import describe, insignificant
 from bench.gap.fit import Fit, fit
-from bench.gap.library import FRICTION_SPLITS
+from bench.gap.library import FRICTION_SPLITS, SPLIT_NOTE
 from bench.gap.problem import Problem, build, fill_gaps, not_representable
 from bench.gap.refine import refine
 from bench.gap.scores import excess, shrink_pct
@@ -275,25 +275,6 @@ def basis(reference: dict[str, Any], sm: dict[str, float], default: dict[str, fl
     return out
 
 
-def _load_note(p: Problem, model: str) -> str:
-    """How the re-simulation treats the axial load of the log."""
-    f = p.drive.load_n
-    if f is None:
-        return "no load cell in the log (load_force_n): zero axial load assumed"
-    peak = float(np.nanmax(np.abs(f))) if len(f) else 0.0
-    if model != "plant":
-        return (f"logged load up to {peak:.0f} N is not an input of the monitoring model "
-                "(eq. 6.1, no load term): its effect is part of the gap")
-    return f"axial load replayed from the load cell (load_force_n, up to {peak:.0f} N)"
-
-
-SPLIT_NOTE = {
-    "model": "the model's (where its Coulomb friction acts, nut or screw, is taken as known)",
-    "unknown": "unknown: stiffness, preload, backlash and friction also fit the share of the "
-               "nut's Coulomb friction that acts at the nut (nut_friction_share, 1 = the "
-               "model's split)"}
-
-
 def diagnose(trace: Trace, holdout: Trace | None = None, nominal: PlantParams | None = None,
              options: Options | None = None,
              log: Callable[[str], None] | None = None) -> Result:
@@ -357,7 +338,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
                     if o.model == "plant" else "monitoring model (rigid screw, no PWM)",
                     "effects_not_representable": skipped,
                     "effects_without_a_place": absent,
-                    "load": _load_note(p, o.model),
+                    "load": R.load_note(p.drive, o.model),
                     "friction_split": SPLIT_NOTE[o.friction_split],
                     "nominal_differs_from_thesis": {k: v[1] for k, v in
                                                     PlantParams().diff(base).items()}}
@@ -380,17 +361,10 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
             "before": excess(ho_en, o.reference), "healthy_energy": healthy,
             "rule": "the held-out shrink counts, per signal, only the energy above the "
                     "calibration's held-out healthy energy"}
-    chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
-                                                               ho_ex, sig, L, o.reference,
-                                                               ho_en)
-    chosen, verdict, ranking, ties = _settle_alias(
-        p, h, L, chosen, singles, verdict, ranking, ties, loc["selection"],
-        (o.reference or {}).get("load_current_ratio"))
+    chosen, verdict, ranking, ties = _verdict(p, h, L, o, (base, frac), (singles, pairs, best),
+                                              (sig, ho_ex, ho_en), loc, say)
     finding = None
     if chosen is not None and math.isfinite(chosen.fit.rss):
-        say("refining the verdict's fit against the model at its own fidelity")
-        chosen.fit, loc["selection"]["fast_model_correction"] = refine(p, chosen.fit)
-        chosen.fit = _model_form(p, chosen.fit, o, base, frac, loc["selection"], say)
         flag(chosen, p)
         finding = describe(p, chosen.fit, chosen.suspect, chosen.edge)
         alias = loc["selection"].get("lead_or_lvdt_gain")
@@ -400,6 +374,31 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if lc is not None:
         loc["limit_cycle"] = lc
     return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties, finding)
+
+
+def _verdict(p: Any, h: Any, L: float, o: Options, model: tuple[PlantParams, float],
+             cands: tuple[list[Any], list[Any], Any], gap: tuple[bool, float, Any],
+             loc: dict[str, Any], say: Callable[[str], None]
+             ) -> tuple[Any, str, list[Any], list[str]]:
+    """The chosen candidate (`_choose`, `_settle_alias`) with its fit refined and its
+    model-form term (`refine`, `_model_form`): a pair whose added effect's interval, as
+    the verdict reports it, holds its no-effect value gives way, and the rule is taken
+    again without it."""
+    (singles, pairs, best), (sig, ho_ex, ho_en) = cands, gap
+    while True:
+        picked, verdict, ranking, ties, loc["selection"] = _choose(
+            singles, pairs, best, p, h, ho_ex, sig, L, o.reference, ho_en)
+        chosen, verdict, ranking, ties = _settle_alias(
+            p, h, L, picked, singles, verdict, ranking, ties, loc["selection"],
+            (o.reference or {}).get("load_current_ratio"))
+        if chosen is None or not math.isfinite(chosen.fit.rss):
+            return chosen, verdict, ranking, ties
+        say("refining the verdict's fit against the model at its own fidelity")
+        chosen.fit, loc["selection"]["fast_model_correction"] = refine(p, chosen.fit)
+        chosen.fit = _model_form(p, chosen.fit, o, *model, loc["selection"], say)
+        if len(picked.fit.effects) == 1 or not (late := insignificant(p, chosen.fit)):
+            return chosen, verdict, ranking, ties
+        picked.insignificant = late
 
 
 def _model_form(p: Problem, f: Fit, o: Options, base: PlantParams, frac: float,

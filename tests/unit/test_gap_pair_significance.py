@@ -68,3 +68,24 @@ def test_a_friction_member_is_judged_by_its_growth_factor(monkeypatch):
     monkeypatch.setattr(FD, "friction_size", lambda p, f, i: {"factor": 0.99,
                                                                "ci95": [0.894, 1.10]})
     assert FD.insignificant(p, f) == ["friction"]
+
+
+def test_a_pair_whose_verdict_interval_holds_no_effect_gives_way(monkeypatch):
+    """The fast fit's interval left the friction apart from 1, the verdict's (refined)
+    interval holds it: the single is taken, and the pair recorded."""
+    single = _cand("sensor_delay", 0.0, 1.0, {**SIG, "position_m": 5.0})
+    pair = _cand("sensor_delay+friction", -40.0, 0.2, SIG)
+    for c in (single, pair):
+        c.fit.rss = 1.0
+    refined = []
+    monkeypatch.setattr(D, "refine", lambda p, f: (refined.append(f.name) or f, {}))
+    monkeypatch.setattr(D, "_model_form", lambda p, f, *a: f)
+    monkeypatch.setattr(D, "_settle_alias", lambda p, h, L, c, s, v, r, t, *a: (c, v, r, t))
+    monkeypatch.setattr(D, "insignificant", lambda p, f: ["friction"] if "+" in f.name else [])
+    loc: dict = {}
+    o = D.Options()
+    chosen, verdict, _, _ = D._verdict(P, None, 1.0, o, (None, 0.5), ([single], [pair], single),
+                                       (True, 100.0, None), loc, lambda s: None)
+    assert chosen is single and verdict == "sensor_delay"
+    assert refined == ["sensor_delay+friction", "sensor_delay"]
+    assert loc["selection"]["pairs_rejected_as_insignificant"] == ["sensor_delay+friction"]
