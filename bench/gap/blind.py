@@ -391,6 +391,8 @@ def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
         "snr_all": max(snr_all.values()) if snr_all else 0.0,
         "above_floor": all(above_each.values()) if above_each else False,
         "ties": js["localisation"].get("selection", {}).get("indistinguishable_from_chosen", []),
+        "pairs_rejected_as_insignificant": js["localisation"].get("selection", {}).get(
+            "pairs_rejected_as_insignificant", []),
         "shrink_pct": chosen["heldout_shrink_pct"] if chosen else None,
     }
     fam_ok = rec["verdict_families"] == "+".join(truth_fam)

@@ -42,9 +42,9 @@ from bench.gap import localise as LZ
 from bench.gap import modelform as MF
 from bench.gap import resim as R
 from bench.gap import schedule as S
-from bench.gap.finding import describe
+from bench.gap.finding import describe, insignificant
 from bench.gap.fit import Fit, fit
-from bench.gap.library import FRICTION_SPLITS
+from bench.gap.library import FRICTION_SPLITS, SPLIT_NOTE
 from bench.gap.problem import Problem, build, fill_gaps, not_representable
 from bench.gap.refine import refine
 from bench.gap.scores import excess, shrink_pct
@@ -105,6 +105,8 @@ class Candidate:
     fit_excess: float = math.nan
     suspect: list[str] = field(default_factory=list)    # implausible values, one line each
     edge: list[str] = field(default_factory=list)       # parameters at a family's bound
+    insignificant: list[str] = field(default_factory=list)  # added effects whose interval
+                                                    # holds their no-effect value
 
 
 @dataclass
@@ -167,6 +169,8 @@ def evaluate(p: Problem, h: Problem | None, names: Sequence[str],
     c = Candidate(f, heldout=en, heldout_excess=ex, heldout_smooth=sm)
     c.fit_excess = f.rss / (f.n / len(R.SIGNALS)) - len(R.SIGNALS)
     flag(c, p)
+    if len(names) > 1:
+        c.insignificant = insignificant(p, f)
     return c
 
 
@@ -271,25 +275,6 @@ def basis(reference: dict[str, Any], sm: dict[str, float], default: dict[str, fl
     return out
 
 
-def _load_note(p: Problem, model: str) -> str:
-    """How the re-simulation treats the axial load of the log."""
-    f = p.drive.load_n
-    if f is None:
-        return "no load cell in the log (load_force_n): zero axial load assumed"
-    peak = float(np.nanmax(np.abs(f))) if len(f) else 0.0
-    if model != "plant":
-        return (f"logged load up to {peak:.0f} N is not an input of the monitoring model "
-                "(eq. 6.1, no load term): its effect is part of the gap")
-    return f"axial load replayed from the load cell (load_force_n, up to {peak:.0f} N)"
-
-
-SPLIT_NOTE = {
-    "model": "the model's (where its Coulomb friction acts, nut or screw, is taken as known)",
-    "unknown": "unknown: stiffness, preload, backlash and friction also fit the share of the "
-               "nut's Coulomb friction that acts at the nut (nut_friction_share, 1 = the "
-               "model's split)"}
-
-
 def diagnose(trace: Trace, holdout: Trace | None = None, nominal: PlantParams | None = None,
              options: Options | None = None,
              log: Callable[[str], None] | None = None) -> Result:
@@ -353,7 +338,7 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
                     if o.model == "plant" else "monitoring model (rigid screw, no PWM)",
                     "effects_not_representable": skipped,
                     "effects_without_a_place": absent,
-                    "load": _load_note(p, o.model),
+                    "load": R.load_note(p.drive, o.model),
                     "friction_split": SPLIT_NOTE[o.friction_split],
                     "nominal_differs_from_thesis": {k: v[1] for k, v in
                                                     PlantParams().diff(base).items()}}
@@ -376,17 +361,10 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
             "before": excess(ho_en, o.reference), "healthy_energy": healthy,
             "rule": "the held-out shrink counts, per signal, only the energy above the "
                     "calibration's held-out healthy energy"}
-    chosen, verdict, ranking, ties, loc["selection"] = _choose(singles, pairs, best, p, h,
-                                                               ho_ex, sig, L, o.reference,
-                                                               ho_en)
-    chosen, verdict, ranking, ties = _settle_alias(
-        p, h, L, chosen, singles, verdict, ranking, ties, loc["selection"],
-        (o.reference or {}).get("load_current_ratio"))
+    chosen, verdict, ranking, ties = _verdict(p, h, L, o, (base, frac), (singles, pairs, best),
+                                              (sig, ho_ex, ho_en), loc, say)
     finding = None
     if chosen is not None and math.isfinite(chosen.fit.rss):
-        say("refining the verdict's fit against the model at its own fidelity")
-        chosen.fit, loc["selection"]["fast_model_correction"] = refine(p, chosen.fit)
-        chosen.fit = _model_form(p, chosen.fit, o, base, frac, loc["selection"], say)
         flag(chosen, p)
         finding = describe(p, chosen.fit, chosen.suspect, chosen.edge)
         alias = loc["selection"].get("lead_or_lvdt_gain")
@@ -396,6 +374,31 @@ def _diagnose(trace: Trace, holdout: Trace | None, base: PlantParams, o: Options
     if lc is not None:
         loc["limit_cycle"] = lc
     return Result(loc, ranking, verdict, p, h, chosen, ho_en, sig, ties, finding)
+
+
+def _verdict(p: Any, h: Any, L: float, o: Options, model: tuple[PlantParams, float],
+             cands: tuple[list[Any], list[Any], Any], gap: tuple[bool, float, Any],
+             loc: dict[str, Any], say: Callable[[str], None]
+             ) -> tuple[Any, str, list[Any], list[str]]:
+    """The chosen candidate (`_choose`, `_settle_alias`) with its fit refined and its
+    model-form term (`refine`, `_model_form`): a pair whose added effect's interval, as
+    the verdict reports it, holds its no-effect value gives way, and the rule is taken
+    again without it."""
+    (singles, pairs, best), (sig, ho_ex, ho_en) = cands, gap
+    while True:
+        picked, verdict, ranking, ties, loc["selection"] = _choose(
+            singles, pairs, best, p, h, ho_ex, sig, L, o.reference, ho_en)
+        chosen, verdict, ranking, ties = _settle_alias(
+            p, h, L, picked, singles, verdict, ranking, ties, loc["selection"],
+            (o.reference or {}).get("load_current_ratio"))
+        if chosen is None or not math.isfinite(chosen.fit.rss):
+            return chosen, verdict, ranking, ties
+        say("refining the verdict's fit against the model at its own fidelity")
+        chosen.fit, loc["selection"]["fast_model_correction"] = refine(p, chosen.fit)
+        chosen.fit = _model_form(p, chosen.fit, o, *model, loc["selection"], say)
+        if len(picked.fit.effects) == 1 or not (late := insignificant(p, chosen.fit)):
+            return chosen, verdict, ranking, ties
+        picked.insignificant = late
 
 
 def _model_form(p: Problem, f: Fit, o: Options, base: PlantParams, frac: float,
@@ -453,7 +456,9 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     single leaves is significant by the same rule as the log's (raised to a calibration's
     held-out healthy level x margin, `reference`). A pair whose added effect is suspect
     (`flag`) does not replace the single: a second effect of implausible size is more
-    likely the first one's misfit absorbed. A suspect best single gives way to a
+    likely the first one's misfit absorbed; nor does one whose added effect's interval
+    holds its no-effect value (`finding.holds_no_effect`: friction x0.99 [0.89, 1.10]
+    beside a delay is no second effect). A suspect best single gives way to a
     plausible one (`alias.plausible_best`: an LVDT gain of 1.03 read as a lead 3 % long)."""
     best = AL.plausible_best(best, singles, PAIR_BIC)
     chosen = best
@@ -469,6 +474,8 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
 
     better = [c for c in pairs if above(c) < (1.0 - PAIR_GAIN) * above(best)]
     plausible = [c for c in better if not getattr(c, "suspect", None)]
+    null = [c for c in plausible if getattr(c, "insignificant", None)]
+    plausible = [c for c in plausible if not getattr(c, "insignificant", None)]
     if remaining and plausible:
         bp = min(plausible, key=lambda c: c.bic)
         if bp.bic < best.bic - PAIR_BIC:
@@ -496,10 +503,12 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
                  "same_family_forms": [t for t in tied if t not in ties],
                  "pairs_rejected_as_suspect": [c.fit.name for c in better
                                                if getattr(c, "suspect", None)],
+                 "pairs_rejected_as_insignificant": [c.fit.name for c in null],
                  "rule": ("a pair replaces the best single when the single leaves a "
                           f"significant held-out gap, the pair removes >= {PAIR_GAIN:.0%} "
-                          f"of it, no value of it is suspect and its BIC is lower by > "
-                          f"{PAIR_BIC:g}; 'unexplained' if the held-out shrink < "
+                          f"of it, no value of it is suspect, its added effect's 95 % interval "
+                          "does not hold that effect's no-effect value and its BIC is lower "
+                          f"by > {PAIR_BIC:g}; 'unexplained' if the held-out shrink < "
                           f"{MIN_SHRINK_PCT:.0f} %")}
     return chosen, verdict, ranking, ties, selection
 

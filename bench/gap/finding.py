@@ -122,6 +122,46 @@ def describe(p: Problem, f: Fit, suspect: list[str], edge: list[str]) -> dict[st
     return out
 
 
+def holds_no_effect(p: Problem, f: Fit, i: int) -> bool | None:
+    """Whether the 95 % interval of effect `i` of fit `f` holds the effect's no-effect
+    value (the model's: a friction factor 1, a delay, a backlash or an offset 0, a gain
+    1): for a friction member the friction growth's interval (`friction_size`, as the
+    finding reports it), otherwise every fitted parameter's but the nut friction share
+    (where a friction acts, not how large an effect is); an interval open on a bound
+    runs on to infinity. None when an interval is unknown."""
+    eff = f.objs[i]
+    if F.family(eff.name) == "friction":
+        lo, hi = friction_size(p, f, i)["ci95"]
+        if lo is not None and hi is not None and math.isfinite(lo) and math.isfinite(hi):
+            return bool(lo <= 1.0 <= hi)
+    nom = eff.nominal(p.base)
+    side = f.at_bound[i] if f.at_bound else {}
+    held = []
+    for q in eff.params:
+        if q.name == "nut_friction_share" or q.name not in f.ci95[i]:
+            continue
+        lo, hi = f.ci95[i][q.name]
+        lo = -math.inf if side.get(q.name) == "lower" else lo
+        hi = math.inf if side.get(q.name) == "upper" else hi
+        if not (math.isfinite(nom.get(q.name, math.nan)) and lo == lo and hi == hi):
+            return None
+        held.append(lo <= nom[q.name] <= hi)
+    return all(held) if held else None
+
+
+def insignificant(p: Problem, f: Fit) -> list[str]:
+    """The effects of fit `f` after its first whose interval holds their no-effect value
+    (`holds_no_effect`): added to the first, not told apart from no effect."""
+    out = []
+    for i in range(1, len(f.objs)):
+        try:
+            if holds_no_effect(p, f, i):
+                out.append(f.objs[i].name)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            continue
+    return out
+
+
 def _factor_text(size: dict[str, Any]) -> str:
     k = size.get("factor")
     if k is None or not math.isfinite(k):

@@ -79,6 +79,13 @@ split is known, as the thesis' for the bench's own plant: nothing added) or "unk
 datasheet gives a total friction, not where it acts: the effects that show it fit
 `NUT_SHARE`, `with_nut_share`)."""
 
+SPLIT_NOTE = {
+    "model": "the model's (where its Coulomb friction acts, nut or screw, is taken as known)",
+    "unknown": "unknown: stiffness, preload, backlash and friction also fit the share of the "
+               "nut's Coulomb friction that acts at the nut (nut_friction_share, 1 = the "
+               "model's split)"}
+"""What a diagnosis's JSON says of each friction split."""
+
 
 def nut_split(share: float, base: PlantParams) -> dict[str, float]:
     """Plant overrides that keep `share` of `base`'s nut Coulomb friction F_s at the nut

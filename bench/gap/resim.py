@@ -550,3 +550,16 @@ def friction_work(params: PlantParams, drive: Drive, n: int | None = None,
     closed_loop(params, drive, n, delays=delays, final=final)
     x = final.get("x")
     return float(x[K.E_FRS] + x[K.E_FRN]) if x is not None else float("nan")
+
+
+
+def load_note(drive: Drive, model: str) -> str:
+    """How the re-simulation of `model` treats the axial load of `drive`'s log."""
+    f = drive.load_n
+    if f is None:
+        return "no load cell in the log (load_force_n): zero axial load assumed"
+    peak = float(np.nanmax(np.abs(f))) if len(f) else 0.0
+    if model != "plant":
+        return (f"logged load up to {peak:.0f} N is not an input of the monitoring model "
+                "(eq. 6.1, no load term): its effect is part of the gap")
+    return f"axial load replayed from the load cell (load_force_n, up to {peak:.0f} N)"

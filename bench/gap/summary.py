@@ -184,4 +184,7 @@ def _verdict_line(js: dict[str, Any]) -> list[str]:
     if sel.get("pairs_rejected_as_suspect"):
         out.append("  pairs not taken, a value suspect: "
                    + ", ".join(sel["pairs_rejected_as_suspect"]))
+    if sel.get("pairs_rejected_as_insignificant"):
+        out.append("  pairs not taken, the added effect's interval holds no effect: "
+                   + ", ".join(sel["pairs_rejected_as_insignificant"]))
     return out
