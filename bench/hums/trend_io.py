@@ -212,11 +212,11 @@ def read_table(path: str | Path, progress: bool = False, date_format: str | None
 
 
 class _StdinLines:
-    """Standard input's lines, read ahead for the dialect as `TextLines` does."""
+    """Standard input's lines, read ahead for the dialect as `TextLines` does (never
+    closed here: the head's early stop must not close standard input)."""
 
     def __init__(self) -> None:
         self.ahead: list[str] = []
-        self.rest = iter(sys.stdin)
 
     def __enter__(self) -> _StdinLines:
         return self
@@ -226,22 +226,21 @@ class _StdinLines:
 
     def head(self, chars: int) -> str:
         n = 0
-        for line in self._decoded(self.rest):
+        while n < chars and (line := self._line()):
             self.ahead.append(line)
             n += len(line)
-            if n >= chars:
-                break
         return "".join(self.ahead)
 
     def __iter__(self) -> Iterator[str]:
         yield from self.ahead
         self.ahead = []
-        yield from self._decoded(self.rest)
+        while line := self._line():
+            yield line
 
     @staticmethod
-    def _decoded(it: Iterator[str]) -> Iterator[str]:
+    def _line() -> str:
         try:
-            yield from it
+            return sys.stdin.readline()
         except UnicodeDecodeError as exc:
             raise BenchError(f"<stdin>: not UTF-8 text (byte 0x{exc.object[exc.start]:02x}"
                              "): not a trends CSV") from None

@@ -80,6 +80,11 @@ def test_a_compressed_file_and_standard_input(tmp_path, monkeypatch, capsys):
     assert main(["hums", "prognose", "--trends", "-", "--failure", "2x"]) == 0
     out = capsys.readouterr().out
     assert "stdin: current [A], 12 tests, 2024-03-01 to 2024-03-12" in out
+    # a pipe longer than the dialect's look-ahead (before: its early stop closed stdin)
+    long = "day,current [A]\n" + "".join(f"{d},{2 + 0.001 * d}\n" for d in range(600))
+    monkeypatch.setattr("sys.stdin", io.StringIO(long))
+    assert main(["hums", "prognose", "--trends", "-", "--failure", "2x"]) == 0
+    assert "stdin: current [A], 600 tests" in capsys.readouterr().out
     # a pipe on both sides: the JSON alone on standard output (before: a file named "-")
     monkeypatch.setattr("sys.stdin", io.StringIO(text))
     monkeypatch.chdir(tmp_path)
