@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from bench import BenchError
 from bench.cli import options as opt
@@ -116,10 +117,14 @@ def run_ingest(args: argparse.Namespace) -> int:
                          "(no newline, tab or control character) and not blank")
     res = ingest(args.paths, _db(args), _workers(args), args.scheduler, args.actuator)
     rate = (res.stored + res.failed) / res.elapsed_s if res.elapsed_s > 0 else 0.0
-    print(f"{res.files} files: {res.skipped} already stored, {res.stored} runs stored, "
-          f"{res.failed} failed, in {res.elapsed_s:.1f} s ({rate:.2f} logs/s) -> {_db(args)}")
+    before = (f" ({res.failed_before} of them failed before: table `failures`, delete a "
+              "row to retry)" if res.failed_before else "")
+    print(f"{res.files} files: {res.skipped} already stored{before}, {res.stored} runs "
+          f"stored, {res.failed} failed, in {res.elapsed_s:.1f} s ({rate:.2f} logs/s) -> "
+          f"{_db(args)}")
     from bench.core.filenames import one_line
     for path, err in res.failures[:20]:
+        err = err.removeprefix(f"{path}: ").removeprefix(f"{Path(path).name}: ")
         print(f"  failed: {one_line(path)}: {one_line(err)}", file=sys.stderr)
     if len(res.failures) > 20:
         print(f"  ... and {len(res.failures) - 20} more (table `failures`)", file=sys.stderr)

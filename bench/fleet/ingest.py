@@ -301,6 +301,7 @@ class IngestResult:
     failed: int
     elapsed_s: float
     failures: list[tuple[str, str]]
+    failed_before: int = 0      # of `skipped`: logs already in `failures`, not retried
 
 
 def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
@@ -311,8 +312,9 @@ def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
     t0 = time.perf_counter()
     files = expand(paths)
     with Store(db) as store:
-        known = store.known()
+        known, failed = store.known(), store.failed()
         jobs = []
+        again = 0
         seen: set[str] = set()
         batch = _Batch(store)
         try:
@@ -321,11 +323,13 @@ def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
                     d = digest(f)
                 except OSError as exc:           # unreadable: a failure of its own
                     d = "unreadable:" + hashlib.sha256(str(f.resolve()).encode()).hexdigest()
+                    again += d in failed
                     if d not in known and d not in seen:
                         seen.add(d)
                         batch.add(failure(f, d, BenchError(
                             f"cannot be read ({exc.strerror or exc})"), actuator or "unknown"))
                     continue
+                again += d in failed
                 if d not in known and d not in seen:
                     seen.add(d)
                     jobs.append((str(f), d, actuator))
@@ -335,7 +339,7 @@ def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
             batch.flush()
     fails = [(r["path"], r["error"]) for r in batch.done if "error" in r]
     return IngestResult(len(files), len(files) - len(batch.done), batch.stored - len(fails),
-                        len(fails), time.perf_counter() - t0, fails)
+                        len(fails), time.perf_counter() - t0, fails, again)
 
 
 class _Batch:

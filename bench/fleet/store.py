@@ -66,6 +66,11 @@ class Store:
         return {r[0] for r in rows}
 
     @_guarded
+    def failed(self) -> set[str]:
+        """Digests stored as failures (skipped by an ingest until their row is deleted)."""
+        return {r[0] for r in self.con.execute("SELECT digest FROM failures").fetchall()}
+
+    @_guarded
     def write(self, results: list[dict[str, Any]]) -> int:
         """Store a batch of ingest results (runs and failures) in one transaction;
         returns how many were new."""

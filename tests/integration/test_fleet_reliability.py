@@ -57,10 +57,13 @@ def test_a_poison_log_is_a_failure_row_and_the_others_are_stored(tmp_path, capsy
     out = capsys.readouterr()
     assert "3 files: 0 already stored, 2 runs stored, 1 failed" in out.out
     assert "b.log" in out.err and "no date of the years 1970-9999" in out.err
+    assert f"{d / 'b.log'}: {d / 'b.log'}" not in out.err    # the file named once
     fails = rows(db, "SELECT path, error FROM failures")
     assert len(fails) == 1 and fails[0][0].endswith("b.log") and "1970-9999" in fails[0][1]
     assert main(["fleet", "ingest", str(d), "--db", str(db), "--workers", "1"]) == 0
-    assert "3 files: 3 already stored, 0 runs stored, 0 failed" in capsys.readouterr().out
+    again = capsys.readouterr().out              # the poison log is not counted as stored
+    assert ("3 files: 3 already stored (1 of them failed before: table `failures`, delete a "
+            "row to retry), 0 runs stored, 0 failed") in again
 
 
 def test_copies_with_crlf_or_a_trailing_blank_line_are_one_run(tmp_path, capsys):
@@ -203,3 +206,18 @@ def test_the_log_size_the_bound_assumes_is_a_written_logs(tmp_path):
     path = tmp_path / "A" / "x.log"
     S._job((str(path), S.wear_at(S.draw_fleet(1, 2, 0, "time")[0], 0), 1, 1.7e9, "A"))
     assert abs(path.stat().st_size - S.LOG_BYTES) < 0.01 * S.LOG_BYTES
+
+
+def test_a_failed_table_is_named_once_and_counted_as_failed_on_a_rerun(tmp_path, capsys):
+    """A table that is no trace printed its file name twice ("bad.csv: bad.csv: ..."), and
+    on a rerun it was counted among the logs already stored, as if it had been stored."""
+    d = tmp_path / "A1"
+    d.mkdir()
+    bad = d / "bad.csv"
+    bad.write_text("\x00\x01garbage")
+    db = tmp_path / "f.duckdb"
+    assert main(["fleet", "ingest", str(bad), "--db", str(db), "--workers", "1"]) == 0
+    err = capsys.readouterr().err
+    assert f"failed: {bad}: " in err and f"{bad}: {bad}" not in err and "bad.csv: bad.csv" not in err
+    assert main(["fleet", "ingest", str(bad), "--db", str(db), "--workers", "1"]) == 0
+    assert "1 already stored (1 of them failed before" in capsys.readouterr().out
