@@ -56,6 +56,10 @@ FOURTH_SEED = 9701
 """The fourth final check's first build seed (`--build-seed 9701`), fixed before it ran,
 after the pair rule's significance clause: builds 9701-9703, noise seeds 46000-46294,
 never run by any development or earlier check."""
+FIFTH_SEED = 9901
+"""The fifth final check's first build seed (`--build-seed 9901`), fixed before it ran,
+after the pair rule's floor clause: builds 9901-9903, noise seeds 48000-48294, never run
+by any development or earlier check."""
 
 
 def build_seeds(first: int = BUILD_SEEDS[0]) -> tuple[int, int, int]:
@@ -185,7 +189,7 @@ def run(workers: int = 2, duration_s: float = IB.LOG_S, progress: bool = True,
         scheduler: str | None = None, first: int = BUILD_SEEDS[0]) -> dict[str, Any]:
     """Calibrate the three actuators, then diagnose every case of each (`first`: the
     first build seed, `build_seeds`; 9101 the first final check, FRESH_SEED the second,
-    THIRD_SEED the third, FOURTH_SEED the fourth)."""
+    THIRD_SEED the third, FOURTH_SEED the fourth, FIFTH_SEED the fifth)."""
     t0 = time.perf_counter()
     states, items = {}, []
     seeds, base = build_seeds(first), noise_base(first)
