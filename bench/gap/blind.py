@@ -393,6 +393,8 @@ def score(case: Case, js: dict[str, Any], snr_each: dict[str, dict[str, float]],
         "ties": js["localisation"].get("selection", {}).get("indistinguishable_from_chosen", []),
         "pairs_rejected_as_insignificant": js["localisation"].get("selection", {}).get(
             "pairs_rejected_as_insignificant", []),
+        "pairs_rejected_below_floor": js["localisation"].get("selection", {}).get(
+            "pairs_rejected_below_floor", []),
         "shrink_pct": chosen["heldout_shrink_pct"] if chosen else None,
     }
     fam_ok = rec["verdict_families"] == "+".join(truth_fam)

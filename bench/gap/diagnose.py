@@ -42,7 +42,7 @@ from bench.gap import localise as LZ
 from bench.gap import modelform as MF
 from bench.gap import resim as R
 from bench.gap import schedule as S
-from bench.gap.finding import describe, insignificant
+from bench.gap.finding import describe, faint, insignificant
 from bench.gap.fit import Fit, fit
 from bench.gap.library import FRICTION_SPLITS, SPLIT_NOTE
 from bench.gap.problem import Problem, build, fill_gaps, not_representable
@@ -107,6 +107,7 @@ class Candidate:
     edge: list[str] = field(default_factory=list)       # parameters at a family's bound
     insignificant: list[str] = field(default_factory=list)  # added effects whose interval
                                                     # holds their no-effect value
+    faint: list[str] | None = None      # added effects no signal shows above the floor
 
 
 @dataclass
@@ -458,7 +459,8 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     (`flag`) does not replace the single: a second effect of implausible size is more
     likely the first one's misfit absorbed; nor does one whose added effect's interval
     holds its no-effect value (`finding.holds_no_effect`: friction x0.99 [0.89, 1.10]
-    beside a delay is no second effect). A suspect best single gives way to a
+    beside a delay is no second effect), nor one whose added effect no signal shows
+    above the floor (`finding.faint`). A suspect best single gives way to a
     plausible one (`alias.plausible_best`: an LVDT gain of 1.03 read as a lead 3 % long)."""
     best = AL.plausible_best(best, singles, PAIR_BIC)
     chosen = best
@@ -476,10 +478,15 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
     plausible = [c for c in better if not getattr(c, "suspect", None)]
     null = [c for c in plausible if getattr(c, "insignificant", None)]
     plausible = [c for c in plausible if not getattr(c, "insignificant", None)]
-    if remaining and plausible:
-        bp = min(plausible, key=lambda c: c.bic)
-        if bp.bic < best.bic - PAIR_BIC:
+    weak = []              # BIC-better pairs whose added effect no signal shows (`faint`)
+    for bp in sorted(plausible, key=lambda c: c.bic) if remaining else []:
+        if bp.bic >= best.bic - PAIR_BIC:
+            break
+        bp.faint = faint(p, bp.fit) if getattr(bp, "faint", None) is None else bp.faint
+        if not bp.faint:
             chosen = bp
+            break
+        weak.append(bp)
     # the verdict's shrink, of the held-out gap above a calibration's healthy energy where
     # it stored one (`excess`: the whole excess otherwise, as the pair rule and the ties)
     shrink = (shrink_pct(ho_ex, chosen.heldout_excess) if ho_en is None else
@@ -504,10 +511,12 @@ def _choose(singles: list[Any], pairs: list[Any], best: Any, p: Any, h: Any, ho_
                  "pairs_rejected_as_suspect": [c.fit.name for c in better
                                                if getattr(c, "suspect", None)],
                  "pairs_rejected_as_insignificant": [c.fit.name for c in null],
+                 "pairs_rejected_below_floor": [c.fit.name for c in weak],
                  "rule": ("a pair replaces the best single when the single leaves a "
                           f"significant held-out gap, the pair removes >= {PAIR_GAIN:.0%} "
                           f"of it, no value of it is suspect, its added effect's 95 % interval "
-                          "does not hold that effect's no-effect value and its BIC is lower "
+                          "does not hold that effect's no-effect value, the effect shows "
+                          "above the floor on some signal and its BIC is lower "
                           f"by > {PAIR_BIC:g}; 'unexplained' if the held-out shrink < "
                           f"{MIN_SHRINK_PCT:.0f} %")}
     return chosen, verdict, ranking, ties, selection

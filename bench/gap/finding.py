@@ -162,6 +162,27 @@ def insignificant(p: Problem, f: Fit) -> list[str]:
     return out
 
 
+def faint(p: Problem, f: Fit) -> list[str]:
+    """The effects of fit `f` after its first that no logged signal shows above the
+    diagnosis's floor: the RMS over the whole log of `f`'s re-simulation less the same
+    without the effect, over the signal's floor `p.sigma`, below 1 on every signal (the
+    benchmarks' "above the floor" test, on the verdict's side: docs/gap.md, "Selection"
+    rule 3)."""
+    out = []
+    whole = p.simulate(f.objs, f.theta)
+    for i in range(1, len(f.objs)):
+        keep = [k for k in range(len(f.objs)) if k != i]
+        try:
+            less = p.simulate([f.objs[k] for k in keep], [f.theta[k] for k in keep])
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            continue
+        shown = [float(np.sqrt(np.mean((whole[s] - less[s]) ** 2))) / p.sigma[s]
+                 for s in p.sigma if s in whole and s in less and p.sigma[s] > 0]
+        if shown and max(shown) < 1.0:
+            out.append(f.objs[i].name)
+    return out
+
+
 def _factor_text(size: dict[str, Any]) -> str:
     k = size.get("factor")
     if k is None or not math.isfinite(k):

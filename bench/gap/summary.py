@@ -187,4 +187,7 @@ def _verdict_line(js: dict[str, Any]) -> list[str]:
     if sel.get("pairs_rejected_as_insignificant"):
         out.append("  pairs not taken, the added effect's interval holds no effect: "
                    + ", ".join(sel["pairs_rejected_as_insignificant"]))
+    if sel.get("pairs_rejected_below_floor"):
+        out.append("  pairs not taken, no signal shows the added effect above the floor: "
+                   + ", ".join(sel["pairs_rejected_below_floor"]))
     return out

@@ -80,7 +80,7 @@ def test_pair_rule_is_judged_against_the_calibration():
     single = NS(fit=NS(name="lvdt_offset", effects=("lvdt_offset",)), bic=0.0,
                 heldout_excess=1.0, heldout_smooth={**sig, "position_m": 3.0})
     pair = NS(fit=NS(name="lvdt_offset+preload", effects=("lvdt_offset", "preload")),
-              bic=-50.0, heldout_excess=0.2, heldout_smooth=sig)
+              bic=-50.0, heldout_excess=0.2, heldout_smooth=sig, faint=[])
     p = NS(n=10000, n_fit=5000, info={})
     ref = {"level": dict.fromkeys(R.SIGNALS, 2.5), "margin": dict.fromkeys(R.SIGNALS, 1.5)}
     args = ([single], [pair], single, p, None, 100.0, True, {})

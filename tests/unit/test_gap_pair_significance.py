@@ -1,10 +1,14 @@
 """A pair whose added effect's 95 % interval holds that effect's no-effect value does not
-replace the single (a delay-only log read as "delay + friction x0.99 [0.894, 1.10]"):
-the rule in `diagnose._choose` and the interval test of `finding.holds_no_effect`."""
+replace the single (a delay-only log read as "delay + friction x0.99 [0.894, 1.10]"),
+nor one whose added effect no signal shows above the floor (an encoder gain 0.97 read
+with a friction x1.09): the rule in `diagnose._choose`, the interval test of
+`finding.holds_no_effect` and the floor test of `finding.faint`."""
 
 from __future__ import annotations
 
 from types import SimpleNamespace as NS
+
+import numpy as np
 
 from bench.gap import diagnose as D
 from bench.gap import effects as E
@@ -17,10 +21,11 @@ SIG = dict.fromkeys(R.SIGNALS, 1.0)
 P = NS(n=10000, n_fit=5000, info={})
 
 
-def _cand(name: str, bic: float, excess: float, smooth: dict, insignificant=()) -> NS:
+def _cand(name: str, bic: float, excess: float, smooth: dict, insignificant=(),
+          faint=()) -> NS:
     return NS(fit=NS(name=name, effects=tuple(name.split("+"))), bic=bic,
               heldout_excess=excess, heldout_smooth=smooth, suspect=[],
-              insignificant=list(insignificant))
+              insignificant=list(insignificant), faint=list(faint))
 
 
 def test_a_pair_whose_added_effect_holds_no_effect_does_not_replace_the_single():
@@ -40,6 +45,41 @@ def test_the_next_pair_whose_added_effect_is_significant_may_still_replace_it():
     other = _cand("sensor_delay+backlash", -20.0, 0.3, SIG)
     chosen, *_ = D._choose([single], [null, other], single, P, None, 100.0, True, {})
     assert chosen is other
+
+
+def test_a_pair_whose_added_effect_is_below_the_floor_does_not_replace_the_single():
+    single = _cand("encoder_gain", 0.0, 1.0, {**SIG, "motor_speed_rad_s": 5.0})
+    faint = _cand("encoder_gain+friction", -40.0, 0.2, SIG, faint=["friction"])
+    chosen, verdict, _, _, sel = D._choose([single], [faint], single, P, None, 100.0, True, {})
+    assert chosen is single and verdict == "encoder_gain"
+    assert sel["pairs_rejected_below_floor"] == ["encoder_gain+friction"]
+    other = _cand("encoder_gain+backlash", -20.0, 0.3, SIG)
+    chosen, _, _, _, sel = D._choose([single], [faint, other], single, P, None, 100.0, True, {})
+    assert chosen is other and sel["pairs_rejected_below_floor"] == ["encoder_gain+friction"]
+    # a pair the BIC margin refuses anyway is not simulated (its floor test never runs)
+    late = _cand("encoder_gain+lead", -5.0, 0.2, SIG)
+    late.faint = None
+    chosen, _, _, _, sel = D._choose([single], [late], single, P, None, 100.0, True, {})
+    assert chosen is single and late.faint is None and sel["pairs_rejected_below_floor"] == []
+
+
+def _floor_problem(sigma: float) -> NS:
+    """A problem whose re-simulation adds each effect's "x" to a constant current."""
+    def simulate(objs, thetas):
+        level = sum(th["x"] for th in thetas)
+        return {"current_a": np.full(200, level), "position_m": np.zeros(200)}
+    return NS(simulate=simulate, sigma={"current_a": sigma, "position_m": 1e-6})
+
+
+def test_an_added_effect_is_faint_when_no_signal_moves_by_the_floor():
+    f = NS(objs=[NS(name="encoder_gain"), NS(name="friction")],
+           theta=[{"x": 3.0}, {"x": 0.05}])
+    assert FD.faint(_floor_problem(0.1), f) == ["friction"]      # 0.05 of a floor 0.1
+    assert FD.faint(_floor_problem(0.04), f) == []               # 1.25 floors
+    f.theta[1]["x"] = -0.2                                         # either direction
+    assert FD.faint(_floor_problem(0.1), f) == []
+    # the first effect is the single the pair extends: never judged
+    assert FD.faint(_floor_problem(100.0), NS(objs=f.objs[:1], theta=f.theta[:1])) == []
 
 
 def _fit(second: str, ci: tuple, at_bound: dict | None = None) -> Fit:

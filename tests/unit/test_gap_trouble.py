@@ -19,7 +19,8 @@ SIG = dict.fromkeys(R.SIGNALS, 1.0)
 
 def _cand(name: str, bic: float, excess: float, smooth: dict, suspect=()) -> NS:
     return NS(fit=NS(name=name, effects=tuple(name.split("+"))), bic=bic,
-              heldout_excess=excess, heldout_smooth=smooth, suspect=list(suspect))
+              heldout_excess=excess, heldout_smooth=smooth, suspect=list(suspect),
+              faint=[])                 # shown above the floor (its test: test_gap_pair_significance)
 
 
 def test_ranking_is_sorted_by_bic_with_the_chosen_one_marked():
