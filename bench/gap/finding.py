@@ -168,13 +168,17 @@ def faint(p: Problem, f: Fit) -> list[str]:
     without the effect, over the signal's floor `p.sigma`, below 1 on every signal (the
     benchmarks' "above the floor" test, on the verdict's side: docs/gap.md, "Selection"
     rule 3)."""
-    out = []
-    whole = p.simulate(f.objs, f.theta)
+    out: list[str] = []
+    trouble = (ValueError, FloatingPointError, np.linalg.LinAlgError)
+    try:
+        whole = p.simulate(f.objs, f.theta)
+    except trouble:                       # no re-simulation: nothing judged faint
+        return out
     for i in range(1, len(f.objs)):
         keep = [k for k in range(len(f.objs)) if k != i]
         try:
             less = p.simulate([f.objs[k] for k in keep], [f.theta[k] for k in keep])
-        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+        except trouble:
             continue
         shown = [float(np.sqrt(np.mean((whole[s] - less[s]) ** 2))) / p.sigma[s]
                  for s in p.sigma if s in whole and s in less and p.sigma[s] > 0]

@@ -78,6 +78,10 @@ def test_an_added_effect_is_faint_when_no_signal_moves_by_the_floor():
     assert FD.faint(_floor_problem(0.04), f) == []               # 1.25 floors
     f.theta[1]["x"] = -0.2                                         # either direction
     assert FD.faint(_floor_problem(0.1), f) == []
+    # a re-simulation that fails judges nothing faint (the pair rule as without the clause)
+    def broken(objs, thetas):
+        raise FloatingPointError("overflow")
+    assert FD.faint(NS(simulate=broken, sigma={"current_a": 1.0}), f) == []
     # the first effect is the single the pair extends: never judged
     assert FD.faint(_floor_problem(100.0), NS(objs=f.objs[:1], theta=f.theta[:1])) == []
 
