@@ -319,20 +319,22 @@ def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
         batch = _Batch(store)
         try:
             for f in files:
+                unreadable: OSError | None = None
                 try:
                     d = digest(f)
                 except OSError as exc:           # unreadable: a failure of its own
                     d = "unreadable:" + hashlib.sha256(str(f.resolve()).encode()).hexdigest()
-                    again += d in failed
-                    if d not in known and d not in seen:
-                        seen.add(d)
-                        batch.add(failure(f, d, BenchError(
-                            f"cannot be read ({exc.strerror or exc})"), actuator or "unknown"))
-                    continue
+                    unreadable = exc
                 again += d in failed
-                if d not in known and d not in seen:
-                    seen.add(d)
+                if d in known or d in seen:
+                    continue
+                seen.add(d)
+                if unreadable is None:
                     jobs.append((str(f), d, actuator))
+                else:
+                    batch.add(failure(f, d, BenchError(
+                        f"cannot be read ({unreadable.strerror or unreadable})"),
+                        actuator or "unknown"))
             run_jobs(ingest_one, jobs, workers, progress, scheduler, batch.add,
                      label=lambda job: str(job[0]))
         finally:

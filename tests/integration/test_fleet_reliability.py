@@ -221,3 +221,25 @@ def test_a_failed_table_is_named_once_and_counted_as_failed_on_a_rerun(tmp_path,
     assert f"failed: {bad}: " in err and f"{bad}: {bad}" not in err and "bad.csv: bad.csv" not in err
     assert main(["fleet", "ingest", str(bad), "--db", str(db), "--workers", "1"]) == 0
     assert "1 already stored (1 of them failed before" in capsys.readouterr().out
+
+
+def test_an_unreadable_log_is_a_failure_row_and_counted_as_failed_on_a_rerun(tmp_path,
+                                                                             monkeypatch):
+    """A log whose bytes cannot be read (no digest of its content) is a failure row named by
+    its path, skipped on a rerun and counted there among the earlier failures."""
+    import bench.fleet.ingest as I
+    path = log(tmp_path / "A1" / "a.log")
+    real = I.digest
+
+    def refused(f):
+        if f.name == "a.log":
+            raise PermissionError(13, "Permission denied")
+        return real(f)
+
+    monkeypatch.setattr(I, "digest", refused)
+    db = tmp_path / "f.duckdb"
+    first = I.ingest([str(path)], db, 1, progress=False)
+    assert (first.failed, first.stored, first.failed_before) == (1, 0, 0)
+    assert first.failures == [(str(path), "cannot be read (Permission denied)")]
+    again = I.ingest([str(path)], db, 1, progress=False)
+    assert (again.skipped, again.failed, again.failed_before) == (1, 0, 1)
