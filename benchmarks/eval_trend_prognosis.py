@@ -2,7 +2,7 @@
 each test day, beside its peers on the same tests.
 
 1. **Synthetic endurance trends** (`bench.hums.trend_synth`, held-out seeds 1000 +,
-   apart from the development seeds 100-119 and the tests' 2-11): per shape, the share
+   apart from the development seeds 100-139 and the tests' 2-11): per shape, the share
    of trends warned at least 14 days before failure, warnings before the onset, the
    share of test days after the first warning with the truth inside the 90 % band
    (and of trends where that is at least half), narrow bands without a note; the
@@ -39,7 +39,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED0 = 1000
-DEV_SEEDS = "100-119"      # synthetic seeds the model was developed on
+DEV_SEEDS = "100-139"      # synthetic seeds the model was developed on
 HELD_FROM = 2049           # campaign actuators from this seed on: never looked at in development
 CAMPAIGN_INDEXES = {"lost_motion_um": ("backlash_um", "um", False),
                     "friction_current_a": ("motor_current_rms", "A", False),

@@ -23,7 +23,10 @@ least `MIN_AFTER` tests after it) and kappa = g (t_now - t_0), the e-folds the r
 over as long as the tests have run (`KAPPA`; so a change seen on the last few tests is
 not extrapolated as a steep exponential). The prior over the grid: flat over the change
 times; over kappa, half its mass on the straight line (kappa = 0: a constant wear rate,
-Archard's law at a steady use, the simplest shape) and half flat over `KAPPA`. Given the
+Archard's law at a steady use, the simplest shape) and half flat over `KAPPA`, -1 to 12.
+Its top is above the steepest development rise (synthetic exponentials that grow up to
+10 e-folds over the tests' span): a cut at 6 held such a rise below its true rate, and
+the bands came out late on every accelerating development trend, never early. Given the
 grid point the model is linear in (a, b, c): the conjugate normal-inverse-gamma
 posterior (Bishop 2006, sections 3.3 and 3.5; Gelman et al., BDA section 14.2) with
 the priors (given sigma) a ~ N(0, sigma^2 / N) (the healthy mean's error, N healthy
@@ -79,7 +82,7 @@ from scipy.special import ndtr, ndtri, stdtr
 
 from plant_rt.jit import njit
 
-KAPPA = (-1.0, 6.0)                # prior range of g (t_now - t_0): e-folds of the rate
+KAPPA = (-1.0, 12.0)               # prior range of g (t_now - t_0): e-folds of the rate
 KAPPA_MIN = 0.05                   # |kappa| below this: a straight line
 P_LINE = 0.5                       # prior mass of the straight line (a constant wear rate)
 G_POS = np.logspace(-5.0, 1.0, 61)  # |g| dt of the grid (dt: the healthy tests' interval)

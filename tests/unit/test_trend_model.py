@@ -51,3 +51,21 @@ def test_power_law_wear_has_the_truth_in_the_band_at_70_percent_of_life():
         r = prognose(Trend("p", "rms", "A", t, y, np.arange(len(t))),
                      Settings(healthy="5", failure="4.0"))
         assert r.cols["rul_p5"][-1] <= 18.0 <= r.cols["rul_p95"][-1], seed
+
+
+def test_a_steep_exponential_rise_is_not_capped_by_the_rate_prior():
+    """An excess rising exp(5 (t - 75) / 75) from day 75 to the failure on day 150, 1 %
+    noise, daily tests: near the end the curve needs kappa = g (t_now - t_0) of ~9
+    e-folds. With the prior over kappa cut at 6 the band as of day 130 ended before the
+    truth (p5 28 days, truth 20) and held it on none of the days after the warning."""
+    life, on = 150.0, 75.0
+    t = np.arange(0.0, life)
+    e = np.expm1(5.0 / (life - on) * np.clip(t - on, 0.0, None)) / np.expm1(5.0)
+    y = 2.0 * (1.0 + e + np.random.default_rng(3).normal(0.0, 0.01, len(t)))
+    r = prognose(Trend("x", "rms", "A", t, y, np.arange(len(t))),
+                 Settings(healthy="5", failure="4.0"))
+    c = r.cols
+    assert c["rul_p5"][130] <= 20.0 <= c["rul_p95"][130]
+    after = [k for k in range(len(t)) if c["warning"][k] > 0]
+    inside = [c["rul_p5"][k] <= life - t[k] <= c["rul_p95"][k] for k in after]
+    assert len(after) > 30 and np.mean(inside) >= 0.4
