@@ -88,7 +88,7 @@ def final_trend(shape: str, k: int) -> SynthTrend:
         tg, eg, on = _paths(shape, rng, life)
         hit = np.flatnonzero(eg >= 1.0)
         t_f = float(tg[hit[0]]) if len(hit) else math.inf     # a path that never fails
-        t = _days(rng, min(t_f, life), cad) if len(hit) else _days(rng, life, cad)
+        t = _days(rng, t_f if len(hit) else life, cad)
         t = t[t <= t_f]
         e = np.interp(t, tg, eg)
     y = h0 * (1.0 + (0.0 if e is None else e) + rng.normal(0.0, cv, len(t)))

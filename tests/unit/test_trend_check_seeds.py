@@ -37,3 +37,12 @@ def test_the_healthy_seasonal_trend_never_fails_and_wanders_about_its_level():
     tr = TC.final_trend("healthy-seasonal", 0)
     assert math.isinf(tr.t_failure)
     assert abs(np.mean(tr.y) / tr.healthy_level - 1.0) < 0.05
+
+
+@pytest.mark.parametrize("shape", ["gamma", "wiener"])
+def test_a_random_path_that_fails_late_is_tested_up_to_its_failure(shape):
+    """A path of a random process can fail after the life it was drawn for; its tests
+    must still run to the failure (they once stopped at that life, weeks before)."""
+    for k in range(20):
+        tr = TC.final_trend(shape, k)
+        assert tr.t_failure - tr.t[-1] < 8.0, (k, tr.t_failure, tr.t[-1])
