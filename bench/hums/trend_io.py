@@ -19,7 +19,8 @@ semicolon and tab; with one of the latter two a decimal comma, ``2,15``, is a nu
   optional ``unit`` column; or the wide form: every other column is an index, its name
   the header (``rms_current [A]`` gives the unit ``A``);
 - **values**: numbers; an empty cell or ``nan`` is a missing test (skipped, counted in
-  `Table.notes`); ``inf`` is refused (no index is infinite; an overflow upstream);
+  `Table.notes`); ``inf`` is refused (no index is infinite; an overflow upstream), and
+  so is a magnitude beyond 1e100 (its squares overflow);
 - **one test per time**: a second value of an index at the same time for the same
   actuator is refused (a merge would hide it); rows out of time order are sorted, with a
   note.
@@ -48,6 +49,7 @@ from bench import BenchError
 
 TIME_NAMES = ("time", "date", "day", "days")
 EXPOSURE = "exposure"
+MAX_VALUE = 1e100          # |value| beyond: refused (an index's squares must stay finite)
 MAX_ABS_TIME = 1e7
 STDIN = "-"
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
@@ -166,6 +168,9 @@ def _value(text: str, where: str, comma: bool = False) -> float:
         raise BenchError(f"{where}: value {s!r} is not a number") from None
     if math.isinf(v):
         raise BenchError(f"{where}: value {s!r} is infinite: not a health index")
+    if abs(v) > MAX_VALUE:
+        raise BenchError(f"{where}: value {s!r} is beyond +-{MAX_VALUE:g}: not a health "
+                         "index (and its squares overflow the filter's arithmetic)")
     return v
 
 

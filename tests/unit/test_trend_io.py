@@ -113,6 +113,8 @@ def test_long_form_with_units_and_exposure(tmp_path):
 
 @pytest.mark.parametrize("body, msg", [
     ("time,actuator,index,value\n0,A,i,1\n1,A,i,inf\n", ":3: value 'inf' is infinite"),
+    ("time,actuator,index,value\n0,A,i,1e308\n", ":2: value '1e308' is beyond +-1e+100"),
+    ("time,actuator,index,value\n0,A,i,-2e150\n", ":2: value '-2e150' is beyond +-1e+100"),
     ("time,actuator,index,value\n0,A,i,1\n2,A,i,1.2\n0,A,i,1.1\n",
      ":4: a second value of 'i' for actuator 'A' at time 0 (the first at line 2)"),
     ("time,actuator,index,value\n1e302,A,i,1\n", ":2: time '1e302' is out of range"),
