@@ -498,7 +498,10 @@ class _Run:
         if self.res.failure is None:
             self.res.notes.append("no failure threshold: a RUL needs one (--failure LEVEL, "
                                   "or --failure 2x the healthy level); detection only")
-        if "detected_t" not in ev:
+        if "detected_t" not in ev and ref.n >= len(self.tr.t):
+            self.res.notes.append(f"every test is in the healthy reference ({ref.requested}):"
+                                  " none is left to judge")
+        elif "detected_t" not in ev:
             self.res.notes.append("no change from healthy detected")
 
 

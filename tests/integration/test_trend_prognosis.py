@@ -230,3 +230,11 @@ def test_the_table_prints_every_actuator_name_whole(capsys):
     assert [r.split()[0] for r in rows] == ["exponential-7", "jam-8"]
     end = head.index("tests") + len("tests")      # right-aligned under its header
     assert all(r[:end].split()[-1].isdigit() and r[end] == " " for r in rows)
+
+
+def test_a_healthy_reference_of_every_test_says_none_is_left_to_judge():
+    st = endurance_trend("exponential", 11)
+    r = prognose(Trend(st.name, "rms", "A", st.t, st.y, np.arange(len(st.t))),
+                 Settings(healthy=str(len(st.t)), failure="2x"))
+    assert any("none is left to judge" in n for n in r.notes)
+    assert "no change from healthy detected" not in r.notes
