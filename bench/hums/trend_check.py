@@ -24,7 +24,8 @@ tuned on them:
 
 Test days, healthy level (1-5) and noise (1-4 %) as `trend_synth`. The truth is the first
 time the noise-free index reaches twice the healthy level: of the random processes, on
-the quarter-day grid their paths are drawn on.
+the quarter-day grid their paths are drawn on. ``python -m bench.hums.trend_check --law
+paris --trend 0 --out F.csv`` writes trends as the CSV `bench hums prognose` reads.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ import math
 
 import numpy as np
 
-from bench.hums.trend_synth import FAILURE_RATIO, SynthTrend, _days
+from bench.hums.trend_synth import SynthTrend, _days
 
 SHAPES = ("power", "paris", "gamma", "wiener", "seasonal", "healthy-seasonal")
 FINAL_SEED = 7300          # trend k of shape s: FINAL_SEED + 100 s + k
@@ -98,4 +99,32 @@ def final_trend(shape: str, k: int) -> SynthTrend:
     return SynthTrend(f"{shape}-{seed}", shape, t, y, h0, t_f, on)
 
 
-__all__ = ["FAILURE_RATIO", "FINAL_SEED", "SHAPES", "final_trend"]
+def main(argv: list[str] | None = None) -> int:
+    """``python -m bench.hums.trend_check --law L --trend K --out F.csv``: final-check
+    trends as the CSV `bench hums prognose --trends` reads (the truth on stdout)."""
+    import argparse
+    from datetime import datetime, timedelta
+
+    from bench.hums.trend_synth import START, write_csv
+    ap = argparse.ArgumentParser(description="final-check endurance trends (not real data)")
+    ap.add_argument("--law", nargs="+", default=["paris"], choices=SHAPES)
+    ap.add_argument("--trend", type=int, nargs="+", default=[0])
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    if len(a.law) != len(a.trend):
+        ap.error("give one --trend per --law")
+    trends = [final_trend(law, k) for law, k in zip(a.law, a.trend, strict=True)]
+    write_csv(trends, a.out)
+    for tr in trends:
+        start = datetime(START.year, START.month, START.day)
+        when = ("reached on " + (start + timedelta(days=tr.t_failure)).isoformat(
+            timespec="minutes")) if math.isfinite(tr.t_failure) else "never reached"
+        print(f"{tr.name}: {len(tr.t)} tests, healthy level {tr.healthy_level:.4g} "
+              f"{tr.unit}, failure level {tr.failure_level:.4g} {tr.unit} {when}")
+    print(f"wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+    sys.exit(main())

@@ -46,3 +46,14 @@ def test_a_random_path_that_fails_late_is_tested_up_to_its_failure(shape):
     for k in range(20):
         tr = TC.final_trend(shape, k)
         assert tr.t_failure - tr.t[-1] < 8.0, (k, tr.t_failure, tr.t[-1])
+
+
+def test_the_cli_writes_a_trend_the_prognosis_reads(tmp_path, capsys):
+    from bench.hums.trend_io import read_table
+    out = tmp_path / "p.csv"
+    assert TC.main(["--law", "paris", "healthy-seasonal", "--trend", "0", "1",
+                    "--out", str(out)]) == 0
+    tab = read_table(out)
+    assert [t.actuator for t in tab.trends] == ["paris-7400", "healthy-seasonal-7801"]
+    text = capsys.readouterr().out
+    assert "paris-7400" in text and "never reached" in text
