@@ -93,6 +93,15 @@ def spawn(*cmd: str, env: dict | None = None, **kw) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True, **kw)
 
 
+def file_size(path) -> int:
+    """The size of `path`, 0 while it does not exist: the run's output probe creates a
+    file and removes it again, so a check of exists() then stat() can race it."""
+    try:
+        return path.stat().st_size
+    except FileNotFoundError:
+        return 0
+
+
 def wait_until(pred, timeout: float, what: str, step: float = 0.02):
     end = time.monotonic() + timeout
     while time.monotonic() < end:

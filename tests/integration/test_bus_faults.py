@@ -14,6 +14,7 @@ from bus_helpers import (
     BUS_KINDS,
     Collector,
     bench,
+    file_size,
     make_env,
     module_bus_env,
     sdo_client,
@@ -158,7 +159,7 @@ def test_plant_killed_mid_run_ecu_stops_with_a_clear_error_and_a_complete_log(ow
                 "60", "--no-plant", "--log", str(log), "--save", str(saved), *own_env.flags,
                 env=own_env.env)
     try:
-        wait_until(lambda: log.exists() and log.stat().st_size > 200_000, 60,
+        wait_until(lambda: file_size(log) > 200_000, 60,
                    "the run to log frames")
         plant = own_env.children[-1]
         os.kill(plant.pid, signal.SIGKILL)

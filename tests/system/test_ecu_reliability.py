@@ -12,7 +12,7 @@ import can
 import canopen
 import numpy as np
 import pytest
-from bus_helpers import Collector, bench, make_env, spawn, wait_until
+from bus_helpers import Collector, bench, file_size, make_env, spawn, wait_until
 
 from bench.bus.logs import read_log, trace_from_log
 from bench.signals.trace import Trace
@@ -101,7 +101,7 @@ def test_a_signal_keeps_the_partial_trace_and_the_log_and_stops_the_node(env, tm
     watch = Collector(env)
     proc, log, saved = run_proc(env, tmp_path, "sine", "--duration", "60")
     try:
-        wait_until(lambda: log.exists() and log.stat().st_size > 100_000, 60,
+        wait_until(lambda: file_size(log) > 100_000, 60,
                    "the run to log frames")
         proc.send_signal(sig)
         out, err = finish(proc, 60)        # bounds the stop: no hang
@@ -134,13 +134,14 @@ def test_a_signal_during_set_up_is_a_one_line_error(env, tmp_path):
     traceback, the log closed, the node not left OPERATIONAL."""
     proc, log, saved = run_proc(env, tmp_path, "step", name="setup")
     try:
-        wait_until(lambda: log.exists() and log.stat().st_size > 2_000, 60,
+        wait_until(lambda: file_size(log) > 2_000, 60,
                    "the set-up's SDO traffic in the log")
         proc.send_signal(signal.SIGTERM)
         out, err = finish(proc, 30)
     finally:
         if proc.poll() is None:
             proc.kill()
+            proc.communicate(timeout=10)      # its pipes closed, not left to the GC
     assert proc.returncode == 143, err
     assert "Traceback" not in err
     assert err.strip().splitlines()[-1].startswith("error: interrupted by SIGTERM"), err
@@ -156,7 +157,7 @@ def test_a_stalled_ecu_is_not_a_silent_success(env, tmp_path):
     succeeds with no command timeout, or the run fails naming the command timeout."""
     proc, log, saved = run_proc(env, tmp_path, "sine", "--duration", "2.5")
     try:
-        wait_until(lambda: log.exists() and log.stat().st_size > 60_000, 60, "the run")
+        wait_until(lambda: file_size(log) > 60_000, 60, "the run")
         proc.send_signal(signal.SIGSTOP)
         time.sleep(0.6)
         proc.send_signal(signal.SIGCONT)
