@@ -60,6 +60,11 @@ FIFTH_SEED = 9901
 """The fifth final check's first build seed (`--build-seed 9901`), fixed before it ran,
 after the pair rule's floor clause: builds 9901-9903, noise seeds 48000-48294, never run
 by any development or earlier check."""
+SIXTH_SEED = 10101
+"""The sixth final check's first build seed (`--build-seed 10101`), fixed before it ran,
+with no change to the diagnosis since the fifth: a second measurement of the same
+diagnosis on new builds 10101-10103 and noise seeds 50000-50294, never run by any
+development or earlier check."""
 
 
 def build_seeds(first: int = BUILD_SEEDS[0]) -> tuple[int, int, int]:

@@ -49,6 +49,15 @@ def test_the_fifth_check_shares_no_seed_with_the_others():
     assert min(_noise(FC.FIFTH_SEED)) == 48_000
 
 
+def test_the_sixth_check_shares_no_seed_with_the_others():
+    earlier = (FC.BUILD_SEEDS[0], FC.FRESH_SEED, FC.THIRD_SEED, FC.FOURTH_SEED,
+               FC.FIFTH_SEED)
+    sixth = set(FC.build_seeds(FC.SIXTH_SEED))
+    assert not sixth & set().union(*(set(FC.build_seeds(s)) for s in earlier))
+    assert not _noise(FC.SIXTH_SEED) & set().union(*(_noise(s) for s in earlier))
+    assert min(_noise(FC.SIXTH_SEED)) == 50_000
+
+
 def test_build_seed_is_refused_where_it_cannot_apply(capsys):
     """`--build-seed` picks the final check's builds: given with another generator it
     would be ignored (a run of other cases, exit 0), and a seed whose noise seeds fall
