@@ -76,7 +76,9 @@ def _paths(shape: str, rng: np.random.Generator, life: float
 
 
 def final_trend(shape: str, k: int) -> SynthTrend:
-    """Trend `k` (0, 1, ...) of `shape` of the final check (module docstring)."""
+    """Trend `k` (0 to 99) of `shape` of the final check (module docstring)."""
+    if not 0 <= k < 100:
+        raise ValueError(f"trend {k}: the final check has trends 0 to 99 of each law")
     seed = FINAL_SEED + 100 * SHAPES.index(shape) + k
     rng = np.random.default_rng(seed)
     life = float(rng.uniform(60.0, 240.0))
@@ -113,7 +115,10 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     if len(a.law) != len(a.trend):
         ap.error("give one --trend per --law")
-    trends = [final_trend(law, k) for law, k in zip(a.law, a.trend, strict=True)]
+    try:
+        trends = [final_trend(law, k) for law, k in zip(a.law, a.trend, strict=True)]
+    except ValueError as exc:
+        ap.error(str(exc))
     write_csv(trends, a.out)
     for tr in trends:
         start = datetime(START.year, START.month, START.day)

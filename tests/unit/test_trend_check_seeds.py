@@ -57,3 +57,12 @@ def test_the_cli_writes_a_trend_the_prognosis_reads(tmp_path, capsys):
     assert [t.actuator for t in tab.trends] == ["paris-7400", "healthy-seasonal-7801"]
     text = capsys.readouterr().out
     assert "paris-7400" in text and "never reached" in text
+
+
+def test_a_trend_number_beyond_its_law_is_refused(capsys):
+    """Trend 100 of one law would be trend 0 of the next one's seeds."""
+    with pytest.raises(ValueError, match="trends 0 to 99"):
+        TC.final_trend("power", 100)
+    with pytest.raises(SystemExit):
+        TC.main(["--law", "power", "--trend", "100", "--out", "x.csv"])
+    assert "trends 0 to 99" in capsys.readouterr().err
