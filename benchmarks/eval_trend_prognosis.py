@@ -260,8 +260,14 @@ def _pct(v: float) -> str:
     return "-" if not math.isfinite(v) else f"{v:.0%}"
 
 
-def _shape_rows(syn: dict[str, Any]) -> list[str]:
-    return [f"| {shape} | {_pct(s['warned_14'])} | {_pct(s['false'])} | "
+def _shape_table(syn: dict[str, Any], first: str = "shape") -> list[str]:
+    """The per-shape table (header, rule, one row per shape of `synthetic`); `first` names
+    the first column."""
+    return [f"| {first} | warned >= 14 d before | warnings before the onset | truth in the "
+            "90 % band, days after the warning | trends with it on >= half of them | "
+            "narrow bands without a note | z-score peer: >= 14 d / before the onset | "
+            "exponential peer: >= 14 d / before the onset |",
+            "|---|---|---|---|---|---|---|---|"] + [f"| {shape} | {_pct(s['warned_14'])} | {_pct(s['false'])} | "
             f"{_pct(s['cover_mean'])} | {_pct(s['cover_half'])} | "
             f"{s['narrow_silent']:.0f} | {_pct(s['z_14'])} / {_pct(s['z_false'])} | "
             f"{_pct(s['exp_14'])} / {_pct(s['exp_false'])} |" for shape, s in syn.items()]
@@ -276,11 +282,7 @@ def final_markdown(syn: dict[str, Any], n: int, machine: str, wall: float) -> st
         f"(`bench.hums.trend_check`, seeds {FINAL_SEED} + 100 x shape + 0-{n - 1}, fixed "
         "before the run); failure at twice the healthy level, stated with `--failure`; "
         "`--healthy-tests 5`; every estimate from the tests up to its day:", "",
-        "| law | warned >= 14 d before | warnings before the onset | truth in the 90 % "
-        "band, days after the warning | trends with it on >= half of them | narrow bands "
-        "without a note | z-score peer: >= 14 d / before the onset | exponential peer: "
-        ">= 14 d / before the onset |", "|---|---|---|---|---|---|---|---|",
-        *_shape_rows(syn)]) + "\n"
+        *_shape_table(syn, "law")]) + "\n"
 
 
 def markdown(syn: dict[str, Any], camp: list[dict[str, Any]] | None,
@@ -293,13 +295,7 @@ def markdown(syn: dict[str, Any], camp: list[dict[str, Any]] | None,
              f"{SEED0 + args.seeds - 1} of each shape, held out from the development seeds "
              f"{DEV_SEEDS}; "
              "failure at twice the healthy level, stated with `--failure`; "
-             "`--healthy-tests 5`):", "",
-             "| shape | warned >= 14 d before | warnings before the onset | truth in the "
-             "90 % band, days after the warning | trends with it on >= half of them | "
-             "narrow bands without a note | z-score peer: >= 14 d / before the onset | "
-             "exponential peer: >= 14 d / before the onset |",
-             "|---|---|---|---|---|---|---|---|"]
-    lines += _shape_rows(syn)
+             "`--healthy-tests 5`):", "", *_shape_table(syn)]
     if camp:
         lines += ["", "**The bench's campaign as a foreign file** (`bench hums campaign "
                   "--usage` seed 2024, its 50 judged actuators; each index renamed, days "
