@@ -194,7 +194,8 @@ def run(workers: int = 2, duration_s: float = IB.LOG_S, progress: bool = True,
         scheduler: str | None = None, first: int = BUILD_SEEDS[0]) -> dict[str, Any]:
     """Calibrate the three actuators, then diagnose every case of each (`first`: the
     first build seed, `build_seeds`; 9101 the first final check, FRESH_SEED the second,
-    THIRD_SEED the third, FOURTH_SEED the fourth, FIFTH_SEED the fifth)."""
+    THIRD_SEED the third, FOURTH_SEED the fourth, FIFTH_SEED the fifth, SIXTH_SEED
+    the sixth)."""
     t0 = time.perf_counter()
     states, items = {}, []
     seeds, base = build_seeds(first), noise_base(first)
