@@ -34,6 +34,7 @@ import math
 
 import numpy as np
 
+from bench import BenchError
 from bench.hums.trend_synth import SynthTrend, _days
 
 SHAPES = ("power", "paris", "gamma", "wiener", "seasonal", "healthy-seasonal")
@@ -119,7 +120,10 @@ def main(argv: list[str] | None = None) -> int:
         trends = [final_trend(law, k) for law, k in zip(a.law, a.trend, strict=True)]
     except ValueError as exc:
         ap.error(str(exc))
-    write_csv(trends, a.out)
+    try:
+        write_csv(trends, a.out)
+    except BenchError as exc:
+        ap.error(str(exc))
     for tr in trends:
         start = datetime(START.year, START.month, START.day)
         when = ("reached on " + (start + timedelta(days=tr.t_failure)).isoformat(

@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bench import BenchError
+
 SHAPES = ("linear", "exponential", "piecewise", "knee", "jam", "noisy", "healthy")
 FAILURE_RATIO = 2.0
 START = date(2024, 1, 8)
@@ -132,16 +134,20 @@ def endurance_trend(shape: str, seed: int, cadence: str | None = None) -> SynthT
 def write_csv(trends: list[SynthTrend], path: str | Path, dates: bool = True,
               index: str = "rms_current", unit: str = "A") -> Path:
     """The trends as a long-form CSV (time as dates or days, actuator, index, value,
-    unit)."""
+    unit). BenchError, one line, when the file cannot be written."""
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with p.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["date" if dates else "day", "actuator", "index", "value", "unit"])
-        for tr in trends:
-            for t, y in zip(tr.t, tr.y, strict=True):
-                when = (START + timedelta(days=float(t))).isoformat() if dates else f"{t:g}"
-                w.writerow([when, tr.name, index, f"{y:.5g}", unit])
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with p.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["date" if dates else "day", "actuator", "index", "value", "unit"])
+            for tr in trends:
+                for t, y in zip(tr.t, tr.y, strict=True):
+                    when = (START + timedelta(days=float(t))).isoformat() if dates \
+                        else f"{t:g}"
+                    w.writerow([when, tr.name, index, f"{y:.5g}", unit])
+    except OSError as exc:
+        raise BenchError(f"cannot write {p}: {exc.strerror or exc}") from None
     return p
 
 
@@ -156,7 +162,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     trends = [endurance_trend(sh, sd) for sh, sd in zip(a.shape, a.seed, strict=True)]
-    write_csv(trends, a.out, dates=not a.days)
+    try:
+        write_csv(trends, a.out, dates=not a.days)
+    except BenchError as exc:
+        ap.error(str(exc))
     for tr in trends:
         when = (START + timedelta(days=tr.t_failure)).isoformat() if math.isfinite(
             tr.t_failure) else "never"

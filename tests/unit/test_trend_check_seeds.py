@@ -66,3 +66,13 @@ def test_a_trend_number_beyond_its_law_is_refused(capsys):
     with pytest.raises(SystemExit):
         TC.main(["--law", "power", "--trend", "100", "--out", "x.csv"])
     assert "trends 0 to 99" in capsys.readouterr().err
+
+
+def test_an_output_that_cannot_be_written_is_one_line(tmp_path, capsys):
+    from bench.hums import trend_synth as TS
+    for main, args in ((TC.main, ["--law", "power", "--trend", "0"]),
+                       (TS.main, ["--shape", "linear", "--seed", "1"])):
+        with pytest.raises(SystemExit):
+            main(args + ["--out", str(tmp_path)])          # a directory
+        err = capsys.readouterr().err
+        assert f"cannot write {tmp_path}: Is a directory" in err and "Traceback" not in err
