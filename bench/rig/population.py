@@ -46,7 +46,6 @@ from bench.rig.play import PLAY, PLAY_OF, play_score
 from bench.rig.spread import MIN_RUNS, Spread, pooled, spread
 
 ALPHA = 0.05
-LEVEL_ENV = "BENCH_RIG_LEVEL"     # "nested-load": the per-load level (for measuring)
 
 
 @dataclass
@@ -224,9 +223,7 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
     feature a load's cycles cannot give (periodic without the lead) gets none."""
     usable = [k for k in FEATURES if k != PLAY and all(
         np.isfinite(lo.scores[k]).all() and lo.scores[k] for lo in loros.values())]
-    flag = [k for k in usable if k not in NAMING_ONLY]
-    per = alpha / max(len(flag), 1)
-    level = _levels(loros, flag, alpha, per)
+    per = alpha / max(len([k for k in usable if k not in NAMING_ONLY]), 1)
     thr: dict[float, dict[str, float]] = {ld: {} for ld in loros}
     spreads: dict[float, dict[str, Spread]] = {ld: {} for ld in loros}
     for k in usable:
@@ -238,32 +235,11 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
                 raise BenchError(f"load {ld:g}: a threshold needs at least 3 held-out "
                                  f"healthy scores, got {sp.cycles}")
             spreads[ld][k] = sp
-            thr[ld][k] = threshold_of(sp, level[ld] if k in flag else per, null)
+            thr[ld][k] = threshold_of(sp, per, null)
     if all(k in usable for k in PLAY_OF):
         _play(loros, thr, spreads, per)
     return {ld: Calibration(ld, lo.runs, thr[ld], lo.scores, alpha, lo.of_run, spreads[ld],
                             prediction_bound(lo.zscores, alpha)) for ld, lo in loros.items()}
-
-
-def _levels(loros: dict[float, Loro], flag: list[str], alpha: float, per: float
-            ) -> dict[float, float]:
-    """The flagging features' level per load: `level.load_levels` when `LEVEL_ENV` is
-    "nested-load", else alpha / n at every load."""
-    import os
-    if os.environ.get(LEVEL_ENV, "") != "nested-load":
-        return {ld: per for ld in loros}
-    from bench.rig.level import load_levels
-    levels, info = load_levels(
-        loros, flag, alpha, per,
-        lambda k, sp, a: threshold_of(sp, a, NULLS.get(k, ("log", 0))),
-        lambda k, v: _transform(NULLS.get(k, ("log", 0))[0], v))
-    log = os.environ.get(LEVEL_ENV + "_LOG")
-    if log:
-        import json
-        with open(log, "a") as fh:
-            fh.write(json.dumps({"runs": sorted({r for lo in loros.values() for r in lo.of_run}),
-                                 "levels": {str(k): v for k, v in info.items()}}) + "\n")
-    return levels
 
 
 def _play(loros: dict[float, Loro], thr: dict[float, dict[str, float]],
