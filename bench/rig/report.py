@@ -15,7 +15,7 @@ import numpy as np
 
 from bench.reports import Block, Document, Heading, Paragraph, Table
 from bench.reports import Figure as PageFigure
-from bench.rig.report_goals import goal_blocks
+from bench.rig.report_goals import ci, goal_blocks, pct
 from bench.rig.study import Study, mean_profile
 
 
@@ -164,17 +164,12 @@ def detection_figure(study: Study, path: Path) -> Path:
 
 
 def _pct(x: float) -> str:
+    """A rate in a per-stage cell, to the whole per cent (the tables' compact cells)."""
     return "-" if not math.isfinite(x) else f"{100 * x:.0f} %"
 
 
 def _mm(x: float) -> str:
     return "-" if not math.isfinite(x) else f"{x:.1f}"
-
-
-def _interval(iv: list[float] | None) -> str:
-    if not iv or not all(math.isfinite(x) for x in iv):
-        return "-"
-    return f"{100 * iv[0]:.1f}-{100 * iv[1]:.1f} %"
 
 
 def _cv_blocks(sm: dict[str, Any]) -> list[Block]:
@@ -190,7 +185,7 @@ def _cv_blocks(sm: dict[str, Any]) -> list[Block]:
         eff = ", ".join(f"{e} {n}" for e, n in sorted(cv["effects"].items())) or "none"
         table.rows.append([load, ",".join(map(str, cv["runs"])), str(cv["splits"]),
                            f"{cv['flagged']} / {cv['judged']}",
-                           f"{_pct(cv['rate'])} ({_interval(cv['rate_95'])})", eff])
+                           f"{pct(cv['rate'])} ({ci(cv['rate_95'])})", eff])
     return [Paragraph(f"Healthy false alarms, cross-validated: {_choices(rows[0][1])} "
                       "calibrates (as above), the cycles of the other healthy runs are judged; "
                       "a measurement only, no threshold comes from it:"), table]
@@ -255,8 +250,8 @@ def _holdout_table(sm: dict[str, Any]) -> Table:
         h = row["holdout"]
         thr = ", ".join(f"{k} {v:.3g}" for k, v in row["thresholds"].items())
         skip = f"; {h['not_judged']} incomplete not judged" if h.get("not_judged") else ""
-        table.rows.append([load, f"{h['flagged']} / {h['cycles']} ({_pct(h['rate'])}; "
-                           f"{_interval(h.get('rate_95'))}){skip}",
+        table.rows.append([load, f"{h['flagged']} / {h['cycles']} ({pct(h['rate'])}; "
+                           f"{ci(h.get('rate_95'))}){skip}",
                            f"{row['zscore_threshold']:.3g}", thr])
     return table
 
