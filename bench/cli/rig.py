@@ -329,7 +329,9 @@ def _assess(args: argparse.Namespace) -> int:
     for note in notes:
         print(f"note: {note}")
     if not args.quiet and verdicts:
-        print(f"against {verdicts[0]['baseline']}")
+        # one load judged: its baseline line; several: the baseline of every load
+        against = {v["baseline"] for v in verdicts}
+        print(f"against {verdicts[0]['baseline'] if len(against) == 1 else base.describe()}")
     for (src, load), (n, k, u) in sorted(counts.items()):
         rate = f"{100 * k / n:.0f} %" if n else "-"
         print(f"{src} load {load:g}: {k} / {n} cycles flagged ({rate})"

@@ -246,3 +246,28 @@ def test_rig_assess_checks_its_outputs_and_baseline_first(tmp_path, capsys, kgf_
         f"{tmp_path / 'no'} does not exist")
     assert main(["rig", "assess", table, "--baseline", str(tmp_path)]) == 2
     assert "a directory, not a baseline JSON" in capsys.readouterr().err
+
+
+def test_rig_assess_names_every_load_of_the_baseline_it_judged_against(tmp_path, capsys):
+    """Cycles at two loads were judged against each load's baseline, but the summary line
+    named the first cycle's load only ("... load 20 kgf, runs 1,2, 10 healthy cycles")."""
+    import lzma
+
+    from bench.cli import main
+    lines = lzma.open(SAMPLE / "normal_load40_runs1-4.csv.xz", "rt").read().splitlines()
+    head, rows = lines[0], lines[1:]
+    col = head.split(",").index("load")
+
+    def at(load: str) -> list[str]:
+        return [",".join(load if i == col else v for i, v in enumerate(r.split(",")))
+                for r in rows]
+    table = tmp_path / "two_loads.csv"
+    table.write_text("\n".join([head, *at("20"), *at("40")]) + "\n")
+    b = tmp_path / "base.json"
+    assert main(["rig", "baseline", str(table), "--runs", "1,2", "--lead-mm", "5",
+                 "--out", str(b)]) == 0
+    capsys.readouterr()
+    assert main(["rig", "assess", str(table), "--runs", "3,4", "--baseline", str(b)]) == 0
+    against = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("against")]
+    assert len(against) == 1
+    assert "load 20: runs 1,2" in against[0] and "load 40: runs 1,2" in against[0]
