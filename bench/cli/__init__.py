@@ -92,6 +92,19 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _debug_anywhere(argv: list[str]) -> tuple[list[str], bool]:
+    """`argv` without a `--debug` given after the command (`bench gap LOG --debug`, as the
+    one-line errors suggest), and whether there was one: the flag is the top-level
+    parser's, which sees only what stands before the command."""
+    cmd = selected_command(argv)
+    if cmd is None:
+        return argv, False
+    start = argv.index(cmd) + 1
+    end = argv.index("--", start) if "--" in argv[start:] else len(argv)
+    rest = [a for a in argv[start:end] if a != "--debug"]
+    return argv[:start] + rest + argv[end:], len(rest) < end - start
+
+
 def main(argv: list[str] | None = None) -> int:
     from bench.runtime import interrupts
     with interrupts.counting():     # a Ctrl-C that an import swallows is still seen
@@ -107,8 +120,10 @@ def _main(argv: list[str] | None) -> int:
     if argv is None:
         refuse_mf4_import()
     argv = sys.argv[1:] if argv is None else list(argv)
+    argv, debug = _debug_anywhere(argv)
     parser = build_parser(argv)
     args = parser.parse_args(argv)
+    args.debug = args.debug or debug
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

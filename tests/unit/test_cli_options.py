@@ -63,3 +63,18 @@ def test_every_workers_option_has_the_one_default_or_the_named_literal():
             "bench hums sweep", "bench hums prognose"} <= set(seen), sorted(seen)
     assert seen["bench gap"] == seen["bench gap-bench"] == options.DEFAULT_WORKERS == 2
     assert seen["bench rig study"] is None and seen["bench fleet synth"] is None
+
+
+def test_debug_after_the_command_shows_the_traceback(tmp_path, capsys):
+    """The one-line errors say "run with --debug"; `bench gap LOG --debug` was refused
+    ("unrecognized arguments: --debug"): only `bench --debug gap LOG` worked."""
+    from bench.cli import _debug_anywhere, main
+    missing = str(tmp_path / "x.log")
+    assert main(["gap", missing, "--debug"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.rstrip().splitlines()[-1] == f"error: no such file: {missing}"
+    assert main(["gap", missing]) == 2
+    assert "Traceback" not in capsys.readouterr().err
+    # after `--` it is an argument, not the flag
+    assert _debug_anywhere(["gap", "--", "--debug"]) == (["gap", "--", "--debug"], False)
+    assert _debug_anywhere(["--debug", "gap", "a"]) == (["--debug", "gap", "a"], False)
