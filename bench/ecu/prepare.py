@@ -73,7 +73,7 @@ class NodePrepare(NodeSdo):
             return p.name.lower()
 
         if pace is not None:
-            src = "--pace"
+            src = "as the command asks (its --pace or that option's default)"
             if own is not None and own != pace:
                 src += f"; the plant runs {name(own)} on its own (0x2200 sub 1)"
         elif own is not None:
