@@ -145,15 +145,36 @@ def _ranking_lines(js: dict[str, Any], top: int) -> list[str]:
     above = " above the calibration's healthy level" if loc.get("heldout_excess") else ""
     out = [f"ranking by BIC, lower is better (shrink: of the held-out excess gap{above}):"]
     shown = [c for c in rk[:top]]
-    shown += [c for c in rk[top:] if c.get("chosen")]
-    for c in shown:
+    later = [c for c in rk[top:] if c.get("chosen")]
+    for c in shown + later:
+        if later and c is later[0] and rk.index(c) > top:
+            out.append(f"      ... {rk.index(c) - top} more")
         sh = c["heldout_shrink_pct"]
         sh_s = f"{shrink_text(sh):>6s} %" if sh is not None else "   n/a  "
         mark = "  <- chosen" if c.get("chosen") else ""
         flags = "  (suspect)" if c.get("suspect") else ""
         out.append(f"  {c.get('rank', 0):2d}. {c['effect']:<28s} BIC {c['score']['bic']:9.1f}"
                    f"  shrink {sh_s}  {fmt_params(c['params'])}{flags}{mark}")
+    chosen = next((c for c in rk if c.get("chosen")), None)
+    if chosen is not None and chosen is not rk[0]:
+        out.append("  " + _why_not_first(js["localisation"].get("selection", {})))
     return out
+
+
+def _why_not_first(sel: dict[str, Any]) -> str:
+    """Why the chosen candidate is not the lowest BIC (the selection's rules, docs/gap.md,
+    "Selection"), in one line."""
+    kinds = (("pairs_rejected_as_insignificant", "an added effect insignificant"),
+             ("pairs_rejected_below_floor", "an added effect below the floor"),
+             ("pairs_rejected_as_suspect", "a suspect value"))
+    refused = [f"{len(sel[k])} with {why}" for k, why in kinds if sel.get(k)]
+    if not sel.get("best_single_leaves_significant_heldout_gap", True):
+        refused.insert(0, "the best single leaves no significant held-out gap")
+    tail = (f": {'; '.join(refused)}" if refused else
+            ": a pair replaces the best single only where it removes enough of the held-out "
+            "gap the single leaves and beats its BIC by a margin")
+    return (f"(chosen by the selection's rules, not by the lowest BIC{tail}; "
+            "docs/gap.md, \"Selection\")")
 
 
 def _verdict_line(js: dict[str, Any]) -> list[str]:
