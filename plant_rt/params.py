@@ -26,6 +26,16 @@ class ParameterError(ValueError):
     """A plant parameter is unknown or has an invalid value."""
 
 
+SEED_MAX = 2**31 - 1
+"""The largest seed a seed parameter takes (an INTEGER32 object on the bus, dbc/ema.eds)."""
+
+
+def seed_in_range(seed: int) -> int:
+    """A seed derived from a user's seed (``seed * 1_000_003 + k``), folded into the
+    seed parameters' range: unchanged where it already lies in [0, SEED_MAX)."""
+    return int(seed) % SEED_MAX
+
+
 def P(default: Any, unit: str, lo: float | None, hi: float | None, doc: str,
       source: str = "", choices: tuple[str, ...] | None = None) -> Any:
     """A parameter field with its unit, range [lo, hi], description and source."""
@@ -215,7 +225,7 @@ class SensorParams(_Validated):
     encoder_counts_per_rev: int = P(16384, "counts/rev", 16, 2**24,
                                     "encoder resolution on the motor shaft", "chosen")
     noise: bool = P(False, "-", None, None, "white sensor noise on/off", "section 5.1")
-    noise_seed: int = P(1, "-", 0, 2**31 - 1, "seed of the sensor noise generator", "chosen")
+    noise_seed: int = P(1, "-", 0, SEED_MAX, "seed of the sensor noise generator", "chosen")
     current_noise_a: float = P(0.1, "A", 0.0, 10.0, "current noise std per SYNC sample",
                                "chosen")
     position_noise_m: float = P(2e-6, "m", 0.0, 1e-3, "LVDT noise std per SYNC sample",
@@ -317,7 +327,7 @@ class LoadParams(_Validated):
     gust_time_constant_s: float = P(0.5, "s", 1e-3, 100.0,
                                     "aero: correlation time of the gust force (Dryden-type "
                                     "first-order filter)", "chosen (docs/model.md)")
-    gust_seed: int = P(7, "-", 0, 2**31 - 1, "aero: seed of the gust generator", "chosen")
+    gust_seed: int = P(7, "-", 0, SEED_MAX, "aero: seed of the gust generator", "chosen")
 
 
 @dataclass(frozen=True)
@@ -363,7 +373,7 @@ class WearParams(_Validated):
     coefficient_log_std: float = P(0.5, "-", 0.0, 3.0,
                                    "standard deviation of ln k across actuators (0: every "
                                    "actuator has the median)", "chosen (docs/model.md)")
-    seed: int = P(1, "-", 0, 2**31 - 1,
+    seed: int = P(1, "-", 0, SEED_MAX,
                   "actuator seed: draws this actuator's k from the distribution", "chosen")
     acceleration: float = P(1.0, "-", 1e-3, 1e9,
                             "time compression of wear (multiplies k): 1 = real use",

@@ -128,9 +128,10 @@ def _main(argv: list[str] | None) -> int:
         parser.print_help()
         return 2
     from bench.core.filenames import one_line
+    from plant_rt.params import ParameterError
     try:
         rc = _run(args)
-    except BenchError as exc:
+    except (BenchError, ParameterError) as exc:   # the user's input (a plant parameter too)
         if args.debug:
             traceback.print_exc()
         print(f"error: {one_line(str(exc))}", file=sys.stderr)

@@ -83,7 +83,7 @@ def add_effects(parser: argparse.ArgumentParser, also: str = "") -> None:
 def add_seed(parser: argparse.ArgumentParser, default: int, what: str = "random seed",
              metavar: str | None = None) -> None:
     """`--seed N`, its default said in the help."""
-    parser.add_argument("--seed", type=int, default=default, metavar=metavar,
+    parser.add_argument("--seed", type=seed_arg, default=default, metavar=metavar,
                         help=f"{what} (default {default})")
 
 
@@ -120,8 +120,30 @@ def add_baseline(parser: argparse.ArgumentParser) -> None:
 
 
 def node_id_arg(text: str) -> int:
-    """A CANopen node id as given on the command line (0x10, 16)."""
-    return int(text, 0)
+    """A CANopen node id as given on the command line (0x10, 16): 1 to 127 (CiA 301)."""
+    try:
+        v = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a node id: {text!r}") from None
+    if not 1 <= v <= 127:
+        raise argparse.ArgumentTypeError(f"{text}: a CANopen node id is 1 to 127 (0x01-0x7F)")
+    return v
+
+
+SEED_RANGE = (0, 2**32 - 1)
+"""A --seed: numpy's and scikit-learn's generators take 0 to 2**32 - 1."""
+
+
+def seed_arg(text: str) -> int:
+    """A --seed as given on the command line, in `SEED_RANGE`."""
+    try:
+        v = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    lo, hi = SEED_RANGE
+    if not lo <= v <= hi:
+        raise argparse.ArgumentTypeError(f"{text}: a seed is {lo} to {hi}")
+    return v
 
 
 def add_node_id(parser: argparse.ArgumentParser) -> None:
@@ -146,4 +168,4 @@ def add_bus(parser: argparse.ArgumentParser) -> None:
 
 __all__ = ["DEFAULT_WORKERS", "WORKERS_HELP", "add_baseline", "add_bus", "add_command", "add_doc", "add_figures",
            "add_json", "add_node_id", "add_out", "add_output", "add_scheduler", "add_seed",
-           "add_serial", "add_set", "add_workers", "node_id_arg"]
+           "add_serial", "add_set", "add_workers", "node_id_arg", "seed_arg"]

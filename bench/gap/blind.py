@@ -43,7 +43,7 @@ from bench.runtime.workers import run_all
 from bench.signals.trace import MEASURED, Trace
 from bench.sim.harness import simulate
 from plant_rt.model import viscous_friction
-from plant_rt.params import PlantParams
+from plant_rt.params import PlantParams, seed_in_range
 
 LOG_S = 10.0
 NOMINAL = PlantParams()
@@ -251,7 +251,7 @@ def make_cases(n: int, seed: int) -> list[Case]:
 def generate(case: Case, noise: bool = True, fidelity: str = "full",
              duration_s: float = LOG_S) -> Trace:
     """The case's log: measured columns only, no metadata."""
-    over: dict[str, Any] = {"sensors.noise": noise, "sensors.noise_seed": case.noise_seed}
+    over: dict[str, Any] = {"sensors.noise": noise, "sensors.noise_seed": seed_in_range(case.noise_seed)}
     for t in case.truths:
         over.update(t.plant)
     if fidelity == "fast":

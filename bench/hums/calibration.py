@@ -35,7 +35,7 @@ from bench.hums.sweep import degraded
 from bench.profiles.catalog import make_profile
 from bench.runtime.workers import run_all
 from bench.sim.harness import simulate
-from plant_rt.params import PlantParams
+from plant_rt.params import PlantParams, seed_in_range
 
 CALIBRATION_VERSION = 3     # part of the report's cache key: bump when calibrate() changes
 
@@ -66,7 +66,7 @@ def healthy_params(base: PlantParams, rng: np.random.Generator, seed: int) -> Pl
     return base.with_dict({"schedule.kind": "none", "effects.backlash_m": 0.0,
                            "effects.friction_scale": float(rng.uniform(0.9, 1.1)),
                            "effects.preload_n": float(rng.choice([0.0, rng.uniform(1e3, 3e3)])),
-                           "sensors.noise": True, "sensors.noise_seed": int(seed)})
+                           "sensors.noise": True, "sensors.noise_seed": seed_in_range(seed)})
 
 
 def _healthy_record(job: tuple[str, float, float]) -> RunRecord:

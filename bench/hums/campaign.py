@@ -30,7 +30,7 @@ from bench.hums.metrics import LAMBDA_ROWS, score_run, summarise_scores
 from bench.hums.records import RunRecord, simulate_record, true_failure_time
 from bench.hums.rul import N_BOOT, WARNING, Prediction, thesis_predict, thesis_profile
 from bench.runtime.workers import run_all
-from plant_rt.params import PlantParams
+from plant_rt.params import PlantParams, seed_in_range
 
 CAMPAIGN_RANGES = {
     "schedule.duration_s": (90.0, 150.0),
@@ -45,7 +45,7 @@ def campaign_params(base: PlantParams, rng: np.random.Generator, seed: int) -> P
     """One run-to-failure actuator: every CAMPAIGN_RANGES field drawn uniformly, noise on."""
     vals: dict[str, Any] = {k: float(rng.uniform(*r)) for k, r in CAMPAIGN_RANGES.items()}
     vals.update({"schedule.kind": "rul", "sensors.noise": True,
-                 "sensors.noise_seed": int(seed)})
+                 "sensors.noise_seed": seed_in_range(seed)})
     return base.with_dict(vals)
 
 

@@ -33,7 +33,7 @@ from bench.hums.table import figure_links
 from bench.profiles.catalog import make_profile
 from bench.runtime.workers import run_all
 from bench.sim.harness import simulate
-from plant_rt.params import PlantParams
+from plant_rt.params import PlantParams, seed_in_range
 
 MANEUVERS: dict[str, str] = {"H2": "velocity-step", "H3": "velocity-cosine", "H4": "sine"}
 SHOWN = (0.0, 0.5, 1.0)     # degradation levels kept as time series for the figures
@@ -47,7 +47,7 @@ def degraded(params: PlantParams, d: float, noise: bool, seed: int) -> PlantPara
                              "effects.friction_scale": 1.0 + 3.0 * d,
                              "effects.preload_n": 0.0, "schedule.kind": "none",
                              "load.kind": "none", "sensors.noise": noise,
-                             "sensors.noise_seed": seed})
+                             "sensors.noise_seed": seed_in_range(seed)})
 
 
 @dataclass

@@ -46,7 +46,7 @@ from bench.hums.prognosis import exposure_of_usage
 from bench.hums.rul import FAILURE
 from bench.profiles.catalog import make_profile
 from bench.sim.harness import simulate
-from plant_rt.params import PlantParams
+from plant_rt.params import PlantParams, seed_in_range
 
 ACCELERATION = 30000.0       # time compression of wear during a simulated flight
 FLIGHT_S = 30.0              # one simulated flight a day
@@ -93,7 +93,7 @@ def ground_test(params: PlantParams, volume_m3: float, kp: float, noise_seed: in
     g = params.with_dict({
         "wear.initial_volume_m3": float(volume_m3), "wear.acceleration": 1.0,
         "load.kind": "none", "sensors.noise": noise_seed is not None,
-        "sensors.noise_seed": int(noise_seed or 0)})
+        "sensors.noise_seed": seed_in_range(noise_seed or 0)})
     tr = simulate(make_profile("sine"), g)
     meas = tr.measured()
     nominal_params = PlantParams().with_dict({"effects.preload_n": PRELOAD_N})
@@ -112,8 +112,8 @@ def fly(params: PlantParams, volume_m3: float, severity: float, seed: int,
     from bench.usage.settings import LOAD_EDGES_N
     f = params.with_dict({
         "wear.initial_volume_m3": float(volume_m3), "wear.acceleration": acceleration,
-        "load.kind": "aero", "load.gust_seed": int(seed) % (2**31 - 1),
-        "sensors.noise_seed": int(seed) % (2**31 - 1),
+        "load.kind": "aero", "load.gust_seed": seed_in_range(seed),
+        "sensors.noise_seed": seed_in_range(seed),
         "drive.pwm_mode": "averaged", "sim.ball_model": "quasistatic"})
     tr = simulate(make_profile("flight", duration_s=FLIGHT_S, severity=severity,
                                seed=int(seed) % (2**31 - 1)), f)

@@ -8,6 +8,8 @@ import argparse
 import re
 from pathlib import Path
 
+import pytest
+
 from bench.cli import build_parser, options
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -78,3 +80,42 @@ def test_debug_after_the_command_shows_the_traceback(tmp_path, capsys):
     # after `--` it is an argument, not the flag
     assert _debug_anywhere(["gap", "--", "--debug"]) == (["gap", "--", "--debug"], False)
     assert _debug_anywhere(["--debug", "gap", "a"]) == (["--debug", "gap", "a"], False)
+
+
+def test_a_node_id_outside_1_to_127_is_refused_before_any_bus(capsys):
+    """`bench status --node-id 200` ended in "error: ValueError: CANopen node id must be
+    1..127" (exit 1) and `bench up --node-id 200` started the plant first."""
+    from bench.cli import main
+    for argv in (["status", "--node-id", "200"], ["up", "--node-id", "0"],
+                 ["run", "step", "--node-id", "0x80", "--duration", "0.2"]):
+        with pytest.raises(SystemExit) as ex:
+            main(argv)
+        assert ex.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "a CANopen node id is 1 to 127" in err[0], err
+
+
+def test_a_seed_outside_the_generators_range_is_one_line(capsys):
+    """`--seed -1` ended in numpy's or scikit-learn's ValueError (exit 1)."""
+    from bench.cli import main
+    for seed in ("-1", str(2**32)):
+        with pytest.raises(SystemExit) as ex:
+            main(["fleet", "synth", "--actuators", "1", "--days", "1", "--out", "x",
+                  "--seed", seed])
+        assert ex.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "a seed is 0 to 4294967295" in err[0]
+
+
+def test_a_plant_parameter_out_of_range_is_the_users_error(monkeypatch, capsys):
+    """A ParameterError (a value the user gave, e.g. `--load-rating-n 1e308`) printed
+    "error: ParameterError: ..." with exit 1, as for a fault of the bench."""
+    import bench.cli as cli
+    from plant_rt.params import ParameterError
+
+    def refuse(args):
+        raise ParameterError("screw.dynamic_load_rating_n = 1e+308 N is above its maximum")
+    monkeypatch.setattr(cli, "_run", refuse)
+    assert cli.main(["status"]) == 2
+    assert capsys.readouterr().err == ("error: screw.dynamic_load_rating_n = 1e+308 N is above "
+                                       "its maximum\n")
