@@ -186,7 +186,8 @@ def _thesis_logs(args: argparse.Namespace) -> tuple[Any, list[Any]]:
     return log, held
 
 
-def distinct_logs(healthy: list[str], holdout: list[str]) -> None:
+def distinct_logs(healthy: list[str], holdout: list[str],
+                  other: str = "another healthy run") -> None:
     """Every log once: a held-out log that is one of the fitted ones (the same file, or
     the same bytes under another name) or a log given twice is a one-line error (a
     duplicate would score the fit on its own data, or count one run twice)."""
@@ -206,7 +207,7 @@ def distinct_logs(healthy: list[str], holdout: list[str]) -> None:
                 same = "the same file as" if key[0] == "file" else "the same content as"
                 if role == "--holdout" and role0 == "healthy":
                     raise BenchError(f"--holdout {p} is {same} the fitted log {p0}: a "
-                                     "held-out log must be another healthy run")
+                                     f"held-out log must be {other}")
                 raise BenchError(f"{p} is given twice as a {role} log ({same} {p0}): give "
                                  "each log once")
         for key in keys:

@@ -179,8 +179,6 @@ def run_synth(args: argparse.Namespace) -> int:
     from bench.fleet.synth import synth
     if args.actuators < 1 or args.days < 1:
         raise BenchError("--actuators and --days must be at least 1")
-    if args.seed < 0:
-        raise BenchError(f"--seed must be >= 0, not {args.seed}")
     check_output_dir(args.out, "--out")
     t0 = time.perf_counter()
     paths = synth(args.actuators, args.days, args.out, args.seed, _workers(args),

@@ -91,6 +91,19 @@ def _check_numbers(args: argparse.Namespace) -> None:
     if args.fundamental is not None and not (math.isfinite(args.fundamental)
                                              and args.fundamental > 0):
         raise BenchError("--fundamental must be a finite frequency > 0 Hz")
+    if args.holdout:          # scored on its own data, the held-out shrink would be the fit's
+        from bench.cli.calibrate import distinct_logs
+        distinct_logs([args.log], [args.holdout], "another log of the actuator")
+
+
+def _below_nyquist(f0: float, log: Any) -> None:
+    """A --fundamental the log can show: below half its sample rate (its harmonics' bands
+    are split on the log's own samples)."""
+    from bench import BenchError
+    dt = log.dt
+    if math.isfinite(dt) and dt > 0 and f0 >= 0.5 / dt:
+        raise BenchError(f"--fundamental {f0:g} Hz is not below the log's Nyquist frequency "
+                         f"{0.5 / dt:g} Hz (a sample every {dt * 1e3:g} ms)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -120,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
     hold = load_log(args.holdout) if args.holdout else None
     ctrl_line = _attach_controller(args, doc, log, hold)
     if args.fundamental is not None:
+        _below_nyquist(args.fundamental, log)
         log.meta["fundamental_hz"] = args.fundamental
     say = status_printer(args.quiet)
     t0 = time.perf_counter()

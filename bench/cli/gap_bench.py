@@ -246,8 +246,6 @@ def check_arguments(args: argparse.Namespace) -> list | None:
         raise BenchError("--workers must be >= 1")
     if not 2.0 <= args.log_s <= 120.0:
         raise BenchError("--log-s must be between 2 and 120 s")
-    if args.seed < 0:
-        raise BenchError(f"--seed must be >= 0, not {args.seed}")
     from bench.gap import effects as E
     if args.effects is not None and not args.effects.strip(", "):
         raise BenchError("--effects lists no effect")

@@ -241,6 +241,8 @@ def check_io(args: Namespace) -> None:
     io = IO_TABLE.get(command_name(args))
     if io is None:
         return
+    _no_empty_path(io, args)
+    _no_input_twice(io, args)
     ins = [(name, p) for name in io.inputs for p in _paths(getattr(args, name, None))]
     outs = [(name, p) for name in io.files for p in _paths(getattr(args, name, None))]
     for name, fixed in io.dirs.items():
@@ -260,6 +262,32 @@ def check_io(args: Namespace) -> None:
             if name2 != name and _same(p, p2):
                 raise BenchError(f"{_flag(name)} and {_flag(name2)} are one file ({p}); "
                                  "give each output its own path")
+
+
+def _no_empty_path(io: IO, args: Namespace) -> None:
+    """No path option given as "" (or blanks): for a folder it meant the current one
+    (`--out ""` wrote the report there), for a file nothing written and no word said."""
+    for name in (*io.inputs, *io.files, *io.dirs):
+        value = getattr(args, name, None)
+        if any(isinstance(v, str) and not v.strip()
+               for v in (value if isinstance(value, (list, tuple)) else [value])):
+            raise BenchError(f"{_arg(name)}: an empty path: name a file or folder")
+
+
+def _no_input_twice(io: IO, args: Namespace) -> None:
+    """No input file given twice to one option (the same file, also under another name or
+    through a link): it would count twice (`bench usage a.log a.log` summed the run's
+    usage twice)."""
+    for name in io.inputs:
+        value = getattr(args, name, None)
+        if not isinstance(value, (list, tuple)):
+            continue
+        files = [p for p in _paths(value) if os.path.isfile(p)]
+        for k, p in enumerate(files):
+            for q in files[k + 1:]:
+                if _same(p, q):
+                    raise BenchError(f"{_arg(name)}: {p} and {q} are one file, given twice: "
+                                     "give each input once")
 
 
 def _check_pool(args: Namespace) -> None:

@@ -98,13 +98,17 @@ def test_a_node_id_outside_1_to_127_is_refused_before_any_bus(capsys):
 def test_a_seed_outside_the_generators_range_is_one_line(capsys):
     """`--seed -1` ended in numpy's or scikit-learn's ValueError (exit 1)."""
     from bench.cli import main
-    for seed in ("-1", str(2**32)):
-        with pytest.raises(SystemExit) as ex:
-            main(["fleet", "synth", "--actuators", "1", "--days", "1", "--out", "x",
-                  "--seed", seed])
-        assert ex.value.code == 2
-        err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and "a seed is 0 to 4294967295" in err[0]
+    commands = (["fleet", "synth", "--actuators", "1", "--days", "1", "--out", "x"],
+                ["hums", "campaign"], ["hums", "campaign", "--usage"],
+                ["hums", "prognose", "--trends", "t.csv"], ["gap-bench"],
+                ["rig", "train", "a.csv", "-o", "m.skops"])
+    for cmd in commands:
+        for seed in ("-1", str(2**32)):
+            with pytest.raises(SystemExit) as ex:
+                main([*cmd, "--seed", seed])
+            assert ex.value.code == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and "a seed is 0 to 4294967295" in err[0], (cmd, err)
 
 
 def test_a_plant_parameter_out_of_range_is_the_users_error(monkeypatch, capsys):

@@ -109,8 +109,6 @@ BAD = {
     "campaign-figures-a-file": (
         ["hums", "campaign", "--figures", "{afile}"],
         "--figures: cannot write into {afile}: it is not a directory"),
-    "campaign-seed-negative": (
-        ["hums", "campaign", "--seed", "-1"], "--seed must be >= 0, not -1"),
     "campaign-trends-out-alone": (
         ["hums", "campaign", "--trends-out", "{tmp}/t.csv"], "--trends-out is for --usage"),
     "campaign-calibration-out-alone": (
@@ -128,17 +126,9 @@ BAD = {
     "usage-doc-unbalanced": (
         ["hums", "campaign", "--usage", "--doc", "{doc}"],
         "--doc: {doc}: unbalanced generated-section markers for 'usage-campaign'"),
-    "usage-seed-negative": (
-        ["hums", "campaign", "--usage", "--seed", "-1"], "--seed must be >= 0, not -1"),
-    "prognose-seed-negative": (
-        ["hums", "prognose", "--trends", "{tmp}/t.csv", "--seed", "-1"],
-        "--seed must be >= 0, not -1"),
     "prognose-json-under-a-file": (
         ["hums", "prognose", "--trends", "{tmp}/t.csv", "--json", "{afile}/p.json"],
         "--json: cannot write {afile}/p.json: {afile} is not a directory"),
-    "fleet-synth-seed-negative": (
-        ["fleet", "synth", "--actuators", "1", "--days", "1", "--out", "{tmp}/f",
-         "--seed", "-1"], "--seed must be >= 0, not -1"),
 }
 
 
