@@ -133,6 +133,27 @@ def check_arguments(args: argparse.Namespace) -> None:
         raise PlantError("--rt-priority must be within 0..99")
     if args.parent_pid is not None and args.parent_pid <= 0:
         raise PlantError(f"--parent-pid must be a process id > 0, not {args.parent_pid}")
+    if args.ready_file:
+        check_ready_file(Path(args.ready_file))
+
+
+READY = "ready\n"
+"""What the node writes to --ready-file once it has booted."""
+
+
+def check_ready_file(path: Path) -> None:
+    """--ready-file as a file the node may write before it starts: in a folder that
+    exists, and not a file of other content (a log named by mistake would be replaced)."""
+    if path.is_dir():
+        raise PlantError(f"--ready-file {path}: it is a directory")
+    if not path.parent.is_dir():
+        raise PlantError(f"--ready-file {path}: directory {path.parent} does not exist")
+    if not os.access(path.parent, os.W_OK):
+        raise PlantError(f"--ready-file {path}: directory {path.parent} is not writable")
+    if path.exists() and path.stat().st_size and (
+            path.stat().st_size > len(READY) or path.read_bytes() != READY.encode()):
+        raise PlantError(f"--ready-file {path}: the file exists and is not a ready file "
+                         f"({path.stat().st_size} bytes): name a new file")
 
 
 def build_params(args: argparse.Namespace) -> PlantParams:
@@ -142,7 +163,11 @@ def build_params(args: argparse.Namespace) -> PlantParams:
             path = Path(args.params)
             if not path.exists():
                 raise PlantError(f"no such parameter file: {path}")
-            params = PlantParams.from_json(path.read_text())
+            try:
+                text = path.read_text()
+            except (OSError, UnicodeDecodeError) as exc:
+                raise PlantError(f"--params {path}: not a parameter file ({exc})") from None
+            params = PlantParams.from_json(text)
         return params.with_assignments(args.assignments)
     except ParameterError as exc:
         raise PlantError(str(exc)) from None
@@ -213,7 +238,7 @@ def run(args: argparse.Namespace) -> int:
           f"pace {args.pace}, {sched}", file=sys.stderr, flush=True)
     try:
         if args.ready_file:
-            Path(args.ready_file).write_text("ready\n")
+            Path(args.ready_file).write_text(READY)
         parent = args.parent_pid
         node.run(args.duration, alive=(lambda: pid_alive(parent)) if parent else None)
     except ConnectionError as exc:

@@ -142,6 +142,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+MAX_DURATION_S = 1e7
+"""The longest --duration (116 days; the memory check refuses most runs far shorter)."""
+MAX_TRAVEL_M = 10.0
+"""No set-point beyond this (`plant_rt.params` caps the plant's travel limit there)."""
+
+
 def _checked_profile(args: argparse.Namespace):
     """The run's profile, after every flag and output path is checked (BenchError)."""
     from bench.profiles.catalog import make_profile, profile_args
@@ -149,10 +155,18 @@ def _checked_profile(args: argparse.Namespace):
 
     kwargs = {k[3:]: v for k, v in vars(args).items() if k.startswith("pf_") and v is not None}
     if args.duration is not None:
-        if not (math.isfinite(args.duration) and args.duration > 0):
-            raise BenchError("--duration must be > 0 s")
+        if not (math.isfinite(args.duration) and 0 < args.duration <= MAX_DURATION_S):
+            raise BenchError(f"--duration must be > 0 s and at most {MAX_DURATION_S:g} s")
         if "duration_s" in profile_args(args.profile):
             kwargs["duration_s"] = args.duration
+    for k, v in kwargs.items():
+        if isinstance(v, float) and not math.isfinite(v):
+            raise BenchError(f"--{k.replace('_', '-')} must be a finite number, not {v}")
+    amp = kwargs.get("amplitude_m")
+    if amp is not None and abs(amp) > MAX_TRAVEL_M:
+        raise BenchError(f"--amplitude-m {amp:g} m: beyond any actuator's travel (the "
+                         f"plant's travel limit is at most {MAX_TRAVEL_M:g} m); the set-point "
+                         "would be clamped")
     profile = make_profile(args.profile, **kwargs)
     if args.save:
         check_save_path(args.save)

@@ -169,6 +169,9 @@ def parse_as_of(text: str) -> float:
         t = dt.datetime.fromisoformat(text)
     except ValueError:
         raise BenchError(f"--as-of: not a date or ISO 8601 time: {text!r}") from None
+    except OverflowError:                  # the day after 9999-12-31
+        raise BenchError(f"--as-of: {text}: beyond the last date a store holds "
+                         "(9999-12-30)") from None
     if t.tzinfo is None:
         t = t.replace(tzinfo=dt.UTC)
     return t.timestamp()
