@@ -155,4 +155,11 @@ def run(args: argparse.Namespace) -> int:
                      f"than {args.max_gap:g} s (either way) played without waiting")
     print(f"{n} frames played onto {cfg.get('interface')}:{cfg.get('channel')} ({source})"
           + "".join(f"; {x}" for x in notes))
-    return 0 if not issues or args.skip_bad else 1
+    if n == 0:                          # a binary file, an empty one: nothing was a log
+        raise BenchError(f"{args.file}: no frame to play"
+                         + (f" ({len(issues)} bad lines)" if issues else ": the log is empty"))
+    if issues and not args.skip_bad:
+        print(f"error: {args.file}: {len(issues)} bad line{'s' if len(issues) != 1 else ''} "
+              "skipped (--skip-bad plays the rest and exits 0)", file=sys.stderr)
+        return 1
+    return 0

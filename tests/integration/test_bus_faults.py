@@ -202,6 +202,8 @@ def test_replay_reports_corrupted_lines_and_plays_the_rest(bus_env, tmp_path):
     for n in (4, 11, 21, 31):
         assert f"line {n}:" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines()[-1] == (
+        f"error: {src}: 4 bad lines skipped (--skip-bad plays the rest and exits 0)")
     assert "27 frames played" in r.stdout
     got = [m for m in watch.msgs if m.arbitration_id == 0x181]
     assert len(got) == 27
@@ -211,6 +213,17 @@ def test_replay_reports_corrupted_lines_and_plays_the_rest(bus_env, tmp_path):
     r = bench("replay", str(src), "--skip-bad", "--speed", "0", *bus_env.flags,
               env=bus_env.env)
     assert r.returncode == 0
+
+
+@pytest.mark.parametrize("content", [b"", bytes(range(256)) * 4], ids=["empty", "binary"])
+def test_replay_of_a_file_with_no_frame_is_an_error(bus_env, tmp_path, content):
+    """An empty log played "0 frames" with exit 0; a binary one printed its lines' faults
+    and exit 1 with no error line."""
+    src = tmp_path / "x.log"
+    src.write_bytes(content)
+    r = bench("replay", str(src), "--speed", "0", *bus_env.flags, env=bus_env.env)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip().splitlines()[-1].startswith(f"error: {src}: no frame to play")
 
 
 def test_bench_log_records_the_bus(bus_env, tmp_path):
