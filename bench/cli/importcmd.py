@@ -52,8 +52,9 @@ def run(args: argparse.Namespace) -> int:
     from bench.core.filenames import check_not_input
     from bench.gap.importer import import_table, read_map
     if args.source_rate is not None and not (math.isfinite(args.source_rate)
-                                             and args.source_rate > 0):
-        raise BenchError("--source-rate must be a finite rate > 0 Hz")
+                                             and 1e-3 <= args.source_rate <= 1e6):
+        raise BenchError("--source-rate must be a rate from 0.001 Hz to 1 MHz (a sample "
+                         "every 1000 s to every 1 us)")
     if args.sync_period is not None and not (math.isfinite(args.sync_period)
                                              and 1e-5 <= args.sync_period <= 1.0):
         raise BenchError("--sync-period must be between 1e-05 and 1 s")

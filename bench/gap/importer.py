@@ -352,6 +352,9 @@ def _time_column(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
     n = len(next(iter(raw.values())))
     if "t_s" in by_sig:
         e = by_sig["t_s"]
+        if source_rate_hz:
+            raise BenchError(f"--source-rate is for a table without a time column; the map "
+                             f"takes t_s from column {e.column!r} (drop one of the two)")
         t = _values(raw, e, where)
         idx = np.flatnonzero(~np.isfinite(t))
         if len(idx):

@@ -189,6 +189,11 @@ NOT_A_TRACE = ("not a trace the bench wrote? A rig's own table is read with "
                "`bench import TABLE --map MAP` (docs/real-data.md)")
 
 
+MAX_VALUE = 1e100
+"""No measured signal in SI units comes near this; a squared or summed one beyond it
+overflows a float (as in the trend reader, `bench.hums.trend_io`)."""
+
+
 def _check_loaded(path: Path, tr: Trace, rows: Rows) -> None:
     """BenchError naming `path` unless it has rows, t_s is finite and strictly increasing
     and no column holds an infinite value."""
@@ -212,6 +217,12 @@ def _check_loaded(path: Path, tr: Trace, rows: Rows) -> None:
         if len(inf):
             raise BenchError(f"{path} {row(int(inf[0]))}: column {name!r} holds an infinite "
                              "value (a missing value is NaN; inf is no measurement)")
+        huge = np.flatnonzero(np.abs(np.asarray(v, float)) > MAX_VALUE) if v.dtype.kind in "fiu" \
+            else np.zeros(0, int)
+        if len(huge):
+            raise BenchError(f"{path} {row(int(huge[0]))}: column {name!r} holds "
+                             f"{v[huge[0]]:g}, beyond any measurement (|value| > "
+                             f"{MAX_VALUE:g} in SI units); its products would overflow")
 
 
 def probe_output(path: str | Path, what: str) -> Path:

@@ -179,3 +179,12 @@ def test_a_directory_as_table_or_map_is_one_line(tmp_path):
         import_table(tmp_path / "d.csv", read_map(tmp_path / "m.json"))
     with pytest.raises(BenchError, match="d.json: is a directory, not a map file"):
         read_map(tmp_path / "d.json")
+
+
+def test_a_fixed_rate_beside_a_time_column_is_refused(tmp_path):
+    """--source-rate was ignored where the map gives t_s: the user's rate had no effect."""
+    (tmp_path / "t.csv").write_text("t,a\n" + "\n".join(f"{i * 0.01},{i}" for i in range(20)))
+    (tmp_path / "m.csv").write_text("signal,column,unit,scale\nt_s,t,s,\nposition_m,a,mm,\n")
+    with pytest.raises(BenchError, match="--source-rate is for a table without a time"):
+        import_table(tmp_path / "t.csv", read_map(tmp_path / "m.csv"), None,
+                     source_rate_hz=100.0)
