@@ -52,6 +52,20 @@ DESCRIPTIONS = {
 """What each action does (its --help)."""
 
 
+LEAD_MM = (0.1, 100.0)
+"""The range of a ball-screw lead --lead-mm may give, mm: the range an actuator
+description's lead_m is read in (`bench.rig.actuator.MECHANISM`), wide of the screws made
+(about 0.5 mm a turn for a miniature one to about 50 mm for a high-lead one). A lead
+outside it is a unit or a typing mistake, and the position-periodic feature would look
+for a line the screw cannot make."""
+ALPHA = (1e-6, 0.5)
+"""The range of --alpha, the false-alarm rate the thresholds aim at (the lower end
+included): the thresholds are prediction bounds from a few dozen held-out healthy scores,
+and below 1e-6 the bound lies so far in the tail that it is the assumed distribution's,
+not the data's (near 1e-300 it overflows to infinity); at 0.5 or above every other
+healthy cycle would be flagged."""
+
+
 def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     p = opt.add_command(
         subparsers, "rig",
@@ -115,7 +129,9 @@ def add_subparser(subparsers: argparse._SubParsersAction) -> None:
     i.add_argument("--holdout-runs", required=True, metavar="LIST",
                    help="healthy runs the faults are injected into (e.g. 3,4)")
     i.add_argument("--sizes", metavar="LIST", help="fault sizes in units of the healthy "
-                   "spread (default 0.25,0.5,1,2,4,8)")
+                   "spread, each > 0 and at most 50 (a play of 50 spreads of the position "
+                   "error is most of a nut length on the Cranfield rig; default "
+                   "0.25,0.5,1,2,4,8)")
     i.add_argument("--kinds", metavar="LIST", help="fault kinds (default: friction,"
                    "backlash,loaded_play,localised,periodic)")
     i.add_argument("--at-mm", type=float, metavar="MM", help="centre of the localised "
@@ -139,7 +155,7 @@ def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
     t.add_argument("--healthy", default="normal", metavar="LABEL",
                    help="the healthy class's label (default: normal)")
     t.add_argument("--folds", type=int, default=5, help="leave-runs-out folds (default 5)")
-    opt.add_seed(t, 0, "seed of the folds")
+    opt.add_seed(t, 0, f"seed of the folds, {opt.SEED_RANGE[0]} to {opt.SEED_RANGE[1]}")
     opt.add_json(t, "write the validation here ('-': stdout)")
     t.add_argument("--no-validate", action="store_true",
                    help="train only, without the leave-runs-out validation (the model then "
@@ -157,13 +173,15 @@ def _supervised_parsers(sub: argparse._SubParsersAction) -> tuple[Any, Any]:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--lead-mm", type=float, metavar="MM",
-                   help="the screw's lead in mm (enables the position-periodic feature; "
-                        "Cranfield: 5)")
+                   help=f"the screw's lead in mm, {LEAD_MM[0]:g} to {LEAD_MM[1]:g} (enables "
+                        "the position-periodic feature; Cranfield: 5)")
     p.add_argument("--actuator", metavar="DESC",
                    help="actuator description (.json/.toml or a shipped name, e.g. "
                         "cranfield): its lead_m when --lead-mm is not given")
     p.add_argument("--alpha", type=float, default=0.05, metavar="A",
-                   help="false-alarm rate the thresholds aim at (default 0.05)")
+                   help=f"false-alarm rate the thresholds aim at, {ALPHA[0]:g} to below "
+                        f"{ALPHA[1]:g} (a smaller one is beyond what a few dozen held-out "
+                        "healthy scores can bound; default 0.05)")
 
 
 def runs_list(text: str | None, flag: str) -> list[int] | None:
@@ -185,7 +203,11 @@ def runs_list(text: str | None, flag: str) -> list[int] | None:
 
 
 def _check(args: argparse.Namespace) -> None:
+    """BenchError for an option out of its range, before any work (the lead, from
+    --lead-mm or the --actuator description, in `LEAD_MM`; --alpha in `ALPHA`; --seed
+    in `options.SEED_RANGE`; --workers, --folds)."""
     from bench import BenchError
+    given = "--lead-mm"
     if getattr(args, "actuator", None) and getattr(args, "rig_command", "") != "classify":
         from bench.rig.actuator import load
         desc = load(args.actuator)
@@ -197,12 +219,20 @@ def _check(args: argparse.Namespace) -> None:
                 raise BenchError(f"{args.actuator}: the description gives no lead_m "
                                  "(use --lead-mm)")
             args.lead_mm = 1e3 * lead_m
+            given = f"{args.actuator}: lead_m"
     lead = getattr(args, "lead_mm", None)
-    if lead is not None and not (math.isfinite(lead) and lead > 0):
-        raise BenchError("--lead-mm must be a finite length > 0")
+    lo, hi = LEAD_MM
+    if lead is not None and not (math.isfinite(lead) and lo <= lead <= hi):
+        raise BenchError(f"{given}: a ball-screw lead is {lo:g} to {hi:g} mm, got "
+                         f"{lead:g} mm")
     alpha = getattr(args, "alpha", 0.05)
-    if not (math.isfinite(alpha) and 0 < alpha < 0.5):
-        raise BenchError("--alpha must be in (0, 0.5)")
+    if not (math.isfinite(alpha) and ALPHA[0] <= alpha < ALPHA[1]):
+        raise BenchError(f"--alpha must be from {ALPHA[0]:g} to below {ALPHA[1]:g}, got "
+                         f"{alpha:g}")
+    seed = getattr(args, "seed", None)       # parsed in range; a namespace built in code
+    if seed is not None and not opt.SEED_RANGE[0] <= seed <= opt.SEED_RANGE[1]:
+        raise BenchError(f"--seed must be from {opt.SEED_RANGE[0]} to {opt.SEED_RANGE[1]} "
+                         f"(numpy's and scikit-learn's generators), got {seed}")
     if getattr(args, "workers", None) is not None and args.workers < 1:
         raise BenchError("--workers must be >= 1")
     if getattr(args, "folds", None) is not None and args.folds < 2:

@@ -187,7 +187,12 @@ class Baseline:
                           for lb in self.loads.values()]}
 
     def save(self, path: str | Path) -> Path:
+        """The baseline as JSON at `path`; BenchError, nothing written, when a threshold is
+        not one `load` would read back (`threshold_problem`)."""
         path = Path(path)
+        why = threshold_problem(self.thresholds, self.store)
+        if why:
+            raise BenchError(f"{path}: not written: {why}")
         self.path = str(path)
         path.write_text(json.dumps(self.to_json()))
         return path
@@ -233,9 +238,43 @@ class Baseline:
                              ) from None
         lead = d.get("lead_mm")
         store = d.get("store") or {}
+        thr = d.get("thresholds")
+        why = threshold_problem({} if thr is None else thr, store)
+        if why:
+            raise BenchError(f"{path}: damaged baseline: {why}")
         return cls(loads, list(d.get("sources") or []), str(path),
                    None if lead is None else float(lead), dict(d.get("thresholds") or {}),
                    str(d.get("load_unit") or ""), store if isinstance(store, dict) else {})
+
+
+def threshold_problem(thresholds: Any, store: Any = None) -> str:
+    """What is wrong with a baseline's thresholds ("" when nothing): per load (its key,
+    e.g. "40") a table of feature thresholds, each a finite number > 0; likewise the
+    first runs' thresholds `--update` keeps (`store["anchor"]`). A feature without a
+    threshold is absent from its load's table (`population.thresholds`: periodic without
+    the lead) and a load without thresholds absent from the file; a score is judged by
+    its ratio to the threshold (`features.assess`), so a NaN, an infinite, a zero or a
+    negative one would judge every cycle healthy without a word. A threshold of 0 is
+    one the healthy scores gave no bound above 0 (`population.threshold_of`), which
+    `features.assess` leaves out; a load needs at least one above 0."""
+    anchor = store.get("anchor") if isinstance(store, dict) else None
+    for what, table in (("", thresholds), ("the first runs' (--update anchor) ", anchor)):
+        if table is None and what:
+            continue
+        if not isinstance(table, dict):
+            return f"its {what}thresholds are not a table per load"
+        for load, cal in table.items():
+            thr = cal.get("thresholds") if isinstance(cal, dict) else None
+            if not isinstance(thr, dict) or not thr:
+                return f"load {load}: no {what}feature thresholds"
+            for feature, value in thr.items():
+                if not (isinstance(value, (int, float)) and not isinstance(value, bool)
+                        and math.isfinite(value) and value >= 0):
+                    return (f"load {load}, feature {feature}: {what}threshold {value!r} "
+                            "is not a finite number >= 0")
+            if not any(v > 0 for v in thr.values()):
+                return f"load {load}: no {what}threshold above 0 (no cycle could be flagged)"
+    return ""
 
 
 def _r(a: np.ndarray) -> list[float]:

@@ -83,6 +83,13 @@ EXPECTED = {"friction": "friction", "backlash": "backlash", "loaded_play": "back
             "localised": "spall", "periodic": "spall"}
 SIZES = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)     # in units of the healthy spread
 NUT_MM = 22.0                                # travel a nut covers (about a nut length)
+SIZE_MAX = 50.0
+"""The largest size --sizes may give, in units of the healthy spread. A play of 50
+spreads of the stroke position error is 12-15 mm on the Cranfield rig (sigma_e 0.25-0.30
+mm, docs/rig-results.md "Injected faults"), most of the `NUT_MM` a nut covers; a current fault of 50 spreads of the stroke
+current is 2.3-2.4 A, about five times the stroke current above the standstill. Larger,
+and the injected fault is no longer one the screw and nut could carry (and at 1e308 the
+arithmetic overflows to infinity)."""
 RATE_GOAL = 0.9                              # "the size found in 90 % of cycles"
 UNITS = {"friction": "A", "backlash": "mm", "loaded_play": "mm", "localised": "A",
          "periodic": "A"}
@@ -500,14 +507,18 @@ def write(res: dict[str, Any], out: Path, command: str) -> dict[str, Path]:
 
 
 def parse_sizes(text: str | None) -> tuple[float, ...]:
+    """--sizes '0.5,1,2' -> (0.5, 1.0, 2.0), sorted and once each (None: `SIZES`);
+    BenchError for a size that is not a number in (0, `SIZE_MAX`]."""
     if text is None:
         return SIZES
     try:
         vals = tuple(sorted({float(x) for x in text.split(",") if x.strip()}))
     except ValueError:
         raise BenchError(f"--sizes: expected numbers like 0.5,1,2, got {text!r}") from None
-    if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
-        raise BenchError("--sizes: every size must be a finite number > 0")
+    if not vals or not all(math.isfinite(v) and 0 < v <= SIZE_MAX for v in vals):
+        raise BenchError(f"--sizes: every size must be a finite number > 0 and at most "
+                         f"{SIZE_MAX:g} (units of the healthy spread; larger is not a "
+                         f"physical fault), got {text}")
     return vals
 
 

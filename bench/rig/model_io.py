@@ -98,11 +98,14 @@ def _json_default(x: Any) -> Any:
 
 
 def load(path: str | Path) -> K.Model:
-    """A model written by `save`; BenchError (one line) for a missing file, a file that is
-    not a skops file, one that holds a type the bench does not trust, or one that is not
+    """A model written by `save`; BenchError (one line) for a missing file, a directory, a
+    file that is not a skops file, one that holds a type the bench does not trust, or one that is not
     a bench rig model."""
     import skops.io as sio
     path = Path(path)
+    if path.is_dir():
+        raise BenchError(f"{path}: a directory, not a model (give the file `bench rig "
+                         "train -o` wrote)")
     if not path.is_file():
         raise BenchError(f"no such model: {path}")
     data = path.read_bytes()

@@ -220,7 +220,9 @@ def loro(cycles: list[Cycle], lead_mm: float | None = None) -> Loro:
 def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Calibration]:
     """Per load the thresholds of its features from the loads' leave-one-run-out scores,
     the spreads within and between runs pooled over the loads (`spread.pooled`); a
-    feature a load's cycles cannot give (periodic without the lead) gets none."""
+    feature a load's cycles cannot give (periodic without the lead) gets none. BenchError
+    for a threshold that is not finite (at an alpha so small that the bound overflows): a
+    baseline never carries one (`baseline.threshold_problem`)."""
     usable = [k for k in FEATURES if k != PLAY and all(
         np.isfinite(lo.scores[k]).all() and lo.scores[k] for lo in loros.values())]
     per = alpha / max(len([k for k in usable if k not in NAMING_ONLY]), 1)
@@ -238,6 +240,12 @@ def thresholds(loros: dict[float, Loro], alpha: float = ALPHA) -> dict[float, Ca
             thr[ld][k] = threshold_of(sp, per, null)
     if all(k in usable for k in PLAY_OF):
         _play(loros, thr, spreads, per)
+    for ld, by in thr.items():      # never an infinite threshold: it flags no cycle
+        for k, v in by.items():
+            if not math.isfinite(v):
+                raise BenchError(f"load {ld:g}: the {k} threshold at alpha {alpha:g} is "
+                                 f"{v:g}, not a finite number (the held-out healthy "
+                                 "scores give no bound that far in their tail)")
     return {ld: Calibration(ld, lo.runs, thr[ld], lo.scores, alpha, lo.of_run, spreads[ld],
                             prediction_bound(lo.zscores, alpha)) for ld, lo in loros.items()}
 
