@@ -32,7 +32,10 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                         "a file without a known suffix); default: the suffix")
     opt.add_node_id(p)
     p.add_argument("--period", type=float, default=None, metavar="S",
-                   help="SYNC period if the log does not show it (default 0.001)")
+                   help="SYNC period in s, within the bench's range (sim.sync_period_s); "
+                        "default: the log's own (its SDO 0x1006, else its SYNC time "
+                        "stamps), else 0.001. Given, it is used, with a note when the "
+                        "log's SDO traffic shows another")
     p.add_argument("--counts-per-rev", type=int, default=None, metavar="N",
                    help="encoder resolution if the log does not show it (default 16384)")
     p.set_defaults(func=run)
@@ -40,17 +43,48 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 def check_arguments(args: argparse.Namespace) -> None:
     """Refuse, before the log is read, a period or resolution no log can have and an
-    output that cannot be written."""
+    output that cannot be written. The period's range is the bench's SYNC period's
+    (parameter sim.sync_period_s, object 0x2008 sub 1: 0.1 to 100 ms); a log's times
+    past it overflow or say nothing."""
     import math
 
     from bench.cli.outputs import check_output_file
+    from plant_rt.params import resolve
     if args.period is not None and not (math.isfinite(args.period) and args.period > 0):
         raise BenchError(f"--period must be a finite number of seconds > 0, not "
                          f"{args.period:g}")
+    info = resolve("sim.sync_period_s")
+    lo, hi = float(info.min or 0.0), float(info.max or math.inf)
+    if args.period is not None and not lo <= args.period <= hi:
+        raise BenchError(f"--period {args.period:g} s is outside the bench's SYNC period "
+                         f"range, {lo:g} to {hi:g} s ({info.name})")
     if args.counts_per_rev is not None and args.counts_per_rev < 1:
         raise BenchError(f"--counts-per-rev must be >= 1, not {args.counts_per_rev}")
     if args.output:
         check_output_file(args.output, "-o", (".csv", ".parquet", ".npz"), stdout_ok=True)
+
+
+def period_note(args: argparse.Namespace, tr) -> str:
+    """What to say when --period differs from the SYNC period the log's SDO traffic shows
+    ("" when none is given, the log shows none, or they agree). A given --period is used:
+    it is how a log whose SDO traffic is wrong, or of another run, is read (docs/bus.md).
+    The log's own period is in the trace's parameters after a `bench run`; else the log
+    is decoded once more without --period to find it (standard input cannot be, and is
+    only told that the log shows one)."""
+    if args.period is None or "sim.sync_period_s" not in tr.meta.get("params_from_sdo", ()):
+        return ""
+    own = (tr.meta.get("params") or {}).get("sim", {}).get("sync_period_s")
+    if own is None and args.file != "-":
+        from bench.bus.logs import trace_from_log
+        own = trace_from_log(args.file, args.node_id, None, args.counts_per_rev,
+                             fmt=args.format).meta["period_s"]
+    if own is None:
+        return (f"--period {args.period * 1e3:g} ms is used; the log's SDO traffic gives "
+                "a SYNC period of its own")
+    if abs(own - args.period) <= 1e-9 * own:
+        return ""
+    return (f"--period {args.period * 1e3:g} ms is used, not the SYNC period of "
+            f"{own * 1e3:g} ms the log's SDO traffic gives")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,6 +103,9 @@ def run(args: argparse.Namespace) -> int:
                         fmt=args.format)
     for line in report_issues(issues):
         print(f"{name}: {line}", file=sys.stderr)
+    note = period_note(args, tr)
+    if note:
+        print(f"{name}: note: {note}", file=sys.stderr)
     m = tr.meta
     src = (m.get("clock") or {}).get("source", "default")
     print(f"{name}: {m['frames']} frames, {len(tr)} SYNC periods of {m['period_s'] * 1e3:g} "

@@ -22,7 +22,6 @@ from typing import Any
 
 from bench import BenchError
 from bench.cli import options as opt
-from bench.runtime import interrupts
 
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
@@ -159,13 +158,16 @@ def _add_watch(s: argparse._SubParsersAction) -> None:
                    help="stop after S seconds of listening")
     q.add_argument("--idle", type=float, default=2.0, metavar="S",
                    help="stop S seconds after the last SYNC (default: %(default)s)")
-    opt.add_out(q, "append one row per period (CSV)", metavar="FILE.csv")
+    opt.add_out(q, "one row per period (CSV), appended (a new file, or one a watch wrote)",
+                metavar="FILE.csv")
     q.add_argument("--usage", metavar="FILE.json",
-                   help="usage of every run so far (bench usage's JSON), rewritten at every "
-                        "command period; a usage table of each run is printed when it ends")
+                   help="usage of every run so far (bench usage's JSON; a new file or a watch's), "
+                        "rewritten every command period; a usage table of each run is "
+                        "printed when it ends")
     opt.add_node_id(q)
     opt.add_set(q, "nominal plant parameter override")
     opt.add_bus(q)
+    from bench.cli.hums_watch import run_watch
     q.set_defaults(func=run_watch)
 
 
@@ -182,16 +184,21 @@ def _params(args: argparse.Namespace):
         raise BenchError(str(exc)) from None
 
 
+DOC_SUFFIXES = (".md", ".markdown")     # --doc's section in a CSV would be appended to data
+MIN_PERIOD_SAMPLES = 8                  # fewest a command period holds (bench.hums.periods)
+
+
 def _check_args(args: argparse.Namespace, section: str | None = None) -> None:
     """--workers, --seed and the output options given (their directories made; `section`:
-    the one --doc gets), checked before the work."""
-    from bench.cli.outputs import check_doc_section, check_outputs
+    the one --doc gets, in a markdown file, DOC_SUFFIXES), checked before the work."""
+    from bench.cli.outputs import check_doc_section, check_output_file, check_outputs
     if getattr(args, "workers", None) is not None and args.workers < 1:
         raise BenchError("--workers must be >= 1")
     if getattr(args, "seed", 0) < 0:
         raise BenchError(f"--seed must be >= 0, not {args.seed}")
     check_outputs(args, files=("json", "trends_out", "calibration_out"), dirs=("figures",))
     if section and args.doc:
+        check_output_file(args.doc, "--doc", DOC_SUFFIXES, make_parents=True)
         check_doc_section(args.doc, section)
 
 
@@ -414,6 +421,8 @@ def run_report(args: argparse.Namespace) -> int:
     check_output_dir(args.out, "--out")             # before the logs are analysed
     if _rig_report(args):
         return _run_rig_report(args)
+    if args.period is not None:
+        _check_report_period(args.logs, args.period)
     page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,
                                   period_s=args.period)
     for a in analyses:
@@ -431,118 +440,24 @@ def run_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_watch(args: argparse.Namespace) -> int:
-    import csv
-    import signal
-    import sys
-
-    from bench.bus import bus_settings, close_bus, connect, find_bus
-    from bench.hums.live import LiveHums, format_result, watch
-    _check_watch_args(args)
-    params = _params(args)
-    hums = LiveHums(args.period, params, args.node_id)   # fits the monitor gain first
-    usage = _UsageOut(hums, args.usage)
-    found = find_bus(bus_settings(args))
-    if found is None:
-        raise BenchError("no bus to listen to: no python-can configuration, no vcan0 and no "
-                         "loopback hub running (run `bench up`)")
-    cfg, source = found
-    bus = connect(cfg)
-    out = None
-    writer = None
-    if args.out:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        out = open(args.out, "w", newline="")  # noqa: SIM115 - closed in finally
-
-    def on_result(r) -> None:
-        nonlocal writer
-        print(format_result(r), flush=True)
-        usage.update()
-        if out is not None:
-            row = r.row()
-            if writer is None:
-                writer = csv.DictWriter(out, fieldnames=list(row))
-                writer.writeheader()
-            writer.writerow(row)
-            out.flush()
-
-    def on_signal(signum, frame):  # noqa: ARG001
-        raise KeyboardInterrupt
-
-    old = {s_: signal.signal(s_, on_signal) for s_ in (signal.SIGINT, signal.SIGTERM)}
-    n = 0
-    try:
-        if interrupts.pending():        # a Ctrl-C lost in an import: stop before listening
-            raise KeyboardInterrupt
-        n = watch(bus, hums, on_result, args.duration, args.idle,
-                  ready=lambda: print(f"listening on {cfg.get('interface')}:"
-                                      f"{cfg.get('channel')} ({source}), command period "
-                                      f"{args.period:g} s", file=sys.stderr, flush=True))
-    except KeyboardInterrupt:
-        pass
-    finally:
-        for s_, h in old.items():
-            signal.signal(s_, h)
-        close_bus(bus)
-        if out is not None:
-            out.close()
-    usage.finish()
-    _watch_summary(n, hums, args.out)
-    return 0
-
-
-class _UsageOut:
-    """The watcher's usage (bench/usage): a table row per run when it ends, on stdout;
-    with ``--usage FILE.json`` every run and actuator so far, rewritten per period."""
-
-    def __init__(self, hums, path: str | None) -> None:
-        if path:
-            from bench.cli.outputs import check_output_file
-            check_output_file(path, "--usage", (".json",))
-        self.hums, self.path, self.printed = hums, path, 0
-
-    def update(self) -> None:
-        from bench.usage.table import format_table
-        done = self.hums.usage.done
-        if len(done) > self.printed:
-            print(format_table([(f"usage run {k + 1}", s)
-                                for k, s in enumerate(done) if k >= self.printed]), flush=True)
-            self.printed = len(done)
-        if self.path:
-            self._write()
-
-    def _write(self) -> None:
-        import os
-        assert self.path is not None
-        runs = self.hums.usage.runs()
-        doc = {"runs": [s.to_json() for s in runs],
-               "actuators": {k: s.to_json() for k, s in self.hums.usage.totals().items()}}
-        tmp = Path(f"{self.path}.tmp")
-        tmp.write_text(json.dumps(doc, indent=1))
-        os.replace(tmp, self.path)
-
-    def finish(self) -> None:
-        self.hums.usage.end_run()
-        self.update()
-
-
-def _check_watch_args(args: argparse.Namespace) -> None:
-    for name in ("period", "idle"):
-        v = getattr(args, name)
-        if not (math.isfinite(v) and v > 0):
-            raise BenchError(f"--{name} must be > 0 s")
-    if args.duration is not None and not args.duration > 0:
-        raise BenchError("--duration must be > 0 s")
-
-
-def _watch_summary(n: int, hums, out: str | None) -> None:
-    """What the watcher saw, on stderr: periods, runs, frames, and any damage on the bus."""
-    import sys
-
-    from bench.signals.integrity import integrity
-    print(f"{n} command periods over {hums.run} run(s), {hums.frames_seen} frames"
-          + (f", {hums.bad_frames} bad" if hums.bad_frames else "")
-          + (f"; rows in {out}" if out else ""), file=sys.stderr)
-    damage = integrity(hums.count)
-    if damage:
-        print("bus: " + "; ".join(damage), file=sys.stderr)
+def _check_report_period(logs: list[str], period: float) -> None:
+    """`bench hums report --period` against each log (standard input, which cannot be
+    read twice, aside), before the analysis: MIN_PERIOD_SAMPLES samples or more, and no
+    longer than the log. The harmonic Ci the verdict reads and the per-period indexes take
+    whole command periods and need one (`bench.hums.formulas.ci_harmonic`); without one
+    Ci falls back to the broadband reading, which calls a healthy noisy log degraded."""
+    from bench.bus.logread import is_stdin
+    from bench.bus.logs import load_trace
+    for p in logs:
+        tr = None if is_stdin(p) else load_trace(p)
+        if tr is None or len(tr) < 2:       # too short for a verdict: the report says so
+            continue
+        dt, duration = tr.dt, len(tr) * tr.dt
+        if period > duration * (1.0 + 1e-9):
+            raise BenchError(f"--period {period:g} s is longer than the log {p} ("
+                             f"{duration:.4g} s): the indexes read whole command periods, "
+                             "and the log must hold at least one")
+        if period < MIN_PERIOD_SAMPLES * dt * (1.0 - 1e-9):
+            raise BenchError(f"--period {period:g} s holds fewer than {MIN_PERIOD_SAMPLES} "
+                             f"samples of the log {p} (one every {dt:g} s, "
+                             f"{duration:.4g} s in all): too short for a command period")

@@ -208,6 +208,8 @@ def read_table(path: str | Path, progress: bool = False, date_format: str | None
         with _StdinLines() as lines:
             return _read(Path("<stdin>"), lines, "stdin", date_format)
     p = Path(path)
+    if p.is_dir():
+        raise BenchError(f"{p} is a directory, not a trends file (name the CSV in it)")
     if not p.is_file():
         raise BenchError(f"no trends file {p}")
     from bench.signals.textlines import COMPRESSED
@@ -294,8 +296,8 @@ def _read(p: Path, lines: Any, stem: str, date_format: str | None = None) -> Tab
     from bench.signals.tables import sniff_dialect
     dialect = sniff_dialect(lines.head(4096), ",;\t")
     comma = dialect.delimiter != ","
-    rd = csv.reader(lines, dialect)
-    names = next(rd, [])
+    rows = _rows(p, csv.reader(lines, dialect))
+    names = next(rows, (1, []))[1]
     if not names:
         raise BenchError(f"{p}: empty file (a header row and one row per test)")
     lay = _layout(p, names)
@@ -303,8 +305,7 @@ def _read(p: Path, lines: Any, stem: str, date_format: str | None = None) -> Tab
     acc: dict[tuple[str, str], tuple[array, array, array]] = {}
     units: dict[tuple[str, str], tuple[str, int]] = {}
     missing = 0
-    for row in rd:
-        line = rd.line_num
+    for line, row in rows:
         if not row or (len(row) == 1 and not row[0].strip()):
             continue
         if len(row) != lay.n:
@@ -330,6 +331,22 @@ def _read(p: Path, lines: Any, stem: str, date_format: str | None = None) -> Tab
     if not acc:
         raise BenchError(f"{p}: no tests (a header row and one row per test)")
     return _assemble(p, acc, units, times, missing)
+
+
+def _rows(p: Path, rd: Any) -> Iterator[tuple[int, list[str]]]:
+    """The rows of the csv reader `rd` with the line each ends on; a row the csv module
+    cannot read (a field over its size limit, a stray quote in a strict dialect) is a
+    one-line BenchError naming the file and the line, as `bench import` says it."""
+    while True:
+        try:
+            row = next(rd)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            what = "header" if rd.line_num <= 1 else "row"
+            raise BenchError(f"{p}:{rd.line_num}: not a readable CSV {what} ({exc})"
+                             ) from None
+        yield rd.line_num, row
 
 
 def _split_unit(name: str) -> tuple[str, str]:

@@ -14,7 +14,11 @@ estimate uses only the tests up to its own, as if the command ran on that day):
    the detection and the day the change began (the CUSUM's last zero).
 3. **Threshold**: the failure level the user states (`--failure 4.6`, in the index's
    unit, or `--failure 2x` the healthy level), an optional warning level. Without one
-   there is no RUL: the detection only, and a note that a RUL needs a threshold.
+   there is no RUL: the detection only, and a note that a RUL needs a threshold. A level
+   must be finite and within +-`MAX_VALUE` (the trend reader's limit on a value), and
+   the failure level within `MAX_SPAN_SD` healthy sd of the healthy level: the model
+   works in units of that distance, and beyond it the healthy noise in those units is
+   too small for its arithmetic (the posterior's precision matrix turns singular).
 4. **Degradation model**: `bench.hums.trend_model`, a steady drift plus an exponential
    wear-out from a change time, its exact posterior on a grid, the healthy tests its
    first observations and their noise its prior; a test far from the best curve is "the
@@ -42,7 +46,7 @@ import numpy as np
 from scipy.special import ndtri, stdtr
 
 from bench import BenchError
-from bench.hums.trend_io import Trend
+from bench.hums.trend_io import MAX_VALUE, Trend
 from bench.hums.trend_model import (
     HORIZON,
     LOCAL_MIN,
@@ -62,6 +66,7 @@ WIDE = 2.0              # posterior noise over the healthy noise: said
 FIT_Z = 4.5             # a test this many sd from the posterior's curve: out of range
 PCT = (5, 25, 50, 75, 95)
 BIG = 1e300
+MAX_SPAN_SD = 1e4       # failure level at most this many healthy sd from healthy
 COLUMNS = ("t", "value", "level_p5", "level_p50", "level_p95",
            *(f"rul_p{q}" for q in PCT), "toe_p50", "warning", "detected", "z_alarm",
            "exp_cross_t", "noise", "rul_open")
@@ -136,10 +141,13 @@ def parse_level(text: str, what: str, healthy: float, unit: str) -> float:
         if healthy == 0:
             raise BenchError(f"{what} {text}: a multiple of a healthy level of 0 is 0; give "
                              "the level in the index's unit")
-        return v * healthy
-    if suffix and suffix != unit:
+        v *= healthy
+    elif suffix and suffix != unit:
         raise BenchError(f"{what} {text!r}: the unit {suffix!r} does not match the index's "
                          f"unit {unit or '(none given)'!r}")
+    if not abs(v) <= MAX_VALUE:
+        raise BenchError(f"{what} {text!r} ({v:.4g}) is beyond +-{MAX_VALUE:g}, the "
+                         "largest magnitude a trends file's value may have")
     return v
 
 
@@ -261,6 +269,11 @@ def _levels(tr: Trend, s: Settings, ref: Reference, unit: str
         if side < 3.0 * ref.sd:
             raise BenchError(f"{who}{flag} {text} ({v:.4g}{u}) is within the healthy "
                              f"scatter ({how}, 3 sd = {3 * ref.sd:.3g}{u})")
+        if flag == "--failure" and side > MAX_SPAN_SD * ref.sd:
+            raise BenchError(f"{who}{flag} {text} ({v:.4g}{u}) is {side / ref.sd:.3g} "
+                             f"healthy sd ({ref.sd:.3g}{u}) from {how}: the degradation "
+                             f"model takes a failure level up to {MAX_SPAN_SD:g} sd away; "
+                             "give a nearer level")
         out.append(v)
     fail, warn = out
     if fail is not None and warn is not None and sign * (warn - fail) >= 0:
