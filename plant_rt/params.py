@@ -19,21 +19,11 @@ from collections import Counter
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, ClassVar
 
-from plant_rt.paramvalues import json_object, same_value
+from plant_rt.paramvalues import SEED_MAX, json_object, same_value
 
 
 class ParameterError(ValueError):
     """A plant parameter is unknown or has an invalid value."""
-
-
-SEED_MAX = 2**31 - 1
-"""The largest seed a seed parameter takes (an INTEGER32 object on the bus, dbc/ema.eds)."""
-
-
-def seed_in_range(seed: int) -> int:
-    """A seed derived from a user's seed (``seed * 1_000_003 + k``), folded into the
-    seed parameters' range: unchanged where it already lies in [0, SEED_MAX)."""
-    return int(seed) % SEED_MAX
 
 
 def P(default: Any, unit: str, lo: float | None, hi: float | None, doc: str,

@@ -25,3 +25,13 @@ def json_object(text: str, error: type[Exception], not_json: str, not_object: st
     if not isinstance(data, dict):
         raise error(not_object)
     return data
+
+
+SEED_MAX = 2**31 - 1
+"""The largest seed a seed parameter takes (an INTEGER32 object on the bus, dbc/ema.eds)."""
+
+
+def seed_in_range(seed: int) -> int:
+    """A seed derived from a user's seed (``seed * 1_000_003 + k``), folded into the
+    seed parameters' range: unchanged where it already lies in [0, SEED_MAX)."""
+    return int(seed) % SEED_MAX

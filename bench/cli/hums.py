@@ -176,14 +176,6 @@ def _no_sub(p: argparse.ArgumentParser) -> int:
     return 2
 
 
-def _params(args: argparse.Namespace):
-    from plant_rt.params import ParameterError, PlantParams
-    try:
-        return PlantParams().with_assignments(args.set)
-    except ParameterError as exc:
-        raise BenchError(str(exc)) from None
-
-
 DOC_SUFFIXES = (".md", ".markdown")     # --doc's section in a CSV would be appended to data
 MIN_PERIOD_SAMPLES = 8                  # fewest a command period holds (bench.hums.periods)
 
@@ -260,7 +252,7 @@ def _with_links(text: str) -> Callable[[list[Path], Path | None], str]:
 
 def run_fit(args: argparse.Namespace) -> int:
     from bench.hums import monitor as M
-    params = _params(args)
+    params = opt.set_params(args)
     _check_args(args)
     t0 = time.perf_counter()
     fit, _ = M.fitted(params)
@@ -280,7 +272,7 @@ def run_sweep(args: argparse.Namespace) -> int:
     from bench.core.thesis_rows import check
     from bench.hums import sweep as S
     _check_args(args, "sweep")
-    res = S.run(_params(args), noise=args.noise, points=args.points, workers=args.workers,
+    res = S.run(opt.set_params(args), noise=args.noise, points=args.points, workers=args.workers,
                 scheduler=args.scheduler)
     rows = S.rows(res)
     _print_rows(rows)
@@ -301,7 +293,7 @@ def run_rul(args: argparse.Namespace) -> int:
     _check_args(args, "rul-noise" if args.noise else "rul")
     from bench.runtime.workers import session
     with session(args.workers, args.scheduler):     # one cluster: the runs, calibration
-        res = R.run_rul(_params(args), noise=args.noise, fused=not args.no_fused,
+        res = R.run_rul(opt.set_params(args), noise=args.noise, fused=not args.no_fused,
                         workers=args.workers, scheduler=args.scheduler)
     rows = R.rows(res)
     _print_rows(rows)
@@ -323,7 +315,7 @@ def run_campaign(args: argparse.Namespace) -> int:
         raise BenchError("--runs must be >= 1 and --healthy >= 0")
     from bench.runtime.workers import session
     with session(args.workers, args.scheduler):     # one cluster: calibration, runs
-        res = R.run_campaign(args.runs, args.healthy, args.seed, _params(args),
+        res = R.run_campaign(args.runs, args.healthy, args.seed, opt.set_params(args),
                              args.workers, scheduler=args.scheduler)
     text = R.campaign_markdown(res)
     print(text)
@@ -354,7 +346,7 @@ def _run_usage_campaign(args: argparse.Namespace) -> int:
         raise BenchError("--runs must be >= 1, --healthy >= 0 and --max-days >= 2")
     from bench.runtime.workers import session
     with session(args.workers, args.scheduler):     # one cluster: simulation, prognosis
-        res = PC.run_usage_campaign(n, n_healthy=nh, seed=args.seed, params=_params(args),
+        res = PC.run_usage_campaign(n, n_healthy=nh, seed=args.seed, params=opt.set_params(args),
                                     workers=args.workers, max_days=args.max_days)
     text = PC.markdown(res)
     print(text)
@@ -423,7 +415,7 @@ def run_report(args: argparse.Namespace) -> int:
         return _run_rig_report(args)
     if args.period is not None:
         _check_report_period(args.logs, args.period)
-    page, analyses = write_report(args.logs, args.out, _params(args), rul=not args.no_rul,
+    page, analyses = write_report(args.logs, args.out, opt.set_params(args), rul=not args.no_rul,
                                   period_s=args.period)
     for a in analyses:
         print(f"{a.name}: {a.verdict.name}; " + "; ".join(a.reasons))

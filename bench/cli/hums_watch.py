@@ -21,8 +21,8 @@ def run_watch(args: argparse.Namespace) -> int:
     from bench.bus import bus_settings, close_bus, connect, find_bus
     from bench.hums.live import LiveHums, format_result, watch
     _check_watch_args(args)
-    from bench.cli.hums import _params
-    params = _params(args)
+    from bench.cli.options import set_params
+    params = set_params(args)
     hums = LiveHums(args.period, params, args.node_id)   # fits the monitor gain first
     usage = _UsageOut(hums, args.usage)
     found = find_bus(bus_settings(args))

@@ -93,6 +93,17 @@ def add_set(parser: argparse.ArgumentParser, help: str, dest: str = "set") -> No
                         default=[], help=help)
 
 
+def set_params(args: argparse.Namespace):
+    """The nominal plant parameters with `--set NAME=VALUE` (`add_set`) applied; a bad one
+    is a BenchError."""
+    from bench import BenchError
+    from plant_rt.params import ParameterError, PlantParams
+    try:
+        return PlantParams().with_assignments(args.set)
+    except ParameterError as exc:
+        raise BenchError(str(exc)) from None
+
+
 def add_figures(parser: argparse.ArgumentParser, help: str, default: str | None = None  # noqa: A002
                 ) -> None:
     """`--figures DIR`: PNG figures."""
@@ -168,4 +179,4 @@ def add_bus(parser: argparse.ArgumentParser) -> None:
 
 __all__ = ["DEFAULT_WORKERS", "WORKERS_HELP", "add_baseline", "add_bus", "add_command", "add_doc", "add_figures",
            "add_json", "add_node_id", "add_out", "add_output", "add_scheduler", "add_seed",
-           "add_serial", "add_set", "add_workers", "node_id_arg", "seed_arg"]
+           "add_serial", "add_set", "add_workers", "node_id_arg", "seed_arg", "set_params"]

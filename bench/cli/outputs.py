@@ -141,8 +141,11 @@ class IO:
     written into, each with the fixed names the command writes there."""
 
     def __init__(self, inputs: tuple[str, ...] = (), files: tuple[str, ...] = (),
-                 dirs: dict[str, tuple[str, ...]] | None = None) -> None:
+                 dirs: dict[str, tuple[str, ...]] | None = None,
+                 empty_is_none: tuple[str, ...] = ()) -> None:
         self.inputs, self.files, self.dirs = inputs, files, dict(dirs or {})
+        self.empty_is_none = empty_is_none
+        """Options whose help says '' means no such output (`reproduce --figures ''`)."""
 
 
 _HUMS_REPORT = ("report.html", "indexes.json", "summary.txt")
@@ -154,7 +157,7 @@ _BUS = IO()
 
 IO_TABLE: dict[str, IO] = {
     "demo": IO(dirs={"out": ("summary.json", "healthy.log", "worn.log", "failing.log")}),
-    "reproduce": IO(files=("out", "json"), dirs={"figures": ()}),
+    "reproduce": IO(files=("out", "json"), dirs={"figures": ()}, empty_is_none=("figures",)),
     "plant": IO(inputs=("params",), files=("ready_file",)),
     "up": _BUS, "status": _BUS, "down": _BUS,
     "run": IO(files=("log", "save")),
@@ -268,6 +271,8 @@ def _no_empty_path(io: IO, args: Namespace) -> None:
     """No path option given as "" (or blanks): for a folder it meant the current one
     (`--out ""` wrote the report there), for a file nothing written and no word said."""
     for name in (*io.inputs, *io.files, *io.dirs):
+        if name in io.empty_is_none:
+            continue
         value = getattr(args, name, None)
         if any(isinstance(v, str) and not v.strip()
                for v in (value if isinstance(value, (list, tuple)) else [value])):

@@ -142,8 +142,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-MAX_DURATION_S = 1e7
-"""The longest --duration (116 days; the memory check refuses most runs far shorter)."""
+MAX_DURATION_S = 1e15
+"""The longest --duration (its SYNC periods still count as an integer; the memory check
+refuses a run far shorter, saying how long one can be)."""
 MAX_TRAVEL_M = 10.0
 """No set-point beyond this (`plant_rt.params` caps the plant's travel limit there)."""
 

@@ -222,7 +222,8 @@ def _job(job: tuple[str, dict[str, float], int, float, str]) -> str:
     """Worker: one ground test simulated and written as a candump log."""
     from bench.profiles.catalog import sine
     from bench.sim.harness import simulate
-    from plant_rt.params import PlantParams, seed_in_range
+    from plant_rt.params import PlantParams
+    from plant_rt.paramvalues import seed_in_range
     path, wear, noise_seed, t0, _ = job
     p = PlantParams().with_dict({**wear, "sensors.noise": True,
                                  "sensors.noise_seed": seed_in_range(noise_seed)})

@@ -43,7 +43,8 @@ from bench.runtime.workers import run_all
 from bench.signals.trace import MEASURED, Trace
 from bench.sim.harness import simulate
 from plant_rt.model import viscous_friction
-from plant_rt.params import PlantParams, seed_in_range
+from plant_rt.params import PlantParams
+from plant_rt.paramvalues import seed_in_range
 
 LOG_S = 10.0
 NOMINAL = PlantParams()

@@ -35,7 +35,8 @@ from bench.hums.sweep import degraded
 from bench.profiles.catalog import make_profile
 from bench.runtime.workers import run_all
 from bench.sim.harness import simulate
-from plant_rt.params import PlantParams, seed_in_range
+from plant_rt.params import PlantParams
+from plant_rt.paramvalues import seed_in_range
 
 CALIBRATION_VERSION = 3     # part of the report's cache key: bump when calibrate() changes
 

@@ -30,7 +30,8 @@ from bench.hums.metrics import LAMBDA_ROWS, score_run, summarise_scores
 from bench.hums.records import RunRecord, simulate_record, true_failure_time
 from bench.hums.rul import N_BOOT, WARNING, Prediction, thesis_predict, thesis_profile
 from bench.runtime.workers import run_all
-from plant_rt.params import PlantParams, seed_in_range
+from plant_rt.params import PlantParams
+from plant_rt.paramvalues import seed_in_range
 
 CAMPAIGN_RANGES = {
     "schedule.duration_s": (90.0, 150.0),

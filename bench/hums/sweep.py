@@ -33,7 +33,8 @@ from bench.hums.table import figure_links
 from bench.profiles.catalog import make_profile
 from bench.runtime.workers import run_all
 from bench.sim.harness import simulate
-from plant_rt.params import PlantParams, seed_in_range
+from plant_rt.params import PlantParams
+from plant_rt.paramvalues import seed_in_range
 
 MANEUVERS: dict[str, str] = {"H2": "velocity-step", "H3": "velocity-cosine", "H4": "sine"}
 SHOWN = (0.0, 0.5, 1.0)     # degradation levels kept as time series for the figures

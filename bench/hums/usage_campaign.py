@@ -46,7 +46,8 @@ from bench.hums.prognosis import exposure_of_usage
 from bench.hums.rul import FAILURE
 from bench.profiles.catalog import make_profile
 from bench.sim.harness import simulate
-from plant_rt.params import PlantParams, seed_in_range
+from plant_rt.params import PlantParams
+from plant_rt.paramvalues import seed_in_range
 
 ACCELERATION = 30000.0       # time compression of wear during a simulated flight
 FLIGHT_S = 30.0              # one simulated flight a day

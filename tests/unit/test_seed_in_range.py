@@ -1,12 +1,13 @@
 """Seeds derived from a user's seed fold into the seed parameters' range
-(`plant_rt.params.seed_in_range`): `bench fleet synth --seed 3000` derived noise seeds of
+(`plant_rt.paramvalues.seed_in_range`): `bench fleet synth --seed 3000` derived noise seeds of
 3e9 and ended in "sensors.noise_seed ... is above its maximum"."""
 
 from __future__ import annotations
 
 import json
 
-from plant_rt.params import SEED_MAX, PlantParams, seed_in_range
+from plant_rt.params import PlantParams
+from plant_rt.paramvalues import SEED_MAX, seed_in_range
 
 
 def test_a_seed_in_range_is_unchanged_and_a_larger_one_folds():
