@@ -383,6 +383,8 @@ def load_trace(path: str | Path, fmt: str | None = None, measured: bool = False)
         path = Path(path)
         if not path.exists():
             raise BenchError(f"no such file: {path}")
+        if path.is_dir():
+            raise BenchError(f"{path} is a directory, not a log (name the log files in it)")
         suffix = path.suffix.lower()
         if suffix not in LOG_READERS:
             raise BenchError(f"{path}: unknown log format {suffix or '(no suffix)'!r} (use "

@@ -186,8 +186,6 @@ def _check_args(args: argparse.Namespace, section: str | None = None) -> None:
     from bench.cli.outputs import check_doc_section, check_output_file, check_outputs
     if getattr(args, "workers", None) is not None and args.workers < 1:
         raise BenchError("--workers must be >= 1")
-    if getattr(args, "seed", 0) < 0:
-        raise BenchError(f"--seed must be >= 0, not {args.seed}")
     check_outputs(args, files=("json", "trends_out", "calibration_out"), dirs=("figures",))
     if section and args.doc:
         check_output_file(args.doc, "--doc", DOC_SUFFIXES, make_parents=True)

@@ -49,11 +49,14 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> None:
     from bench.cli.outputs import check_output_dir, check_output_file
-    for v, flag in ((args.preload_n, "--preload-n"), (args.load_rating_n, "--load-rating-n")):
-        if v is not None and not (math.isfinite(v) and v >= 0):
-            raise BenchError(f"{flag} must be a finite number of newtons >= 0, not {v:g}")
-    if args.load_rating_n is not None and not args.load_rating_n > 0:
-        raise BenchError("--load-rating-n must be > 0 N")
+    if args.preload_n is not None and not (math.isfinite(args.preload_n)
+                                           and args.preload_n >= 0):
+        raise BenchError(f"--preload-n must be a finite number of newtons >= 0, not "
+                         f"{args.preload_n:g}")
+    if args.load_rating_n is not None and not (math.isfinite(args.load_rating_n)
+                                               and args.load_rating_n > 0):
+        raise BenchError(f"--load-rating-n must be a finite number of newtons > 0, not "
+                         f"{args.load_rating_n:g}")
     if args.json:
         check_output_file(args.json, "--json", (".json",))
     if args.plot:
@@ -61,6 +64,8 @@ def _check(args: argparse.Namespace) -> None:
     if args.files.count("-") > 1:
         raise BenchError("standard input (-) can be given once")
     for f in args.files:
+        if f != "-" and Path(f).is_dir():
+            raise BenchError(f"{f} is a directory, not a log (name the log files in it)")
         if f != "-" and not Path(f).is_file():
             raise BenchError(f"no such file: {f}")
 

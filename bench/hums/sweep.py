@@ -118,12 +118,18 @@ def _point(job: tuple[str, str, bool, float, int, float, str]) -> Point:
                  pk, pkn, series)
 
 
+MAX_POINTS = 201
+"""The most degradation points a sweep takes: a step of 0.5 um of backlash (0-100 um)
+is finer than any index resolves; more are hours of plant runs."""
+
+
 def run(params: PlantParams | None = None, noise: str = "both", points: int = 11,
         workers: int | None = None, progress: bool = True,
         scheduler: str | None = None) -> SweepResult:
     """The whole sweep: H1 fit, then `points` levels x 3 maneuvers x noise settings."""
-    if points < 2:
-        raise BenchError("the sweep needs at least 2 degradation points")
+    if not 2 <= points <= MAX_POINTS:
+        raise BenchError(f"--points: the sweep takes 2 to {MAX_POINTS} degradation points "
+                         f"(3 plant runs each, per noise setting), not {points}")
     noises = {"off": (False,), "on": (True,), "both": (False, True)}.get(noise)
     if noises is None:
         raise BenchError(f"--noise must be on, off or both, not {noise!r}")
