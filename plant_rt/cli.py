@@ -17,6 +17,7 @@ import math
 import os
 import signal
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -148,8 +149,12 @@ def check_ready_file(path: Path) -> None:
         raise PlantError(f"--ready-file {path}: it is a directory")
     if not path.parent.is_dir():
         raise PlantError(f"--ready-file {path}: directory {path.parent} does not exist")
-    if not os.access(path.parent, os.W_OK):
-        raise PlantError(f"--ready-file {path}: directory {path.parent} is not writable")
+    try:                      # tried, not asked (os.access says yes to root on /proc)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".ready-probe-"):
+            pass
+    except OSError:
+        raise PlantError(f"--ready-file {path}: directory {path.parent} is not writable"
+                         ) from None
     if path.exists() and path.stat().st_size and (
             path.stat().st_size > len(READY) or path.read_bytes() != READY.encode()):
         raise PlantError(f"--ready-file {path}: the file exists and is not a ready file "

@@ -93,6 +93,17 @@ def controller_of(args: argparse.Namespace) -> str:
     return str(args.controller)
 
 
+def _thesis_only(args: argparse.Namespace) -> None:
+    """With --actuator, the options of the thesis plant's path are refused, not ignored."""
+    from bench import BenchError
+    if args.friction_split not in (None, "model"):
+        raise BenchError("--friction-split is for the thesis plant's model; with "
+                         "--actuator the generic model has its own friction law")
+    if args.params is not None:
+        raise BenchError("--params chooses among the thesis plant's parameters; it does "
+                         "not apply with --actuator (the generic model)")
+
+
 def run(args: argparse.Namespace) -> int:
     from bench import BenchError
     from bench.cli.outputs import check_output_file
@@ -101,9 +112,7 @@ def run(args: argparse.Namespace) -> int:
     args.controller = controller_of(args)
     distinct_logs(args.log, args.holdout)                   # before the fit
     if args.actuator:
-        if args.friction_split not in (None, "model"):
-            raise BenchError("--friction-split is for the thesis plant's model; with "
-                             "--actuator the generic model has its own friction law")
+        _thesis_only(args)
         return _actuator(args)
     if len(args.log) > 1:
         raise BenchError("several healthy logs need --actuator DESC (the thesis actuator "

@@ -142,9 +142,11 @@ class IO:
 
     def __init__(self, inputs: tuple[str, ...] = (), files: tuple[str, ...] = (),
                  dirs: dict[str, tuple[str, ...]] | None = None,
-                 empty_is_none: tuple[str, ...] = ()) -> None:
+                 empty_is_none: tuple[str, ...] = (), twice_ok: bool = False) -> None:
         self.inputs, self.files, self.dirs = inputs, files, dict(dirs or {})
         self.empty_is_none = empty_is_none
+        self.twice_ok = twice_ok
+        """The command itself tells a copy from a new input (`fleet ingest`'s digests)."""
         """Options whose help says '' means no such output (`reproduce --figures ''`)."""
 
 
@@ -178,7 +180,7 @@ IO_TABLE: dict[str, IO] = {
     "gap-bench": IO(files=("json", "markdown")),
     "calibrate": IO(inputs=("log", "holdout", "nominal", "actuator"), files=("output",)),
     "import": IO(inputs=("table", "map"), files=("output",)),
-    "fleet ingest": IO(inputs=("paths",), files=("db",)),
+    "fleet ingest": IO(inputs=("paths",), files=("db",), twice_ok=True),
     "fleet status": IO(inputs=("db",)),
     "fleet report": IO(inputs=("db",), dirs={"out": ("index.html", "status.json")}),
     "fleet export": IO(inputs=("db",), dirs={"out": ("runs.parquet", "failures.parquet",
@@ -245,6 +247,7 @@ def check_io(args: Namespace) -> None:
     if io is None:
         return
     _no_empty_path(io, args)
+    _known_suffixes(io, args)
     _no_input_twice(io, args)
     ins = [(name, p) for name in io.inputs for p in _paths(getattr(args, name, None))]
     outs = [(name, p) for name in io.files for p in _paths(getattr(args, name, None))]
@@ -267,6 +270,22 @@ def check_io(args: Namespace) -> None:
                                  "give each output its own path")
 
 
+OUTPUT_SUFFIXES = {"json": (".json",), "calibration_out": (".json",),
+                   "markdown": (".md", ".markdown"), "doc": (".md", ".markdown")}
+"""The suffix an output option's file must have, by option name: a `--json` written over
+a candump log or a `--markdown` over a CSV destroyed it."""
+
+
+def _known_suffixes(io: IO, args: Namespace) -> None:
+    """Each output file of a kind `OUTPUT_SUFFIXES` names has its suffix ("-": stdout)."""
+    for name in io.files:
+        known = OUTPUT_SUFFIXES.get(name)
+        for p in _paths(getattr(args, name, None)) if known else ():
+            if Path(p).suffix.lower() not in known:
+                raise BenchError(f"{_flag(name)} {p}: a {known[0][1:]} file is written "
+                                 f"there; give it the suffix {' or '.join(known)}")
+
+
 def _no_empty_path(io: IO, args: Namespace) -> None:
     """No path option given as "" (or blanks): for a folder it meant the current one
     (`--out ""` wrote the report there), for a file nothing written and no word said."""
@@ -281,9 +300,10 @@ def _no_empty_path(io: IO, args: Namespace) -> None:
 
 def _no_input_twice(io: IO, args: Namespace) -> None:
     """No input file given twice to one option (the same file, also under another name or
-    through a link): it would count twice (`bench usage a.log a.log` summed the run's
-    usage twice)."""
-    for name in io.inputs:
+    through a link, or a copy of its bytes): it would count twice (`bench usage a.log
+    a.log` summed the run's usage twice; a table and its copy made a baseline of each run
+    twice)."""
+    for name in () if io.twice_ok else io.inputs:
         value = getattr(args, name, None)
         if not isinstance(value, (list, tuple)):
             continue
@@ -293,6 +313,18 @@ def _no_input_twice(io: IO, args: Namespace) -> None:
                 if _same(p, q):
                     raise BenchError(f"{_arg(name)}: {p} and {q} are one file, given twice: "
                                      "give each input once")
+                if _same_bytes(p, q):
+                    raise BenchError(f"{_arg(name)}: {p} and {q} hold the same bytes (one "
+                                     "file under two names?): give each input once")
+
+
+def _same_bytes(a: str, b: str) -> bool:
+    """Files `a` and `b` hold the same bytes (sizes first; read only when they agree)."""
+    import filecmp
+    try:
+        return os.path.getsize(a) == os.path.getsize(b) and filecmp.cmp(a, b, shallow=False)
+    except OSError:
+        return False
 
 
 def _check_pool(args: Namespace) -> None:

@@ -184,6 +184,10 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "healthy scores can bound; default 0.05)")
 
 
+MAX_RUNS = 10_000
+"""The most runs one range of --runs may name (a rig's test campaign has dozens)."""
+
+
 def runs_list(text: str | None, flag: str) -> list[int] | None:
     """'1,2' or '1-4' or '1,3-4' -> [1, 2, ...]; None -> None."""
     from bench import BenchError
@@ -193,6 +197,8 @@ def runs_list(text: str | None, flag: str) -> list[int] | None:
     try:
         for part in text.split(","):
             a, _, b = part.strip().partition("-")
+            if b and int(b) - int(a) > MAX_RUNS:
+                raise BenchError(f"{flag}: {part.strip()} is more than {MAX_RUNS} runs")
             out += list(range(int(a), int(b) + 1)) if b else [int(a)]
     except ValueError:
         raise BenchError(f"{flag}: expected run numbers like 1,2 or 1-4, got {text!r}"
@@ -261,8 +267,11 @@ def _read(tables: list[str], runs: list[int] | None) -> list[Any]:
         cycles += [c for c in mine if runs is None or c.run in runs]
     for line in lost:                 # reported, never dropped silently
         print(line, file=sys.stderr)
-    if not cycles:
-        raise BenchError(f"no cycle of run(s) {','.join(map(str, runs or []))} in "
+    missing = sorted(set(runs or ()) - have)
+    if not cycles or missing:
+        what = missing or runs or []
+        more = f" and {len(what) - 10} more" if len(what) > 10 else ""
+        raise BenchError(f"no cycle of run(s) {','.join(map(str, what[:10]))}{more} in "
                          f"{', '.join(tables)} (they have run(s) "
                          f"{','.join(map(str, sorted(have)))})")
     return cycles

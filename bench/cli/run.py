@@ -149,6 +149,20 @@ MAX_TRAVEL_M = 10.0
 """No set-point beyond this (`plant_rt.params` caps the plant's travel limit there)."""
 
 
+def _check_frequency(f: float | None) -> None:
+    """A profile's --frequency-hz a set-point can hold: above 0 and below half the SYNC
+    rate of the shortest SYNC period a node takes (`sim.sync_period_s`; the node's own
+    period is known only once the run has read it)."""
+    if f is None:
+        return
+    from plant_rt.params import resolve
+    shortest = float(resolve("sim.sync_period_s").min)
+    if not 0 < f < 0.5 / shortest:
+        raise BenchError(f"--frequency-hz {f:g}: a set-point sampled every SYNC period "
+                         f"(at least {shortest * 1e3:g} ms) holds frequencies above 0 and "
+                         f"below {0.5 / shortest:g} Hz")
+
+
 def _checked_profile(args: argparse.Namespace):
     """The run's profile, after every flag and output path is checked (BenchError)."""
     from bench.profiles.catalog import make_profile, profile_args
@@ -163,6 +177,7 @@ def _checked_profile(args: argparse.Namespace):
     for k, v in kwargs.items():
         if isinstance(v, float) and not math.isfinite(v):
             raise BenchError(f"--{k.replace('_', '-')} must be a finite number, not {v}")
+    _check_frequency(kwargs.get("frequency_hz"))
     amp = kwargs.get("amplitude_m")
     if amp is not None and abs(amp) > MAX_TRAVEL_M:
         raise BenchError(f"--amplitude-m {amp:g} m: beyond any actuator's travel (the "

@@ -115,6 +115,16 @@ def _entry(d: dict[str, Any], where: str) -> MapEntry:
     return MapEntry(sig, str(col).strip(), unit, scale, num("wrap", 0.0), minus)
 
 
+def _json_map(path: Path, text: str) -> Any:
+    """The JSON value of a map file (BenchError for bad JSON or one nested too deep)."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise BenchError(f"{path}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise BenchError(f"{path}: not a column map (nested too deep to read)") from None
+
+
 def read_map(path: str | Path) -> list[MapEntry]:
     """The column map from a JSON or CSV file (BenchError naming the problem)."""
     path = Path(path)
@@ -123,10 +133,7 @@ def read_map(path: str | Path) -> list[MapEntry]:
     text = read_text(path, "map")
     rows: list[dict[str, Any]]
     if path.suffix.lower() == ".json":
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise BenchError(f"{path}: not valid JSON ({exc})") from None
+        data = _json_map(path, text)
         if isinstance(data, dict):
             rows = []
             for sig, v in data.items():
@@ -235,6 +242,7 @@ def build_trace(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry], source:
     values = {sig: _values(raw, e, rows) for sig, e in by_sig.items() if sig != "t_s"}
     if not values:
         raise BenchError("the map maps no signal besides time")
+    _within_measurement(values, by_sig, rows)
     first = _same_time(t, values, by_sig, rows)
     if sync_period_s is None:
         return _native(values, by_sig, t, source, first, rows)
@@ -372,6 +380,20 @@ def _time_column(raw: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
         return np.arange(n) / source_rate_hz
     raise BenchError("the map has no time signal t_s; map the table's time column or "
                      "give the table's fixed rate (--source-rate)")
+
+
+def _within_measurement(values: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
+                        where: Rows) -> None:
+    """No imported value beyond any measurement (|SI value| > `trace.MAX_VALUE`): every
+    reader refuses such a trace, so the import does, naming the column and the rows."""
+    from bench.signals.trace import MAX_VALUE
+    for sig, y in values.items():
+        idx = np.flatnonzero(np.abs(np.nan_to_num(y, nan=0.0)) > MAX_VALUE)
+        if len(idx):
+            e = by_sig[sig]
+            raise BenchError(f"{where.path}: column {e.column!r} ({sig}) holds {y[idx[0]]:g} "
+                             f"in {len(idx)} row(s) ({where.some(idx)}), beyond any "
+                             f"measurement (|value| > {MAX_VALUE:g} in SI units)")
 
 
 def _same_time(t: np.ndarray, values: dict[str, np.ndarray], by_sig: dict[str, MapEntry],
