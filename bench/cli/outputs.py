@@ -279,8 +279,8 @@ a candump log or a `--markdown` over a CSV destroyed it."""
 def _known_suffixes(io: IO, args: Namespace) -> None:
     """Each output file of a kind `OUTPUT_SUFFIXES` names has its suffix ("-": stdout)."""
     for name in io.files:
-        known = OUTPUT_SUFFIXES.get(name)
-        for p in _paths(getattr(args, name, None)) if known else ():
+        known = OUTPUT_SUFFIXES.get(name, ())
+        for p in _paths(getattr(args, name, None)) if known else []:
             if Path(p).suffix.lower() not in known:
                 raise BenchError(f"{_flag(name)} {p}: a {known[0][1:]} file is written "
                                  f"there; give it the suffix {' or '.join(known)}")

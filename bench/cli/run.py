@@ -156,7 +156,8 @@ def _check_frequency(f: float | None) -> None:
     if f is None:
         return
     from plant_rt.params import resolve
-    shortest = float(resolve("sim.sync_period_s").min)
+    lo = resolve("sim.sync_period_s").min
+    shortest = float(lo if lo is not None else 1e-4)
     if not 0 < f < 0.5 / shortest:
         raise BenchError(f"--frequency-hz {f:g}: a set-point sampled every SYNC period "
                          f"(at least {shortest * 1e3:g} ms) holds frequencies above 0 and "
