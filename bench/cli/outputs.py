@@ -247,7 +247,6 @@ def check_io(args: Namespace) -> None:
     if io is None:
         return
     _no_empty_path(io, args)
-    _known_suffixes(io, args)
     _no_input_twice(io, args)
     ins = [(name, p) for name in io.inputs for p in _paths(getattr(args, name, None))]
     outs = [(name, p) for name in io.files for p in _paths(getattr(args, name, None))]
@@ -268,22 +267,25 @@ def check_io(args: Namespace) -> None:
             if name2 != name and _same(p, p2):
                 raise BenchError(f"{_flag(name)} and {_flag(name2)} are one file ({p}); "
                                  "give each output its own path")
+    _known_suffixes(io, args)
 
 
 OUTPUT_SUFFIXES = {"json": (".json",), "calibration_out": (".json",),
-                   "markdown": (".md", ".markdown"), "doc": (".md", ".markdown")}
+                   "markdown": (".md", ".markdown")}
 """The suffix an output option's file must have, by option name: a `--json` written over
 a candump log or a `--markdown` over a CSV destroyed it."""
 
 
 def _known_suffixes(io: IO, args: Namespace) -> None:
-    """Each output file of a kind `OUTPUT_SUFFIXES` names has its suffix ("-": stdout)."""
+    """Each output file of a kind `OUTPUT_SUFFIXES` names has its suffix ("-": stdout; a
+    directory is left to the command's own check, which says so), worded as
+    `check_output_file` words it."""
     for name in io.files:
         known = OUTPUT_SUFFIXES.get(name, ())
         for p in _paths(getattr(args, name, None)) if known else []:
-            if Path(p).suffix.lower() not in known:
-                raise BenchError(f"{_flag(name)} {p}: a {known[0][1:]} file is written "
-                                 f"there; give it the suffix {' or '.join(known)}")
+            if not os.path.isdir(p) and Path(p).suffix.lower() not in known:
+                raise BenchError(f"{_flag(name)}: {p}: unknown suffix {Path(p).suffix!r} "
+                                 f"(use {', '.join(known)})")
 
 
 def _no_empty_path(io: IO, args: Namespace) -> None:

@@ -32,9 +32,10 @@ def test_a_json_output_must_be_a_json_file(tmp_path, capsys):
     log = tmp_path / "run.log"
     log.write_text("(1000.000000) vcan0 080#\n")
     before = log.read_bytes()
-    _one_line(capsys, main(["hums", "fit", "--json", str(log)]), "--json", "suffix .json")
+    _one_line(capsys, main(["hums", "fit", "--json", str(log)]), "--json", "unknown suffix",
+              "(use .json)")
     _one_line(capsys, main(["gap-bench", "--markdown", str(tmp_path / "b.csv")]),
-              "--markdown", ".md")
+              "--markdown", "(use .md, .markdown)")
     assert log.read_bytes() == before
 
 

@@ -165,10 +165,9 @@ def test_a_held_out_log_that_is_a_fitted_one_is_refused(tmp_path, capsys, copy):
     assert main(["calibrate", str(tmp_path / "h1.npz"), str(held), "--actuator",
                  "cranfield", "-o", str(cal)]) == 2
     err = capsys.readouterr().err
-    # the same file twice is refused before the command (`outputs.check_io`); the same
-    # bytes under another name by calibrate itself
+    # refused before the command (`outputs.check_io`): the same file, or its bytes again
     assert (f"{held} are one file, given twice" if not copy else
-            f"{held} is given twice as a healthy log") in err, err
+            f"{held} hold the same bytes") in err, err
 
 
 def test_a_log_too_short_for_a_noise_floor_is_refused():

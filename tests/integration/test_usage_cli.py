@@ -56,7 +56,7 @@ def test_usage_per_run_and_per_actuator(tmp_path, capsys):
     (["nothing.log"], "no such file"),
     (["--preload-n", "nan", "X"], "--preload-n must be a finite"),
     (["--json", "out.txt", "X"], "unknown suffix"),
-    (["--load-rating-n", "0", "X"], "--load-rating-n must be > 0"),
+    (["--load-rating-n", "0", "X"], "--load-rating-n must be a finite number of newtons > 0"),
     (["--set", "usage.bogus=1", "X"], "expected NAME=VALUE"),
     (["--set", "usage.load_hysteresis_n=-5", "X"], "below its minimum"),
 ])

@@ -109,7 +109,7 @@ def test_report_errors_are_one_line(logs, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, msg", [
-    (("sweep", "--points", "1"), "at least 2"),
+    (("sweep", "--points", "1"), "2 to 201 degradation points"),
     (("sweep", "--workers", "0"), "--workers"),
     (("fit", "--set", "motor.resistance_ohm=-1"), "below its minimum"),
     (("report", "x.npz", "--period", "0"), "--period"),

@@ -62,9 +62,9 @@ def test_every_numeric_profile_parameter_refuses_non_finite_and_out_of_domain(na
 def test_frequency_zero_is_a_one_line_error(nothing_starts, capsys):
     """Unfixed: ZeroDivisionError (cycles / frequency_hz), exit 1."""
     err = one_line_error(capsys, "sine", "--frequency-hz", "0")
-    assert "frequency_hz" in err and "> 0" in err
+    assert "--frequency-hz 0" in err and "above 0" in err
     err = one_line_error(capsys, "velocity-cosine", "--frequency-hz", "-2")
-    assert "frequency_hz" in err
+    assert "--frequency-hz -2" in err
 
 
 def test_a_duration_beyond_memory_is_refused_before_anything_starts(nothing_starts, capsys):
