@@ -146,9 +146,9 @@ SEED_RANGE = (0, 2**32 - 1)
 
 
 def seed_arg(text: str) -> int:
-    """A --seed as given on the command line, in `SEED_RANGE`."""
+    """A --seed as given on the command line (decimal), in `SEED_RANGE`."""
     try:
-        v = int(text, 0)
+        v = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
     lo, hi = SEED_RANGE
