@@ -112,8 +112,8 @@ def load(path: str | Path) -> K.Model:
     try:
         untrusted = sio.get_untrusted_types(data=data)
     except Exception as exc:  # noqa: BLE001 - zipfile, json and skops raise many types
-        raise BenchError(f"{path}: not a bench rig model ({type(exc).__name__}: {exc})"
-                         ) from None
+        raise BenchError(f"{path}: not a bench rig model (not a skops file `bench rig "
+                         f"train -o` writes: {exc})") from None
     bad = sorted(set(untrusted) - set(TRUSTED))
     if bad:
         raise BenchError(f"{path}: refused: the file holds types the bench does not load "
@@ -121,7 +121,7 @@ def load(path: str | Path) -> K.Model:
     try:
         d = sio.loads(data, trusted=TRUSTED)
     except Exception as exc:  # noqa: BLE001
-        raise BenchError(f"{path}: not a bench rig model ({type(exc).__name__}: {exc})"
+        raise BenchError(f"{path}: not a bench rig model (its content does not load: {exc})"
                          ) from None
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise BenchError(f"{path}: not a model written by `bench rig train`")
