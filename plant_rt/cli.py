@@ -46,14 +46,27 @@ SERIAL_HELP = ("the actuator's serial number, identity object 0x1018 sub 4 (UNSI
                "decimal or 0x hex; default: the EDS's, 0)")
 
 
+def _int_arg(text: str, what: str) -> int:
+    """An argparse type's integer, decimal or 0x hex (`what` names it in the error)."""
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
+
+
 def serial_arg(text: str) -> int:
     """An argparse type: a serial number (UNSIGNED32, decimal or 0x hex)."""
-    try:
-        value = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    value = _int_arg(text, "an integer")
     if not 0 <= value <= 0xFFFFFFFF:
         raise argparse.ArgumentTypeError(f"{value} is not within 0..4294967295 (UNSIGNED32)")
+    return value
+
+
+def node_id_arg(text: str) -> int:
+    """An argparse type: a CANopen node id (0x10, 16): 1 to 127 (CiA 301)."""
+    value = _int_arg(text, "a node id")
+    if not 1 <= value <= 127:
+        raise argparse.ArgumentTypeError(f"{text}: a CANopen node id is 1 to 127 (0x01-0x7F)")
     return value
 
 
@@ -69,9 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="start from a parameter set saved as JSON")
     parser.add_argument("--list-params", action="store_true",
                         help="print every settable parameter with unit, default and range")
-    parser.add_argument("--node-id", type=lambda s: int(s, 0), default=None,
+    parser.add_argument("--node-id", type=node_id_arg, default=None,
                         help="CANopen node id (default 0x10, from dbc/ema.dbc)")
-    parser.add_argument("--ecu-id", type=lambda s: int(s, 0), default=None,
+    parser.add_argument("--ecu-id", type=node_id_arg, default=None,
                         help="node id of the ECU whose heartbeat is consumed (default 0x01)")
     parser.add_argument("--serial", type=serial_arg, default=None, metavar="N",
                         help=SERIAL_HELP)

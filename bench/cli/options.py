@@ -130,15 +130,6 @@ def add_baseline(parser: argparse.ArgumentParser) -> None:
                              "force one")
 
 
-def node_id_arg(text: str) -> int:
-    """A CANopen node id as given on the command line (0x10, 16): 1 to 127 (CiA 301)."""
-    try:
-        v = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a node id: {text!r}") from None
-    if not 1 <= v <= 127:
-        raise argparse.ArgumentTypeError(f"{text}: a CANopen node id is 1 to 127 (0x01-0x7F)")
-    return v
 
 
 SEED_RANGE = (0, 2**32 - 1)
@@ -159,6 +150,7 @@ def seed_arg(text: str) -> int:
 
 def add_node_id(parser: argparse.ArgumentParser) -> None:
     """`--node-id N`: the actuator's node id (default: the DBC's, 0x10)."""
+    from plant_rt.cli import node_id_arg
     parser.add_argument("--node-id", type=node_id_arg, default=None,
                         help="actuator node id (default 0x10)")
 
@@ -179,4 +171,4 @@ def add_bus(parser: argparse.ArgumentParser) -> None:
 
 __all__ = ["DEFAULT_WORKERS", "WORKERS_HELP", "add_baseline", "add_bus", "add_command", "add_doc", "add_figures",
            "add_json", "add_node_id", "add_out", "add_output", "add_scheduler", "add_seed",
-           "add_serial", "add_set", "add_workers", "node_id_arg", "seed_arg", "set_params"]
+           "add_serial", "add_set", "add_workers", "seed_arg", "set_params"]
