@@ -197,30 +197,20 @@ def _thesis_logs(args: argparse.Namespace) -> tuple[Any, list[Any]]:
 
 def distinct_logs(healthy: list[str], holdout: list[str],
                   other: str = "another healthy run") -> None:
-    """Every log once: a held-out log that is one of the fitted ones (the same file, or
-    the same bytes under another name) or a log given twice is a one-line error (a
-    duplicate would score the fit on its own data, or count one run twice)."""
-    import hashlib
-
+    """No held-out log that is one of the fitted ones (the same file, or the same bytes
+    under another name): it would score the fit on its own data. A log given twice to
+    one option is refused before the command (`outputs.check_io`)."""
     from bench import BenchError
-    seen: dict[Any, tuple[str, str]] = {}
-    for role, p in [("healthy", h) for h in healthy] + [("--holdout", h) for h in holdout]:
-        path = Path(p)
-        if not path.is_file():
-            continue                                # load_log says it
-        keys = [("file", path.resolve()),
-                ("content", path.stat().st_size, hashlib.sha256(path.read_bytes()).digest())]
-        for key in keys:
-            if key in seen:
-                role0, p0 = seen[key]
-                same = "the same file as" if key[0] == "file" else "the same content as"
-                if role == "--holdout" and role0 == "healthy":
-                    raise BenchError(f"--holdout {p} is {same} the fitted log {p0}: a "
-                                     f"held-out log must be {other}")
-                raise BenchError(f"{p} is given twice as a {role} log ({same} {p0}): give "
-                                 "each log once")
-        for key in keys:
-            seen[key] = (role, p)
+    from bench.cli.outputs import same_bytes, same_file
+    for h in holdout:
+        for p in healthy:
+            if not (Path(h).is_file() and Path(p).is_file()):
+                continue                            # load_log says it
+            same = ("the same file as" if same_file(h, p) else
+                    "the same content as" if same_bytes(h, p) else None)
+            if same:
+                raise BenchError(f"--holdout {h} is {same} the fitted log {p}: a "
+                                 f"held-out log must be {other}")
 
 
 def controller_text(ctrl: dict[str, Any]) -> str:

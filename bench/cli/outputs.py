@@ -227,7 +227,7 @@ def inputs(args: Namespace) -> list[str]:
     return out
 
 
-def _same(a: str, b: str) -> bool:
+def same_file(a: str, b: str) -> bool:
     """`a` and `b` are one file: the same path, or both exist and are the same file."""
     if os.path.abspath(a) == os.path.abspath(b) or os.path.realpath(a) == os.path.realpath(b):
         return True
@@ -253,18 +253,18 @@ def check_io(args: Namespace) -> None:
     for name, fixed in io.dirs.items():
         for d in _paths(getattr(args, name, None)):
             for iname, ip in ins:
-                if os.path.isfile(ip) and _same(d, ip):
+                if os.path.isfile(ip) and same_file(d, ip):
                     raise BenchError(f"{_flag(name)} {d}: that is the input {_arg(iname)} "
                                      f"{ip}, not a directory to write into")
             outs.extend((name, os.path.join(d, f)) for f in fixed)
     for name, p in outs:
         for iname, ip in ins:
-            if _same(p, ip):
+            if same_file(p, ip):
                 raise BenchError(f"{_flag(name)} {p}: that is the input {_arg(iname)} {ip}; "
                                  "writing it would overwrite it: write elsewhere")
     for k, (name, p) in enumerate(outs):
         for name2, p2 in outs[k + 1:]:
-            if name2 != name and _same(p, p2):
+            if name2 != name and same_file(p, p2):
                 raise BenchError(f"{_flag(name)} and {_flag(name2)} are one file ({p}); "
                                  "give each output its own path")
     _known_suffixes(io, args)
@@ -312,15 +312,15 @@ def _no_input_twice(io: IO, args: Namespace) -> None:
         files = [p for p in _paths(value) if os.path.isfile(p)]
         for k, p in enumerate(files):
             for q in files[k + 1:]:
-                if _same(p, q):
+                if same_file(p, q):
                     raise BenchError(f"{_arg(name)}: {p} and {q} are one file, given twice: "
                                      "give each input once")
-                if _same_bytes(p, q):
+                if same_bytes(p, q):
                     raise BenchError(f"{_arg(name)}: {p} and {q} hold the same bytes (one "
                                      "file under two names?): give each input once")
 
 
-def _same_bytes(a: str, b: str) -> bool:
+def same_bytes(a: str, b: str) -> bool:
     """Files `a` and `b` hold the same bytes (sizes first; read only when they agree)."""
     import filecmp
     try:
