@@ -177,7 +177,6 @@ def _no_sub(p: argparse.ArgumentParser) -> int:
 
 
 DOC_SUFFIXES = (".md", ".markdown")     # --doc's section in a CSV would be appended to data
-MIN_PERIOD_SAMPLES = 8                  # fewest a command period holds (bench.hums.periods)
 
 
 def _check_args(args: argparse.Namespace, section: str | None = None) -> None:
@@ -411,8 +410,6 @@ def run_report(args: argparse.Namespace) -> int:
     check_output_dir(args.out, "--out")             # before the logs are analysed
     if _rig_report(args):
         return _run_rig_report(args)
-    if args.period is not None:
-        _check_report_period(args.logs, args.period)
     page, analyses = write_report(args.logs, args.out, opt.set_params(args), rul=not args.no_rul,
                                   period_s=args.period)
     for a in analyses:
@@ -428,26 +425,3 @@ def run_report(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 3
     return 0
-
-
-def _check_report_period(logs: list[str], period: float) -> None:
-    """`bench hums report --period` against each log (standard input, which cannot be
-    read twice, aside), before the analysis: MIN_PERIOD_SAMPLES samples or more, and no
-    longer than the log. The harmonic Ci the verdict reads and the per-period indexes take
-    whole command periods and need one (`bench.hums.formulas.ci_harmonic`); without one
-    Ci falls back to the broadband reading, which calls a healthy noisy log degraded."""
-    from bench.bus.logread import is_stdin
-    from bench.bus.logs import load_trace
-    for p in logs:
-        tr = None if is_stdin(p) else load_trace(p)
-        if tr is None or len(tr) < 2:       # too short for a verdict: the report says so
-            continue
-        dt, duration = tr.dt, len(tr) * tr.dt
-        if period > duration * (1.0 + 1e-9):
-            raise BenchError(f"--period {period:g} s is longer than the log {p} ("
-                             f"{duration:.4g} s): the indexes read whole command periods, "
-                             "and the log must hold at least one")
-        if period < MIN_PERIOD_SAMPLES * dt * (1.0 - 1e-9):
-            raise BenchError(f"--period {period:g} s holds fewer than {MIN_PERIOD_SAMPLES} "
-                             f"samples of the log {p} (one every {dt:g} s, "
-                             f"{duration:.4g} s in all): too short for a command period")

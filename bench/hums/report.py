@@ -484,6 +484,28 @@ def _rul_words(a: LogAnalysis) -> str:
             f"backlash {cal.fail_um:.1f} um{low}; a RUL needs a log that spans the wear")
 
 
+MIN_PERIOD_SAMPLES = 8                  # fewest a command period holds (bench.hums.periods)
+
+
+def check_period(tr: Trace, name: str, period: float) -> None:
+    """`--period` against the log `name` (BenchError): MIN_PERIOD_SAMPLES samples or more,
+    and no longer than the log. The harmonic Ci the verdict reads and the per-period
+    indexes take whole command periods and need one (`bench.hums.formulas.ci_harmonic`);
+    without one Ci falls back to the broadband reading, which calls a healthy noisy log
+    degraded. A log too short for a verdict is left to the report, which says so."""
+    if len(tr) < 2:
+        return
+    dt, duration = tr.dt, len(tr) * tr.dt
+    if period > duration * (1.0 + 1e-9):
+        raise BenchError(f"--period {period:g} s is longer than the log {name} ("
+                         f"{duration:.4g} s): the indexes read whole command periods, "
+                         "and the log must hold at least one")
+    if period < MIN_PERIOD_SAMPLES * dt * (1.0 - 1e-9):
+        raise BenchError(f"--period {period:g} s holds fewer than {MIN_PERIOD_SAMPLES} "
+                         f"samples of the log {name} (one every {dt:g} s, "
+                         f"{duration:.4g} s in all): too short for a command period")
+
+
 def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | None = None,
                  rul: bool = True, period_s: float | None = None,
                  progress: bool = True) -> tuple[Path, list[LogAnalysis]]:
@@ -492,10 +514,12 @@ def write_report(paths: list[str], out_dir: str | Path, params: PlantParams | No
         raise BenchError("give at least one log")
     from bench.bus.logs import load_trace
     from bench.core.filenames import distinct_labels
-    analyses = []
-    for p, label in zip(paths, distinct_labels(paths), strict=True):
-        tr = load_trace(p)
-        analyses.append(analyse(tr, label, params, rul, period_s, progress))
+    traces = [load_trace(p) for p in paths]     # every log read and its --period checked
+    if period_s is not None:                    # before the first analysis
+        for p, tr in zip(paths, traces, strict=True):
+            check_period(tr, p, period_s)
+    analyses = [analyse(tr, label, params, rul, period_s, progress)
+                for tr, label in zip(traces, distinct_labels(paths), strict=True)]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     page = out / "report.html"
