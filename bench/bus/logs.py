@@ -215,11 +215,13 @@ def log_clock(rows: Any, given: float | None, sdo: float | None, lockstep: bool
     stamps (each counter step one period), else None (the default parameters'). A
     ``warning`` says when the stamps and the chosen period disagree by more than
     CLOCK_TOLERANCE, unless the log shows a lockstep run (pace object 0x2200 written
-    SYNC: its stamps are the wall clock of a run faster than real time)."""
+    SYNC: its stamps are the wall clock of a run faster than real time). ``sdo_period_s``
+    keeps the SDO's period when --period overrides it."""
     stamps = _stamp_period(rows)
     chosen, source = ((given, "--period") if given else (sdo, "SDO 0x1006") if sdo
                       else (stamps, "SYNC time stamps") if stamps else (None, "default"))
-    out: dict[str, Any] = {"period_s": chosen, "source": source, "sync_stamps_s": stamps}
+    out: dict[str, Any] = {"period_s": chosen, "source": source, "sync_stamps_s": stamps,
+                           "sdo_period_s": sdo}
     if (stamps and chosen and source != "SYNC time stamps" and not lockstep
             and abs(stamps - chosen) > CLOCK_TOLERANCE * chosen):
         named = "--period" if source == "--period" else "the log's SDO 0x1006"

@@ -67,21 +67,9 @@ def check_arguments(args: argparse.Namespace) -> None:
 def period_note(args: argparse.Namespace, tr) -> str:
     """What to say when --period differs from the SYNC period the log's SDO traffic shows
     ("" when none is given, the log shows none, or they agree). A given --period is used:
-    it is how a log whose SDO traffic is wrong, or of another run, is read (docs/bus.md).
-    The log's own period is in the trace's parameters after a `bench run`; else the log
-    is decoded once more without --period to find it (standard input cannot be, and is
-    only told that the log shows one)."""
-    if args.period is None or "sim.sync_period_s" not in tr.meta.get("params_from_sdo", ()):
-        return ""
-    own = (tr.meta.get("params") or {}).get("sim", {}).get("sync_period_s")
-    if own is None and args.file != "-":
-        from bench.bus.logs import trace_from_log
-        own = trace_from_log(args.file, args.node_id, None, args.counts_per_rev,
-                             fmt=args.format).meta["period_s"]
-    if own is None:
-        return (f"--period {args.period * 1e3:g} ms is used; the log's SDO traffic gives "
-                "a SYNC period of its own")
-    if abs(own - args.period) <= 1e-9 * own:
+    it is how a log whose SDO traffic is wrong, or of another run, is read (docs/bus.md)."""
+    own = (tr.meta.get("clock") or {}).get("sdo_period_s")
+    if args.period is None or own is None or abs(own - args.period) <= 1e-9 * own:
         return ""
     return (f"--period {args.period * 1e3:g} ms is used, not the SYNC period of "
             f"{own * 1e3:g} ms the log's SDO traffic gives")
