@@ -46,10 +46,10 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.signals.trace import MAX_VALUE  # |value| beyond: refused, as in a trace
 
 TIME_NAMES = ("time", "date", "day", "days")
 EXPOSURE = "exposure"
-MAX_VALUE = 1e100          # |value| beyond: refused (an index's squares must stay finite)
 MAX_ABS_TIME = 1e7
 STDIN = "-"
 _DECIMAL_COMMA = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")

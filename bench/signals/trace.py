@@ -190,8 +190,9 @@ NOT_A_TRACE = ("not a trace the bench wrote? A rig's own table is read with "
 
 
 MAX_VALUE = 1e100
-"""No measured signal in SI units comes near this; a squared or summed one beyond it
-overflows a float (as in the trend reader, `bench.hums.trend_io`)."""
+"""No measured signal in SI units, nor a health index, comes near this; a squared or
+summed one beyond it overflows a float. Every reader of measured values refuses a larger
+one (traces here, imports, trends files)."""
 
 
 def _check_loaded(path: Path, tr: Trace, rows: Rows) -> None:
