@@ -224,11 +224,14 @@ def check_generator_flags(args: argparse.Namespace) -> None:
         if given and args.generator != "independent":
             raise BenchError(f"{flag} is for --generator independent")
     if args.build_seed is not None:
-        from bench.gap.finalcheck import LOWEST_BUILD_SEED
+        from bench.cli.options import SEED_RANGE
+        from bench.gap.finalcheck import LOWEST_BUILD_SEED, highest_build_seed
         if args.generator != "final-check":
             raise BenchError("--build-seed is for --generator final-check")
-        if args.build_seed < LOWEST_BUILD_SEED:     # its noise seeds would be negative
-            raise BenchError(f"--build-seed must be >= {LOWEST_BUILD_SEED}, "
+        top = highest_build_seed(SEED_RANGE[1])
+        if not LOWEST_BUILD_SEED <= args.build_seed <= top:
+            # its noise seeds would be negative or past what a --seed may be
+            raise BenchError(f"--build-seed must be {LOWEST_BUILD_SEED} to {top}, "
                              f"not {args.build_seed}")
     if args.generator == "final-check" and (args.effects or args.controller != "ecu"):
         raise BenchError("the final check runs its fixed cases with the whole library under "

@@ -81,6 +81,15 @@ def noise_base(first: int = BUILD_SEEDS[0]) -> int:
 
 LOWEST_BUILD_SEED = BUILD_SEEDS[0] - NOISE_SEEDS // 10
 """The lowest first build seed whose noise seeds are >= 0 (`noise_base` of it is 0)."""
+NOISE_SEEDS_PER_CHECK = 300
+"""Noise seeds one check draws from `noise_base` on: 100 per actuator, three actuators."""
+
+
+def highest_build_seed(seed_max: int) -> int:
+    """The highest first build seed whose build seeds and noise seeds are all <= seed_max
+    (the largest seed the bench's generators are given)."""
+    top = BUILD_SEEDS[0] + (seed_max - NOISE_SEEDS - NOISE_SEEDS_PER_CHECK + 1) // 10
+    return min(top, seed_max - 2)
 
 
 def build(seed: int) -> IndieParams:

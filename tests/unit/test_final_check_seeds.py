@@ -68,3 +68,19 @@ def test_build_seed_is_refused_where_it_cannot_apply(capsys):
     assert main(["gap-bench", "--generator", "final-check", "--build-seed", "10"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: --build-seed") and err.count("\n") == 1, err
+
+
+def test_build_seed_above_the_seed_range_is_refused(capsys):
+    """A first build seed whose noise seeds pass 2**32 - 1 (what a --seed may be) is a
+    one-line error before any work, not minutes of a check on seeds no other command can
+    reproduce; the highest one accepted keeps every seed it draws in range."""
+    from bench.cli import main
+    from bench.cli.options import SEED_RANGE
+    top = FC.highest_build_seed(SEED_RANGE[1])
+    assert FC.noise_base(top) + FC.NOISE_SEEDS_PER_CHECK - 1 <= SEED_RANGE[1]
+    assert FC.noise_base(top + 1) + FC.NOISE_SEEDS_PER_CHECK - 1 > SEED_RANGE[1]
+    assert max(FC.build_seeds(top)) <= SEED_RANGE[1]
+    assert main(["gap-bench", "--generator", "final-check",
+                 "--build-seed", str(top + 1)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --build-seed") and err.count("\n") == 1, err
