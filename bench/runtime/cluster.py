@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import logging
 import os
+import shutil
 import sys
+import tempfile
 import threading
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -177,6 +179,7 @@ class Engine:
         self.timeout = timeout if timeout is not None else (
             START_TIMEOUT_S if self.scheduler is None else CONNECT_TIMEOUT_S)
         self.cluster: Any = None
+        self.scratch: str | None = None    # the local cluster's scratch folder, removed on close
         self._client: Any = None
         self._error: BaseException | None = None
         self._lock = threading.Lock()
@@ -196,7 +199,8 @@ class Engine:
                 self._client = Client(self.scheduler, timeout=self.timeout,
                                       set_as_default=False)
             else:
-                self.cluster = _local_cluster(self.workers)
+                self.scratch = tempfile.mkdtemp(prefix="bench-dask-")
+                self.cluster = _local_cluster(self.workers, self.scratch)
                 self._client = Client(self.cluster, set_as_default=False)
         except BaseException as exc:  # noqa: BLE001 - reported by client()
             self._error = exc
@@ -258,6 +262,9 @@ class Engine:
                 cluster.close(timeout=CLOSE_TIMEOUT_S)
             except Exception:  # noqa: BLE001 - best effort at the end of a job
                 pass
+        scratch, self.scratch = self.scratch, None
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
 
     def __enter__(self) -> Engine:
         return self
@@ -266,16 +273,20 @@ class Engine:
         self.close()
 
 
-def _local_cluster(workers: int) -> Any:
+def _local_cluster(workers: int, scratch: str) -> Any:
     """A LocalCluster of `workers` single-threaded worker processes, every socket (the
-    scheduler, the workers, the dashboard when bokeh is installed) on 127.0.0.1. The nannies set their pre-spawn
-    variables in this process's environment to spawn the workers; they are put back
-    afterwards, so that processes this one starts later do not inherit them (a nanny
+    scheduler, the workers, the dashboard when bokeh is installed) on 127.0.0.1, its lock
+    files and spill space in `scratch` (the engine's own temporary folder, removed when
+    it closes; Dask's default is a shared dask-scratch-space that stays behind). The
+    nannies set their pre-spawn variables in this process's environment to spawn the
+    workers; they are put back afterwards, so that processes this one starts later do not inherit them (a nanny
     that restarts a dead worker sets them again)."""
+    import dask
     from distributed import LocalCluster
-    with environ_kept(PRE_SPAWN_VARS):
+    # the scheduler's folder follows the config, the workers' local_directory
+    with environ_kept(PRE_SPAWN_VARS), dask.config.set({"temporary-directory": scratch}):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            host="127.0.0.1",
+                            host="127.0.0.1", local_directory=scratch,
                             dashboard_address=DASHBOARD if dashboard_available() else None,
                             silence_logs=logging.CRITICAL,
                             env={k: "1" for k in THREAD_VARS})

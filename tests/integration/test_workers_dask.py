@@ -201,3 +201,24 @@ def test_a_local_cluster_runs_without_bokeh(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     assert r.stdout.split("\n")[:2] == ["[1, 2, 3]", "False"]
     assert "dask dashboard" not in r.stderr
+
+
+def test_a_local_cluster_leaves_nothing_in_the_temporary_folder(tmp_path):
+    """The local cluster's lock files and worker folders go to a scratch folder of its
+    own, removed when the job ends: Dask's default, a dask-scratch-space in the temporary
+    folder, stayed behind after every run."""
+    import subprocess
+    import sys
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    (tmp_path / "run.py").write_text(
+        "from bench.runtime.workers import run_all\n"
+        "if __name__ == '__main__':\n"
+        "    print(run_all(abs, [-1, -2, -3], workers=2, progress=False))\n")
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "TMPDIR": str(tmp), "PYTHONPATH": str(root)}
+    r = subprocess.run([sys.executable, str(tmp_path / "run.py")], capture_output=True,
+                       text=True, timeout=180, env=env, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split("\n")[0] == "[1, 2, 3]"
+    assert sorted(p.name for p in tmp.iterdir()) == []
