@@ -149,19 +149,14 @@ MAX_TRAVEL_M = 10.0
 """No set-point beyond this (`plant_rt.params` caps the plant's travel limit there)."""
 
 
-def _check_frequency(f: float | None) -> None:
-    """A profile's --frequency-hz a set-point can hold: above 0 and below half the SYNC
-    rate of the shortest SYNC period a node takes (`sim.sync_period_s`; the node's own
-    period is known only once the run has read it)."""
-    if f is None:
-        return
+def _check_frequency(kwargs: dict) -> None:
+    """A profile's set-point frequencies (--frequency-hz, --f0-hz, --f1-hz) a set-point can
+    hold under the shortest SYNC period a node takes (`sim.sync_period_s`); the run checks
+    them again under the node's own period once it has read it (`run_over_bus`)."""
+    from bench.profiles.setpoints import check_sampled
     from plant_rt.params import resolve
     lo = resolve("sim.sync_period_s").min
-    shortest = float(lo if lo is not None else 1e-4)
-    if not 0 < f < 0.5 / shortest:
-        raise BenchError(f"--frequency-hz {f:g}: a set-point sampled every SYNC period "
-                         f"(at least {shortest * 1e3:g} ms) holds frequencies above 0 and "
-                         f"below {0.5 / shortest:g} Hz")
+    check_sampled(kwargs, float(lo if lo is not None else 1e-4), "the shortest a node takes")
 
 
 def _checked_profile(args: argparse.Namespace):
@@ -178,7 +173,7 @@ def _checked_profile(args: argparse.Namespace):
     for k, v in kwargs.items():
         if isinstance(v, float) and not math.isfinite(v):
             raise BenchError(f"--{k.replace('_', '-')} must be a finite number, not {v}")
-    _check_frequency(kwargs.get("frequency_hz"))
+    _check_frequency(kwargs)
     amp = kwargs.get("amplitude_m")
     if amp is not None and abs(amp) > MAX_TRAVEL_M:
         raise BenchError(f"--amplitude-m {amp:g} m: beyond any actuator's travel (the "

@@ -16,6 +16,7 @@ from bench.ecu.rtcheck import RealtimeCheck, realtime_check
 from bench.ecu.runloop import run_periods
 from bench.ecu.signals import StopSignal
 from bench.profiles.catalog import Profile
+from bench.profiles.setpoints import check_sampled
 from bench.signals.trace import Trace, probe_output
 from bench.sim.control import ControllerParams
 from ema_contract.states import Pace
@@ -183,6 +184,7 @@ def run_over_bus(profile: Profile, values: dict[str, Any] | None = None,
             ecu.start_heartbeat()
             params, run_pace, check = _set_up(ecu, want, vals, spin_us, origin,
                                               encoder_counts, sync_driven, say)
+            check_sampled(profile.kwargs, params.sim.sync_period_s, "the node's")
             ecu.check_foreign(" during set-up")
             ecu.check_receive(" during set-up")
             trace = ecu.run(profile, params, cparams, run_pace, duration_s, progress,

@@ -47,3 +47,21 @@ class Profile:
         args = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
                          for k, v in self.kwargs.items())
         return f"{self.name}({args})"
+
+
+FREQUENCY_KEYS = ("frequency_hz", "f0_hz", "f1_hz")
+"""A profile's keywords that are frequencies of its set-point (sine, chirp, ...)."""
+
+
+def check_sampled(kwargs: dict[str, Any], period_s: float, whose: str) -> None:
+    """Refuse a set-point frequency in `kwargs` that a set-point sampled every SYNC period
+    `period_s` cannot hold: above 0 and below half the SYNC rate (Nyquist); `whose` names
+    the period in the message (e.g. "the node's"). A BenchError naming the flag."""
+    from bench import BenchError
+    top = 0.5 / period_s
+    for key in FREQUENCY_KEYS:
+        f = kwargs.get(key)
+        if f is not None and not 0 < f < top:
+            raise BenchError(f"--{key.replace('_', '-')} {f:g}: a set-point sampled every "
+                             f"SYNC period ({period_s * 1e3:g} ms, {whose}) holds "
+                             f"frequencies above 0 and below {top:g} Hz")

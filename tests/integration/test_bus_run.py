@@ -16,6 +16,7 @@ import pytest
 from bus_helpers import BUS_KINDS, bench, module_bus_env, spawn, wait_until
 from canopen.sdo.exceptions import SdoAbortedError
 
+from bench import BenchError
 from bench.bus.logs import trace_from_log
 from bench.ecu import run_over_bus
 from bench.profiles.catalog import make_profile
@@ -240,3 +241,15 @@ def test_the_runs_bar_shows_rounded_simulated_seconds(bus_env):
     bars = [seg for seg in r.stderr.replace("\r", "\n").splitlines() if "sim s" in seg]
     assert bars and all("/1.50 sim s" in b for b in bars), bars
     assert not any(re.search(r"\d\.\d{4,}", b) for b in bars), bars
+
+
+def test_a_frequency_the_nodes_sync_period_cannot_hold_is_refused(bus_env):
+    """300 Hz is below the 5 kHz the shortest SYNC period allows (the command line's
+    check), but the node runs at 2 ms (250 Hz Nyquist): the run is refused once the
+    period is read, before a single SYNC, with the node's period in the message."""
+    profile = make_profile("sine", frequency_hz=300.0, duration_s=0.05)
+    with pytest.raises(BenchError, match=r"--frequency-hz 300: .*2 ms, the node's.*"
+                                         r"below 250 Hz") as info:
+        run_over_bus(profile, values={"sim.sync_period_s": 2e-3}, pace="sync",
+                     settings=bus_env.cfg)
+    assert info.value.trace is None or len(info.value.trace) == 0

@@ -73,6 +73,15 @@ def test_a_sine_no_sync_rate_holds_is_refused(capsys, f):
               "--frequency-hz", "below 5000 Hz")
 
 
+@pytest.mark.parametrize("flag", ["--f0-hz", "--f1-hz"])
+def test_a_chirp_no_sync_rate_holds_is_refused(capsys, flag):
+    """A chirp's end frequencies are set-point frequencies too: one a SYNC-sampled
+    set-point cannot hold is refused before the run starts, as a sine's is."""
+    from bench.cli import main
+    _one_line(capsys, main(["run", "chirp", "--duration", "0.2", flag, "1e6"]),
+              flag, "below 5000 Hz")
+
+
 def test_an_import_beyond_any_measurement_is_refused(tmp_path, capsys):
     from bench.cli import main
     (tmp_path / "t.csv").write_text("t,i\n" + "\n".join(f"{k * 0.01},1e308" for k in range(5)))
