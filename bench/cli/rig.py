@@ -214,7 +214,10 @@ def _check(args: argparse.Namespace) -> None:
     in `options.SEED_RANGE`; --workers, --folds)."""
     from bench import BenchError
     given = "--lead-mm"
-    if getattr(args, "actuator", None) and getattr(args, "rig_command", "") != "classify":
+    if getattr(args, "actuator", None) and getattr(args, "rig_command", "") == "classify":
+        from bench.rig.actuator import load
+        load(args.actuator)          # it exists (compared with the model's name later)
+    elif getattr(args, "actuator", None):
         from bench.rig.actuator import load
         desc = load(args.actuator)
         sign = desc.get("load_sign")      # the side a loaded play sits on (rig inject)

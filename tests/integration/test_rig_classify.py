@@ -144,8 +144,12 @@ def test_a_model_of_another_rig_is_refused(model, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert "a model of another rig" in err and "set-point" in err and "\n" not in err
     assert not out.exists()
-    assert main(["rig", "classify", str(path), str(HEALTHY), "--actuator", "another"]) == 2
-    assert "a model of another rig (actuator another" in capsys.readouterr().err
+    from bench.rig import actuators
+    another = tmp_path / "another.json"     # a description that exists, not the model's
+    shutil.copy(Path(actuators.__file__).with_name("cranfield_rm1605.json"), another)
+    assert main(["rig", "classify", str(path), str(HEALTHY), "--actuator",
+                 str(another)]) == 2
+    assert f"a model of another rig (actuator {another}" in capsys.readouterr().err
 
 
 class Foreign:
@@ -169,3 +173,16 @@ def test_a_model_file_is_read_only_when_it_holds_trusted_types(tmp_path, capsys)
     plain.write_bytes(sio.dumps({"format": "something else"}))
     assert main(["rig", "classify", str(plain), str(HEALTHY)]) == 2
     assert "not a model written by `bench rig train`" in capsys.readouterr().err
+
+
+def test_an_actuator_description_that_does_not_exist_is_refused(model, tmp_path, capsys):
+    """`--actuator` names a description: one that is neither a file nor a shipped name is
+    a one-line error, even for a model that recorded no actuator (it was compared only
+    with the model's, so a misspelt name passed unseen)."""
+    path, _ = model
+    out = tmp_path / "c.json"
+    assert main(["rig", "classify", str(path), str(SPALL), "--actuator", "cranfeild",
+                 "--json", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and "no such actuator description: cranfeild" in err
+    assert len(err.splitlines()) == 1 and not out.exists()
