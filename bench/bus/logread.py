@@ -351,10 +351,14 @@ def _reader(path: str | Path, suffix: str) -> Any:
 
 
 def _reason(exc: BaseException) -> str:
+    """A reader's error in words for the user: a text reader given binary data says so;
+    another library's error is its message (its class only when it has none)."""
+    if isinstance(exc, UnicodeDecodeError):
+        return f"not a text file (byte 0x{exc.object[exc.start]:02x} is not UTF-8)"
     text = " ".join(str(exc).split())
     if len(text) > 120:
         text = text[:117] + "..."
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return text or type(exc).__name__
 
 
 class _Skipped(logging.Handler):

@@ -199,9 +199,16 @@ def migrate(con: Any, target: int = SCHEMA_VERSION) -> int:
 def _check_magic(p: Path) -> None:
     """BenchError when `p` is a file but not a DuckDB database (its header has "DUCK" at
     byte 8): DuckDB's own messages for a Parquet or CSV file given as the store do not
-    say so ("Cannot launch in-memory database in read-only mode")."""
-    if not p.is_file() or p.stat().st_size == 0:
+    say so ("Cannot launch in-memory database in read-only mode"); nor an empty file or a
+    folder in its place (DuckDB's "IO Error")."""
+    if p.is_dir():
+        raise BenchError(f"{p}: a folder, not a fleet store (give the store's file, e.g. "
+                         "fleet.duckdb)")
+    if not p.is_file():
         return
+    if p.stat().st_size == 0:
+        raise BenchError(f"{p}: an empty file, not a fleet store (remove it, or give "
+                         "another --db)")
     try:
         with p.open("rb") as fh:
             head = fh.read(12)
@@ -226,8 +233,9 @@ def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERS
     try:
         con = duckdb.connect(str(p), read_only=read_only)
     except duckdb.Error as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise BenchError(f"{p}: cannot open the fleet store: "
-                         f"{str(exc).splitlines()[0]}") from None
+                         f"{first.removeprefix('IO Error: ')}") from None
     try:
         with damage(p):
             _ready(con, p, read_only, target)

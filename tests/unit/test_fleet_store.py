@@ -62,6 +62,21 @@ def test_a_newer_store_is_refused(tmp_path):
         Store(path)
 
 
+def test_an_empty_file_or_a_folder_as_the_store_is_named_so(tmp_path):
+    """An empty file or a folder given as --db was DuckDB's "IO Error: The file ... exists,
+    but it is not a valid DuckDB database file!" (or "Is a directory"): said in words,
+    for reading and for writing, and the empty file is left as it was."""
+    empty, folder = tmp_path / "e.duckdb", tmp_path / "d.duckdb"
+    empty.touch()
+    folder.mkdir()
+    for read_only in (False, True):
+        with pytest.raises(BenchError, match=f"^{empty}: an empty file, not a fleet store"):
+            Store(empty, read_only=read_only)
+        with pytest.raises(BenchError, match=f"^{folder}: a folder, not a fleet store"):
+            Store(folder, read_only=read_only)
+    assert empty.stat().st_size == 0 and not any(folder.iterdir())
+
+
 def test_a_file_that_is_not_a_duckdb_database_is_named_so(tmp_path):
     """`bench fleet status --db x.parquet` said "cannot open the fleet store: Catalog
     Error: Cannot launch in-memory database in read-only mode!"."""

@@ -144,3 +144,17 @@ def test_a_channel_number_the_format_cannot_hold_loses_no_frame(tmp_path, suffix
     got = [m for m in read_frames(out)]
     assert [(m.arbitration_id, bytes(m.data)) for m in got] == \
         [(m.arbitration_id, bytes(m.data)) for m in sent]
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".trc", ".blf", ".mf4"])
+def test_a_file_of_random_bytes_is_said_in_words(tmp_path, capsys, suffix):
+    """Random bytes under a log's suffix: one line saying what is wrong with the file,
+    not the reading library's exception class (UnicodeDecodeError, BLFParseError,
+    MdfException)."""
+    bad = tmp_path / f"bad{suffix}"
+    bad.write_bytes(bytes(np.random.default_rng(7).integers(0, 256, 2000, dtype=np.uint8)))
+    err = one_line_error(capsys, "decode", str(bad))
+    assert str(bad) in err and LOG_FORMATS[suffix] in err, err
+    assert "Error" not in err and "Exception" not in err, err
+    if suffix in (".asc", ".trc"):
+        assert "not a text file" in err, err
