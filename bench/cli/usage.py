@@ -66,8 +66,11 @@ def _check(args: argparse.Namespace) -> None:
     for f in args.files:
         if f != "-" and Path(f).is_dir():
             raise BenchError(f"{f} is a directory, not a log (name the log files in it)")
-        if f != "-" and not Path(f).is_file():
+        if f != "-" and not Path(f).exists():
             raise BenchError(f"no such file: {f}")
+        if f != "-" and not Path(f).is_file():
+            raise BenchError(f"{f}: not a regular file (a device or a pipe: give - to read "
+                             "a log from standard input)")
 
 
 def _settings(args: argparse.Namespace, cls):

@@ -54,6 +54,7 @@ def test_usage_per_run_and_per_actuator(tmp_path, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["nothing.log"], "no such file"),
+    (["/dev/null"], "/dev/null: not a regular file (a device or a pipe: give - "),
     (["--preload-n", "nan", "X"], "--preload-n must be a finite"),
     (["--json", "out.txt", "X"], "unknown suffix"),
     (["--load-rating-n", "0", "X"], "--load-rating-n must be a finite number of newtons > 0"),
