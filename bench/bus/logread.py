@@ -19,6 +19,7 @@ says to record with ``candump -L``.
 
 from __future__ import annotations
 
+import atexit
 import gc
 import io
 import logging
@@ -176,6 +177,13 @@ def is_stdin(path: Any) -> bool:
 
 _STDIN: list[tuple[Any, Any]] = []
 """(the stdin object read, its content as a spooled binary file)."""
+
+
+@atexit.register
+def _close_stdin_spool() -> None:
+    for _, buf in _STDIN:
+        buf.close()
+    _STDIN.clear()
 
 
 def stdin_buffer() -> Any:

@@ -81,3 +81,17 @@ def test_stdin_and_formats_in_process(tmp_path, monkeypatch, capsys):
     assert main(["decode", "-"]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "record the log with `candump -L`" in err
+
+
+def test_a_log_read_from_standard_input_leaves_no_unclosed_file_at_exit(tmp_path):
+    """The spool that holds standard input (so a log on stdin can be read twice) was left
+    open until the interpreter ended, which printed "ResourceWarning: Unclosed file
+    <tempfile.SpooledTemporaryFile ...>" under -X dev and at the end of the suite."""
+    log = tmp_path / "run.log"
+    _candump(log)
+    out = subprocess.run([sys.executable, "-X", "dev", "-W", "always::ResourceWarning",
+                          "-m", "bench", "decode", "-", "-o", str(tmp_path / "run.csv")],
+                         input=log.read_bytes(), capture_output=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert len((tmp_path / "run.csv").read_text().splitlines()) == 41
+    assert b"ResourceWarning" not in out.stderr, out.stderr.decode()
