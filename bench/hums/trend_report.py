@@ -86,7 +86,7 @@ def statements(r: TrendResult, time_unit: str = "days") -> list[str]:
                    f"{'>' if c['rul_open'][k] else ''}{_num(c['rul_p95'][k])} {time_unit} "
                    "(failure about "
                    f"{tr.date(c['toe_p50'][k])})")
-    out += [f"  note: {n}" for n in r.notes_at.get(k, [])]
+    out += [f"  note: {n}" for n in r.notes_at.get(k, []) if n not in r.notes]
     if "left_range_t" in ev:
         out.append(f"  the trend left the model's range on {_day(r, 'left_range_t')}")
     out.append(f"  peers on the same tests: z-score (3 sd of the healthy tests) alarm "
