@@ -332,6 +332,7 @@ def synth(n: int, days: int, out_dir: str | Path, seed: int = 0, workers: int | 
             jobs.append((str(path), wear_at(act, d), int(seed * 1_000_003 + k * 10_007 + d),
                          when.timestamp(), act.ident))
     truth = truth_of(fleet, n, days, seed, wear)
+    check_out(out, truth, {Path(j[0]) for j in jobs})
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -341,6 +342,35 @@ def synth(n: int, days: int, out_dir: str | Path, seed: int = 0, workers: int | 
                    label=lambda job: str(job[0]))
     (out / "fleet-truth.json").write_text(json.dumps(truth, indent=1))
     return [Path(p) for p in got]
+
+
+_SETTINGS = ("seed", "actuators", "days", "wear")
+
+
+def check_out(out: Path, truth: dict, paths: set[Path]) -> None:
+    """BenchError, before anything is written, when OUT holds what this fleet is not: the
+    truth file of a fleet drawn with other settings, or logs it would not write (a rig's,
+    another fleet's). The same fleet written again, or resumed, passes."""
+    if not out.is_dir():
+        return
+    old = out / "fleet-truth.json"
+    if old.exists():
+        try:
+            had = json.loads(old.read_text())
+            was = {k: had[k] for k in _SETTINGS}
+        except (OSError, ValueError, TypeError, KeyError):
+            raise BenchError(f"{old}: not a fleet-truth.json of `bench fleet synth`: give "
+                             "an empty folder") from None
+        if any(was[k] != truth[k] for k in _SETTINGS):
+            raise BenchError(
+                f"{out} holds another synthetic fleet (seed {was['seed']}, "
+                f"{was['actuators']} actuators x {was['days']} days, wear {was['wear']}): "
+                "give an empty folder, or its own --seed, --actuators, --days and --wear "
+                "to write it again")
+    foreign = next((p for p in out.rglob("*.log") if p not in paths), None)
+    if foreign is not None:
+        raise BenchError(f"{out} holds logs this fleet would not write ({foreign}): give "
+                         "an empty folder")
 
 
 # --- the candump writer ------------------------------------------------------------------

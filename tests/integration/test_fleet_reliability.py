@@ -243,3 +243,26 @@ def test_an_unreadable_log_is_a_failure_row_and_counted_as_failed_on_a_rerun(tmp
     assert first.failures == [(str(path), "cannot be read (Permission denied)")]
     again = I.ingest([str(path)], db, 1, progress=False)
     assert (again.skipped, again.failed, again.failed_before) == (1, 0, 1)
+
+
+def test_a_synthetic_fleet_is_not_mixed_into_another_fleet_or_a_rigs_logs(tmp_path,
+                                                                          capsys):
+    """A second `fleet synth` with another seed into the same folder added its logs to the
+    first fleet's and replaced its fleet-truth.json, so an ingest of the folder read two
+    fleets under one set of actuator ids against one fleet's truth."""
+    out = tmp_path / "fl"
+    args = ["fleet", "synth", "--actuators", "1", "--days", "1", "--out", str(out),
+            "--workers", "1"]
+    assert main([*args, "--seed", "1"]) == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    one_line(capsys, main([*args, "--seed", "2"]), "another synthetic fleet", "seed 1")
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    assert main([*args, "--seed", "1"]) == 0                 # the same fleet again: its own
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    rig = tmp_path / "rig"
+    log(rig / "EMA-0000" / "run1.log")
+    capsys.readouterr()
+    one_line(capsys, main([*args[:7], str(rig), "--workers", "1"]), "run1.log",
+             "this fleet would not write")
+    assert sorted(p.name for p in rig.rglob("*")) == ["EMA-0000", "run1.log"]
