@@ -162,16 +162,11 @@ def _limit_cycle(js: dict[str, Any]) -> list[Any]:
 
 
 def _size_notes(js: dict[str, Any]) -> list[Any]:
-    """What a verdict's factor means where it is not a fitted parameter (friction: the
-    work ratio, beside the ranking's scale parameter), as a note under the verdict."""
+    """The verdict's size note (`bench.gap.summary.size_note`) as a paragraph under it."""
+    from bench.gap.summary import size_note
     from bench.reports import Paragraph
-    eff = (js.get("finding") or {}).get("effects") or []
-    notes = [f"{e['line'].split(' (')[0]}: {e['size']['how']}" for e in eff
-             if (e.get("size") or {}).get("how") and e.get("line")]
-    if not notes:
-        return []
-    return [Paragraph("; ".join(notes) + ". The fitted parameters are in the ranking.",
-                      role="note")]
+    note = size_note(js)
+    return [Paragraph(note, role="note")] if note else []
 
 
 def ranking_table(js: dict[str, Any]) -> Any:

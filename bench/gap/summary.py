@@ -177,6 +177,16 @@ def _why_not_first(sel: dict[str, Any]) -> str:
             "docs/gap.md, \"Selection\")")
 
 
+def size_note(js: dict[str, Any]) -> str | None:
+    """What a verdict's size means where it is not a fitted parameter (friction: the work
+    ratio, beside the ranking's scale parameter), or None; the text summary and the HTML
+    report both say it."""
+    eff = (js.get("finding") or {}).get("effects") or []
+    notes = [f"{e['line'].split(' (')[0]}: {e['size']['how']}" for e in eff
+             if (e.get("size") or {}).get("how") and e.get("line")]
+    return "; ".join(notes) + ". The fitted parameters are in the ranking." if notes else None
+
+
 def _verdict_line(js: dict[str, Any]) -> list[str]:
     """The verdict in words (its families, sizes and forms) and its trouble."""
     sel = js["localisation"].get("selection", {})
@@ -198,6 +208,8 @@ def _verdict_line(js: dict[str, Any]) -> list[str]:
         notes.append("other forms of the same family fit as well: "
                      + ", ".join(sel["same_family_forms"]))
     out.append("  (" + "; ".join(notes) + ")")
+    if size := size_note(js):
+        out.append(f"  {size}")
     if fd.get("edge_note"):
         out.append(f"  {fd['edge_note']} ({', '.join(fd.get('at_bound') or [])})")
     for s in fd.get("suspect") or []:

@@ -34,3 +34,23 @@ def test_the_lowest_bic_chosen_needs_no_reason():
     rows = [_row(1, "backlash", 10.0, chosen=True), _row(2, "friction", 12.0)]
     lines = _ranking_lines(_js(rows), top=8)
     assert len(lines) == 3 and lines[1].endswith("<- chosen")
+
+
+def test_the_text_verdict_says_what_a_friction_factor_is_as_the_html_does():
+    """`bench demo` printed friction_levels_scale = 2.3423 [2.1881, 2.5074] on the chosen
+    row and "friction x2.38 [2.22, 2.56]" in the verdict, with no word on why the one
+    candidate had two friction numbers; the HTML report said it (the verdict's is the
+    friction work over the log's motion, fitted / model's), the text did not."""
+    from bench.gap.summary import _verdict_line
+    how = "friction work over the log's motion, fitted / model's"
+    eff = [{"line": "backlash 49.99 um [49.88, 50.1]", "size": {"kind": "lost_motion_m"}},
+           {"line": "friction x2.38 [2.22, 2.56] (every level together)",
+            "size": {"kind": "factor", "how": how}}]
+    js = {"verdict": "backlash+friction_levels",
+          "finding": {"line": "backlash ... + friction x2.38", "effects": eff},
+          "localisation": {"selection": {}}}
+    lines = _verdict_line(js)
+    assert lines[2].strip() == (f"friction x2.38 [2.22, 2.56]: {how}. The fitted parameters "
+                                "are in the ranking.")
+    js["finding"]["effects"] = eff[:1]
+    assert len(_verdict_line(js)) == 2
