@@ -23,9 +23,12 @@ import atexit
 import gc
 import io
 import logging
+import lzma
 import re
+import shutil
 import sys
 import tempfile
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -35,7 +38,8 @@ from typing import Any
 import can
 
 from bench import BenchError, allow_mf4_import
-from bench.bus.logwrite import LOG_FORMATS, log_format
+from bench.bus.logwrite import LOG_FORMATS, log_format, log_suffixes
+from bench.signals.textlines import COMPRESSED
 
 LINE = re.compile(r"^\((?P<ts>\d+(?:\.\d*)?)\)\s+(?P<ch>\S+)\s+(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})"
                   r"#(?P<fd>#[0-9A-Fa-f])?(?P<data>[0-9A-Fa-f]*|R\d{0,2})(?:\s+(?P<dir>[RT]))?$")
@@ -46,6 +50,8 @@ PLAIN_CANDUMP = re.compile(r"^\s*(\(\d+(\.\d*)?\)\s+)?\S+\s+[0-9A-Fa-f]{3,8}\s+\
 NOT_L = "candump's default output, not candump -L: record the log with `candump -L`"
 STDIN = "-"
 """The path that means standard input."""
+DECOMPRESS_ERRORS = (EOFError, OSError, lzma.LZMAError, zlib.error)
+"""What a damaged or truncated .gz, .xz or .bz2 stream raises as it is read."""
 STDIN_SPOOL_BYTES = 64 << 20
 """Standard input held in memory up to this size, then in an unnamed temporary file."""
 
@@ -150,25 +156,33 @@ def read_log(path: str | Path, issues: Any = None, raw: bool = False
     well-formed line of a classic data frame with an 11-bit id (nearly every line of a
     rig's log) comes as the tuple (time stamp, id, payload, is_rx) of `fast_frame`, for
     `bench.bus.rows.RowAssembler.feed_frame`; every other line as a can.Message."""
-    with _open_text(path) as fh:
-        for lineno, line in enumerate(_lines(fh), start=1):
-            if line is None:
-                if issues is not None:
-                    issues.append(LogIssue(lineno, f"line longer than {MAX_LINE} characters",
-                                           ""))
-                continue
-            if raw:
-                frame = fast_frame(line)
-                if frame is not None:
-                    yield frame
+    comp = "" if is_stdin(path) else log_suffixes(path)[1]
+    lineno = 0
+    with open_log_text(path) as fh:
+        try:
+            for lineno, line in enumerate(_lines(fh), start=1):
+                if line is None:
+                    if issues is not None:
+                        issues.append(LogIssue(lineno, f"line longer than {MAX_LINE} "
+                                                       "characters", ""))
                     continue
-            if not line.strip():
-                continue
-            try:
-                yield parse_line(line)
-            except ValueError as exc:
-                if issues is not None:
-                    issues.append(LogIssue(lineno, str(exc), line.rstrip("\r\n")))
+                if raw:
+                    frame = fast_frame(line)
+                    if frame is not None:
+                        yield frame
+                        continue
+                if not line.strip():
+                    continue
+                try:
+                    yield parse_line(line)
+                except ValueError as exc:
+                    if issues is not None:
+                        issues.append(LogIssue(lineno, str(exc), line.rstrip("\r\n")))
+        except DECOMPRESS_ERRORS as exc:
+            if not comp:
+                raise
+            raise BenchError(f"{path}: cannot decompress after line {lineno} "
+                             f"({_reason(exc)}): is it a complete {comp} file?") from None
 
 
 def is_stdin(path: Any) -> bool:
@@ -208,7 +222,7 @@ def stdin_buffer() -> Any:
 
 
 @contextmanager
-def _open_text(path: str | Path) -> Iterator[Any]:
+def open_log_text(path: str | Path) -> Iterator[Any]:
     """A log as text lines (undecodable bytes replaced): the file, or standard input."""
     if is_stdin(path):
         fh = io.TextIOWrapper(stdin_buffer(), errors="replace", newline="")
@@ -220,8 +234,10 @@ def _open_text(path: str | Path) -> Iterator[Any]:
     path = Path(path)
     if not path.exists():
         raise BenchError(f"no such log: {path}")
+    comp = log_suffixes(path)[1]
     try:
-        f = path.open("r", errors="replace", newline="")
+        f = (COMPRESSED[comp](path, "rt", errors="replace", newline="") if comp
+             else path.open("r", errors="replace", newline=""))
     except OSError as exc:
         raise BenchError(f"cannot read {path}: {exc.strerror or exc}") from None
     with f:
@@ -241,7 +257,7 @@ def source_format(path: str | Path, fmt: str | None = None) -> str:
     if is_stdin(path):
         return ".log"
     try:
-        return log_format(path)
+        return log_format(path, compressed=True)
     except BenchError as exc:
         raise BenchError(f"{exc}; name the format with --format") from None
 
@@ -349,13 +365,34 @@ def _reader(path: str | Path, suffix: str) -> Any:
     classes = {".asc": can.ASCReader, ".blf": can.BLFReader, ".trc": can.TRCReader,
                ".mf4": can.MF4Reader}
     if not is_stdin(path):
-        if Path(path).suffix.lower() == suffix:
-            return can.LogReader(path)
-        return classes[suffix](str(path))
+        fmt, comp = log_suffixes(path)
+        if not comp:
+            if fmt == suffix:
+                return can.LogReader(path)
+            return classes[suffix](str(path))
+        if suffix in (".asc", ".trc"):
+            return classes[suffix](io.TextIOWrapper(COMPRESSED[comp](path, "rb"),
+                                                    errors="replace"))
+        return classes[suffix](_decompressed(Path(path), comp))
     buf = stdin_buffer()
     if suffix in (".asc", ".trc"):
         return classes[suffix](io.TextIOWrapper(buf, errors="replace"))
     return classes[suffix](buf)
+
+
+def _decompressed(path: Path, comp: str) -> Any:
+    """A compressed binary log decompressed into an unnamed temporary file (python-can's
+    BLF and MF4 readers seek), at its start; BenchError when the stream is damaged."""
+    tmp = tempfile.TemporaryFile()  # noqa: SIM115 - the reader closes it
+    try:
+        with COMPRESSED[comp](path, "rb") as src:
+            shutil.copyfileobj(src, tmp, 1 << 20)
+    except DECOMPRESS_ERRORS as exc:
+        tmp.close()
+        raise BenchError(f"{path}: cannot decompress ({_reason(exc)}): is it a complete "
+                         f"{comp} file?") from None
+    tmp.seek(0)
+    return tmp
 
 
 def _reason(exc: BaseException) -> str:

@@ -44,7 +44,7 @@ from bench.bus.logread import (
     read_log,
     report_issues,
 )
-from bench.bus.logwrite import LOG_FORMATS
+from bench.bus.logwrite import COMPRESSIONS, LOG_FORMATS, log_suffixes
 from bench.bus.rows import (
     COLUMNS,
     MAX_EMCY_KEPT,
@@ -369,7 +369,8 @@ by the tolerant line reader), or a trace table (`bench.signals.trace.Trace.load`
 def known_logs() -> str:
     """The log suffixes in words, for a message."""
     return (", ".join(f"{s} ({d})" for s, d in LOG_FORMATS.items())
-            + f", or a trace {', '.join(TABLE_SUFFIXES)}")
+            + f" (also {'/'.join(COMPRESSIONS)}-compressed), or a trace "
+            + ", ".join(TABLE_SUFFIXES))
 
 
 def load_trace(path: str | Path, fmt: str | None = None, measured: bool = False) -> Trace:
@@ -387,9 +388,10 @@ def load_trace(path: str | Path, fmt: str | None = None, measured: bool = False)
             raise BenchError(f"no such file: {path}")
         if path.is_dir():
             raise BenchError(f"{path} is a directory, not a log (name the log files in it)")
-        suffix = path.suffix.lower()
-        if suffix not in LOG_READERS:
-            raise BenchError(f"{path}: unknown log format {suffix or '(no suffix)'!r} (use "
+        suffix, comp = log_suffixes(path)
+        if suffix not in LOG_READERS or comp and suffix not in LOG_FORMATS:
+            name = suffix + comp
+            raise BenchError(f"{path}: unknown log format {name or '(no suffix)'!r} (use "
                              f"{known_logs()})")
         tr = LOG_READERS[suffix](path, None)
     tr.meta.setdefault("source", str(path))

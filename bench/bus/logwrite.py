@@ -22,15 +22,33 @@ ROTATING_FORMATS = (".log", ".asc", ".blf")
 """The formats `can.SizedRotatingLogger` writes (of LOG_FORMATS)."""
 
 
-def log_format(path: str | Path, what: str = "log") -> str:
-    """The suffix of a log file (lower case) if the bench reads and writes it; BenchError
-    naming the formats otherwise."""
+COMPRESSIONS = (".gz", ".xz", ".bz2")
+"""Compression suffixes a log to read may end in (``run.log.gz``, ``run.blf.xz``):
+decompressed as it is read (`bench.bus.logread`), as the tables' readers do."""
+
+
+def log_suffixes(path: str | Path) -> tuple[str, str]:
+    """(the format suffix, the compression suffix or "") of a log's name, lower case:
+    ``run.asc.gz`` -> (".asc", ".gz"), ``run.log`` -> (".log", "")."""
     p = Path(path)
     suffix = p.suffix.lower()
+    if suffix in COMPRESSIONS:
+        return Path(p.stem).suffix.lower(), suffix
+    return suffix, ""
+
+
+def log_format(path: str | Path, what: str = "log", compressed: bool = False) -> str:
+    """The format suffix of a log file (lower case) if the bench reads and writes it;
+    BenchError naming the formats otherwise. `compressed`: a log to read, which may also
+    end in a compression suffix (`COMPRESSIONS`; the format is the suffix before it)."""
+    p = Path(path)
+    suffix, comp = log_suffixes(p) if compressed else (p.suffix.lower(), "")
     if suffix not in LOG_FORMATS:
         known = ", ".join(f"{s} ({d})" for s, d in LOG_FORMATS.items())
-        raise BenchError(f"{what} {p}: unknown log format {suffix or '(no suffix)'!r} "
-                         f"(use {known})")
+        also = f"; also {'/'.join(COMPRESSIONS)}-compressed" if compressed else ""
+        name = (suffix + comp) if comp else suffix
+        raise BenchError(f"{what} {p}: unknown log format {name or '(no suffix)'!r} "
+                         f"(use {known}{also})")
     return suffix
 
 

@@ -14,14 +14,16 @@ LOG_SUFFIXES = (".log", ".asc", ".blf", ".trc", ".mf4")
 
 def add_subparser(sub: argparse._SubParsersAction) -> None:
     p = opt.add_command(sub, "decode", "decode a bus log into a signal table (CSV/Parquet)", """
-        Decode a bus log (candump .log; .asc, .blf, .trc, .mf4 through python-can) through
+        Decode a bus log (candump .log; .asc, .blf, .trc, .mf4 through python-can; each also
+        .gz/.xz/.bz2-compressed, decompressed as it is read) through
         dbc/ema.dbc into one row per SYNC period (set-points, demand, current, encoder, LVDT,
         temperature, status). The SYNC period and encoder resolution come from the SDO traffic
         in the log when present. Bad lines are counted and the first ones reported with their
         line numbers; the rest is kept. Lost SYNCs, frames missing from a period, duplicates and
         frames out of time order are counted and printed. Exit status 2 when nothing can be
         decoded (no SYNC period).""")
-    p.add_argument("file", metavar="FILE.log", help="bus log (.log, .asc, .blf, .trc, .mf4); "
+    p.add_argument("file", metavar="FILE.log", help="bus log (.log, .asc, .blf, .trc, .mf4; "
+                   "also .gz/.xz/.bz2-compressed); "
                    "'-': standard input (candump -L unless --format says otherwise), e.g. "
                    "`candump -L can0 | bench decode - -o -`")
     opt.add_output(p, help="write the table (.csv, .parquet or .npz; '-': CSV on standard "

@@ -40,7 +40,8 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
                           "$BENCH_DASK_SCHEDULER, else a LocalCluster on 127.0.0.1)")
 
     q = opt.add_command(s, "ingest", "ingest logs into the store", """
-        Read candump logs and trace tables (files, directories searched recursively, globs),
+        Read bus logs (candump .log, .asc, .blf, .trc, .mf4; each also .gz/.xz/.bz2) and
+        trace tables (files, directories searched recursively, globs),
         grade each run with the HUMS and store it keyed by actuator, run time and log digest.
         Idempotent (a log already stored is skipped) and resumable (interrupted: run it again).""")
     q.add_argument("paths", nargs="+", metavar="PATH")

@@ -22,10 +22,10 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p = opt.add_command(sub, "replay", "play a bus log onto the bus (like canplayer)", """
         Send the frames of a bus log onto the bus with their original timing (relative to the
         first frame). The format comes from the suffix: candump .log (default), .asc, .blf,
-        .trc, .mf4 (read through python-can). Truncated or corrupted candump lines, and frames
+        .trc, .mf4 (read through python-can), each also .gz/.xz/.bz2-compressed. Truncated or corrupted candump lines, and frames
         whose timestamp is not finite, are reported with their line (frame) numbers and skipped.""")
     p.add_argument("file", metavar="FILE.log", help="bus log to play (.log, .asc, .blf, "
-                   ".trc, .mf4)")
+                   ".trc, .mf4; also .gz/.xz/.bz2-compressed)")
     p.add_argument("--speed", type=float, default=1.0, metavar="X",
                    help="time scale: 2 plays twice as fast; 0 sends as fast as possible "
                         "(default: %(default)s)")
@@ -49,7 +49,7 @@ def check_arguments(args: argparse.Namespace) -> Path:
                          f"{args.max_gap:g}")
     from bench.bus.logwrite import log_format
     path = Path(args.file)
-    log_format(path, "FILE")
+    log_format(path, "FILE", compressed=True)
     if not path.is_file():
         raise BenchError(f"no such log: {path}")
     return path
@@ -60,28 +60,38 @@ def frames(path: Path, issues: list) -> Iterator[can.Message]:
     with lines whose timestamp is not finite (a timestamp of 400 digits reads as inf)
     reported in `issues` and skipped: no time to play them at exists; another format
     through `bench.bus.logread.read_frames`, with the same check."""
+    from bench.bus.logread import DECOMPRESS_ERRORS, open_log_text
     from bench.bus.logs import LogIssue, parse_line, read_frames
-    if path.suffix.lower() != ".log":
+    from bench.bus.logwrite import log_suffixes
+    fmt, comp = log_suffixes(path)
+    if fmt != ".log":
         for i, msg in enumerate(read_frames(path, issues), start=1):
             if math.isfinite(msg.timestamp):
                 yield msg
             else:
                 issues.append(LogIssue(i, "timestamp is not finite", f"frame {i}"))
         return
-    with path.open("r", errors="replace", newline="") as fh:
-        for lineno, line in enumerate(fh, start=1):
-            if not line.strip():
-                continue
-            try:
-                msg = parse_line(line)
-            except ValueError as exc:
-                issues.append(LogIssue(lineno, str(exc), line.rstrip("\r\n")))
-                continue
-            if not math.isfinite(msg.timestamp):
-                issues.append(LogIssue(lineno, "timestamp is not finite",
-                                       line.rstrip("\r\n")))
-                continue
-            yield msg
+    lineno = 0
+    with open_log_text(path) as fh:
+        try:
+            for lineno, line in enumerate(fh, start=1):
+                if not line.strip():
+                    continue
+                try:
+                    msg = parse_line(line)
+                except ValueError as exc:
+                    issues.append(LogIssue(lineno, str(exc), line.rstrip("\r\n")))
+                    continue
+                if not math.isfinite(msg.timestamp):
+                    issues.append(LogIssue(lineno, "timestamp is not finite",
+                                           line.rstrip("\r\n")))
+                    continue
+                yield msg
+        except DECOMPRESS_ERRORS as exc:
+            if not comp:
+                raise
+            raise BenchError(f"{path}: cannot decompress after line {lineno} ({exc}): is "
+                             f"it a complete {comp} file?") from None
 
 
 class Pacer:

@@ -1,6 +1,7 @@
 """`bench fleet ingest PATH...`: logs into the fleet store, idempotent and resumable.
 
-PATHs are files, directories (searched recursively for LOG_SUFFIXES) and globs (``**``
+PATHs are files, directories (searched recursively for LOG_SUFFIXES, a bus log also
+.gz/.xz/.bz2-compressed) and globs (``**``
 allowed); a PATH that is neither a file nor a directory (a FIFO, ``/dev/null``) is
 refused. Each file is keyed by the digest of its content (`digest`: sha256 of its lines
 in a canonical form for the text formats, of its bytes for the others): digests already
@@ -22,7 +23,8 @@ The actuator id, in order: the log's own (``actuator_id``, ``actuator_serial`` o
 ``serial_number`` in the decoded trace's metadata: the 0x1018 serial number the ECU
 reads by SDO, which the log decoder reports; "unknown" and the default 0 name no
 actuator), else ``--actuator``, else the name of the file's parent directory.
-The run time: the first time stamp of a candump log (the bus clock, UTC), else a trace
+The run time: the first time stamp of a bus log (the bus clock, UTC; a stamp before
+ABSOLUTE_AFTER is relative, as python-can reads an ASC log), else a trace
 table's ``run_time``/``start_time`` metadata (epoch seconds or ISO 8601; an ISO time
 without a zone is UTC, as ``fleet status --as-of`` reads it), else the file's
 modification time. A run time outside the years 1970-9999 is the log's failure.
@@ -46,11 +48,25 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
+from bench.bus.logread import DECOMPRESS_ERRORS
 from bench.bus.logs import TABLE_SUFFIXES
+from bench.bus.logwrite import COMPRESSIONS, LOG_FORMATS, log_suffixes
+from bench.signals.textlines import COMPRESSED
 from bench.signals.trace import Trace
 
-LOG_SUFFIXES = (".log", *TABLE_SUFFIXES)
-"""What `bench.bus.logs.load_trace` reads: candump logs and the trace table formats."""
+LOG_SUFFIXES = (*LOG_FORMATS, *TABLE_SUFFIXES)
+"""What `bench.bus.logs.load_trace` reads: the bus log formats (also compressed,
+`is_log_name`) and the trace table formats."""
+ABSOLUTE_AFTER = 1e9
+"""Epoch seconds (a time in 2001) before which a log's first time stamp is relative to its
+start, not a time of day."""
+
+
+def is_log_name(path: Path) -> bool:
+    """`path` is named as a file `load_trace` reads (LOG_SUFFIXES; a bus log also under a
+    compression suffix)."""
+    fmt, comp = log_suffixes(path)
+    return fmt in LOG_FORMATS if comp else fmt in LOG_SUFFIXES
 BATCH_RUNS = 64
 BATCH_S = 5.0
 """A batch is committed after BATCH_RUNS results (``$BENCH_FLEET_BATCH`` overrides it)
@@ -97,11 +113,12 @@ def expand(paths: Iterable[str]) -> list[Path]:
             raise BenchError(f"no such file or directory: {p}")
         for h in hits:
             if h.is_dir():
-                logs = {f for f in h.rglob("*")
-                        if f.is_file() and f.suffix.lower() in LOG_SUFFIXES}
+                logs = {f for f in h.rglob("*") if f.is_file() and is_log_name(f)}
                 if not logs and not glob.has_magic(p):
                     raise BenchError(f"{p}: a directory with no log in it (none of "
-                                     f"{', '.join(LOG_SUFFIXES)}, searched recursively)")
+                                     f"{', '.join(LOG_SUFFIXES)}, a bus log also "
+                                     f"{'/'.join(COMPRESSIONS)}-compressed; searched "
+                                     "recursively)")
                 found.update(logs)
             elif h.is_file():
                 found.add(h)
@@ -140,6 +157,14 @@ def _canonical(block: bytes, collapse: bool) -> bytes:
     return text + b"\n" if text else b""
 
 
+def _unreadable(path: Path, exc: Exception) -> str:
+    """Why a log's digest could not be taken, in words."""
+    comp = log_suffixes(path)[1]
+    if comp and log_suffixes(path)[0] in LOG_FORMATS:
+        return f"cannot decompress ({exc}): is it a complete {comp} file?"
+    return f"cannot be read ({getattr(exc, 'strerror', None) or exc})"
+
+
 def digest(path: str | Path) -> str:
     """The run's identity (hex sha256): of a candump log's or a CSV table's lines in a
     canonical form (`_canonical`: CRLF or LF, blanks at the ends of lines, blank lines
@@ -147,8 +172,11 @@ def digest(path: str | Path) -> str:
     for the other formats. A file already in the canonical form has the digest of its
     bytes (the digest of stores written before)."""
     h = hashlib.sha256()
-    suffix = Path(path).suffix.lower()
-    with open(path, "rb") as f:
+    suffix, comp = log_suffixes(path)
+    if comp and suffix not in LOG_FORMATS:
+        suffix = comp
+    opener = COMPRESSED.get(comp) if suffix in LOG_FORMATS else None
+    with (opener or open)(path, "rb") as f:
         if suffix not in TEXT_SUFFIXES:
             for block in iter(lambda: f.read(1 << 20), b""):
                 h.update(block)
@@ -186,16 +214,15 @@ def actuator_id(trace: Trace | None, path: Path, given: str | None) -> str:
 
 def run_time(path: Path, trace: Trace | None) -> float:
     """The run's start, epoch seconds (module docstring)."""
-    if path.suffix.lower() == ".log":
-        from bench.bus.logread import parse_line
-        with open(path, errors="replace") as f:
-            for _, line in zip(range(1000), f, strict=False):
-                try:
-                    ts = float(parse_line(line).timestamp)
-                except ValueError:
-                    continue
-                if ts > 0:
+    fmt = log_suffixes(path)[0]
+    if fmt in LOG_FORMATS:
+        from bench.bus.logread import read_frames
+        for _, msg in zip(range(1000), read_frames(path), strict=False):
+            ts = float(msg.timestamp)
+            if ts > 0 and math.isfinite(ts):
+                if ts >= ABSOLUTE_AFTER:
                     return ts
+                break
     elif trace is not None:
         for key in ("run_time", "start_time"):
             v = trace.meta.get(key)
@@ -319,10 +346,10 @@ def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
         batch = _Batch(store)
         try:
             for f in files:
-                unreadable: OSError | None = None
+                unreadable: Exception | None = None
                 try:
                     d = digest(f)
-                except OSError as exc:           # unreadable: a failure of its own
+                except DECOMPRESS_ERRORS as exc:     # unreadable: a failure of its own
                     d = "unreadable:" + hashlib.sha256(str(f.resolve()).encode()).hexdigest()
                     unreadable = exc
                 again += d in failed
@@ -332,9 +359,8 @@ def ingest(paths: Iterable[str], db: str | Path, workers: int | None = None,
                 if unreadable is None:
                     jobs.append((str(f), d, actuator))
                 else:
-                    batch.add(failure(f, d, BenchError(
-                        f"cannot be read ({unreadable.strerror or unreadable})"),
-                        actuator or "unknown"))
+                    batch.add(failure(f, d, BenchError(_unreadable(f, unreadable)),
+                                      actuator or "unknown"))
             run_jobs(ingest_one, jobs, workers, progress, scheduler, batch.add,
                      label=lambda job: str(job[0]))
         finally:

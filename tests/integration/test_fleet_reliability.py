@@ -266,3 +266,49 @@ def test_a_synthetic_fleet_is_not_mixed_into_another_fleet_or_a_rigs_logs(tmp_pa
     one_line(capsys, main([*args[:7], str(rig), "--workers", "1"]), "run1.log",
              "this fleet would not write")
     assert sorted(p.name for p in rig.rglob("*")) == ["EMA-0000", "run1.log"]
+
+
+def test_a_folder_of_compressed_and_vector_logs_is_ingested_with_their_bus_time(tmp_path,
+                                                                                capsys):
+    """A directory search took only .log files and trace tables: a fleet's Vector .blf
+    logs, or candump logs kept as .log.gz, were "a directory with no log in it"; a .blf
+    given by name was dated by the file's modification time, not its bus time."""
+    import gzip
+
+    import can
+    d = tmp_path / "A7"
+    a = log(d / "a.log", t0=1.7e9)
+    (d / "a.log.gz").write_bytes(gzip.compress(a.read_bytes()))        # the same run
+    a.unlink()
+    b = log(tmp_path / "b.log", t0=1.7e9 + 86400)
+    with can.Logger(str(d / "b.blf")) as w:
+        for msg in can.LogReader(str(b)):
+            w.on_message_received(msg)
+    os.utime(d / "b.blf", (1.0e9, 1.0e9))
+    db = tmp_path / "f.duckdb"
+    assert main(["fleet", "ingest", str(d), "--db", str(db), "--workers", "1"]) == 0
+    assert "2 files: 0 already stored, 2 runs stored, 0 failed" in capsys.readouterr().out
+    got = rows(db, "SELECT path, epoch(run_time) FROM runs ORDER BY run_time")
+    assert [Path(p).name for p, _ in got] == ["a.log.gz", "b.blf"]
+    assert abs(got[0][1] - 1.7e9) < 60 and abs(got[1][1] - (1.7e9 + 86400)) < 60
+    log(tmp_path / "plain" / "a.log", t0=1.7e9)                  # a.log.gz, uncompressed
+    assert main(["fleet", "ingest", str(tmp_path / "plain"), "--db", str(db), "--actuator",
+                 "A7", "--workers", "1"]) == 0
+    assert "1 files: 1 already stored, 0 runs stored" in capsys.readouterr().out
+
+
+def test_a_truncated_compressed_log_is_a_failure_row_and_the_others_are_stored(tmp_path,
+                                                                               capsys):
+    """The digest of a cut .log.gz raised EOFError ("Compressed file ended before the
+    end-of-stream marker was reached") and stopped the whole ingest."""
+    import gzip
+    d = tmp_path / "A8"
+    good = log(d / "a.log", t0=1.7e9)
+    data = gzip.compress(log(tmp_path / "b.log", t0=1.7e9 + 86400).read_bytes())
+    (d / "b.log.gz").write_bytes(data[: len(data) // 2])
+    db = tmp_path / "f.duckdb"
+    assert main(["fleet", "ingest", str(d), "--db", str(db), "--workers", "1"]) == 0
+    out = capsys.readouterr()
+    assert "2 files: 0 already stored, 1 runs stored, 1 failed" in out.out
+    assert "b.log.gz: cannot decompress" in out.err and "complete .gz file" in out.err
+    assert [Path(p).name for (p,) in rows(db, "SELECT path FROM runs")] == [good.name]
