@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+import re
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -234,6 +235,11 @@ def connect(path: str | Path, read_only: bool = False, target: int = SCHEMA_VERS
         con = duckdb.connect(str(p), read_only=read_only)
     except duckdb.Error as exc:
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        held = re.search(r"Conflicting lock is held in .*\(PID (\d+)\)", first)
+        if "Could not set lock" in first and held:
+            raise BenchError(f"{p}: the fleet store is in use by another process (PID "
+                             f"{held.group(1)}; DuckDB lets one process open it to write): "
+                             "wait for that one to end, or give another --db") from None
         raise BenchError(f"{p}: cannot open the fleet store: "
                          f"{first.removeprefix('IO Error: ')}") from None
     try:

@@ -339,3 +339,29 @@ def test_an_unjudged_run_is_stored_with_the_one_unknown_code(tmp_path):
     tr.save(path)
     row = G._row(path, "d", None, tr)             # mode 0 throughout: nothing commanded
     assert (row["verdict"], row["level"]) == ("UNKNOWN", -1)
+
+
+def test_a_store_another_process_holds_is_named_with_that_process(tmp_path):
+    """A second ingest beside a running one printed DuckDB's 'Could not set lock on file
+    ...: Conflicting lock is held in .../python3.11 (PID N). See also https://duckdb.org/
+    ...': what to do was not said."""
+    import subprocess
+    import sys
+    db = tmp_path / "f.duckdb"
+    Store(db).close()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import duckdb, sys, time; c = duckdb.connect(sys.argv[1]); "
+         "print('held', flush=True); time.sleep(30)", str(db)],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+        with pytest.raises(BenchError) as err:
+            Store(db)
+        msg = str(err.value)
+        assert f"in use by another process (PID {holder.pid}" in msg, msg
+        assert "wait for that one to end" in msg and "duckdb.org" not in msg, msg
+    finally:
+        holder.kill()
+        holder.wait(10)
+        if holder.stdout is not None:
+            holder.stdout.close()
