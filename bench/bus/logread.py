@@ -185,6 +185,34 @@ def read_log(path: str | Path, issues: Any = None, raw: bool = False
                              f"({_reason(exc)}): is it a complete {comp} file?") from None
 
 
+MAGIC = {b"\x1f\x8b": ".gz", b"\xfd7zXZ\x00": ".xz", b"BZh": ".bz2"}
+"""The first bytes of a gzip, xz and bzip2 stream: a compressed log on standard input
+(`cat run.log.gz | bench decode -`) is decompressed as a named one is."""
+
+
+def _decompress_spool(buf: Any) -> Any:
+    """`buf` (a spooled copy of standard input), decompressed into a new spool when it
+    starts with a compression's magic bytes (MAGIC); BenchError when that stream is
+    damaged."""
+    buf.seek(0)
+    head = buf.read(6)
+    comp = next((c for m, c in MAGIC.items() if head.startswith(m)), None)
+    if comp is None:
+        return buf
+    buf.seek(0)
+    out = tempfile.SpooledTemporaryFile(max_size=STDIN_SPOOL_BYTES)
+    try:
+        with COMPRESSED[comp](buf, "rb") as src:
+            shutil.copyfileobj(src, out, 1 << 20)
+    except DECOMPRESS_ERRORS as exc:
+        out.close()
+        raise BenchError(f"standard input: cannot decompress ({_reason(exc)}): is it a "
+                         f"complete {comp} stream?") from None
+    finally:
+        buf.close()
+    return out
+
+
 def is_stdin(path: Any) -> bool:
     return isinstance(path, (str, Path)) and str(path) == STDIN
 
@@ -216,6 +244,7 @@ def stdin_buffer() -> Any:
             if not block:
                 break
             buf.write(block)
+        buf = _decompress_spool(buf)
         _STDIN.append((stdin, buf))
     buf.seek(0)
     return buf

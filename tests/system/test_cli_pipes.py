@@ -95,3 +95,26 @@ def test_a_log_read_from_standard_input_leaves_no_unclosed_file_at_exit(tmp_path
     assert out.returncode == 0, out.stderr
     assert len((tmp_path / "run.csv").read_text().splitlines()) == 41
     assert b"ResourceWarning" not in out.stderr, out.stderr.decode()
+
+
+def test_a_compressed_log_on_standard_input_is_decompressed(tmp_path):
+    """`cat run.log.gz | bench decode -` read gzip's bytes as candump lines: "nothing to
+    decode". A gzip, xz or bzip2 stream on standard input is known by its first bytes."""
+    import bz2
+    import gzip
+    import lzma
+    log = tmp_path / "run.log"
+    _candump(log)
+    plain = subprocess.run([sys.executable, "-m", "bench", "decode", "-", "-o", "-"],
+                           input=log.read_bytes(), capture_output=True, timeout=120)
+    assert plain.returncode == 0, plain.stderr
+    for pack in (gzip.compress, lzma.compress, bz2.compress):
+        out = subprocess.run([sys.executable, "-m", "bench", "decode", "-", "-o", "-"],
+                             input=pack(log.read_bytes()), capture_output=True, timeout=120)
+        assert out.returncode == 0 and out.stdout == plain.stdout, (pack, out.stderr)
+    cut = gzip.compress(log.read_bytes())
+    out = subprocess.run([sys.executable, "-m", "bench", "decode", "-"],
+                         input=cut[: len(cut) // 2], capture_output=True, timeout=120)
+    err = out.stderr.decode().strip()
+    assert out.returncode == 2 and err.startswith("error: standard input: cannot "
+                                                  "decompress") and "\n" not in err, err
