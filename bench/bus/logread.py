@@ -1,7 +1,8 @@
 """Log files -> frames, for `bench.bus.logs` (decode, HUMS report, gap) and `bench replay`:
 `read_frames` reads candump ``.log`` with the tolerant line reader below and the other
 formats of `bench.bus.logwrite.LOG_FORMATS` (``.asc``, ``.blf``, ``.trc``, ``.mf4``)
-through `can.LogReader`.
+through `can.LogReader`; each format also under ``.gz``, ``.xz`` or ``.bz2``
+(`bench.bus.logwrite.COMPRESSIONS`), decompressed as it is read.
 
 The format is ``candump -L`` (python-can's `CanutilsLogWriter`/`CanutilsLogReader`):
 ``(1700000000.123456) vcan0 190#E8030000400 R``. `read_log` streams it line by line and,
