@@ -22,8 +22,9 @@ def add_subparser(sub: argparse._SubParsersAction) -> None:
     p = opt.add_command(sub, "replay", "play a bus log onto the bus (like canplayer)", """
         Send the frames of a bus log onto the bus with their original timing (relative to the
         first frame). The format comes from the suffix: candump .log (default), .asc, .blf,
-        .trc, .mf4 (read through python-can), each also .gz/.xz/.bz2-compressed. Truncated or corrupted candump lines, and frames
-        whose timestamp is not finite, are reported with their line (frame) numbers and skipped.""")
+        .trc, .mf4 (read through python-can), each also .gz/.xz/.bz2-compressed. Truncated
+        or corrupted candump lines, and frames whose timestamp is not finite, are reported
+        with their line (frame) numbers and skipped.""")
     p.add_argument("file", metavar="FILE.log", help="bus log to play (.log, .asc, .blf, "
                    ".trc, .mf4; also .gz/.xz/.bz2-compressed)")
     p.add_argument("--speed", type=float, default=1.0, metavar="X",

@@ -67,6 +67,8 @@ def is_log_name(path: Path) -> bool:
     compression suffix)."""
     fmt, comp = log_suffixes(path)
     return fmt in LOG_FORMATS if comp else fmt in LOG_SUFFIXES
+
+
 BATCH_RUNS = 64
 BATCH_S = 5.0
 """A batch is committed after BATCH_RUNS results (``$BENCH_FLEET_BATCH`` overrides it)
