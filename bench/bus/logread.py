@@ -182,8 +182,28 @@ def read_log(path: str | Path, issues: Any = None, raw: bool = False
         except DECOMPRESS_ERRORS as exc:
             if not comp:
                 raise
-            raise BenchError(f"{path}: cannot decompress after line {lineno} "
-                             f"({_reason(exc)}): is it a complete {comp} file?") from None
+            raise BenchError(f"{path}: {cannot_decompress(comp, exc, lineno)}") from None
+
+
+def cannot_decompress(comp: str, exc: BaseException, after_line: int | None = None,
+                      what: str = "file") -> str:
+    """A damaged or cut `comp` stream, in words (the caller names the file)."""
+    at = f" after line {after_line}" if after_line is not None else ""
+    return f"cannot decompress{at} ({_reason(exc)}): is it a complete {comp} {what}?"
+
+
+def _decompress_into(src: Any, comp: str, out: Any, name: str, what: str) -> Any:
+    """`src` (a path or a binary file) decompressed from `comp` into the binary file
+    `out`, returned at its start; `out` closed and a BenchError naming `name` when the
+    stream is damaged."""
+    try:
+        with COMPRESSED[comp](src, "rb") as stream:
+            shutil.copyfileobj(stream, out, 1 << 20)
+    except DECOMPRESS_ERRORS as exc:
+        out.close()
+        raise BenchError(f"{name}: {cannot_decompress(comp, exc, what=what)}") from None
+    out.seek(0)
+    return out
 
 
 MAGIC = {b"\x1f\x8b": ".gz", b"\xfd7zXZ\x00": ".xz", b"BZh": ".bz2"}
@@ -201,17 +221,11 @@ def _decompress_spool(buf: Any) -> Any:
     if comp is None:
         return buf
     buf.seek(0)
-    out = tempfile.SpooledTemporaryFile(max_size=STDIN_SPOOL_BYTES)
     try:
-        with COMPRESSED[comp](buf, "rb") as src:
-            shutil.copyfileobj(src, out, 1 << 20)
-    except DECOMPRESS_ERRORS as exc:
-        out.close()
-        raise BenchError(f"standard input: cannot decompress ({_reason(exc)}): is it a "
-                         f"complete {comp} stream?") from None
+        return _decompress_into(buf, comp, tempfile.SpooledTemporaryFile(
+            max_size=STDIN_SPOOL_BYTES), "standard input", "stream")
     finally:
         buf.close()
-    return out
 
 
 def is_stdin(path: Any) -> bool:
@@ -403,26 +417,13 @@ def _reader(path: str | Path, suffix: str) -> Any:
         if suffix in (".asc", ".trc"):
             return classes[suffix](io.TextIOWrapper(COMPRESSED[comp](path, "rb"),
                                                     errors="replace"))
-        return classes[suffix](_decompressed(Path(path), comp))
+        # BLF and MF4 readers seek: the log decompressed into an unnamed temporary file
+        return classes[suffix](_decompress_into(path, comp, tempfile.TemporaryFile(),
+                                                str(path), "file"))
     buf = stdin_buffer()
     if suffix in (".asc", ".trc"):
         return classes[suffix](io.TextIOWrapper(buf, errors="replace"))
     return classes[suffix](buf)
-
-
-def _decompressed(path: Path, comp: str) -> Any:
-    """A compressed binary log decompressed into an unnamed temporary file (python-can's
-    BLF and MF4 readers seek), at its start; BenchError when the stream is damaged."""
-    tmp = tempfile.TemporaryFile()  # noqa: SIM115 - the reader closes it
-    try:
-        with COMPRESSED[comp](path, "rb") as src:
-            shutil.copyfileobj(src, tmp, 1 << 20)
-    except DECOMPRESS_ERRORS as exc:
-        tmp.close()
-        raise BenchError(f"{path}: cannot decompress ({_reason(exc)}): is it a complete "
-                         f"{comp} file?") from None
-    tmp.seek(0)
-    return tmp
 
 
 def _reason(exc: BaseException) -> str:

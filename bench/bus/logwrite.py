@@ -14,6 +14,8 @@ import can
 from can.util import channel2int
 
 from bench import BenchError, allow_mf4_import
+from bench.signals.tables import table_suffix
+from bench.signals.textlines import COMPRESSED
 
 LOG_FORMATS = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF",
                ".trc": "PEAK TRC", ".mf4": "ASAM MDF4"}
@@ -22,7 +24,7 @@ ROTATING_FORMATS = (".log", ".asc", ".blf")
 """The formats `can.SizedRotatingLogger` writes (of LOG_FORMATS)."""
 
 
-COMPRESSIONS = (".gz", ".xz", ".bz2")
+COMPRESSIONS = tuple(COMPRESSED)
 """Compression suffixes a log to read may end in (``run.log.gz``, ``run.blf.xz``):
 decompressed as it is read (`bench.bus.logread`), as the tables' readers do."""
 
@@ -30,11 +32,8 @@ decompressed as it is read (`bench.bus.logread`), as the tables' readers do."""
 def log_suffixes(path: str | Path) -> tuple[str, str]:
     """(the format suffix, the compression suffix or "") of a log's name, lower case:
     ``run.asc.gz`` -> (".asc", ".gz"), ``run.log`` -> (".log", "")."""
-    p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix in COMPRESSIONS:
-        return Path(p.stem).suffix.lower(), suffix
-    return suffix, ""
+    suffix = Path(path).suffix.lower()
+    return table_suffix(path), suffix if suffix in COMPRESSED else ""
 
 
 def log_format(path: str | Path, what: str = "log", compressed: bool = False) -> str:

@@ -61,7 +61,7 @@ def frames(path: Path, issues: list) -> Iterator[can.Message]:
     with lines whose timestamp is not finite (a timestamp of 400 digits reads as inf)
     reported in `issues` and skipped: no time to play them at exists; another format
     through `bench.bus.logread.read_frames`, with the same check."""
-    from bench.bus.logread import DECOMPRESS_ERRORS, open_log_text
+    from bench.bus.logread import DECOMPRESS_ERRORS, cannot_decompress, open_log_text
     from bench.bus.logs import LogIssue, parse_line, read_frames
     from bench.bus.logwrite import log_suffixes
     fmt, comp = log_suffixes(path)
@@ -91,8 +91,7 @@ def frames(path: Path, issues: list) -> Iterator[can.Message]:
         except DECOMPRESS_ERRORS as exc:
             if not comp:
                 raise
-            raise BenchError(f"{path}: cannot decompress after line {lineno} ({exc}): is "
-                             f"it a complete {comp} file?") from None
+            raise BenchError(f"{path}: {cannot_decompress(comp, exc, lineno)}") from None
 
 
 class Pacer:

@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 
 from bench import BenchError
-from bench.bus.logread import DECOMPRESS_ERRORS
+from bench.bus.logread import DECOMPRESS_ERRORS, cannot_decompress
 from bench.bus.logs import TABLE_SUFFIXES
 from bench.bus.logwrite import COMPRESSIONS, LOG_FORMATS, log_suffixes
 from bench.signals.textlines import COMPRESSED
@@ -161,9 +161,9 @@ def _canonical(block: bytes, collapse: bool) -> bytes:
 
 def _unreadable(path: Path, exc: Exception) -> str:
     """Why a log's digest could not be taken, in words."""
-    comp = log_suffixes(path)[1]
-    if comp and log_suffixes(path)[0] in LOG_FORMATS:
-        return f"cannot decompress ({exc}): is it a complete {comp} file?"
+    fmt, comp = log_suffixes(path)
+    if comp and fmt in LOG_FORMATS:
+        return cannot_decompress(comp, exc)
     return f"cannot be read ({getattr(exc, 'strerror', None) or exc})"
 
 
