@@ -191,14 +191,6 @@ def build_params(args: argparse.Namespace) -> PlantParams:
         raise PlantError(str(exc)) from None
 
 
-def warm_up(params: PlantParams) -> None:
-    """Load the compiled plant step (numba's disk cache) before the node goes live."""
-    from plant_rt.model import Plant
-    p = Plant(params)
-    p.step(0.0)
-    p.measure()
-
-
 def run(args: argparse.Namespace) -> int:
     """Start the node; returns when stopped (SIGINT/SIGTERM) or after --duration."""
     if args.list_params:
@@ -221,7 +213,8 @@ def run(args: argparse.Namespace) -> int:
                          "~/.canrc), no vcan0, and no loopback hub running (start one with "
                          "`bench up`)")
     cfg, source = found
-    warm_up(params)
+    from plant_rt.model import warm_up
+    warm_up(params)             # before the bus opens: no frames queue while it loads
     from ema_contract.frames import Frames, exclude_filters
     from plant_rt.node import PlantNode
     try:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -368,3 +369,15 @@ class Plant:
     def state(self) -> dict[str, float]:
         """The whole state vector by name."""
         return dict(zip(K.STATE_NAMES, map(float, self.x), strict=True))
+
+
+def warm_up(params: PlantParams | None = None,
+            factory: Callable[[PlantParams], Plant] | None = None) -> None:
+    """Load the compiled plant step and sensors (numba's disk cache, or a compile of
+    seconds on a cold one) on a throwaway plant (`factory(params)`, a `Plant` by
+    default), so that no node pays for it at its first SYNC: a node silent that long
+    misses its heartbeat and is declared lost."""
+    params = params or PlantParams()
+    p = (factory or Plant)(params)
+    p.step(0.0)
+    p.measure()

@@ -54,7 +54,7 @@ from ema_contract.node import IDLE_POLL_S, CanopenNode
 from ema_contract.states import ControlWord, NMTState, Pace, Status, StatusWord
 from plant_rt.emcy import EMCY_CONDITIONS, ERR_COMMUNICATION, EmcyProducer, EmcyState
 from plant_rt.heartbeat import Heartbeat
-from plant_rt.model import Plant
+from plant_rt.model import Plant, warm_up
 from plant_rt.nodebase import Command, Counters
 from plant_rt.pacing import LatenessStats, RealtimePacer
 from plant_rt.paramobjects import ParamObjects
@@ -104,6 +104,7 @@ class PlantNode(EmcyProducer, Heartbeat, SdoObjects, CanopenNode):
             raise ValueError(f"serial number {self.serial} is not an UNSIGNED32 "
                              "(0..4294967295)")
         self.params = self.startup_params
+        warm_up(self.params, plant_factory)     # before the bus sees it: see warm_up
         self.plant = plant_factory(self.params)
         self.startup_pace = Pace(pace)
         self.pace = self.startup_pace

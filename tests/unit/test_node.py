@@ -245,3 +245,21 @@ def test_control_objects(rig):
     sdo["node_control"]["reset_plant"].raw = 1
     sdo["node_control"]["reset_counters"].raw = 1
     assert sdo["node_status"]["frames_received"].raw < 5
+
+
+def test_a_new_node_has_its_compiled_step_loaded_before_it_boots():
+    """Compiling or loading the plant's step (numba) takes seconds on a cold cache; a
+    node doing it at its first SYNC misses its heartbeat and the ECU declares it lost. A
+    fresh process that only builds a node has the step and the sensors loaded."""
+    import subprocess
+    import sys
+    code = ("import can\n"
+            "from plant_rt import kernel as K\n"
+            "from plant_rt.node import PlantNode\n"
+            "bus = can.Bus(interface='virtual', channel='warm-check')\n"
+            "PlantNode(bus)\n"
+            "bus.shutdown()\n"
+            "print(len(K.advance.signatures), len(K.measure.signatures))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True)
+    assert out.stdout.split() == ["1", "1"], out.stdout + out.stderr
